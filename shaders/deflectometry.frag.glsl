@@ -1,0 +1,89 @@
+#version 450
+// glshade fragment shader: one camera pixel per fragment (SPEC §5). Composed per scene
+// from the files under shaders/; only the code the scene needs is in it.
+{$ include "precision_" ~ precision ~ ".glsl" $}
+
+{$ for name in outputs $}
+{$ if name == "image" $}
+layout(location = {{ loop.index0 }}) out float out_image;   // radiance in [0, 1]
+{$ elif name == "uv" $}
+layout(location = {{ loop.index0 }}) out vec2 out_uv;       // emitter (u, v), mm; NaN: no hit
+{$ elif name == "mask" $}
+layout(location = {{ loop.index0 }}) out float out_mask;    // 1 where the emitter is reached
+{$ endif $}
+{$ endfor $}
+
+{$ include "camera.glsl" $}
+{$ include "surface_" ~ surface ~ ".glsl" $}
+{$ if defect == "none" $}
+{$ include "surface_hit_base.glsl" $}
+{$ else $}
+{$ include "defect_" ~ defect ~ ".glsl" $}
+{$ include "surface_hit_dent.glsl" $}
+{$ endif $}
+{$ include "emitter.glsl" $}
+{$ if "image" in outputs $}
+{$ include "reflect_" ~ reflection ~ ".glsl" $}
+{$ endif $}
+
+// Trace the ray through sensor position (col, row) (pixel units, row 0 at the top).
+bool trace(real col, real row, out float radiance, out real2 uv) {
+    radiance = 0.0;
+    uv = real2(0.0);
+    real3 d = camera_ray(col, row);
+    real t0 = -dot(u_cam_pos, d);
+    real3 o = u_cam_pos + t0 * d;            // closest approach to the dent centre
+    real3 p;
+    real2 dent_grad;
+    if (!surface_hit(o, d, -t0, p, dent_grad)) return false;
+    real3 n = normalize(base_normal(p, dent_grad));
+    real3 r = d - 2.0 * dot(d, n) * n;
+    real dist;
+    if (!emitter_hit(p, r, uv, dist)) return false;
+{$ if "image" in outputs $}
+    radiance = shade(d, n, r, uv, dist);
+{$ endif $}
+    return true;
+}
+
+{$ if supersample $}
+uniform int u_supersample;                   // rays per pixel side
+{$ endif $}
+
+void main() {
+    real col = floor(real(gl_FragCoord.x));
+    real row = floor(real(gl_FragCoord.y));  // framebuffer row 0 is image row 0 (top)
+    float radiance = 0.0;
+    real2 uv = real2(0.0);
+    bool reached = false;
+{$ if supersample $}
+    // n x n sub-pixel rays; radiance averages all, uv the ones that reach the emitter.
+    int hits = 0;
+    real step = 1.0 / real(u_supersample);
+    for (int a = 0; a < u_supersample; ++a) {
+        for (int b = 0; b < u_supersample; ++b) {
+            float sample_radiance;
+            real2 sample_uv;
+            if (trace(col + (real(b) + 0.5) * step, row + (real(a) + 0.5) * step, sample_radiance, sample_uv)) {
+                radiance += sample_radiance;
+                uv += sample_uv;
+                hits += 1;
+            }
+        }
+    }
+    radiance /= float(u_supersample * u_supersample);
+    reached = hits > 0;
+    if (reached) uv /= real(hits);
+{$ else $}
+    reached = trace(col + 0.5, row + 0.5, radiance, uv);
+{$ endif $}
+{$ if "image" in outputs $}
+    out_image = radiance;
+{$ endif $}
+{$ if "uv" in outputs $}
+    out_uv = reached ? vec2(uv) : vec2(uintBitsToFloat(0x7fc00000u));
+{$ endif $}
+{$ if "mask" in outputs $}
+    out_mask = reached ? 1.0 : 0.0;
+{$ endif $}
+}

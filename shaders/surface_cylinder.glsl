@@ -1,0 +1,67 @@
+// Base surface: cylinder of signed radius R (SPEC §4; R < 0: concave trough).
+uniform real u_radius;    // signed R, mm
+uniform real u_axis_off;  // local -> world offset of the coordinate across the axis, mm
+{$ if cylinder_axis == "z" $}
+// z (the plane of incidence): f = sqrt(R^2 - x^2) - R, across = x.
+real cyl_across(real3 p) { return p.x + u_axis_off; }
+real cyl_dir(real3 d) { return d.x; }
+real2 cyl_slope(real g) { return real2(g, 0.0); }
+{$ else $}
+// x (across the plane of incidence): f = sqrt(R^2 - z^2) - R, across = z.
+real cyl_across(real3 p) { return p.z + u_axis_off; }
+real cyl_dir(real3 d) { return d.z; }
+real2 cyl_slope(real g) { return real2(0.0, g); }
+{$ endif $}
+// Sag form f = -s a^2 / (|R| + w), w = sqrt(R^2 - a^2): see surface_sphere.glsl.
+
+bool base_hit(real3 o, real3 d, real shift, real tmin, out real t, out real t_far) {
+    real R = u_radius;
+    real s = sign(R);
+    real a0 = cyl_across(o);
+    real da = cyl_dir(d);
+    real h = o.y - shift;
+    real A = da * da + d.y * d.y;                 // not 1: the axis component drops out
+    if (A <= REAL_EPS * REAL_EPS) return false;   // ray along the axis
+    real c = a0 * a0 + h * h + 2.0 * R * h;
+    real b = a0 * da + (h + R) * d.y;
+    real disc = b * b - A * c;
+    if (disc < 0.0) return false;
+    real root = sqrt(disc);
+    real big = -(b + (b >= 0.0 ? root : -root));
+    real t1 = big / A;
+    real t2 = (big != 0.0) ? c / big : 0.0;
+    real t_near = min(t1, t2);
+    real t_exit = max(t1, t2);
+    bool near_on = s * (h + R + t_near * d.y) >= 0.0;
+    bool exit_on = s * (h + R + t_exit * d.y) >= 0.0;
+    t_far = t_exit;
+    if (t_near > tmin && near_on) {
+        t = t_near;
+        return R > 0.0;
+    }
+    if (t_exit > tmin && exit_on) {
+        t = t_exit;
+        t_far = 1.0e30;
+        return R < 0.0;
+    }
+    return false;
+}
+
+real base_height(real3 p) {
+    real a = cyl_across(p);
+    real w = sqrt(max(u_radius * u_radius - a * a, 0.0));
+    return -sign(u_radius) * a * a / (abs(u_radius) + w);
+}
+
+real2 base_slope(real3 p) {
+    real a = cyl_across(p);
+    real w = sqrt(max(u_radius * u_radius - a * a, REAL_EPS));
+    return cyl_slope(-sign(u_radius) * a / w);
+}
+
+real3 base_normal(real3 p, real2 dent_grad) {
+    real a = cyl_across(p);
+    real w = sqrt(max(u_radius * u_radius - a * a, 0.0));
+    real2 tilt = cyl_slope(sign(u_radius) * a);   // -f_slope * w
+    return real3(tilt.x - w * dent_grad.x, w, tilt.y - w * dent_grad.y);
+}

@@ -1,0 +1,63 @@
+// Base surface: sphere y = sqrt(R^2 - x^2 - z^2) - R (R < 0: concave bowl), SPEC §4.
+// Sag form f = -s r^2 / (|R| + w), w = sqrt(R^2 - r^2), s = sign(R): no cancellation
+// near the apex, where f is micrometres and R^2 is 4900.
+uniform real u_radius;    // signed R, mm
+uniform real2 u_axis_xz;  // (x0, z0): local -> world offset of the sphere's axis, mm
+
+real2 sphere_xz(real3 p) { return real2(p.x + u_axis_xz.x, p.z + u_axis_xz.y); }
+
+// First crossing from above of y = f + shift along o + t d, t > tmin.
+// Convex: the entry root on the upper half; concave: the exit root on the lower half.
+// A first intersection from the back side (e.g. a bowl's outer wall) occludes: false.
+bool base_hit(real3 o, real3 d, real shift, real tmin, out real t, out real t_far) {
+    real R = u_radius;
+    real s = sign(R);
+    real2 q = sphere_xz(o);
+    real h = o.y - shift;                       // height above the shifted apex plane
+    // |o - centre|^2 - R^2 with centre = (axis, shift - R): R^2 cancelled analytically.
+    real c = q.x * q.x + q.y * q.y + h * h + 2.0 * R * h;
+    real b = q.x * d.x + q.y * d.z + (h + R) * d.y;
+    real disc = b * b - c;
+    if (disc < 0.0) return false;
+    real root = sqrt(disc);
+    real big = -(b + (b >= 0.0 ? root : -root));  // stable pair: big and c / big
+    real t1 = big;
+    real t2 = (big != 0.0) ? c / big : 0.0;
+    real t_near = min(t1, t2);
+    real t_exit = max(t1, t2);
+    // Height relative to the centre, signed so that >= 0 is the surface's half.
+    bool near_on = s * (h + R + t_near * d.y) >= 0.0;
+    bool exit_on = s * (h + R + t_exit * d.y) >= 0.0;
+    t_far = t_exit;
+    if (t_near > tmin && near_on) {
+        t = t_near;
+        return R > 0.0;        // convex: entering the dome from above; concave: back wall
+    }
+    if (t_exit > tmin && exit_on) {
+        t = t_exit;
+        t_far = 1.0e30;
+        return R < 0.0;        // concave: leaving the bowl's inside downwards
+    }
+    return false;
+}
+
+real base_height(real3 p) {
+    real2 q = sphere_xz(p);
+    real r2 = dot(q, q);
+    real w = sqrt(max(u_radius * u_radius - r2, 0.0));
+    return -sign(u_radius) * r2 / (abs(u_radius) + w);
+}
+
+real2 base_slope(real3 p) {
+    real2 q = sphere_xz(p);
+    real w = sqrt(max(u_radius * u_radius - dot(q, q), REAL_EPS));
+    return -sign(u_radius) * q / w;
+}
+
+// (-h_x, 1, -h_z) multiplied by w: finite up to the silhouette.
+real3 base_normal(real3 p, real2 dent_grad) {
+    real2 q = sphere_xz(p);
+    real w = sqrt(max(u_radius * u_radius - dot(q, q), 0.0));
+    real s = sign(u_radius);
+    return real3(s * q.x - w * dent_grad.x, w, s * q.y - w * dent_grad.y);
+}

@@ -1,0 +1,120 @@
+"""The OpenGL context: headless EGL through moderngl/glcontext.
+
+On a machine without a GPU, EGL runs on Mesa's llvmpipe (a real GL 4.5 core context with
+fp64). ``GLSHADE_EGL_DEVICE`` (or ``device_index``) picks the EGL device on a multi-GPU
+machine; ``GLSHADE_LIBEGL`` overrides the EGL library that glcontext loads.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass
+
+import moderngl
+
+from .errors import ContextError
+
+log = logging.getLogger("glshade")
+
+#: GL version the shaders are written for (``#version 450``; fp64 is core since 4.0).
+REQUIRED_GL = 450
+
+INSTALL_HINT = (
+    "install the Debian packages libegl1 and libgl1-mesa-dri "
+    "(apt-get install libegl1 libgl1-mesa-dri), or a GPU driver with EGL"
+)
+
+
+@dataclass(frozen=True)
+class ContextInfo:
+    """What ``glshade info`` prints."""
+
+    renderer: str
+    vendor: str
+    version: str
+    version_code: int
+    fp64: bool
+    max_texture_size: int
+    device_index: int
+
+    def lines(self) -> list[str]:
+        return [
+            f"renderer:         {self.renderer}",
+            f"vendor:           {self.vendor}",
+            f"GL version:       {self.version} (code {self.version_code})",
+            f"fp64 shaders:     {'yes' if self.fp64 else 'no'}",
+            f"max texture size: {self.max_texture_size}",
+            f"EGL device index: {self.device_index}",
+        ]
+
+
+def _device_index_from_env() -> int:
+    raw = os.environ.get("GLSHADE_EGL_DEVICE", "0")
+    try:
+        index = int(raw)
+    except ValueError:
+        index = -1
+    if index < 0:
+        raise ContextError(f"GLSHADE_EGL_DEVICE: must be an integer >= 0, got {raw!r}")
+    return index
+
+
+class GLContext:
+    """Owns one standalone EGL context; a context manager. ``release()`` twice is harmless."""
+
+    def __init__(self, device_index: int | None = None, libegl: str | None = None) -> None:
+        self.device_index = _device_index_from_env() if device_index is None else int(device_index)
+        if self.device_index < 0:
+            raise ContextError(f"device_index: must be an integer >= 0, got {self.device_index}")
+        kwargs: dict[str, object] = {"backend": "egl", "device_index": self.device_index}
+        libegl = libegl or os.environ.get("GLSHADE_LIBEGL")
+        if libegl:
+            kwargs["libegl"] = libegl
+        try:
+            self.ctx: moderngl.Context | None = moderngl.create_standalone_context(**kwargs)
+        except Exception as exc:  # glcontext raises bare Exception for every failure
+            reason = " ".join(str(exc).split()) or type(exc).__name__
+            raise ContextError(
+                f"no OpenGL context through EGL (device {self.device_index}): {reason}; {INSTALL_HINT}"
+            ) from None
+        if self.ctx.version_code < REQUIRED_GL:
+            version = self.ctx.info.get("GL_VERSION", "?")
+            self.release()
+            raise ContextError(f"OpenGL {version} is too old: glshade needs 4.5 core; {INSTALL_HINT}")
+        info = self.info()
+        log.info("GL context: %s, GL %s, fp64 %s", info.renderer, info.version, info.fp64)
+
+    def info(self) -> ContextInfo:
+        ctx = self._live()
+        return ContextInfo(
+            renderer=ctx.info["GL_RENDERER"],
+            vendor=ctx.info["GL_VENDOR"],
+            version=ctx.info["GL_VERSION"],
+            version_code=ctx.version_code,
+            fp64=ctx.version_code >= 400 or "GL_ARB_gpu_shader_fp64" in ctx.extensions,
+            max_texture_size=int(ctx.info["GL_MAX_TEXTURE_SIZE"]),
+            device_index=self.device_index,
+        )
+
+    def _live(self) -> moderngl.Context:
+        if self.ctx is None:
+            raise ContextError("the GL context has been released")
+        return self.ctx
+
+    def check_error(self, where: str = "") -> None:
+        """Raise if GL has recorded an error (tests call this around each render)."""
+        error = self._live().error
+        if error != "GL_NO_ERROR":
+            raise RuntimeError(f"OpenGL error {error}" + (f" after {where}" if where else ""))
+
+    def release(self) -> None:
+        if self.ctx is not None:
+            self.ctx.release()
+            self.ctx = None
+
+    def __enter__(self) -> GLContext:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()

@@ -1,0 +1,35 @@
+"""The errors glshade raises on purpose.
+
+Every error a user can cause derives from :class:`GlshadeError`; the CLI prints its
+message as one line and exits with code 2. Anything else is a bug and keeps its
+traceback.
+"""
+
+from __future__ import annotations
+
+
+class GlshadeError(Exception):
+    """Base class: a problem the user can fix (bad input, missing system library)."""
+
+
+class SceneError(GlshadeError, ValueError):
+    """A scene value outside its allowed range.
+
+    ``field`` is the dotted name as it appears in a scene file (``camera.theta_deg``),
+    ``allowed`` says what would be accepted.
+    """
+
+    def __init__(self, field: str, allowed: str, got: object = None) -> None:
+        self.field = field
+        self.allowed = allowed
+        self.got = got
+        shown = "" if got is None else f", got {got!r}"
+        super().__init__(f"{field}: must be {allowed}{shown}")
+
+
+class ContextError(GlshadeError, RuntimeError):
+    """No OpenGL context could be created (missing libEGL, driver or device)."""
+
+
+class ShaderCompileError(GlshadeError, RuntimeError):
+    """The driver rejected a composed shader; the message shows the faulty lines."""

@@ -1,0 +1,48 @@
+"""What a render produces: the camera image, the screen-coordinate (uv) map and the mask.
+
+A field is ``None`` when the call did not ask for it (nothing was computed for it).
+
+Supersampling convention (shared by the shader and the NumPy reference): with ``n`` rays
+per pixel side the sub-pixel sample ``(a, b)`` sits at ``((b + 0.5)/n, (a + 0.5)/n)``
+inside the pixel; ``image`` is the mean radiance over all ``n²`` samples (a miss counts
+0), ``uv`` the mean over the samples that reach the emitter (NaN when none does), and
+``mask`` is True where at least one sample reaches the emitter.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: The outputs a render can be asked for.
+OUTPUTS: tuple[str, ...] = ("image", "uv", "mask")
+
+
+@dataclass(frozen=True)
+class Frame:
+    """``image``: radiance in [0, 1], float (H, W); ``uv``: emitter coordinates in mm,
+    float (H, W, 2), NaN where the ray reaches no emitter point; ``mask``: bool (H, W),
+    True where it does. Row 0 is the top of the image."""
+
+    image: np.ndarray | None = None
+    uv: np.ndarray | None = None
+    mask: np.ndarray | None = None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        for array in (self.image, self.uv, self.mask):
+            if array is not None:
+                return array.shape[:2]
+        raise ValueError("empty frame")
+
+
+def normalize_outputs(outputs: str | tuple[str, ...] | list[str] | frozenset[str]) -> frozenset[str]:
+    """Check and canonicalise a request such as ``("image", "uv")``."""
+    from .errors import GlshadeError
+
+    wanted = frozenset([outputs] if isinstance(outputs, str) else outputs)
+    unknown = wanted - set(OUTPUTS)
+    if unknown or not wanted:
+        raise GlshadeError(f"outputs: must be a non-empty subset of {', '.join(OUTPUTS)}, got {sorted(wanted)}")
+    return wanted

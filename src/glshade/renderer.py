@@ -1,0 +1,287 @@
+"""The renderer: scene -> shader features -> program -> frame.
+
+One fragment per camera pixel computes the ray, its first hit on the analytic surface,
+the mirror reflection and the stripe emitter's radiance (``shaders/``). Only the render
+targets a call asks for are attached, drawn and read back, straight into NumPy arrays.
+
+Numerics (the error budget, fp32):
+- Everything is computed in a frame centred on the dent, ``O = (x0, 0, z0)``: uniforms
+  are formed in float64 on the CPU (``C - O`` and friends) and only then rounded.
+- Each ray is re-originated at its closest approach to the dent centre, so the solves
+  below work on millimetre-sized numbers instead of the camera's 175 mm: rounding the
+  origin shifts the ray sideways by ~1e-5 mm, about 3e-4 of a pixel's footprint.
+- Base surfaces: sag form ``f = -s r²/(|R| + sqrt(R² - r²))`` and the quadratic with
+  ``R²`` cancelled analytically and its roots in the stable ``q, c/q`` pair.
+- The dent: bracket between the base surface shifted by ``max(0, -dmax)`` and
+  ``min(0, -dmax)``, scanned for the first sign change, then Newton safeguarded by
+  bisection (:class:`RootSolver`).
+- The emitter: ``(E - P)·n_E = -De - P·n_E`` and ``(P - E)·e_v = P·e_v``, so no 256 mm
+  quantity is ever subtracted from another.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from .context import GLContext
+from .errors import ContextError, GlshadeError, SceneError
+from .frame import Frame, normalize_outputs
+from .scene import Scene
+from .shaders import ShaderFeatures, compile_error, compose
+
+#: Bytes per pixel of each output: GPU render target + host array.
+_OUTPUT_BYTES = {"image": 2 * 4, "uv": 2 * 8, "mask": 2 * 1}
+_TARGET_FORMAT = {"image": (1, "f4"), "uv": (2, "f4"), "mask": (1, "f1")}
+DEFAULT_MEMORY_BUDGET_MB = 2048
+
+
+@dataclass(frozen=True)
+class RootSolver:
+    """The dent's root finder: ``scan_steps`` pieces scanned for the first sign change,
+    then at most ``newton_iterations`` safeguarded Newton steps, stopping when a step is
+    below ``tolerance_mm`` (default: 1e-7 mm in fp32, 1e-13 mm in fp64)."""
+
+    scan_steps: int = 8
+    newton_iterations: int = 40
+    tolerance_mm: float | None = None
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.scan_steps <= 4096:
+            raise SceneError("root solver scan_steps", "an integer in [1, 4096]", self.scan_steps)
+        if not 0 <= self.newton_iterations <= 1000:
+            raise SceneError("root solver newton_iterations", "an integer in [0, 1000]", self.newton_iterations)
+        if self.tolerance_mm is not None and not (math.isfinite(self.tolerance_mm) and self.tolerance_mm > 0):
+            raise SceneError("root solver tolerance_mm", "a finite number > 0", self.tolerance_mm)
+
+    def tolerance_for(self, precision: str) -> float:
+        if self.tolerance_mm is not None:
+            return self.tolerance_mm
+        return 1e-7 if precision == "fp32" else 1e-13
+
+
+def memory_budget_from_env() -> int:
+    """Bytes allowed for one frame's buffers: ``GLSHADE_MEMORY_BUDGET_MB`` or 2048 MiB."""
+    raw = os.environ.get("GLSHADE_MEMORY_BUDGET_MB")
+    if raw is None:
+        return DEFAULT_MEMORY_BUDGET_MB << 20
+    try:
+        value = float(raw)
+    except ValueError:
+        value = -1.0
+    if not (math.isfinite(value) and value > 0):
+        raise SceneError("GLSHADE_MEMORY_BUDGET_MB", "a number of MiB > 0", raw)
+    return int(value * (1 << 20))
+
+
+def frame_bytes(width: int, height: int, outputs) -> int:
+    """Bytes one frame's render targets and host arrays take."""
+    return width * height * sum(_OUTPUT_BYTES[name] for name in normalize_outputs(outputs))
+
+
+def check_frame_budget(scene: Scene, outputs, budget_bytes: int) -> None:
+    """Reject a frame whose buffers would exceed ``budget_bytes``, naming the fields."""
+    cam = scene.camera
+    need = frame_bytes(cam.width, cam.height, outputs)
+    if need > budget_bytes:
+        per_pixel = need // (cam.width * cam.height)
+        max_pixels = budget_bytes // per_pixel
+        raise SceneError(
+            "camera.width x camera.height",
+            f"at most {max_pixels} pixels ({math.isqrt(max_pixels)}² square) for outputs "
+            f"{', '.join(sorted(normalize_outputs(outputs)))} within the memory budget of "
+            f"{budget_bytes / (1 << 20):.0f} MiB (GLSHADE_MEMORY_BUDGET_MB)",
+            f"{cam.width} x {cam.height}",
+        )
+
+
+def scene_uniforms(scene: Scene, solver: RootSolver = RootSolver()) -> dict[str, object]:
+    """Every uniform a program for ``scene`` may declare, computed in float64.
+
+    The local frame is the world shifted by the dent centre ``O = (x0, 0, z0)``.
+    """
+    cam, em, surf, dent = scene.camera, scene.emitter, scene.surface, scene.defect
+    origin = np.array([dent.x0, 0.0, dent.z0])
+    forward, right, up = cam.basis()
+    frame = scene.emitter_frame()
+    values: dict[str, object] = {
+        "u_cam_pos": tuple(cam.position() - origin),
+        "u_cam_forward": tuple(forward),
+        "u_cam_right": tuple(right),
+        "u_cam_up": tuple(up),
+        "u_focal": cam.focal,
+        "u_pitch": cam.pixel_pitch,
+        "u_size": (cam.width, cam.height),
+        "u_em_normal": tuple(frame.normal),
+        "u_em_eu": tuple(frame.e_u),
+        "u_em_ev": tuple(frame.e_v),
+        "u_em_dist": em.distance,
+        "u_em_offset": (float(origin @ frame.e_u), float(origin @ frame.e_v), float(origin @ frame.normal)),
+        "u_em_half": em.half_size,
+        "u_period": em.period,
+        "u_stripe_sigma": em.sigma_mm,
+        "u_phase": em.phase,
+        "u_radius": surf.radius,
+        "u_axis_xz": (dent.x0, dent.z0),
+        "u_axis_off": dent.x0 if surf.axis == "z" else dent.z0,
+        "u_dmax": dent.dmax,
+        "u_inv_sigma2": 1.0 / dent.sigma_x2,
+        "u_inv_cov": dent.inverse_covariance(),
+        "u_dent_lo": min(0.0, -dent.dmax),
+        "u_dent_hi": max(0.0, -dent.dmax),
+        "u_scan_steps": solver.scan_steps,
+        "u_newton_iterations": solver.newton_iterations,
+        "u_root_tol": solver.tolerance_for(scene.render.precision),
+        "u_supersample": scene.render.supersample,
+        "u_shininess": scene.render.shininess,
+    }
+    return values
+
+
+class _Targets:
+    """Render targets of one size and output set, reused across frames."""
+
+    def __init__(self, ctx: moderngl.Context, width: int, height: int, outputs: tuple[str, ...]) -> None:
+        self.textures = []
+        for name in outputs:
+            components, dtype = _TARGET_FORMAT[name]
+            self.textures.append(ctx.texture((width, height), components, dtype=dtype))
+        self.fbo = ctx.framebuffer(color_attachments=self.textures)
+
+    def release(self) -> None:
+        self.fbo.release()
+        for texture in self.textures:
+            texture.release()
+
+
+class Renderer:
+    """Turns scenes into frames on one GL context; a context manager.
+
+    ``context``: an existing :class:`GLContext` to share (not released by this renderer),
+    else one is created and owned. ``memory_budget_bytes``: largest frame accepted
+    (default ``GLSHADE_MEMORY_BUDGET_MB`` or 2 GiB). ``root_solver``: the dent solve.
+
+    Programs are cached by :class:`ShaderFeatures`; render targets by size and outputs.
+    """
+
+    def __init__(
+        self,
+        context: GLContext | None = None,
+        *,
+        memory_budget_bytes: int | None = None,
+        root_solver: RootSolver = RootSolver(),
+    ) -> None:
+        self._owns_context = context is None
+        self.context = context if context is not None else GLContext()
+        self.memory_budget_bytes = memory_budget_from_env() if memory_budget_bytes is None else memory_budget_bytes
+        self.root_solver = root_solver
+        self._programs: dict[ShaderFeatures, tuple[moderngl.Program, moderngl.VertexArray]] = {}
+        self._targets: dict[tuple[int, int, tuple[str, ...]], _Targets] = {}
+        self._max_side = self.context.info().max_texture_size
+        self._fp64 = self.context.info().fp64
+
+    # ---------------------------------------------------------------- lifetime
+    def release(self) -> None:
+        for program, vao in self._programs.values():
+            vao.release()
+            program.release()
+        self._programs.clear()
+        for targets in self._targets.values():
+            targets.release()
+        self._targets.clear()
+        if self._owns_context:
+            self.context.release()
+
+    def __enter__(self) -> Renderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+    # ---------------------------------------------------------------- programs
+    def program(self, features: ShaderFeatures) -> moderngl.Program:
+        """The compiled program for a feature set (compiled once per renderer)."""
+        return self._program(features)[0]
+
+    def _program(self, features: ShaderFeatures) -> tuple[moderngl.Program, moderngl.VertexArray]:
+        cached = self._programs.get(features)
+        if cached is not None:
+            return cached
+        if features.precision == "fp64" and not self._fp64:
+            raise ContextError("render.precision = fp64 needs GL_ARB_gpu_shader_fp64, which this GL lacks")
+        vertex, fragment = compose(features)
+        ctx = self.context._live()
+        try:
+            program = ctx.program(vertex_shader=vertex, fragment_shader=fragment)
+        except moderngl.Error as exc:
+            text = str(exc)
+            stage, source = ("vertex", vertex) if "vertex_shader" in text else ("fragment", fragment)
+            raise compile_error(stage, text, source, features) from None
+        vao = ctx.vertex_array(program, [])
+        self._programs[features] = (program, vao)
+        return program, vao
+
+    def _render_targets(self, width: int, height: int, outputs: tuple[str, ...]) -> _Targets:
+        key = (width, height, outputs)
+        targets = self._targets.get(key)
+        if targets is None:
+            if len(self._targets) >= 4:  # keep a few sizes, release the oldest
+                oldest = next(iter(self._targets))
+                self._targets.pop(oldest).release()
+            targets = _Targets(self.context._live(), width, height, outputs)
+            self._targets[key] = targets
+        return targets
+
+    # ---------------------------------------------------------------- render
+    def render(self, scene: Scene, outputs=("image",), *, out: Frame | None = None) -> Frame:
+        """Render ``scene``; ``outputs`` is a subset of image, uv, mask.
+
+        ``out``: a frame whose arrays (float32 image, float32 uv, bool mask of the right
+        shape) are filled in place instead of allocating new ones.
+        """
+        features = ShaderFeatures.from_scene(scene, outputs)
+        cam = scene.camera
+        width, height = cam.width, cam.height
+        if max(width, height) > self._max_side:
+            raise SceneError("camera.width/height", f"at most {self._max_side} pixels (GL_MAX_TEXTURE_SIZE)", max(width, height))
+        check_frame_budget(scene, features.outputs, self.memory_budget_bytes)
+
+        program, vao = self._program(features)
+        uniforms = scene_uniforms(scene, self.root_solver)
+        for name in program:
+            if name in uniforms:
+                program[name].value = uniforms[name]
+        targets = self._render_targets(width, height, features.outputs)
+        targets.fbo.use()
+        targets.fbo.viewport = (0, 0, width, height)
+        vao.render(moderngl.TRIANGLES, vertices=3)
+
+        arrays: dict[str, np.ndarray] = {}
+        for index, name in enumerate(features.outputs):
+            array = self._output_array(name, height, width, out)
+            components, dtype = _TARGET_FORMAT[name]
+            host = array.view(np.uint8) if name == "mask" else array
+            targets.fbo.read_into(host, viewport=(0, 0, width, height), components=components, attachment=index, dtype=dtype)
+            arrays[name] = array
+        return Frame(**arrays)
+
+    @staticmethod
+    def _output_array(name: str, height: int, width: int, out: Frame | None) -> np.ndarray:
+        shape = (height, width, 2) if name == "uv" else (height, width)
+        dtype = np.bool_ if name == "mask" else np.float32
+        given = getattr(out, name) if out is not None else None
+        if given is None:
+            return np.empty(shape, dtype)
+        if given.shape != shape or given.dtype != dtype or not given.flags.c_contiguous:
+            raise GlshadeError(f"out.{name}: must be a C-contiguous {np.dtype(dtype).name} array of shape {shape}")
+        return given
+
+
+def render(scene: Scene, outputs=("image",)) -> Frame:
+    """One-shot convenience: create a context, render, release."""
+    with Renderer() as renderer:
+        return renderer.render(scene, outputs)
