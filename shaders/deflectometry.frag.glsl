@@ -23,6 +23,7 @@ layout(location = {{ loop.index0 }}) out float out_mask;    // 1 where the emitt
 {$ endif $}
 {$ include "emitter.glsl" $}
 {$ if "image" in outputs $}
+{$ include "stripes.glsl" $}
 {$ include "reflect_" ~ reflection ~ ".glsl" $}
 {$ endif $}
 

@@ -7,9 +7,6 @@ uniform real3 u_em_ev;        // e_v
 uniform real u_em_dist;       // De, mm
 uniform real3 u_em_offset;    // (O.e_u, O.e_v, O.n_E) of the local origin O, mm
 uniform real2 u_em_half;      // half extents in u and v, mm
-uniform real u_period;        // mm
-uniform real u_stripe_sigma;  // mm
-uniform real u_phase;         // mm
 
 // Hit of the ray p + t r (p local) with the emitter's front: (u, v) in mm and t.
 bool emitter_hit(real3 p, real3 r, out real2 uv, out real dist) {
@@ -20,31 +17,4 @@ bool emitter_hit(real3 p, real3 r, out real2 uv, out real dist) {
     uv = real2(dot(p, u_em_eu) + u_em_offset.x + dist * dot(r, u_em_eu),
                dot(p, u_em_ev) + u_em_offset.y + dist * dot(r, u_em_ev));
     return abs(uv.x) <= u_em_half.x && abs(uv.y) <= u_em_half.y;   // else: curtain
-}
-
-// sum_k exp(-(v - phase - k period)^2 / (2 width^2)): narrow stripes summed directly
-// (|k| <= 5 around the nearest: the next term is below exp(-40)), wide ones through
-// the Poisson-summed Fourier series (terms m <= 3: the next is below exp(-70)).
-float stripes(real v, real width) {
-    real w = v - u_phase;
-    w -= u_period * floor(w / u_period + 0.5);         // nearest stripe at w = 0
-    float wf = float(w);
-    float p = float(u_period);
-    float s = float(width);
-    float total = 0.0;
-    if (s <= 0.5 * p) {
-        for (int k = -5; k <= 5; ++k) {
-            float x = (wf - float(k) * p) / s;
-            total += exp(-0.5 * x * x);
-        }
-    } else {
-        const float TWO_PI = 6.2831853;
-        float ratio = TWO_PI * s / p;
-        total = 1.0;
-        for (int m = 1; m <= 3; ++m) {
-            total += 2.0 * exp(-0.5 * ratio * ratio * float(m * m)) * cos(TWO_PI * float(m) * wf / p);
-        }
-        total *= sqrt(TWO_PI) * s / p;
-    }
-    return total;
 }

@@ -7,8 +7,10 @@ machine; ``GLSHADE_LIBEGL`` overrides the EGL library that glcontext loads.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import moderngl
@@ -82,11 +84,21 @@ class GLContext:
             version = self.ctx.info.get("GL_VERSION", "?")
             self.release()
             raise ContextError(f"OpenGL {version} is too old: glshade needs 4.5 core; {INSTALL_HINT}")
+        self._depth = 0
+        # A 1x1 framebuffer to bind while others are released: moderngl re-binds the
+        # framebuffer it last bound whenever it creates another, so that one must never
+        # be deleted while bound (a standalone context has no default framebuffer).
+        with self.current():
+            self._parking_texture = self.ctx.renderbuffer((1, 1), 1, dtype="f1")
+            self._parking = self.ctx.framebuffer(color_attachments=[self._parking_texture])
         info = self.info()
         log.info("GL context: %s, GL %s, fp64 %s", info.renderer, info.version, info.fp64)
 
     def info(self) -> ContextInfo:
-        ctx = self._live()
+        with self.current() as ctx:
+            return self._info(ctx)
+
+    def _info(self, ctx: moderngl.Context) -> ContextInfo:
         return ContextInfo(
             renderer=ctx.info["GL_RENDERER"],
             vendor=ctx.info["GL_VENDOR"],
@@ -102,15 +114,40 @@ class GLContext:
             raise ContextError("the GL context has been released")
         return self.ctx
 
+    @contextlib.contextmanager
+    def current(self) -> Iterator[moderngl.Context]:
+        """``with context.current() as ctx:`` makes this context current for the block.
+
+        Re-entrant: only the outermost block switches contexts, because glcontext's EGL
+        exit makes *no* context current (it does not restore the previous one). Every GL
+        call of glshade runs inside such a block, so several contexts can share a thread.
+        """
+        ctx = self._live()
+        if self._depth == 0:
+            ctx.__enter__()
+        self._depth += 1
+        try:
+            yield ctx
+        finally:
+            self._depth -= 1
+            if self._depth == 0:
+                ctx.__exit__(None, None, None)
+
+    def park(self) -> None:
+        """Bind the context's own 1x1 framebuffer (call before releasing a bound one)."""
+        with self.current():
+            self._parking.use()
+
     def check_error(self, where: str = "") -> None:
         """Raise if GL has recorded an error (tests call this around each render)."""
-        error = self._live().error
+        with self.current() as ctx:
+            error = ctx.error
         if error != "GL_NO_ERROR":
             raise RuntimeError(f"OpenGL error {error}" + (f" after {where}" if where else ""))
 
     def release(self) -> None:
         if self.ctx is not None:
-            self.ctx.release()
+            self.ctx.release()  # destroys the EGL context and every object in it
             self.ctx = None
 
     def __enter__(self) -> GLContext:

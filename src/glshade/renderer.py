@@ -145,14 +145,17 @@ def scene_uniforms(scene: Scene, solver: RootSolver = RootSolver()) -> dict[str,
 class _Targets:
     """Render targets of one size and output set, reused across frames."""
 
-    def __init__(self, ctx: moderngl.Context, width: int, height: int, outputs: tuple[str, ...]) -> None:
-        self.textures = []
-        for name in outputs:
-            components, dtype = _TARGET_FORMAT[name]
-            self.textures.append(ctx.texture((width, height), components, dtype=dtype))
-        self.fbo = ctx.framebuffer(color_attachments=self.textures)
+    def __init__(self, context: GLContext, width: int, height: int, outputs: tuple[str, ...]) -> None:
+        self.context = context
+        with context.current() as ctx:
+            self.textures = []
+            for name in outputs:
+                components, dtype = _TARGET_FORMAT[name]
+                self.textures.append(ctx.texture((width, height), components, dtype=dtype))
+            self.fbo = ctx.framebuffer(color_attachments=self.textures)
 
     def release(self) -> None:
+        self.context.park()  # never delete the framebuffer moderngl thinks is bound
         self.fbo.release()
         for texture in self.textures:
             texture.release()
@@ -186,12 +189,14 @@ class Renderer:
 
     # ---------------------------------------------------------------- lifetime
     def release(self) -> None:
-        for program, vao in self._programs.values():
-            vao.release()
-            program.release()
+        if self.context.ctx is not None:
+            with self.context.current():
+                for program, vao in self._programs.values():
+                    vao.release()
+                    program.release()
+                for targets in self._targets.values():
+                    targets.release()
         self._programs.clear()
-        for targets in self._targets.values():
-            targets.release()
         self._targets.clear()
         if self._owns_context:
             self.context.release()
@@ -205,7 +210,8 @@ class Renderer:
     # ---------------------------------------------------------------- programs
     def program(self, features: ShaderFeatures) -> moderngl.Program:
         """The compiled program for a feature set (compiled once per renderer)."""
-        return self._program(features)[0]
+        with self.context.current():
+            return self._program(features)[0]
 
     def _program(self, features: ShaderFeatures) -> tuple[moderngl.Program, moderngl.VertexArray]:
         cached = self._programs.get(features)
@@ -214,14 +220,14 @@ class Renderer:
         if features.precision == "fp64" and not self._fp64:
             raise ContextError("render.precision = fp64 needs GL_ARB_gpu_shader_fp64, which this GL lacks")
         vertex, fragment = compose(features)
-        ctx = self.context._live()
-        try:
-            program = ctx.program(vertex_shader=vertex, fragment_shader=fragment)
-        except moderngl.Error as exc:
-            text = str(exc)
-            stage, source = ("vertex", vertex) if "vertex_shader" in text else ("fragment", fragment)
-            raise compile_error(stage, text, source, features) from None
-        vao = ctx.vertex_array(program, [])
+        with self.context.current() as ctx:
+            try:
+                program = ctx.program(vertex_shader=vertex, fragment_shader=fragment)
+            except moderngl.Error as exc:
+                text = str(exc)
+                stage, source = ("vertex", vertex) if "vertex_shader" in text else ("fragment", fragment)
+                raise compile_error(stage, text, source, features) from None
+            vao = ctx.vertex_array(program, [])
         self._programs[features] = (program, vao)
         return program, vao
 
@@ -232,7 +238,7 @@ class Renderer:
             if len(self._targets) >= 4:  # keep a few sizes, release the oldest
                 oldest = next(iter(self._targets))
                 self._targets.pop(oldest).release()
-            targets = _Targets(self.context._live(), width, height, outputs)
+            targets = _Targets(self.context, width, height, outputs)
             self._targets[key] = targets
         return targets
 
@@ -249,7 +255,11 @@ class Renderer:
         if max(width, height) > self._max_side:
             raise SceneError("camera.width/height", f"at most {self._max_side} pixels (GL_MAX_TEXTURE_SIZE)", max(width, height))
         check_frame_budget(scene, features.outputs, self.memory_budget_bytes)
+        with self.context.current():
+            return self._draw(scene, features, out)
 
+    def _draw(self, scene: Scene, features: ShaderFeatures, out: Frame | None) -> Frame:
+        width, height = scene.camera.width, scene.camera.height
         program, vao = self._program(features)
         uniforms = scene_uniforms(scene, self.root_solver)
         for name in program:

@@ -1,0 +1,157 @@
+"""``glshade`` command line: a thin layer over the library.
+
+Bad input (a value out of range, an unknown key, a missing system library, an output
+path that cannot be written) prints one line, ``glshade: error: …``, and exits with
+code 2; nothing is written half-way (files are written atomically, after the render).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from . import __version__
+from .errors import GlshadeError
+from .scene import PRECISIONS, REFLECTIONS, SURFACE_KINDS, Scene, paper_scene
+
+EXIT_USAGE = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a usage error as one line (exit 2), like every other error."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(EXIT_USAGE, f"glshade: error: {message} (see '{self.prog} --help')\n")
+
+
+def _add_render(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "render",
+        help="render one image (and its uv map)",
+        description="Render a scene: a TOML scene file (SPEC §8) or, without one, the paper's "
+        "scene (flat, theta 45, sigma2 4 mm², dmax 5 µm, 1024²). Flags override the file.",
+    )
+    p.add_argument("scene", nargs="?", type=Path, help="scene file (TOML)")
+    p.add_argument("--surface", choices=SURFACE_KINDS, help="base surface kind")
+    p.add_argument("--radius", type=float, metavar="MM", help="cylinder/sphere radius, negative = concave")
+    p.add_argument("--axis", choices=("z", "x"), help="cylinder axis")
+    p.add_argument("--theta", type=float, metavar="DEG", help="camera elevation in (0, 90) degrees")
+    p.add_argument("--sigma2", type=float, metavar="MM2", help="isotropic defect variance, mm²")
+    p.add_argument("--dmax", type=float, metavar="MM", help="defect depth, mm (> 0 dent, < 0 bump, 0 none)")
+    p.add_argument("--phase", type=float, metavar="MM", help="stripe phase, mm")
+    p.add_argument("--period", type=float, metavar="MM", help="stripe period, mm")
+    p.add_argument("--size", type=int, metavar="N", help="N pixels across, same field of view (SPEC §2)")
+    p.add_argument("--precision", choices=PRECISIONS)
+    p.add_argument("--supersample", type=int, metavar="N", help="rays per pixel side (1..16)")
+    p.add_argument("--reflection", choices=REFLECTIONS)
+    p.add_argument("--shininess", type=float, metavar="N", help="Blinn-Phong exponent")
+    p.add_argument("-o", "--output", type=Path, default=Path("render.png"), help="image PNG (default render.png)")
+    p.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG bit depth (default 8)")
+    p.add_argument("--uv", type=Path, metavar="UV.npy", help="also write the uv map (float32 H×W×2, mm, NaN = no hit)")
+    p.add_argument("--save-scene", type=Path, metavar="SCENE.toml", help="also write the effective scene as TOML")
+    p.add_argument("--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)")
+    p.set_defaults(run=_cmd_render)
+
+
+def _add_info(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("info", help="print the GL renderer, version and fp64 support")
+    p.add_argument("--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)")
+    p.set_defaults(run=_cmd_info)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="glshade", description="GPU deflectometry simulator (stripe reflections on glossy surfaces).")
+    parser.add_argument("--version", action="version", version=f"glshade {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    _add_render(sub)
+    _add_info(sub)
+    return parser
+
+
+def scene_from_args(args: argparse.Namespace) -> Scene:
+    """The scene a ``render`` call describes: file (or paper default) + flag overrides."""
+    if args.scene is not None:
+        scene = Scene.load(args.scene)
+        if args.surface is not None:
+            scene = scene.updated(surface={"kind": args.surface})
+    else:
+        scene = paper_scene(args.surface or "flat")
+    tables: dict[str, dict[str, object]] = {"camera": {}, "emitter": {}, "surface": {}, "defect": {}, "render": {}}
+    pairs = [
+        ("radius", "surface", "radius"), ("axis", "surface", "axis"), ("theta", "camera", "theta_deg"),
+        ("sigma2", "defect", "sigma2"), ("dmax", "defect", "dmax"), ("phase", "emitter", "phase"),
+        ("period", "emitter", "period"), ("precision", "render", "precision"),
+        ("supersample", "render", "supersample"), ("reflection", "render", "reflection"),
+        ("shininess", "render", "shininess"),
+    ]
+    for attr, table, key in pairs:
+        value = getattr(args, attr)
+        if value is not None:
+            tables[table][key] = value
+    scene = scene.updated(**{t: v for t, v in tables.items() if v})
+    if args.size is not None:
+        scene = scene.with_size(args.size)
+    return scene
+
+
+def _check_writable(path: Path, flag: str) -> None:
+    """Fail before rendering when an output cannot be written."""
+    parent = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise GlshadeError(f"{flag} {path}: is a directory, expected a file path")
+    if not parent.is_dir():
+        raise GlshadeError(f"{flag} {path}: directory {parent} does not exist")
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    from .context import GLContext
+    from .files import write_npy, write_png
+    from .renderer import Renderer
+
+    scene = scene_from_args(args)
+    for path, flag in ((args.output, "-o"), (args.uv, "--uv"), (args.save_scene, "--save-scene")):
+        if path is not None:
+            _check_writable(path, flag)
+    outputs = ("image", "uv") if args.uv is not None else ("image",)
+    with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
+        start = time.perf_counter()
+        frame = renderer.render(scene, outputs)
+        seconds = time.perf_counter() - start
+    write_png(args.output, frame.image, bits=args.bits)
+    if args.uv is not None:
+        write_npy(args.uv, frame.uv)
+    if args.save_scene is not None:
+        scene.save(args.save_scene)
+    cam = scene.camera
+    print(
+        f"wrote {args.output} ({cam.width}x{cam.height}, {scene.surface.kind}, theta {cam.theta_deg:g} deg, "
+        f"{scene.render.precision}, {seconds * 1e3:.0f} ms)"
+    )
+    return 0
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from .context import GLContext
+
+    with GLContext(device_index=args.device) as context:
+        info = context.info()
+    print(f"glshade {__version__}")
+    for line in info.lines():
+        print(line)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.run(args)
+    except GlshadeError as exc:
+        message = " ".join(str(exc).split()) if "\n" not in str(exc) else str(exc)
+        print(f"glshade: error: {message}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,38 @@
+"""Shared fixtures: one GL context and renderer per test session, GL error checks,
+and the ``--regenerate-snapshots`` option."""
+
+from __future__ import annotations
+
+import pytest
+
+from glshade.context import GLContext
+from glshade.renderer import Renderer
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--regenerate-snapshots",
+        action="store_true",
+        default=False,
+        help="rewrite the reference images under tests/snapshots/ instead of comparing",
+    )
+
+
+@pytest.fixture(scope="session")
+def gl_context():
+    with GLContext() as context:
+        yield context
+
+
+@pytest.fixture(scope="session")
+def _session_renderer(gl_context):
+    with Renderer(gl_context) as renderer:
+        yield renderer
+
+
+@pytest.fixture
+def renderer(_session_renderer, gl_context):
+    """The session's renderer; GL must report no error before and after each test."""
+    gl_context.check_error("the previous test")
+    yield _session_renderer
+    gl_context.check_error("this test")
