@@ -6,6 +6,8 @@
 {$ for name in outputs $}
 {$ if name == "image" $}
 layout(location = {{ loop.index0 }}) out float out_image;   // radiance in [0, 1]
+{$ elif name == "uv" and precision == "fp64" $}
+layout(location = {{ loop.index0 }}) out vec4 out_uv;       // (u, v) as float hi, lo pairs: fp64 on read-back
 {$ elif name == "uv" $}
 layout(location = {{ loop.index0 }}) out vec2 out_uv;       // emitter (u, v), mm; NaN: no hit
 {$ elif name == "mask" $}
@@ -31,12 +33,11 @@ layout(location = {{ loop.index0 }}) out float out_mask;    // 1 where the emitt
 bool trace(real col, real row, out float radiance, out real2 uv) {
     radiance = 0.0;
     uv = real2(0.0);
-    real3 d = camera_ray(col, row);
-    real t0 = -dot(u_cam_pos, d);
-    real3 o = u_cam_pos + t0 * d;            // closest approach to the dent centre
+    Ray ray = camera_ray(col, row);
+    real3 d = ray.d;
     real3 p;
     real2 dent_grad;
-    if (!surface_hit(o, d, -t0, p, dent_grad)) return false;
+    if (!surface_hit(ray.o, d, ray.tmin, p, dent_grad)) return false;
     real3 n = normalize(base_normal(p, dent_grad));
     real3 r = d - 2.0 * dot(d, n) * n;
     real dist;
@@ -81,7 +82,10 @@ void main() {
 {$ if "image" in outputs $}
     out_image = radiance;
 {$ endif $}
-{$ if "uv" in outputs $}
+{$ if "uv" in outputs and precision == "fp64" $}
+    vec2 uv_hi = vec2(uv);
+    out_uv = reached ? vec4(uv_hi, vec2(uv - real2(uv_hi))) : vec4(uintBitsToFloat(0x7fc00000u));
+{$ elif "uv" in outputs $}
     out_uv = reached ? vec2(uv) : vec2(uintBitsToFloat(0x7fc00000u));
 {$ endif $}
 {$ if "mask" in outputs $}

@@ -53,7 +53,9 @@ bool surface_hit(real3 o, real3 d, real tmin, out real3 p, out real2 dent_grad) 
         real g = surface_gap(start + x * d, d, slope);
         if (g > 0.0) a = x; else b = x;
         real next = (slope != 0.0) ? x - g / slope : 0.5 * (a + b);
-        if (!(next > a && next < b)) next = 0.5 * (a + b);
+        // x itself is now an end of [a, b]: a converged step lands on it, so the
+        // closed bracket is the test (the open one would bisect away from the root).
+        if (!(next >= a && next <= b)) next = 0.5 * (a + b);
         bool done = abs(next - x) <= u_root_tol;
         x = next;
         if (done || g == 0.0) break;

@@ -36,6 +36,20 @@ def test_geometry_follows_spec():
     assert frame.centre @ frame.e_v == pytest.approx(0.0, abs=1e-12)
 
 
+def test_view_matrix_matches_basis():
+    import numpy as np
+
+    cam = Camera(theta_deg=20.0)
+    forward, right, up = cam.basis()
+    view = cam.view_matrix()
+    np.testing.assert_allclose(view[:3, 0], right, atol=1e-12)
+    np.testing.assert_allclose(view[:3, 1], up, atol=1e-12)
+    np.testing.assert_allclose(view[:3, 2], -forward, atol=1e-12)
+    # the principal point maps to the camera origin, the gazing point onto the axis
+    np.testing.assert_allclose(np.append(cam.position(), 1.0) @ view, [0, 0, 0, 1], atol=1e-9)
+    np.testing.assert_allclose((np.array([0.0, 0.0, 0.0, 1.0]) @ view)[:3], [0, 0, -cam.distance], atol=1e-9)
+
+
 def test_resampling_keeps_field_of_view():
     cam = Camera().resampled(256)
     assert (cam.width, cam.height, cam.pixel_pitch) == (256, 256, 0.02)

@@ -61,12 +61,28 @@ def _add_info(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=_cmd_info)
 
 
+def _add_bench(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "bench",
+        help="time the shaders (fp32, fp64) against the NumPy reference",
+        description="Render the paper's flat scene (theta 45) and report the median time per frame "
+        "and megapixels per second for the fp32 and fp64 shaders and the NumPy fp64 reference.",
+    )
+    p.add_argument("--size", type=int, default=1024, metavar="N", help="pixels across (default 1024)")
+    p.add_argument("--theta", type=float, default=45.0, metavar="DEG")
+    p.add_argument("--repeats", type=int, default=9, metavar="K", help="frames timed per shader (default 9)")
+    p.add_argument("--reference-rows", type=int, metavar="R", help="trace only R rows with NumPy and scale")
+    p.add_argument("--device", type=int, metavar="N", help="EGL device index")
+    p.set_defaults(run=_cmd_bench)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="glshade", description="GPU deflectometry simulator (stripe reflections on glossy surfaces).")
     parser.add_argument("--version", action="version", version=f"glshade {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     _add_render(sub)
     _add_info(sub)
+    _add_bench(sub)
     return parser
 
 
@@ -140,6 +156,20 @@ def _cmd_info(args: argparse.Namespace) -> int:
     print(f"glshade {__version__}")
     for line in info.lines():
         print(line)
+    return 0
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from . import bench
+    from .scene import Camera
+
+    if args.repeats < 1:
+        raise GlshadeError(f"--repeats: must be an integer >= 1, got {args.repeats}")
+    if args.reference_rows is not None and args.reference_rows < 1:
+        raise GlshadeError(f"--reference-rows: must be an integer >= 1, got {args.reference_rows}")
+    Camera().resampled(args.size)  # validates --size
+    timings, gl_renderer = bench.run(args.size, args.theta, args.repeats, args.reference_rows, args.device)
+    print(bench.report(timings, gl_renderer, args.size, args.theta, args.repeats))
     return 0
 
 

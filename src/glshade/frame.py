@@ -21,9 +21,10 @@ OUTPUTS: tuple[str, ...] = ("image", "uv", "mask")
 
 @dataclass(frozen=True)
 class Frame:
-    """``image``: radiance in [0, 1], float (H, W); ``uv``: emitter coordinates in mm,
-    float (H, W, 2), NaN where the ray reaches no emitter point; ``mask``: bool (H, W),
-    True where it does. Row 0 is the top of the image."""
+    """``image``: radiance in [0, 1], float32 (H, W); ``uv``: emitter coordinates in mm,
+    (H, W, 2), NaN where the ray reaches no emitter point, float32 from fp32 shaders and
+    float64 from fp64 ones (and the NumPy reference); ``mask``: bool (H, W), True where
+    the ray reaches the emitter. Row 0 is the top of the image."""
 
     image: np.ndarray | None = None
     uv: np.ndarray | None = None

@@ -34,9 +34,17 @@ from .frame import Frame, normalize_outputs
 from .scene import Scene
 from .shaders import ShaderFeatures, compile_error, compose
 
-#: Bytes per pixel of each output: GPU render target + host array.
+#: Bytes per pixel of each output: GPU render target + host array (fp64 uv: an RGBA32F
+#: target of float hi/lo pairs, a float64 host array).
 _OUTPUT_BYTES = {"image": 2 * 4, "uv": 2 * 8, "mask": 2 * 1}
-_TARGET_FORMAT = {"image": (1, "f4"), "uv": (2, "f4"), "mask": (1, "f1")}
+_OUTPUT_BYTES_FP64 = {"image": 2 * 4, "uv": 16 + 32, "mask": 2 * 1}
+
+
+def _target_format(name: str, precision: str) -> tuple[int, str]:
+    """(components, moderngl dtype) of an output's render target."""
+    if name == "uv":
+        return (4 if precision == "fp64" else 2), "f4"
+    return 1, ("f1" if name == "mask" else "f4")
 DEFAULT_MEMORY_BUDGET_MB = 2048
 
 
@@ -78,15 +86,16 @@ def memory_budget_from_env() -> int:
     return int(value * (1 << 20))
 
 
-def frame_bytes(width: int, height: int, outputs) -> int:
+def frame_bytes(width: int, height: int, outputs, precision: str = "fp32") -> int:
     """Bytes one frame's render targets and host arrays take."""
-    return width * height * sum(_OUTPUT_BYTES[name] for name in normalize_outputs(outputs))
+    table = _OUTPUT_BYTES_FP64 if precision == "fp64" else _OUTPUT_BYTES
+    return width * height * sum(table[name] for name in normalize_outputs(outputs))
 
 
 def check_frame_budget(scene: Scene, outputs, budget_bytes: int) -> None:
     """Reject a frame whose buffers would exceed ``budget_bytes``, naming the fields."""
     cam = scene.camera
-    need = frame_bytes(cam.width, cam.height, outputs)
+    need = frame_bytes(cam.width, cam.height, outputs, scene.render.precision)
     if need > budget_bytes:
         per_pixel = need // (cam.width * cam.height)
         max_pixels = budget_bytes // per_pixel
@@ -109,7 +118,8 @@ def scene_uniforms(scene: Scene, solver: RootSolver = RootSolver()) -> dict[str,
     forward, right, up = cam.basis()
     frame = scene.emitter_frame()
     values: dict[str, object] = {
-        "u_cam_pos": tuple(cam.position() - origin),
+        "u_cam_dist": cam.distance,
+        "u_local_origin": tuple(origin),
         "u_cam_forward": tuple(forward),
         "u_cam_right": tuple(right),
         "u_cam_up": tuple(up),
@@ -145,12 +155,12 @@ def scene_uniforms(scene: Scene, solver: RootSolver = RootSolver()) -> dict[str,
 class _Targets:
     """Render targets of one size and output set, reused across frames."""
 
-    def __init__(self, context: GLContext, width: int, height: int, outputs: tuple[str, ...]) -> None:
+    def __init__(self, context: GLContext, width: int, height: int, outputs: tuple[str, ...], precision: str) -> None:
         self.context = context
         with context.current() as ctx:
             self.textures = []
             for name in outputs:
-                components, dtype = _TARGET_FORMAT[name]
+                components, dtype = _target_format(name, precision)
                 self.textures.append(ctx.texture((width, height), components, dtype=dtype))
             self.fbo = ctx.framebuffer(color_attachments=self.textures)
 
@@ -231,14 +241,14 @@ class Renderer:
         self._programs[features] = (program, vao)
         return program, vao
 
-    def _render_targets(self, width: int, height: int, outputs: tuple[str, ...]) -> _Targets:
-        key = (width, height, outputs)
+    def _render_targets(self, width: int, height: int, outputs: tuple[str, ...], precision: str) -> _Targets:
+        key = (width, height, outputs, precision == "fp64" and "uv" in outputs)
         targets = self._targets.get(key)
         if targets is None:
             if len(self._targets) >= 4:  # keep a few sizes, release the oldest
                 oldest = next(iter(self._targets))
                 self._targets.pop(oldest).release()
-            targets = _Targets(self.context, width, height, outputs)
+            targets = _Targets(self.context, width, height, outputs, precision)
             self._targets[key] = targets
         return targets
 
@@ -265,24 +275,35 @@ class Renderer:
         for name in program:
             if name in uniforms:
                 program[name].value = uniforms[name]
-        targets = self._render_targets(width, height, features.outputs)
+        targets = self._render_targets(width, height, features.outputs, features.precision)
         targets.fbo.use()
         targets.fbo.viewport = (0, 0, width, height)
         vao.render(moderngl.TRIANGLES, vertices=3)
 
         arrays: dict[str, np.ndarray] = {}
         for index, name in enumerate(features.outputs):
-            array = self._output_array(name, height, width, out)
-            components, dtype = _TARGET_FORMAT[name]
-            host = array.view(np.uint8) if name == "mask" else array
-            targets.fbo.read_into(host, viewport=(0, 0, width, height), components=components, attachment=index, dtype=dtype)
+            array = self._output_array(name, height, width, features.precision, out)
+            components, dtype = _target_format(name, features.precision)
+            viewport = (0, 0, width, height)
+            if name == "uv" and features.precision == "fp64":
+                pairs = np.empty((height, width, 4), np.float32)  # (u_hi, v_hi, u_lo, v_lo)
+                targets.fbo.read_into(pairs, viewport=viewport, components=4, attachment=index, dtype="f4")
+                np.add(pairs[..., :2], pairs[..., 2:], out=array, dtype=np.float64)
+            else:
+                host = array.view(np.uint8) if name == "mask" else array
+                targets.fbo.read_into(host, viewport=viewport, components=components, attachment=index, dtype=dtype)
             arrays[name] = array
         return Frame(**arrays)
 
     @staticmethod
-    def _output_array(name: str, height: int, width: int, out: Frame | None) -> np.ndarray:
+    def _output_array(name: str, height: int, width: int, precision: str, out: Frame | None) -> np.ndarray:
         shape = (height, width, 2) if name == "uv" else (height, width)
-        dtype = np.bool_ if name == "mask" else np.float32
+        if name == "mask":
+            dtype = np.bool_
+        elif name == "uv" and precision == "fp64":
+            dtype = np.float64
+        else:
+            dtype = np.float32
         given = getattr(out, name) if out is not None else None
         if given is None:
             return np.empty(shape, dtype)

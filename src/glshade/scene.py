@@ -126,6 +126,17 @@ class Camera:
         right = np.cross(forward, up)
         return forward, right, up
 
+    def view_matrix(self) -> np.ndarray:
+        """World -> camera 4x4 matrix (pyrr's look-at, row-vector convention), float64.
+
+        Its first three columns hold ``right``, ``up`` and ``-forward``; the viewer and
+        anything that projects world points into the image use it.
+        """
+        import pyrr
+
+        _, _, up = self.basis()
+        return np.asarray(pyrr.Matrix44.look_at(self.position(), np.zeros(3), up, dtype=np.float64))
+
     def resampled(self, size: int) -> Camera:
         """The same field of view on ``size`` pixels across (SPEC §2, ``--size N``).
 
