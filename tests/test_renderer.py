@@ -20,13 +20,18 @@ def test_only_requested_outputs_are_computed_and_read(renderer):
     frame = renderer.render(scene, ("uv",))
     assert frame.image is None and frame.mask is None
     assert frame.uv.shape == (32, 32, 2) and frame.uv.dtype == np.float32
-    assert (32, 32, ("uv",)) in renderer._targets
-    assert len(renderer._targets[(32, 32, ("uv",))].textures) == 1
+    assert len(renderer._targets[(32, 32, ("uv",), False)].textures) == 1
     full = renderer.render(scene, ("image", "uv", "mask"))
     assert full.image.dtype == np.float32 and full.mask.dtype == np.bool_
     np.testing.assert_array_equal(full.uv, frame.uv)
     # mask and NaN agree
     np.testing.assert_array_equal(full.mask, ~np.isnan(full.uv[..., 0]))
+
+
+def test_fp64_uv_is_float64(renderer):
+    frame = renderer.render(paper_scene().with_size(16).updated(render={"precision": "fp64"}), ("uv", "mask"))
+    assert frame.uv.dtype == np.float64
+    np.testing.assert_array_equal(np.isnan(frame.uv[..., 0]), ~frame.mask)
 
 
 def test_same_scene_gives_identical_bytes(renderer):
