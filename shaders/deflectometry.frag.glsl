@@ -36,9 +36,10 @@ bool trace(real col, real row, out float radiance, out real2 uv) {
     Ray ray = camera_ray(col, row);
     real3 d = ray.d;
     real3 p;
+    real depth;
     real2 dent_grad;
-    if (!surface_hit(ray.o, d, ray.tmin, p, dent_grad)) return false;
-    real3 n = normalize(base_normal(p, dent_grad));
+    if (!surface_hit(ray.o, d, ray.tmin, p, depth, dent_grad)) return false;
+    real3 n = normalize(base_normal(p, depth, dent_grad));
     real3 r = d - 2.0 * dot(d, n) * n;
     real dist;
     if (!emitter_hit(p, r, uv, dist)) return false;

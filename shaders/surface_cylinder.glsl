@@ -59,9 +59,10 @@ real2 base_slope(real3 p) {
     return cyl_slope(-sign(u_radius) * a / w);
 }
 
-real3 base_normal(real3 p, real2 dent_grad) {
+// w = sqrt(R^2 - a^2) taken from the height, as for the sphere.
+real3 base_normal(real3 p, real depth, real2 dent_grad) {
     real a = cyl_across(p);
-    real w = sqrt(max(u_radius * u_radius - a * a, 0.0));
+    real w = max(sign(u_radius) * (p.y - depth) + abs(u_radius), 0.0);
     real2 tilt = cyl_slope(sign(u_radius) * a);   // -f_slope * w
     return real3(tilt.x - w * dent_grad.x, w, tilt.y - w * dent_grad.y);
 }

@@ -12,5 +12,5 @@ bool base_hit(real3 o, real3 d, real shift, real tmin, out real t, out real t_fa
 real base_height(real3 p) { return 0.0; }
 real2 base_slope(real3 p) { return real2(0.0); }
 
-// Unnormalised normal of y = f + D given grad D = (D_x, D_z).
-real3 base_normal(real3 p, real2 dent_grad) { return real3(-dent_grad.x, 1.0, -dent_grad.y); }
+// Unnormalised normal of y = f + D at p, given D and grad D = (D_x, D_z).
+real3 base_normal(real3 p, real depth, real2 dent_grad) { return real3(-dent_grad.x, 1.0, -dent_grad.y); }

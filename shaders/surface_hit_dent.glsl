@@ -18,7 +18,7 @@ real surface_gap(real3 p, real3 d, out real slope) {
     return p.y - base_height(p) - depth;
 }
 
-bool surface_hit(real3 o, real3 d, real tmin, out real3 p, out real2 dent_grad) {
+bool surface_hit(real3 o, real3 d, real tmin, out real3 p, out real depth, out real2 dent_grad) {
     real t_hi, t_hi_far, t_lo, t_lo_far;
     if (!base_hit(o, d, u_dent_hi, tmin, t_hi, t_hi_far)) return false;
     bool lo_ok = base_hit(o, d, u_dent_lo, tmin, t_lo, t_lo_far);
@@ -61,6 +61,6 @@ bool surface_hit(real3 o, real3 d, real tmin, out real3 p, out real2 dent_grad) 
         if (done || g == 0.0) break;
     }
     p = start + x * d;
-    dent(p, dent_grad);
+    depth = dent(p, dent_grad);
     return true;
 }

@@ -54,10 +54,12 @@ real2 base_slope(real3 p) {
     return -sign(u_radius) * q / w;
 }
 
-// (-h_x, 1, -h_z) multiplied by w: finite up to the silhouette.
-real3 base_normal(real3 p, real2 dent_grad) {
+// (-h_x, 1, -h_z) multiplied by w = sqrt(R^2 - r^2): finite up to the silhouette.
+// On the surface w = s (y - D) + |R| (the height above the centre): taken from the
+// height it is well conditioned near the silhouette, where R^2 - r^2 cancels.
+real3 base_normal(real3 p, real depth, real2 dent_grad) {
     real2 q = sphere_xz(p);
-    real w = sqrt(max(u_radius * u_radius - dot(q, q), 0.0));
     real s = sign(u_radius);
+    real w = max(s * (p.y - depth) + abs(u_radius), 0.0);
     return real3(s * q.x - w * dent_grad.x, w, s * q.y - w * dent_grad.y);
 }
