@@ -2,7 +2,8 @@
 
 Each test derives its expected values independently of ``glshade.reference``: mirror
 images for the flat mirror, sphere/cylinder normals from their centres, the small-slope
-closed form of SPEC §6, a Blinn-Phong quadrature in half-vector space, a finer camera for
+closed form of SPEC §6, central differences of the height, a Blinn-Phong quadrature over
+the light direction (the tracer integrates over the half vector), a finer camera for
 supersampling. Images are small (windows of bigger sensors) so the file runs in seconds.
 """
 
@@ -15,6 +16,7 @@ import numpy as np
 import pytest
 
 from glshade import reference as ref
+from glshade.errors import SceneError
 from glshade.frame import Frame
 from glshade.scene import Camera, Defect, Emitter, RenderSettings, Scene, Surface, paper_scene
 
@@ -48,10 +50,6 @@ def _gap_along(scene: Scene, origin, direction, t) -> np.ndarray:
     """``y - (f + D)`` at ``origin + t direction`` via the public height function."""
     p = origin + np.asarray(t)[..., None] * direction
     return p[..., 1] - ref.surface_height(scene.surface, scene.defect, p[..., 0], p[..., 2])
-
-
-def _with(scene: Scene, **kw) -> Scene:
-    return replace(scene, **kw)
 
 
 # --------------------------------------------------------------------------- radiance
@@ -237,10 +235,56 @@ def test_sphere_silhouette_normals_stay_finite():
             assert abs(n[0, 1]) < 1e-6 and n[0, 2] > 1 - 1e-12
 
 
+def test_normals_match_finite_differences_with_anisotropic_defect():
+    """``n ∝ (-h_x, 1, -h_z)`` against central differences of the public height."""
+    scene = Scene(
+        camera=Camera(theta_deg=40.0, pixel_pitch=0.04, width=9, height=9),  # about ±1.3 mm
+        surface=Surface("sphere", 70.0),
+        defect=Defect(dmax=0.02, sigma_x2=0.5, sigma_z2=0.25, sigma_xz=0.2, x0=0.3, z0=-0.2),
+    )
+    origin, d = ref.pixel_rays(scene.camera)
+    t, p, n, valid = ref.first_hit(scene, origin, d)
+    assert valid.all()
+    x, z, eps = p[..., 0], p[..., 2], 1e-5
+    height = lambda x, z: ref.surface_height(scene.surface, scene.defect, x, z)
+    hx = (height(x + eps, z) - height(x - eps, z)) / (2 * eps)
+    hz = (height(x, z + eps) - height(x, z - eps)) / (2 * eps)
+    expected = np.stack([-hx, np.ones_like(hx), -hz], axis=-1)
+    expected /= np.linalg.norm(expected, axis=-1, keepdims=True)
+    np.testing.assert_allclose(n, expected, atol=1e-9)
+    assert np.abs(n[..., 0]).max() > 0.01  # the defect tilts the normals noticeably
+    np.testing.assert_allclose(p[..., 1], height(x, z), atol=1e-12)
+
+
+def test_rays_parallel_to_axes():
+    """Degenerate directions: along a cylinder's axis, straight down onto a sphere."""
+    none = Defect(dmax=0.0)
+    # a vertical ray: the sphere's domain test has no x/z motion
+    sphere = Scene(surface=Surface("sphere", 70.0), defect=none)
+    t, p, n, valid = ref.first_hit(sphere, np.array([0.0, 50.0, 0.0]), np.array([[0.0, -1.0, 0.0]]))
+    assert valid[0] and t[0] == pytest.approx(50.0, abs=1e-12)
+    np.testing.assert_allclose(n[0], [0.0, 1.0, 0.0], atol=1e-15)
+    # dz = 0 with the axis along x: the ray stays inside the slab |z| <= R for all t
+    cyl = Scene(surface=Surface("cylinder", 70.0, "x"), defect=none)
+    d = np.array([[1.0, -0.1, 0.0]])
+    t, p, n, valid = ref.first_hit(cyl, np.array([0.0, 5.0, 30.0]), d)
+    assert valid[0]
+    assert p[0, 1] == pytest.approx(math.sqrt(70.0**2 - 30.0**2) - 70.0, abs=1e-12)
+    # the centre column of an odd image has dx = 0 exactly: in the plane of a z-axis cylinder
+    scene = Scene(camera=Camera(theta_deg=30.0, width=5, height=5), surface=Surface("cylinder", 70.0, "z"), defect=none)
+    origin, dirs = ref.pixel_rays(scene.camera)
+    assert (dirs[:, 2, 0] == 0).all()
+    t, p, n, valid = ref.first_hit(scene, origin, dirs)
+    assert valid.all()
+    np.testing.assert_allclose(p[:, 2, 1], 0.0, atol=1e-12)  # f(x = 0) = 0
+    np.testing.assert_allclose(n[:, 2], np.tile([0.0, 1.0, 0.0], (5, 1)), atol=1e-15)
+
+
 # --------------------------------------------------------------------------- occlusion
 def test_deep_concave_bowl_hides_its_inside():
-    """R = -20 seen at 5°: the camera sits below the rim, outside; every ray meets the
-    outer wall of the shell first (a crossing from below), so the bowl is hidden."""
+    """R = -20 seen at 5°: the camera sits below the rim and outside it; a ray that
+    reaches the bowl meets the outer wall of the shell first (a crossing from below), so
+    the inside is hidden and every pixel is a miss."""
     bowl = Scene(
         camera=Camera(theta_deg=5.0).resampled(16),
         surface=Surface("sphere", -20.0),
@@ -349,21 +393,26 @@ def test_window_outputs_and_emitter_edges():
 
 
 # --------------------------------------------------------------------------- Blinn-Phong
-def _blinn_phong_half_vector(scene: Scene, p, d, normal, points=601, span=9.0) -> float:
-    """Independent Blinn-Phong quadrature over the half vector ``h`` (isotropic lobe of
-    std 1/sqrt(n) around the normal): ``l = 2 (wo·h) h - wo``, ``dω_l = 4 (wo·h) dω_h``."""
+def _blinn_phong_mirror_space(scene: Scene, p, d, normal, points=601, span=9.0) -> float:
+    """Independent Blinn-Phong quadrature over the light direction ``l`` (the tracer
+    integrates over the half vector): a gnomonic grid ``l ∝ r + α t1 + β t2`` around the
+    mirror direction, ``t1`` in the plane of incidence (lobe std 2/sqrt(n)), ``t2`` across
+    (std 2 cos θ_i / sqrt(n)), ``dω = dα dβ (1 + α² + β²)^{-3/2}``, trapezoid rule."""
     n = scene.render.shininess
     wo = -d
-    e1 = np.cross(normal, [1.0, 0.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(normal, e1)
-    a = np.linspace(-1.0, 1.0, points) * math.tan(span / math.sqrt(n))
-    aa, bb = np.meshgrid(a, a, indexing="ij")
+    r = d - 2.0 * (d @ normal) * normal
+    t2 = np.cross(normal, r)
+    t2 /= np.linalg.norm(t2)
+    t1 = np.cross(t2, r)
+    cos_i = wo @ normal
+    alpha = np.linspace(-1.0, 1.0, points) * math.tan(span * 2.0 / math.sqrt(n))
+    beta = np.linspace(-1.0, 1.0, points) * math.tan(span * 2.0 * cos_i / math.sqrt(n))
+    aa, bb = np.meshgrid(alpha, beta, indexing="ij")
     rr = 1.0 + aa * aa + bb * bb
-    h = (normal + aa[..., None] * e1 + bb[..., None] * e2) / np.sqrt(rr)[..., None]
-    woh = h @ wo
-    light = 2.0 * woh[..., None] * h - wo
-    weight = (h @ normal) ** n * 4.0 * np.maximum(woh, 0.0) * rr**-1.5
+    light = (r + aa[..., None] * t1 + bb[..., None] * t2) / np.sqrt(rr)[..., None]
+    half = light + wo
+    cos_h = (half @ normal) / np.linalg.norm(half, axis=-1)
+    weight = np.maximum(cos_h, 0.0) ** n * rr**-1.5
     trap = np.ones(points)
     trap[[0, -1]] = 0.5
     weight = weight * trap[:, None] * trap[None, :]
@@ -373,20 +422,25 @@ def _blinn_phong_half_vector(scene: Scene, p, d, normal, points=601, span=9.0) -
 
 
 @pytest.mark.parametrize(
-    "kind,theta,phase,pixel",
-    [("flat", 45.0, 0.5, (4, 4)), ("flat", 15.0, 0.0, (1, 6)), ("sphere", 45.0, 0.5, (2, 6))],
+    "kind,theta,phase,pixel,shininess",
+    [
+        ("flat", 45.0, 0.5, (4, 4), 1e6),
+        ("flat", 15.0, 0.0, (1, 6), 1e6),
+        ("flat", 5.0, 0.3, (2, 2), 1e6),
+        ("sphere", 45.0, 0.5, (2, 6), 1e6),
+        ("sphere", 25.0, 0.4, (5, 3), 1e5),
+    ],
 )
-def test_blinn_phong_matches_half_vector_quadrature(kind, theta, phase, pixel):
-    shininess = 1e6
+def test_blinn_phong_matches_mirror_space_quadrature(kind, theta, phase, pixel, shininess):
     scene = paper_scene(kind, theta_deg=theta, dmax=0.0, phase=phase).with_size(9)
     scene = replace(scene, render=RenderSettings(reflection="blinn-phong", shininess=shininess))
     rows, cols = slice(pixel[0], pixel[0] + 1), slice(pixel[1], pixel[1] + 1)
     value = ref.trace(scene, "image", rows=rows, cols=cols).image[0, 0]
     origin, d = ref.pixel_rays(scene.camera, rows, cols)
     t, p, n, valid = ref.first_hit(scene, origin, d)
-    expected = _blinn_phong_half_vector(scene, p[0, 0], d[0, 0], n[0, 0])
+    expected = _blinn_phong_mirror_space(scene, p[0, 0], d[0, 0], n[0, 0])
     assert 0.05 < expected < 0.95  # on a stripe's flank: sensitive to any error
-    assert value == pytest.approx(expected, abs=1e-8)
+    assert value == pytest.approx(expected, abs=1e-10)
 
 
 def test_blinn_phong_converges_to_mirror():
@@ -418,5 +472,5 @@ def test_blinn_phong_uniform_emitter_gives_one():
 
 def test_blinn_phong_rejects_tiny_exponents():
     scene = replace(paper_scene("flat").with_size(2), render=RenderSettings(reflection="blinn-phong", shininess=10.0))
-    with pytest.raises(ValueError, match="shininess"):
+    with pytest.raises(SceneError, match="render.shininess"):
         ref.trace(scene, "image")
