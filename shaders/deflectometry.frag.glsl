@@ -16,6 +16,9 @@ layout(location = {{ loop.index0 }}) out float out_mask;    // 1 where the emitt
 {$ endfor $}
 
 {$ include "camera.glsl" $}
+{$ if surface != "flat" $}
+{$ include "quadric_crossing.glsl" $}
+{$ endif $}
 {$ include "surface_" ~ surface ~ ".glsl" $}
 {$ if defect == "none" $}
 {$ include "surface_hit_base.glsl" $}

@@ -16,7 +16,6 @@ real2 cyl_slope(real g) { return real2(0.0, g); }
 
 bool base_hit(real3 o, real3 d, real shift, real tmin, out real t, out real t_far) {
     real R = u_radius;
-    real s = sign(R);
     real a0 = cyl_across(o);
     real da = cyl_dir(d);
     real h = o.y - shift;
@@ -32,19 +31,7 @@ bool base_hit(real3 o, real3 d, real shift, real tmin, out real t, out real t_fa
     real t2 = (big != 0.0) ? c / big : 0.0;
     real t_near = min(t1, t2);
     real t_exit = max(t1, t2);
-    bool near_on = s * (h + R + t_near * d.y) >= 0.0;
-    bool exit_on = s * (h + R + t_exit * d.y) >= 0.0;
-    t_far = t_exit;
-    if (t_near > tmin && near_on) {
-        t = t_near;
-        return R > 0.0;
-    }
-    if (t_exit > tmin && exit_on) {
-        t = t_exit;
-        t_far = 1.0e30;
-        return R < 0.0;
-    }
-    return false;
+    return first_crossing(R, t_near, t_exit, h + R + t_near * d.y, h + R + t_exit * d.y, tmin, t, t_far);
 }
 
 real base_height(real3 p) {

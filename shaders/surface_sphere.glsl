@@ -6,12 +6,9 @@ uniform real2 u_axis_xz;  // (x0, z0): local -> world offset of the sphere's axi
 
 real2 sphere_xz(real3 p) { return real2(p.x + u_axis_xz.x, p.z + u_axis_xz.y); }
 
-// First crossing from above of y = f + shift along o + t d, t > tmin.
-// Convex: the entry root on the upper half; concave: the exit root on the lower half.
-// A first intersection from the back side (e.g. a bowl's outer wall) occludes: false.
+// First crossing from above of y = f + shift along o + t d, t > tmin (quadric_crossing.glsl).
 bool base_hit(real3 o, real3 d, real shift, real tmin, out real t, out real t_far) {
     real R = u_radius;
-    real s = sign(R);
     real2 q = sphere_xz(o);
     real h = o.y - shift;                       // height above the shifted apex plane
     // |o - centre|^2 - R^2 with centre = (axis, shift - R): R^2 cancelled analytically.
@@ -25,20 +22,7 @@ bool base_hit(real3 o, real3 d, real shift, real tmin, out real t, out real t_fa
     real t2 = (big != 0.0) ? c / big : 0.0;
     real t_near = min(t1, t2);
     real t_exit = max(t1, t2);
-    // Height relative to the centre, signed so that >= 0 is the surface's half.
-    bool near_on = s * (h + R + t_near * d.y) >= 0.0;
-    bool exit_on = s * (h + R + t_exit * d.y) >= 0.0;
-    t_far = t_exit;
-    if (t_near > tmin && near_on) {
-        t = t_near;
-        return R > 0.0;        // convex: entering the dome from above; concave: back wall
-    }
-    if (t_exit > tmin && exit_on) {
-        t = t_exit;
-        t_far = 1.0e30;
-        return R < 0.0;        // concave: leaving the bowl's inside downwards
-    }
-    return false;
+    return first_crossing(R, t_near, t_exit, h + R + t_near * d.y, h + R + t_exit * d.y, tmin, t, t_far);
 }
 
 real base_height(real3 p) {

@@ -17,6 +17,7 @@ from glshade.shaders import FRAGMENT_TEMPLATE, ShaderFeatures, compose, error_li
 # Identifiers that only one feature's code declares.
 MARKERS = {
     "flat": ["real base_height(real3 p) { return 0.0; }"],
+    "curved": ["first_crossing("],
     "sphere": ["sphere_xz", "u_axis_xz"],
     "cylinder": ["cyl_across", "u_axis_off"],
     "cylinder_z": ["return p.x + u_axis_off"],
@@ -48,13 +49,13 @@ def present(src, feature):
 def test_flat_scene_has_no_curved_surface_code():
     src = source(paper_scene("flat"))
     assert present(src, "flat")
-    assert absent(src, "sphere") and absent(src, "cylinder")
+    assert absent(src, "sphere") and absent(src, "cylinder") and absent(src, "curved")
     assert "u_radius" not in src
 
 
 def test_sphere_scene_has_no_cylinder_or_flat_code():
     src = source(paper_scene("sphere"))
-    assert present(src, "sphere")
+    assert present(src, "sphere") and present(src, "curved")
     assert absent(src, "cylinder") and absent(src, "flat")
 
 
