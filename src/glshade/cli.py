@@ -61,6 +61,67 @@ def _add_info(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=_cmd_info)
 
 
+def _float_csv(text: str) -> list[float]:
+    try:
+        return [float(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+
+
+def _add_paper(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "paper",
+        help="run the paper's whole study (the main job)",
+        description="Run Table 1 of the paper (9 theta x 4 sigma2 x 2 dmax on flat, cylinder and sphere) "
+        "and write results.csv, image grids, visibility plots, the Fig. 9 contour overlay and report.md. "
+        "Rerunning with the same --out resumes: finished cases are skipped.",
+    )
+    p.add_argument("--out", type=Path, default=Path("paper_study"), metavar="DIR", help="output directory (default paper_study)")
+    p.add_argument("--surfaces", default="flat,cylinder,sphere", metavar="LIST", help="comma-separated surface kinds")
+    p.add_argument("--thetas", type=_float_csv, metavar="LIST", help="camera elevations, strictly decreasing (default 85,75,…,5)")
+    p.add_argument("--sigma2s", type=_float_csv, metavar="LIST", help="defect variances, mm² (default 1,4,9,16)")
+    p.add_argument("--dmaxs", type=_float_csv, metavar="LIST", help="defect depths, mm (default 0.003,0.005)")
+    p.add_argument("--size", type=int, default=1024, metavar="N", help="pixels across, the paper's field of view (default 1024)")
+    p.add_argument("--step", type=float, default=0.25, metavar="MM", help="phase step of the metric, mm (default 0.25)")
+    p.add_argument("--threshold", type=float, default=0.5, help="binarisation threshold, fraction of the peak (default 0.5)")
+    p.add_argument("--keep-fraction", type=float, default=0.5, help="central fraction of the columns kept (default 0.5)")
+    p.add_argument("--workers", type=int, default=2, metavar="N", help="threads for the OpenCV analysis (default 2)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--device", type=int, metavar="N", help="EGL device index")
+    p.set_defaults(run=_cmd_paper)
+
+
+def _cmd_paper(args: argparse.Namespace) -> int:
+    from . import findings, plots, study
+    from .context import GLContext
+    from .renderer import Renderer
+    from .visibility import MetricSettings
+
+    metric = MetricSettings(threshold=args.threshold, keep_fraction=args.keep_fraction, step_mm=args.step)
+    surfaces = tuple(part.strip() for part in args.surfaces.split(",") if part.strip())
+    plan = study.StudyPlan(
+        surfaces=surfaces,
+        thetas=tuple(args.thetas) if args.thetas is not None else study.PAPER_THETAS,
+        sigma2s=tuple(args.sigma2s) if args.sigma2s is not None else study.PAPER_SIGMA2S,
+        dmaxs=tuple(args.dmaxs) if args.dmaxs is not None else study.PAPER_DMAXS,
+        size=args.size,
+        metric=metric,
+    )
+    start = time.perf_counter()
+    with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
+        result = study.run_study(plan, args.out, workers=args.workers, progress=not args.no_progress, renderer=renderer)
+    figure_start = time.perf_counter()
+    written = plots.write_figures(result.rows, args.out, plan)
+    result.timings.figures = time.perf_counter() - figure_start
+    overlay = args.out / "fig09_contour_overlay.png"
+    report = findings.write_report(result.rows, args.out, plan, ([overlay] if overlay.exists() else []) + written, result.timings)
+    print(
+        f"{result.computed} cases computed, {result.skipped} resumed; wrote {args.out / 'results.csv'}, "
+        f"{len(written)} figures and {report} in {time.perf_counter() - start:.1f} s"
+    )
+    return 0
+
+
 def _add_bench(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "bench",
@@ -82,6 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     _add_render(sub)
     _add_info(sub)
+    _add_paper(sub)
     _add_bench(sub)
     return parser
 

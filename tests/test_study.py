@@ -1,0 +1,154 @@
+"""The paper's study: a reduced run end to end, resuming, bad input."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from glshade import findings
+from glshade.cli import main
+from glshade.errors import GlshadeError
+from glshade.study import CSV_COLUMNS, StudyPlan, read_results_csv, run_study
+
+TIMING = {"trace_s", "shade_s", "opencv_s", "continuous_s"}
+SMALL = dict(thetas=(45.0, 5.0), size=128)
+
+
+def _stable(rows):
+    return [{k: v for k, v in r.items() if k not in TIMING} for r in rows]
+
+
+def test_reduced_study_end_to_end_through_the_cli(tmp_path, capsys):
+    out = tmp_path / "study"
+    assert main(["paper", "--out", str(out), "--size", "128", "--thetas", "45,5", "--no-progress"]) == 0
+    assert "48 cases computed" in capsys.readouterr().out
+    rows = read_results_csv(out / "results.csv")
+    assert len(rows) == 3 * 2 * 4 * 2
+    assert list(rows[0]) == CSV_COLUMNS
+    assert {r["surface"] for r in rows} == {"flat", "cylinder", "sphere"}
+    assert all(r["period_mm"] == (10.0 if r["surface"] == "sphere" else 2.0) for r in rows)
+    case = {(r["surface"], r["theta_deg"], r["sigma2_mm2"], r["dmax_mm"]): r for r in rows}
+    # flat, steep deep dent at 45 deg: the continuous metric is the closed form scaled to
+    # 128 px (18 / 8 px); the 2 mm stripes span 2.9 px per period at this size, so the
+    # contour metric has nothing resolved to measure, and says so
+    flat = case[("flat", 45.0, 1.0, 0.005)]
+    assert flat["visibility_continuous_px"] == pytest.approx(18.0 / 8, rel=0.05)
+    assert flat["unresolved_fraction"] == pytest.approx(1.0) and flat["visibility_px"] == 0.0
+    # the convex sphere compresses even its 10 mm stripes below 4 px per period at this
+    # size; the continuous metric still measures the dent
+    sphere = case[("sphere", 45.0, 1.0, 0.005)]
+    assert sphere["unresolved_fraction"] > 0.9
+    assert sphere["visibility_continuous_px"] > 0.2
+    assert all(0.0 <= r["unresolved_fraction"] <= 1.0 for r in rows)
+    for name in (
+        "fig09_contour_overlay.png", "grid_flat_dmax5um.png", "grid_sphere_dmax3um.png",
+        "visibility_cylinder_dmax5um.png", "report.md", "study.json",
+    ):
+        assert (out / name).stat().st_size > 0, name
+    report = (out / "report.md").read_text()
+    for number in range(1, 6):
+        assert f"## Finding {number}" in report
+    assert "## Where the two metrics disagree" in report
+    assert "not resolved" in report  # the flat cases at 128 px are called out
+    assert not list(out.rglob("*.tmp"))
+
+
+def test_resume_after_interruption_gives_the_same_results(tmp_path):
+    plan = StudyPlan(surfaces=("flat", "sphere"), **SMALL)
+    whole = run_study(plan, tmp_path / "whole", progress=False)
+
+    class Stop(Exception):
+        pass
+
+    done = []
+
+    def interrupt(row):
+        done.append(row)
+        if len(done) == 5:
+            raise Stop
+
+    with pytest.raises(Stop):
+        run_study(plan, tmp_path / "resumed", progress=False, on_case_done=interrupt)
+    assert len(list((tmp_path / "resumed" / "cases").glob("*.json"))) == 5
+    assert not (tmp_path / "resumed" / "results.csv").exists()
+    resumed = run_study(plan, tmp_path / "resumed", progress=False)
+    assert (resumed.skipped, resumed.computed) == (5, len(plan.cases()) - 5)
+    assert _stable(read_results_csv(tmp_path / "resumed" / "results.csv")) == _stable(
+        read_results_csv(tmp_path / "whole" / "results.csv")
+    )
+    assert _stable(resumed.rows) == _stable(whole.rows)
+    # a third run computes nothing
+    again = run_study(plan, tmp_path / "resumed", progress=False)
+    assert again.computed == 0
+
+
+def test_directory_with_other_settings_is_refused(tmp_path):
+    run_study(StudyPlan(surfaces=("flat",), thetas=(45.0,), sigma2s=(4.0,), dmaxs=(0.005,), size=64), tmp_path, progress=False)
+    with pytest.raises(GlshadeError, match="other settings"):
+        run_study(StudyPlan(surfaces=("flat",), thetas=(45.0,), sigma2s=(4.0,), dmaxs=(0.005,), size=96), tmp_path, progress=False)
+
+
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--surfaces", "flat,torus"], "unknown surface 'torus'"),
+        (["--surfaces", ""], "surfaces: must list at least one"),
+        (["--thetas", ""], "thetas: must list at least one value"),
+        (["--thetas", "5,45"], "thetas: must be strictly decreasing"),
+        (["--thetas", "95,45"], "thetas: every value must be in (0, 90)"),
+        (["--step", "3"], "step: must be at most one stripe period (2 mm)"),
+        (["--step", "0"], "step: must be a number of mm > 0"),
+        (["--sigma2s", "-1"], "sigma2s: every value must be in (0, inf)"),
+        (["--workers", "0"], "--workers: must be an integer >= 1"),
+        (["--size", "0"], "camera.width: must be an integer in [1, 16384]"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2(tmp_path, args, fragment):
+    out = tmp_path / "out"
+    result = subprocess.run(
+        [sys.executable, "-m", "glshade.cli", "paper", "--out", str(out), "--no-progress", *args],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("glshade: error: ") and fragment in lines[0], result.stderr
+    if "--workers" not in args:
+        assert not out.exists()  # rejected before anything is written
+
+
+def test_output_path_that_is_a_file(tmp_path):
+    target = tmp_path / "taken"
+    target.write_text("keep me")
+    for out, fragment in ((target, "is a file"), (target / "sub", "cannot create it")):
+        result = subprocess.run(
+            [sys.executable, "-m", "glshade.cli", "paper", "--out", str(out), "--size", "32", "--no-progress"],
+            capture_output=True, text=True, timeout=120,
+        )
+        assert result.returncode == 2 and fragment in result.stderr, result.stderr
+    assert target.read_text() == "keep me"
+
+
+def test_findings_rules_on_made_up_rows():
+    """The verdict rules on rows built to hold or to fail each finding."""
+    rows = []
+    for surface in ("flat", "sphere"):
+        for theta in (85.0, 45.0, 5.0):
+            for sigma2 in (1.0, 4.0, 9.0, 16.0):
+                for dmax in (0.003, 0.005):
+                    steep = sigma2 <= 4.0
+                    trend = theta / 10 if steep else (90 - theta) / 10  # finding 3 and 4 as the paper says
+                    value = dmax * 1000 * (20 / sigma2) + trend
+                    if surface == "sphere" and steep:
+                        value = dmax * 1000 * (20 / sigma2) + 5.0  # no trend with theta
+                    rows.append(dict(surface=surface, theta_deg=theta, sigma2_mm2=sigma2, dmax_mm=dmax,
+                                     visibility_px=value, visibility_continuous_px=value, folded=False))
+    verdicts = {(v.finding, v.scope): v.verdict for v in findings.evaluate(rows) if v.metric == "paper metric"}
+    assert verdicts[(1, "flat")] == findings.HOLDS
+    assert verdicts[(3, "flat, dmax 0.005")] == findings.HOLDS
+    assert verdicts[(4, "flat, dmax 0.005")] == findings.HOLDS
+    assert verdicts[(4, "sphere, dmax 0.005")] == findings.NOT
+    assert verdicts[(5, "flat, sphere")] == findings.NOT
+    assert findings.spearman([1, 2, 3], [3, 2, 1]) == pytest.approx(-1.0)
+    assert findings.spearman([1, 2, 3], [5, 5, 5]) == 0.0
