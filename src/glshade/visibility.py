@@ -246,34 +246,46 @@ def pair_stripes(normal: Stripes, defect: Stripes, min_iou: float = 0.5) -> tupl
     return joined, int(unpaired)
 
 
-def _edge_shift(source: np.ndarray, target: np.ndarray, partner: dict[int, list[int]], shape: tuple[int, int]) -> float:
+def _nearest_in_group(target: np.ndarray, query: np.ndarray, height: int) -> np.ndarray:
+    """For each query key, the distance (rows) to the nearest target key of the same
+    (label, column) group; inf where that group has none. ``target`` is sorted."""
+    if target.size == 0:
+        return np.full(query.shape, np.inf)
+    idx = np.searchsorted(target, query)
+    group = query // height
+    best = np.full(query.shape, np.inf)
+    for cand in (idx - 1, idx):
+        inside = (cand >= 0) & (cand < target.size)
+        cand = np.clip(cand, 0, target.size - 1)
+        same = inside & (target[cand] // height == group)
+        best = np.minimum(best, np.where(same, np.abs(target[cand] - query), np.inf))
+    return best
+
+
+def _edge_shift(source: np.ndarray, target: np.ndarray, partner: dict[int, list[int]], labels: int, shape: tuple[int, int]) -> float:
     """Largest distance (rows) from an edge of a stripe in ``source`` to the nearest edge
     of the same kind of its partner stripe in ``target``, in the same column."""
     height, width = shape
     if source.size == 0 or target.size == 0:
         return 0.0
-    label = source // (width * height)
-    rest = source % (width * height)
-    worst = 0.0
-    for own, partners in partner.items():
-        lo, hi = np.searchsorted(label, [own, own + 1])
-        if lo == hi:
+    plane = width * height
+    label = source // plane
+    rest = source % plane
+    single = np.full(labels + 1, -1, np.int64)  # stripes with one partner: all at once
+    for own, others in partner.items():
+        if len(others) == 1:
+            single[own] = others[0]
+    mate = single[label]
+    chosen = mate >= 0
+    best = _nearest_in_group(target, mate[chosen] * plane + rest[chosen], height)
+    worst = float(best[np.isfinite(best)].max()) if np.isfinite(best).any() else 0.0
+    for own, others in partner.items():  # split or merged stripes: the nearest of their partners
+        if len(others) < 2:
             continue
-        mine = rest[lo:hi]
-        best = np.full(mine.shape, np.inf)
-        for other in partners:
-            query = other * width * height + mine
-            idx = np.searchsorted(target, query)
-            group = query // height
-            for cand in (idx - 1, idx):
-                ok = (cand >= 0) & (cand < target.size)
-                cand = np.clip(cand, 0, target.size - 1)
-                same = ok & (target[cand] // height == group)
-                dist = np.where(same, np.abs(target[cand] - query), np.inf)
-                best = np.minimum(best, dist)
-        found = best[np.isfinite(best)]
-        if found.size:
-            worst = max(worst, float(found.max()))
+        mine = rest[label == own]
+        near = np.min([_nearest_in_group(target, other * plane + mine, height) for other in others], axis=0)
+        if np.isfinite(near).any():
+            worst = max(worst, float(near[np.isfinite(near)].max()))
     return worst
 
 
@@ -291,10 +303,10 @@ def paired_distance(normal: Stripes, defect: Stripes, pairs: np.ndarray) -> floa
         b_to_a.setdefault(b, []).append(a)
     shape = normal.labels.shape
     return max(
-        _edge_shift(normal.top_keys, defect.top_keys, a_to_b, shape),
-        _edge_shift(defect.top_keys, normal.top_keys, b_to_a, shape),
-        _edge_shift(normal.bottom_keys, defect.bottom_keys, a_to_b, shape),
-        _edge_shift(defect.bottom_keys, normal.bottom_keys, b_to_a, shape),
+        _edge_shift(normal.top_keys, defect.top_keys, a_to_b, normal.count, shape),
+        _edge_shift(defect.top_keys, normal.top_keys, b_to_a, defect.count, shape),
+        _edge_shift(normal.bottom_keys, defect.bottom_keys, a_to_b, normal.count, shape),
+        _edge_shift(defect.bottom_keys, normal.bottom_keys, b_to_a, defect.count, shape),
     )
 
 
