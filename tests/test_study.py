@@ -138,7 +138,7 @@ def test_findings_rules_on_made_up_rows():
             for sigma2 in (1.0, 4.0, 9.0, 16.0):
                 for dmax in (0.003, 0.005):
                     steep = sigma2 <= 4.0
-                    trend = theta / 10 if steep else (90 - theta) / 10  # finding 3 and 4 as the paper says
+                    trend = theta / 2 if steep else (90 - theta) / 2  # finding 3 and 4 as the paper says
                     value = dmax * 1000 * (20 / sigma2) + trend
                     if surface == "sphere" and steep:
                         value = dmax * 1000 * (20 / sigma2) + 5.0  # no trend with theta
@@ -150,5 +150,9 @@ def test_findings_rules_on_made_up_rows():
     assert verdicts[(4, "flat, dmax 0.005")] == findings.HOLDS
     assert verdicts[(4, "sphere, dmax 0.005")] == findings.NOT
     assert verdicts[(5, "flat, sphere")] == findings.NOT
+    # a perfectly ranked but tiny trend (2 %) is only "partly"
+    tiny = [dict(r, visibility_px=10.0 + (90 - r["theta_deg"]) / 400) for r in rows if r["surface"] == "flat"]
+    tiny_verdicts = {(v.finding, v.scope): v.verdict for v in findings.evaluate(tiny) if v.metric == "paper metric"}
+    assert tiny_verdicts[(3, "flat, dmax 0.005")] == findings.PARTLY
     assert findings.spearman([1, 2, 3], [3, 2, 1]) == pytest.approx(-1.0)
     assert findings.spearman([1, 2, 3], [5, 5, 5]) == 0.0

@@ -12,15 +12,19 @@ Rules:
    less visible), partly >= 60 %.
 2. Larger σ² is less visible overall (fixed depth): the mean visibility over θ must fall
    as σ² grows. holds: strictly decreasing; partly: Spearman ρ(σ², mean) <= -0.8.
-3. Gentle dents (σ² 9, 16): visibility grows as θ falls: Spearman ρ(θ, visibility) per
-   σ²; holds <= -0.8, partly <= -0.4 (both σ² must hold for "holds").
-4. Steep dents (σ² 1, 4): visibility falls as θ falls: ρ >= 0.8 holds, >= 0.4 partly.
+3. Gentle dents (σ² 9, 16): visibility grows as θ falls. Per σ²: Spearman ρ(θ,
+   visibility) <= -0.8 *and* a change of at least 10 % from the highest to the lowest θ
+   holds; ρ <= -0.4 with a change in the right direction (however small) is partly;
+   both σ² must hold for "holds". A rank trend of a few per cent is not what the paper
+   means by "more visible".
+4. Steep dents (σ² 1, 4): visibility falls as θ falls: the same with the signs turned.
 5. 3 and 4 hold for flat, cylindrical and spherical surfaces alike: holds when 3 and 4
    hold on every surface and depth, partly when at least partly everywhere.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,6 +35,8 @@ from .files import atomic_write_bytes
 HOLDS, PARTLY, NOT = "holds", "partly holds", "does not hold"
 METRICS = {"visibility_px": "paper metric", "visibility_continuous_px": "continuous metric"}
 GENTLE = (9.0, 16.0)
+#: Smallest relative change of visibility over the θ range that counts as an effect.
+MIN_EFFECT = 0.10
 STEEP = (1.0, 4.0)
 
 
@@ -121,10 +127,21 @@ def evaluate(rows: list[dict]) -> list[Verdict]:
                         parts, shown = [], []
                         for v in present:
                             ts = [t for t in thetas if (s, t, v, d) in table]
-                            rho = spearman(ts, [value(s, t, v, d) for t in ts])
-                            strength = sign * rho
-                            parts.append(HOLDS if strength >= 0.8 else PARTLY if strength >= 0.4 else NOT)
-                            shown.append(f"σ² {v:g}: ρ(θ, visibility) = {rho:+.2f}")
+                            vals = [value(s, t, v, d) for t in ts]
+                            rho = spearman(ts, vals)
+                            high, low = vals[-1], vals[0]  # at the highest and the lowest θ
+                            change = (low - high) / high if high > 0 else (math.inf if low > 0 else 0.0)
+                            strength, effect = sign * rho, -sign * change
+                            if strength >= 0.8 and effect >= MIN_EFFECT:
+                                parts.append(HOLDS)
+                            elif strength >= 0.4 and effect > 0:
+                                parts.append(PARTLY)
+                            else:
+                                parts.append(NOT)
+                            shown.append(
+                                f"σ² {v:g}: ρ(θ, visibility) = {rho:+.2f}, θ {ts[-1]:g} → {ts[0]:g}: "
+                                f"{high:.2f} → {low:.2f} px ({change:+.0%})"
+                            )
                         out.append(Verdict(number, f"{s}, dmax {d:g}", metric_name, _worst(parts), "; ".join(shown)))
 
         # 5: 3 and 4 alike on every surface
