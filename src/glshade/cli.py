@@ -239,6 +239,10 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.run(args)
+    except KeyboardInterrupt:
+        hint = " (finished cases are saved: rerun the same command to resume)" if args.command == "paper" else ""
+        print(f"glshade: interrupted{hint}", file=sys.stderr)
+        return 130
     except GlshadeError as exc:
         message = " ".join(str(exc).split()) if "\n" not in str(exc) else str(exc)
         print(f"glshade: error: {message}", file=sys.stderr)
