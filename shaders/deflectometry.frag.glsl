@@ -12,6 +12,10 @@ layout(location = {{ loop.index0 }}) out vec4 out_uv;       // (u, v) as float h
 layout(location = {{ loop.index0 }}) out vec2 out_uv;       // emitter (u, v), mm; NaN: no hit
 {$ elif name == "mask" $}
 layout(location = {{ loop.index0 }}) out float out_mask;    // 1 where the emitter is reached
+{$ elif name == "distance" $}
+layout(location = {{ loop.index0 }}) out float out_distance; // camera to surface hit, mm; NaN: none
+{$ elif name == "iterations" $}
+layout(location = {{ loop.index0 }}) out float out_iterations; // evaluations of g by the dent solve
 {$ endif $}
 {$ endfor $}
 
@@ -32,6 +36,10 @@ layout(location = {{ loop.index0 }}) out float out_mask;    // 1 where the emitt
 {$ include "reflect_" ~ reflection ~ ".glsl" $}
 {$ endif $}
 
+{$ if "distance" in outputs $}
+float hit_distance;                          // of the last trace(): camera to hit, mm (-1: none)
+{$ endif $}
+
 // Trace the ray through sensor position (col, row) (pixel units, row 0 at the top).
 bool trace(real col, real row, out float radiance, out real2 uv) {
     radiance = 0.0;
@@ -41,7 +49,13 @@ bool trace(real col, real row, out float radiance, out real2 uv) {
     real3 p;
     real depth;
     real2 dent_grad;
+{$ if "distance" in outputs $}
+    hit_distance = -1.0;
+{$ endif $}
     if (!surface_hit(ray.o, d, ray.tmin, p, depth, dent_grad)) return false;
+{$ if "distance" in outputs $}
+    hit_distance = float(dot(p - ray.o, d) - ray.tmin);
+{$ endif $}
     real3 n = normalize(base_normal(p, depth, dent_grad));
     real3 r = d - 2.0 * dot(d, n) * n;
     real dist;
@@ -62,6 +76,14 @@ void main() {
     float radiance = 0.0;
     real2 uv = real2(0.0);
     bool reached = false;
+{$ if "distance" in outputs $}
+    float distance_sum = 0.0;                // over the samples that hit the surface
+    int surface_hits = 0;
+{$ endif $}
+{$ if "iterations" in outputs $}
+    g_evaluations = 0;                       // the most any sample needed
+    int most_evaluations = 0;
+{$ endif $}
 {$ if supersample $}
     // n x n sub-pixel rays; radiance averages all, uv the ones that reach the emitter.
     int hits = 0;
@@ -70,11 +92,23 @@ void main() {
         for (int b = 0; b < u_supersample; ++b) {
             float sample_radiance;
             real2 sample_uv;
+{$ if "iterations" in outputs $}
+            g_evaluations = 0;
+{$ endif $}
             if (trace(col + (real(b) + 0.5) * step, row + (real(a) + 0.5) * step, sample_radiance, sample_uv)) {
                 radiance += sample_radiance;
                 uv += sample_uv;
                 hits += 1;
             }
+{$ if "distance" in outputs $}
+            if (hit_distance >= 0.0) {
+                distance_sum += hit_distance;
+                surface_hits += 1;
+            }
+{$ endif $}
+{$ if "iterations" in outputs $}
+            most_evaluations = max(most_evaluations, g_evaluations);
+{$ endif $}
         }
     }
     radiance /= float(u_supersample * u_supersample);
@@ -82,6 +116,15 @@ void main() {
     if (reached) uv /= real(hits);
 {$ else $}
     reached = trace(col + 0.5, row + 0.5, radiance, uv);
+{$ if "distance" in outputs $}
+    if (hit_distance >= 0.0) {
+        distance_sum = hit_distance;
+        surface_hits = 1;
+    }
+{$ endif $}
+{$ if "iterations" in outputs $}
+    most_evaluations = g_evaluations;
+{$ endif $}
 {$ endif $}
 {$ if "image" in outputs $}
     out_image = radiance;
@@ -94,5 +137,11 @@ void main() {
 {$ endif $}
 {$ if "mask" in outputs $}
     out_mask = reached ? 1.0 : 0.0;
+{$ endif $}
+{$ if "distance" in outputs $}
+    out_distance = surface_hits > 0 ? distance_sum / float(surface_hits) : uintBitsToFloat(0x7fc00000u);
+{$ endif $}
+{$ if "iterations" in outputs $}
+    out_iterations = float(most_evaluations);
 {$ endif $}
 }

@@ -1,4 +1,7 @@
 // No defect: the first hit is the base surface's.
+{$ if "iterations" in outputs $}
+int g_evaluations;                            // no dent solve: always 0
+{$ endif $}
 bool surface_hit(real3 o, real3 d, real tmin, out real3 p, out real depth, out real2 dent_grad) {
     real t, t_far;
     depth = 0.0;

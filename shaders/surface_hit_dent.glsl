@@ -10,8 +10,15 @@ uniform int u_scan_steps;     // >= 1
 uniform int u_newton_iterations;
 uniform real u_root_tol;      // mm along the ray
 
+{$ if "iterations" in outputs $}
+int g_evaluations;                            // per trace, for the "iterations" output
+{$ endif $}
+
 // g = y - f - D at p, and its derivative along d.
 real surface_gap(real3 p, real3 d, out real slope) {
+{$ if "iterations" in outputs $}
+    g_evaluations += 1;
+{$ endif $}
     real2 grad;
     real depth = dent(p, grad);
     slope = d.y - dot(base_slope(p) + grad, d.xz);
@@ -49,6 +56,7 @@ bool surface_hit(real3 o, real3 d, real tmin, out real3 p, out real depth, out r
         a = b = span;                     // rounding at the lower bracket: take its end
     }
     real x = (g_a > g_b) ? a + (b - a) * g_a / (g_a - g_b) : a;   // regula falsi start
+    real resolution = 2.0 * REAL_EPS * max(max(abs(start.x), abs(start.y)), abs(start.z));
     for (int it = 0; it < u_newton_iterations && b > a; ++it) {
         real g = surface_gap(start + x * d, d, slope);
         if (g > 0.0) a = x; else b = x;
@@ -56,7 +64,9 @@ bool surface_hit(real3 o, real3 d, real tmin, out real3 p, out real depth, out r
         // x itself is now an end of [a, b]: a converged step lands on it, so the
         // closed bracket is the test (the open one would bisect away from the root).
         if (!(next >= a && next <= b)) next = 0.5 * (a + b);
-        bool done = abs(next - x) <= u_root_tol;
+        // converged: a step below the tolerance, or below what the precision can resolve
+        // of the point start + x d (steps under an ulp of it leave g unchanged)
+        bool done = abs(next - x) <= max(u_root_tol, resolution + 2.0 * REAL_EPS * abs(x));
         x = next;
         if (done || g == 0.0) break;
     }

@@ -31,6 +31,8 @@ MARKERS = {
     "image": ["out_image", "float shade(", "float stripes(", "u_stripe_sigma"],
     "uv": ["out_uv"],
     "mask": ["out_mask"],
+    "distance": ["out_distance", "hit_distance"],
+    "iterations": ["out_iterations", "g_evaluations"],
 }
 
 
@@ -102,11 +104,12 @@ def test_supersampling_code_only_when_asked():
 
 @pytest.mark.parametrize(
     "outputs",
-    [("image",), ("uv",), ("mask",), ("image", "uv"), ("uv", "mask"), ("image", "uv", "mask")],
+    [("image",), ("uv",), ("mask",), ("image", "uv"), ("uv", "mask"), ("image", "uv", "mask"),
+     ("distance",), ("iterations",), ("image", "distance", "iterations")],
 )
 def test_only_requested_outputs_are_declared(outputs):
     src = source(paper_scene(), outputs)
-    for name in ("image", "uv", "mask"):
+    for name in ("image", "uv", "mask", "distance", "iterations"):
         if name in outputs:
             assert present(src, name), name
         else:

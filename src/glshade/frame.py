@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 #: The outputs a render can be asked for.
-OUTPUTS: tuple[str, ...] = ("image", "uv", "mask")
+OUTPUTS: tuple[str, ...] = ("image", "uv", "mask", "distance", "iterations")
 
 
 @dataclass(frozen=True)
@@ -24,15 +24,23 @@ class Frame:
     """``image``: radiance in [0, 1], float32 (H, W); ``uv``: emitter coordinates in mm,
     (H, W, 2), NaN where the ray reaches no emitter point, float32 from fp32 shaders and
     float64 from fp64 ones (and the NumPy reference); ``mask``: bool (H, W), True where
-    the ray reaches the emitter. Row 0 is the top of the image."""
+    the ray reaches the emitter. Row 0 is the top of the image.
+
+    Diagnostics, computed only when asked for: ``distance``, float32 (H, W), principal
+    point to the surface hit along the ray (mm; NaN where the ray hits no surface; the
+    mean over the samples that hit, when supersampled); ``iterations``, float32 (H, W),
+    evaluations of the gap function by the dent's root solve (0 without a defect; the
+    most any sample needed, when supersampled)."""
 
     image: np.ndarray | None = None
     uv: np.ndarray | None = None
     mask: np.ndarray | None = None
+    distance: np.ndarray | None = None
+    iterations: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
-        for array in (self.image, self.uv, self.mask):
+        for array in (self.image, self.uv, self.mask, self.distance, self.iterations):
             if array is not None:
                 return array.shape[:2]
         raise ValueError("empty frame")

@@ -36,8 +36,8 @@ from .shaders import ShaderFeatures, compile_error, compose
 
 #: Bytes per pixel of each output: GPU render target + host array (fp64 uv: an RGBA32F
 #: target of float hi/lo pairs, a float64 host array).
-_OUTPUT_BYTES = {"image": 2 * 4, "uv": 2 * 8, "mask": 2 * 1}
-_OUTPUT_BYTES_FP64 = {"image": 2 * 4, "uv": 16 + 32, "mask": 2 * 1}
+_OUTPUT_BYTES = {"image": 2 * 4, "uv": 2 * 8, "mask": 2 * 1, "distance": 2 * 4, "iterations": 2 * 4}
+_OUTPUT_BYTES_FP64 = {**_OUTPUT_BYTES, "uv": 16 + 32}
 
 
 def _target_format(name: str, precision: str) -> tuple[int, str]:
