@@ -40,6 +40,13 @@ real base_height(real3 p) {
     return -sign(u_radius) * a * a / (abs(u_radius) + w);
 }
 
+// Bound on |f''| along a horizontal unit direction at p (1/mm): R^2 / w^3.
+real base_curvature(real3 p) {
+    real a = cyl_across(p);
+    real w = sqrt(max(u_radius * u_radius - a * a, REAL_EPS));
+    return u_radius * u_radius / (w * w * w);
+}
+
 real2 base_slope(real3 p) {
     real a = cyl_across(p);
     real w = sqrt(max(u_radius * u_radius - a * a, REAL_EPS));

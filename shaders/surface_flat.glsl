@@ -10,6 +10,8 @@ bool base_hit(real3 o, real3 d, real shift, real tmin, out real t, out real t_fa
 }
 
 real base_height(real3 p) { return 0.0; }
+// Bound on |f''| along a horizontal unit direction at p (1/mm): a plane has none.
+real base_curvature(real3 p) { return 0.0; }
 real2 base_slope(real3 p) { return real2(0.0); }
 
 // Unnormalised normal of y = f + D at p, given D and grad D = (D_x, D_z).

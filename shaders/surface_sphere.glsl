@@ -32,6 +32,14 @@ real base_height(real3 p) {
     return -sign(u_radius) * r2 / (abs(u_radius) + w);
 }
 
+// Bound on |f''| along a horizontal unit direction at p (1/mm): the Hessian's largest
+// eigenvalue, R^2 / w^3 (radial; the tangential one is 1 / w).
+real base_curvature(real3 p) {
+    real2 q = sphere_xz(p);
+    real w = sqrt(max(u_radius * u_radius - dot(q, q), REAL_EPS));
+    return u_radius * u_radius / (w * w * w);
+}
+
 real2 base_slope(real3 p) {
     real2 q = sphere_xz(p);
     real w = sqrt(max(u_radius * u_radius - dot(q, q), REAL_EPS));

@@ -1,7 +1,8 @@
 """The shaders against the NumPy float64 reference tracer (glshade.reference).
 
 Tolerances (SPEC §5, issue 2): uv within 5e-4 mm in fp32 and 1e-6 mm in fp64 wherever
-both reach the emitter; the mask agrees except for at most 0.2 % of the pixels (rays
+both reach the emitter, one pixel inside the mask (4x that on the mask's edge, where a
+ray grazes a silhouette); the mask agrees except for at most 0.2 % of the pixels (rays
 that graze a silhouette or the emitter's edge, where one rounding decides); image
 radiance within 2e-3 (fp32) and 1e-5 (fp64: the stripes' exp is evaluated in float).
 Each case renders the full frame on the GPU and compares a window around the dent
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import cv2
 import numpy as np
 import pytest
 
@@ -53,12 +55,18 @@ CASES = {
 
 def compare(actual, expected, precision: str) -> dict[str, float]:
     both = actual.mask & expected.mask
+    # one pixel inside the mask: the silhouette's own pixels are ill-conditioned (the ray
+    # grazes the surface) and get 4x the tolerance (docs/accuracy.md)
+    inner = cv2.erode(both.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     mismatch = float((actual.mask != expected.mask).mean())
-    uv_error = float(np.abs(actual.uv[both] - expected.uv[both]).max()) if both.any() else 0.0
+    delta = np.abs(actual.uv - expected.uv).max(axis=-1)
+    uv_error = float(delta[inner].max()) if inner.any() else 0.0
+    uv_error_edge = float(delta[both].max()) if both.any() else 0.0
     image_error = float(np.abs(actual.image - expected.image)[both].max()) if both.any() else 0.0
     assert mismatch <= MASK_MISMATCH, f"mask differs on {mismatch:.2%} of the pixels"
     assert both.mean() > 0.05, "too few pixels reach the emitter for a meaningful comparison"
     assert uv_error <= UV_TOL[precision], f"uv error {uv_error:.3g} mm > {UV_TOL[precision]:g}"
+    assert uv_error_edge <= 4 * UV_TOL[precision], f"uv error at the mask's edge {uv_error_edge:.3g} mm"
     assert image_error <= IMAGE_TOL[precision], f"image error {image_error:.3g} > {IMAGE_TOL[precision]:g}"
     # where one says no hit, the uv map is NaN and the image black
     assert np.isnan(actual.uv[~actual.mask]).all() and (actual.image[~actual.mask] == 0).all()

@@ -50,17 +50,20 @@ DEFAULT_MEMORY_BUDGET_MB = 2048
 
 @dataclass(frozen=True)
 class RootSolver:
-    """The dent's root finder: ``scan_steps`` pieces scanned for the first sign change,
-    then at most ``newton_iterations`` safeguarded Newton steps, stopping when a step is
-    below ``tolerance_mm`` (default: 1e-7 mm in fp32, 1e-13 mm in fp64)."""
+    """The dent's root finder (``shaders/surface_hit_dent.glsl``): at most
+    ``march_steps`` steps of a march that cannot pass a root (each step is bounded by
+    the curvature of the surface along the ray), then, where a step crossed, at most
+    ``newton_iterations`` safeguarded Newton steps; both stop when a step is below
+    ``tolerance_mm`` (default: 1e-7 mm in fp32, 1e-13 mm in fp64) or below what the
+    precision resolves at the hit point."""
 
-    scan_steps: int = 8
+    march_steps: int = 48
     newton_iterations: int = 40
     tolerance_mm: float | None = None
 
     def __post_init__(self) -> None:
-        if not 1 <= self.scan_steps <= 4096:
-            raise SceneError("root solver scan_steps", "an integer in [1, 4096]", self.scan_steps)
+        if not 1 <= self.march_steps <= 4096:
+            raise SceneError("root solver march_steps", "an integer in [1, 4096]", self.march_steps)
         if not 0 <= self.newton_iterations <= 1000:
             raise SceneError("root solver newton_iterations", "an integer in [0, 1000]", self.newton_iterations)
         if self.tolerance_mm is not None and not (math.isfinite(self.tolerance_mm) and self.tolerance_mm > 0):
@@ -116,6 +119,9 @@ def scene_uniforms(scene: Scene, solver: RootSolver = RootSolver()) -> dict[str,
     cam, em, surf, dent = scene.camera, scene.emitter, scene.surface, scene.defect
     origin = np.array([dent.x0, 0.0, dent.z0])
     forward, right, up = cam.basis()
+    variances, axes = np.linalg.eigh(np.array([[dent.sigma_x2, dent.sigma_xz], [dent.sigma_xz, dent.sigma_z2]]))
+    axis = (float(axes[0, 0]), float(axes[1, 0]))  # first principal axis (x, z)
+    inverse_variances = (float(1.0 / variances[0]), float(1.0 / variances[1]))
     frame = scene.emitter_frame()
     values: dict[str, object] = {
         "u_cam_dist": cam.distance,
@@ -140,10 +146,12 @@ def scene_uniforms(scene: Scene, solver: RootSolver = RootSolver()) -> dict[str,
         "u_axis_off": dent.x0 if surf.axis == "z" else dent.z0,
         "u_dmax": dent.dmax,
         "u_inv_sigma2": 1.0 / dent.sigma_x2,
-        "u_inv_cov": dent.inverse_covariance(),
+        "u_cov_axis": axis,
+        "u_inv_var": inverse_variances,
+        "u_dent_curvature": abs(dent.dmax) * max(inverse_variances),
         "u_dent_lo": min(0.0, -dent.dmax),
         "u_dent_hi": max(0.0, -dent.dmax),
-        "u_scan_steps": solver.scan_steps,
+        "u_march_steps": solver.march_steps,
         "u_newton_iterations": solver.newton_iterations,
         "u_root_tol": solver.tolerance_for(scene.render.precision),
         "u_supersample": scene.render.supersample,
