@@ -14,7 +14,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import GlshadeError
-from .scene import PRECISIONS, REFLECTIONS, SURFACE_KINDS, Scene, paper_scene
+from .scene import PRECISIONS, REFLECTIONS, SURFACE_KINDS, Camera, Scene, paper_scene
 
 EXIT_USAGE = 2
 
@@ -122,6 +122,34 @@ def _cmd_paper(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_accuracy(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "accuracy",
+        help="measure error against run time for every knob, and the stability matrix",
+        description="Write OUT/accuracy.md and OUT/figures/accuracy_*.png: each knob's error against a "
+        "converged reference (uv, image, visibility) and its run time, the Pareto fronts, the shipped "
+        "defaults, and the stability table of the extreme cases. 'glshade accuracy --out docs' "
+        "regenerates the repository's report (a few minutes).",
+    )
+    p.add_argument("--out", type=Path, default=Path("accuracy"), metavar="DIR", help="output directory (default accuracy)")
+    p.add_argument("--repeats", type=int, default=5, metavar="K", help="timed repeats per setting (default 5)")
+    p.add_argument("--size", type=int, default=256, metavar="N", help="pixels across for the per-frame knobs (default 256)")
+    p.set_defaults(run=_cmd_accuracy)
+
+
+def _cmd_accuracy(args: argparse.Namespace) -> int:
+    from . import accuracy
+
+    if args.repeats < 1:
+        raise GlshadeError(f"--repeats: must be an integer >= 1, got {args.repeats}")
+    if args.out.exists() and not args.out.is_dir():
+        raise GlshadeError(f"--out {args.out}: is a file, expected a directory")
+    Camera().resampled(args.size)
+    path = accuracy.run(args.out, repeats=args.repeats, size=args.size, log=lambda m: print(m, file=sys.stderr))
+    print(f"wrote {path}")
+    return 0
+
+
 def _add_bench(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "bench",
@@ -144,6 +172,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_render(sub)
     _add_info(sub)
     _add_paper(sub)
+    _add_accuracy(sub)
     _add_bench(sub)
     return parser
 
@@ -223,7 +252,6 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     from . import bench
-    from .scene import Camera
 
     if args.repeats < 1:
         raise GlshadeError(f"--repeats: must be an integer >= 1, got {args.repeats}")

@@ -13,8 +13,9 @@ Numerics (the error budget, fp32):
 - Base surfaces: sag form ``f = -s r²/(|R| + sqrt(R² - r²))`` and the quadratic with
   ``R²`` cancelled analytically and its roots in the stable ``q, c/q`` pair.
 - The dent: bracket between the base surface shifted by ``max(0, -dmax)`` and
-  ``min(0, -dmax)``, scanned for the first sign change, then Newton safeguarded by
-  bisection (:class:`RootSolver`).
+  ``min(0, -dmax)``; inside it a march whose steps are bounded by the surface's
+  curvature along the ray (it cannot pass the first root), then Newton safeguarded by
+  bisection where a step crossed (:class:`RootSolver`).
 - The emitter: ``(E - P)·n_E = -De - P·n_E`` and ``(P - E)·e_v = P·e_v``, so no 256 mm
   quantity is ever subtracted from another.
 """

@@ -370,6 +370,22 @@ def _analyse_case(plan, case, scene, v0, v1, half_width, resolved, normal_cache,
     return row, thumbnail, overlay_png, {"shade": shade_s, "opencv": opencv_s, "continuous": continuous_s}
 
 
+def measure_case(renderer: Renderer, scene: Scene, settings: vis.MetricSettings = vis.MetricSettings()):
+    """Both metrics for one scene, on its own (no sharing): ``(Visibility, Continuous)``."""
+    emitter = scene.emitter
+    v0 = renderer.render(scene.without_defect(), ("uv",)).uv[..., 1].copy()
+    v1 = renderer.render(scene, ("uv",)).uv[..., 1].copy()
+    half_width = vis.stripe_half_width(emitter, settings.threshold)
+    if half_width is None:
+        raise GlshadeError("measure_case: stripes wider than a third of the period need image binarisation")
+    resolved = vis.resolved_mask(v0, emitter.period, settings.min_period_px) if settings.min_period_px > 0 else None
+    paper = vis.paper_visibility(
+        lambda p: (vis.binarize_v(v0, emitter, p, half_width), vis.binarize_v(v1, emitter, p, half_width)),
+        emitter.period, settings, resolved=resolved,
+    )
+    return paper, vis.continuous_visibility(v0, v1, settings.keep_fraction)
+
+
 def write_results_csv(path: Path, rows: list[dict]) -> None:
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=CSV_COLUMNS, lineterminator="\n")
