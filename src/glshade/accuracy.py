@@ -51,10 +51,13 @@ class Point:
     default: bool = False
 
 
-def default_scenes(size: int = SIZE) -> list[tuple[str, Scene]]:
+ALL_SURFACES = ("flat", "cylinder", "sphere")
+
+
+def default_scenes(size: int = SIZE, surfaces=ALL_SURFACES) -> list[tuple[str, Scene]]:
     """Paper scenes: flat, cylinder, sphere; θ 85, 45, 15, 5; a steep and a gentle dent."""
     out = []
-    for surface in ("flat", "cylinder", "sphere"):
+    for surface in surfaces:
         for theta in (85.0, 45.0, 15.0, 5.0):
             for kind, sigma2, dmax in (("steep", 1.0, 0.005), ("gentle", 16.0, 0.003)):
                 out.append((f"{surface} θ{theta:g} {kind}", paper_scene(surface, theta, sigma2, dmax).with_size(size)))
@@ -152,11 +155,11 @@ def frame_knobs(renderer: Renderer, scenes, repeats: int, log) -> tuple[list[Poi
 
 
 # --------------------------------------------------------------------------- visibility
-def visibility_knobs(renderer: Renderer, repeats: int, log) -> list[Point]:
+def visibility_knobs(renderer: Renderer, repeats: int, log, surfaces=ALL_SURFACES) -> list[Point]:
     """Resolution (256 … 2048) and phase step (1 … 0.125 mm), in paper pixels, against
     the continuous metric at 2048² (resolution) and at 1024² (phase step)."""
-    cases = [paper_scene(s, t, 1.0, 0.005) for s in ("flat", "cylinder", "sphere") for t in (45.0, 15.0)]
-    cases += [paper_scene(s, 45.0, 16.0, 0.003) for s in ("flat", "cylinder", "sphere")]
+    cases = [paper_scene(s, t, 1.0, 0.005) for s in surfaces for t in (45.0, 15.0)]
+    cases += [paper_scene(s, 45.0, 16.0, 0.003) for s in surfaces]
     settings = vis.MetricSettings()
     truth = {}
     for scene in cases:
@@ -224,9 +227,9 @@ def blinn_phong_monte_carlo(scene: Scene, samples: int, seed: int = 1) -> np.nda
 EDGE_MARGIN_MM = 5.0
 
 
-def blinn_phong_knob(renderer: Renderer, repeats: int, log) -> list[Point]:
+def blinn_phong_knob(renderer: Renderer, repeats: int, log, surfaces=("flat", "sphere")) -> list[Point]:
     scenes = [paper_scene(s, 45.0, 4.0, 0.005).with_size(24).updated(render={"reflection": "blinn-phong", "shininess": 1e5})
-              for s in ("flat", "sphere")]
+              for s in surfaces]
     truths = [reference.trace(s, ("image", "uv", "mask")) for s in scenes]
     inside = [t.mask & (np.nan_to_num(np.abs(t.uv), nan=np.inf).max(axis=-1) <= np.array(s.emitter.half_size).min() - EDGE_MARGIN_MM)
               for s, t in zip(scenes, truths)]
@@ -345,16 +348,23 @@ def stability_table(renderer: Renderer, log) -> tuple[list[str], dict[str, int]]
     return lines, histogram
 
 
-def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print) -> Path:
+def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=ALL_SURFACES) -> Path:
+    """Measure everything and write ``out_dir/accuracy.md`` and its figures; ``surfaces``
+    restricts the knobs' scenes (the stability matrix always runs whole)."""
+    from .errors import GlshadeError
+
+    surfaces = tuple(surfaces)
+    if not surfaces or any(s not in ALL_SURFACES for s in surfaces):
+        raise GlshadeError(f"--scenes: must list surface kinds among {', '.join(ALL_SURFACES)}, got {', '.join(surfaces) or 'none'}")
     out_dir = Path(out_dir)
     figures = out_dir / "figures"
     figures.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     with Renderer() as renderer:
         gl = renderer.context.info().renderer
-        frame_points, crosscheck = frame_knobs(renderer, default_scenes(size), repeats, log)
-        vis_points = visibility_knobs(renderer, repeats, log)
-        bp_points = blinn_phong_knob(renderer, repeats, log)
+        frame_points, crosscheck = frame_knobs(renderer, default_scenes(size, surfaces), repeats, log)
+        vis_points = visibility_knobs(renderer, repeats, log, surfaces)
+        bp_points = blinn_phong_knob(renderer, repeats, log, [s for s in surfaces if s != "cylinder"] or ["flat"])
         stab_lines, histogram = stability_table(renderer, log)
     frame_and_bp = frame_points + bp_points
     plot(frame_points, "uv", "uv error against time per frame", "mm on the emitter", figures / "accuracy_uv.png")
@@ -374,8 +384,8 @@ def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print) -> Path:
         f"fp64 shader, root tolerance 1e-14 mm, up to 4096 march steps; 16x16 supersampling for the "
         f"supersampling knob. {crosscheck[0]}.",
         "",
-        f"## Per frame: precision, root solve, supersampling ({len(default_scenes(size))} paper scenes at {size}²: "
-        "flat, cylinder, sphere; θ 85, 45, 15, 5; steep σ² 1 / dmax 5 µm and gentle σ² 16 / dmax 3 µm; worst over the scenes)",
+        f"## Per frame: precision, root solve, supersampling ({len(default_scenes(size, surfaces))} paper scenes at {size}²: "
+        f"{', '.join(surfaces)}; θ 85, 45, 15, 5; steep σ² 1 / dmax 5 µm and gentle σ² 16 / dmax 3 µm; worst over the scenes)",
         "",
         *_table(frame_points, [("uv", "uv max (mm)"), ("uv_edge", "uv max incl. silhouette pixels"), ("image", "image max"),
                                ("image_rms", "image RMS"), ("pixel_image", "image max vs 16x16"), ("pixel_image_rms", "image RMS vs 16x16")]),
@@ -394,7 +404,7 @@ def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print) -> Path:
         "",
         "## Per case: resolution and phase step (visibility in pixels of the paper's 1024² camera)",
         "",
-        "Nine cases (flat, cylinder, sphere at θ 45 and 15 with σ² 1, dmax 5 µm; at θ 45 with σ² 16, dmax 3 µm).",
+        f"{3 * len(surfaces)} cases ({', '.join(surfaces)} at θ 45 and 15 with σ² 1, dmax 5 µm; at θ 45 with σ² 16, dmax 3 µm).",
         "Resolution: against the continuous metric at 2048², scaled to paper pixels. Phase step: the paper's",
         "metric against the continuous metric at 1024². The paper's metric counts whole pixels of contour shift,",
         "so neither a finer step nor a larger image brings it closer than about half a pixel: its error is",

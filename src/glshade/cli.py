@@ -134,6 +134,8 @@ def _add_accuracy(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=Path("accuracy"), metavar="DIR", help="output directory (default accuracy)")
     p.add_argument("--repeats", type=int, default=5, metavar="K", help="timed repeats per setting (default 5)")
     p.add_argument("--size", type=int, default=256, metavar="N", help="pixels across for the per-frame knobs (default 256)")
+    p.add_argument("--scenes", default="flat,cylinder,sphere", metavar="LIST",
+                   help="surface kinds of the knobs' paper scenes (default flat,cylinder,sphere)")
     p.set_defaults(run=_cmd_accuracy)
 
 
@@ -145,7 +147,9 @@ def _cmd_accuracy(args: argparse.Namespace) -> int:
     if args.out.exists() and not args.out.is_dir():
         raise GlshadeError(f"--out {args.out}: is a file, expected a directory")
     Camera().resampled(args.size)
-    path = accuracy.run(args.out, repeats=args.repeats, size=args.size, log=lambda m: print(m, file=sys.stderr))
+    surfaces = tuple(part.strip() for part in args.scenes.split(",") if part.strip())
+    path = accuracy.run(args.out, repeats=args.repeats, size=args.size, surfaces=surfaces,
+                        log=lambda m: print(m, file=sys.stderr))
     print(f"wrote {path}")
     return 0
 
