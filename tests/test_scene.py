@@ -150,6 +150,8 @@ def test_variants():
     assert s.without_defect().defect.dmax == 0.0 and not s.without_defect().defect.present
     assert s.with_phase(0.75).emitter.phase == 0.75
     assert s.updated(defect={"sigma2": 16.0}).defect.sigma_z2 == 16.0
+    aniso = s.updated(defect={"sigma_z2": 1.0})  # one component of an isotropic defect
+    assert (aniso.defect.sigma_x2, aniso.defect.sigma_z2, aniso.defect.sigma_xz) == (4.0, 1.0, 0.0)
     assert replace(s.defect, sigma_xz=0.1).isotropic is False
     with pytest.raises(SceneError):
         s.updated(lens={"f": 1})

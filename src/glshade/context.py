@@ -65,7 +65,23 @@ def _device_index_from_env() -> int:
 class GLContext:
     """Owns one standalone EGL context; a context manager. ``release()`` twice is harmless."""
 
+    @classmethod
+    def wrap(cls, ctx: moderngl.Context) -> GLContext:
+        """Adopt a context someone else owns and keeps current (a viewer window's): glshade
+        renders into it without switching contexts, and ``release`` leaves it alone."""
+        if ctx.version_code < REQUIRED_GL:
+            raise ContextError(f"OpenGL {ctx.info.get('GL_VERSION', '?')} is too old: glshade needs 4.5 core")
+        self = cls.__new__(cls)
+        self.device_index = -1
+        self.ctx = ctx
+        self._external = True
+        self._depth = 0
+        self._parking_texture = ctx.renderbuffer((1, 1), 1, dtype="f1")
+        self._parking = ctx.framebuffer(color_attachments=[self._parking_texture])
+        return self
+
     def __init__(self, device_index: int | None = None, libegl: str | None = None) -> None:
+        self._external = False
         self.device_index = _device_index_from_env() if device_index is None else int(device_index)
         if self.device_index < 0:
             raise ContextError(f"device_index: must be an integer >= 0, got {self.device_index}")
@@ -123,6 +139,9 @@ class GLContext:
         call of glshade runs inside such a block, so several contexts can share a thread.
         """
         ctx = self._live()
+        if self._external:  # its owner keeps it current
+            yield ctx
+            return
         if self._depth == 0:
             ctx.__enter__()
         self._depth += 1
@@ -147,7 +166,11 @@ class GLContext:
 
     def release(self) -> None:
         if self.ctx is not None:
-            self.ctx.release()  # destroys the EGL context and every object in it
+            if self._external:
+                self._parking.release()
+                self._parking_texture.release()
+            else:
+                self.ctx.release()  # destroys the EGL context and every object in it
             self.ctx = None
 
     def __enter__(self) -> GLContext:

@@ -343,6 +343,9 @@ class Scene:
             if table == "defect" and "sigma2" in values:
                 for k in ("sigma_x2", "sigma_z2", "sigma_xz", "sigma2"):
                     data["defect"].pop(k, None)
+            if table == "defect" and "sigma2" in data["defect"] and {"sigma_x2", "sigma_z2", "sigma_xz"} & set(values):
+                s2 = data["defect"].pop("sigma2")  # an isotropic defect, one component edited
+                data["defect"].update(sigma_x2=s2, sigma_z2=s2, sigma_xz=0.0)
             data[table].update(values)
         return Scene.from_dict(data)
 
