@@ -126,9 +126,6 @@ class Timings:
     io: float = 0.0
     figures: float = 0.0
 
-    def total(self) -> float:
-        return self.trace + self.shade + self.opencv + self.continuous + self.io + self.figures
-
 
 @dataclass
 class StudyResult:

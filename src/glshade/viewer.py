@@ -217,7 +217,7 @@ class ViewerModel:
     # ---------------------------------------------------------------- pictures
     def binaries(self, phase: float) -> tuple[np.ndarray, np.ndarray] | None:
         emitter = self.scene.emitter
-        half = vis.stripe_half_width(emitter, 0.5)
+        half = vis.stripe_half_width(emitter, vis.MetricSettings().threshold)
         if half is None or self.v0 is None:
             return None
         return vis.binarize_v(self.v0, emitter, phase, half), vis.binarize_v(self.v1, emitter, phase, half)
@@ -281,14 +281,14 @@ class ViewerModel:
 
     @staticmethod
     def _paper_at_phase(v0, v1, scene: Scene, key) -> tuple:
-        emitter = scene.emitter
-        half = vis.stripe_half_width(emitter, 0.5)
+        emitter, settings = scene.emitter, vis.MetricSettings()  # the same metric as glshade paper
+        half = vis.stripe_half_width(emitter, settings.threshold)
         if half is None:
             return key, None
-        resolved = vis.resolved_mask(v0, emitter.period, 4.0)
+        resolved = vis.resolved_mask(v0, emitter.period, settings.min_period_px)
         normal = vis.binarize_v(v0, emitter, emitter.phase, half) & resolved
         defect = vis.binarize_v(v1, emitter, emitter.phase, half) & resolved
-        columns = vis.kept_columns(v0.shape[1], 0.5)
+        columns = vis.kept_columns(v0.shape[1], settings.keep_fraction)
         return key, vis.compare_binaries(normal, defect, columns, phase_mm=emitter.phase)
 
     def collect_metrics(self) -> None:
