@@ -78,10 +78,6 @@ def _set(obj: object, name: str, value: Any) -> None:
     object.__setattr__(obj, name, value)
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v)
-
-
 # --------------------------------------------------------------------------- tables
 @dataclass(frozen=True)
 class Camera:

@@ -513,6 +513,8 @@ def make_app(options: ViewerOptions):
             imgui.text(f"visibility (continuous): {'...' if r.continuous_px is None else f'{r.continuous_px:.2f} px'}")
             if r.folded:
                 imgui.text_colored(imgui.ImVec4(1.0, 0.6, 0.2, 1.0), "the stripe map folds")
+            if r.unpaired:
+                imgui.text_colored(imgui.ImVec4(1.0, 0.6, 0.2, 1.0), f"{r.unpaired} contours without a partner at this phase")
             if m.view == "displacement":
                 imgui.text(f"colour scale: 0 (dark) to {self.scale_top:.2f} px (yellow)")
             imgui.text_wrapped(self.hover_text or "hover over the image")
