@@ -34,7 +34,7 @@ from . import visibility as vis
 from .files import atomic_write_bytes
 from .renderer import Renderer, RootSolver
 from .scene import Scene, paper_scene
-from .study import measure_case
+from .measurement import measure_scene
 
 CONVERGED = RootSolver(march_steps=4096, newton_iterations=200, tolerance_mm=1e-14)
 SIZE = 256
@@ -156,34 +156,34 @@ def frame_knobs(renderer: Renderer, scenes, repeats: int, log) -> tuple[list[Poi
 
 # --------------------------------------------------------------------------- visibility
 def visibility_knobs(renderer: Renderer, repeats: int, log, surfaces=ALL_SURFACES) -> list[Point]:
-    """Resolution (256 … 2048) and phase step (1 … 0.125 mm), in paper pixels, against
-    the continuous metric at 2048² (resolution) and at 1024² (phase step)."""
+    """Resolution (256 … 2048) and phase step (1 … 0.125 mm), in paper pixels: the paper's
+    metric against its continuous limit at 2048² (the truth), and the limit's own error
+    at each resolution. The cases fold (σ² 1 at θ 15°) and do not."""
     cases = [paper_scene(s, t, 1.0, 0.005) for s in surfaces for t in (45.0, 15.0)]
     cases += [paper_scene(s, 45.0, 16.0, 0.003) for s in surfaces]
     settings = vis.MetricSettings()
     truth = {}
     for scene in cases:
-        _, continuous = measure_case(renderer, scene.with_size(2048), settings)
-        truth[id(scene)] = continuous.visibility_px * 1024 / 2048
+        truth[id(scene)] = measure_scene(renderer, scene.with_size(2048), settings).visibility_continuous_px * 1024 / 2048
     points = []
     for size in (256, 512, 1024, 2048):
-        paper_err, cont_err, seconds = 0.0, 0.0, []
+        paper_err, limit_err, seconds = 0.0, 0.0, []
         for scene in cases:
             s = scene.with_size(size)
-            t, (paper, continuous) = _median_time(lambda: measure_case(renderer, s, settings), max(1, repeats // 2))
+            t, result = _median_time(lambda: measure_scene(renderer, s, settings), max(1, repeats // 2))
             scale = 1024 / size
-            paper_err = max(paper_err, abs(paper.visibility_px * scale - truth[id(scene)]))
-            cont_err = max(cont_err, abs(continuous.visibility_px * scale - truth[id(scene)]))
+            paper_err = max(paper_err, abs(result.visibility_px * scale - truth[id(scene)]))
+            limit_err = max(limit_err, abs(result.visibility_continuous_px * scale - truth[id(scene)]))
             seconds.append(t)
         points.append(Point("resolution", f"{size}²", statistics.median(seconds),
-                            {"visibility": paper_err, "visibility_continuous": cont_err}, size == 1024))
+                            {"visibility": paper_err, "visibility_continuous": limit_err}, size == 1024))
         log(f"visibility: resolution {size}")
     for step in (1.0, 0.5, 0.25, 0.125):
         err, seconds = 0.0, []
         metric = replace(settings, step_mm=step)
         for scene in cases:
-            t, (paper, continuous) = _median_time(lambda: measure_case(renderer, scene, metric), 1)
-            err = max(err, abs(paper.visibility_px - continuous.visibility_px))
+            t, result = _median_time(lambda: measure_scene(renderer, scene, metric), 1)
+            err = max(err, abs(result.visibility_px - result.visibility_continuous_px))
             seconds.append(t)
         points.append(Point("phase step", f"{step:g} mm", statistics.median(seconds), {"visibility": err}, step == 0.25))
         log(f"visibility: phase step {step:g}")

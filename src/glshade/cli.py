@@ -26,13 +26,8 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"glshade: error: {message} (see '{self.prog} --help')\n")
 
 
-def _add_render(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "render",
-        help="render one image (and its uv map)",
-        description="Render a scene: a TOML scene file (SPEC §8) or, without one, the paper's "
-        "scene (flat, theta 45, sigma2 4 mm², dmax 5 µm, 1024²). Flags override the file.",
-    )
+def _add_scene_flags(p: argparse.ArgumentParser) -> None:
+    """The scene file and the flags that override it (render and measure)."""
     p.add_argument("scene", nargs="?", type=Path, help="scene file (TOML)")
     p.add_argument("--surface", choices=SURFACE_KINDS, help="base surface kind")
     p.add_argument("--radius", type=float, metavar="MM", help="cylinder/sphere radius, negative = concave")
@@ -47,12 +42,97 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--supersample", type=int, metavar="N", help="rays per pixel side (1..16)")
     p.add_argument("--reflection", choices=REFLECTIONS)
     p.add_argument("--shininess", type=float, metavar="N", help="Blinn-Phong exponent")
+    p.add_argument("--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)")
+
+
+def _add_metric_flags(p: argparse.ArgumentParser) -> None:
+    """How visibility is measured (paper and measure)."""
+    p.add_argument("--step", type=float, default=0.25, metavar="MM", help="phase step of the metric, mm (default 0.25)")
+    p.add_argument("--threshold", type=float, default=0.5, help="binarisation threshold, fraction of the peak (default 0.5)")
+    p.add_argument("--keep-fraction", type=float, default=0.5, help="central fraction of the columns kept (default 0.5)")
+
+
+def _metric_settings(args: argparse.Namespace):
+    from .visibility import MetricSettings
+
+    return MetricSettings(threshold=args.threshold, keep_fraction=args.keep_fraction, step_mm=args.step)
+
+
+def _add_render(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "render",
+        help="render one image (and its uv map)",
+        description="Render a scene: a TOML scene file (SPEC §8) or, without one, the paper's "
+        "scene (flat, theta 45, sigma2 4 mm², dmax 5 µm, 1024²). Flags override the file.",
+    )
+    _add_scene_flags(p)
     p.add_argument("-o", "--output", type=Path, default=Path("render.png"), help="image PNG (default render.png)")
     p.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG bit depth (default 8)")
     p.add_argument("--uv", type=Path, metavar="UV.npy", help="also write the uv map (float32 H×W×2, mm, NaN = no hit)")
     p.add_argument("--save-scene", type=Path, metavar="SCENE.toml", help="also write the effective scene as TOML")
-    p.add_argument("--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)")
     p.set_defaults(run=_cmd_render)
+
+
+def _add_measure(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "measure",
+        help="how visible is a scene's defect (the three numbers of SPEC §6)",
+        description="Render a scene with and without its defect and measure the defect's visibility: the "
+        "paper's metric (visibility_px), its continuous limit (visibility_continuous_px), how far the rays move "
+        "(deflection_px), whether the stripe map folds, its islands and the best phase, beside the closed forms "
+        "(docs/physics.md). Scene and flags as for render.",
+    )
+    _add_scene_flags(p)
+    _add_metric_flags(p)
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    p.add_argument("--overlay", type=Path, metavar="PNG", help="also write the Fig. 9 contour overlay at the best phase")
+    p.set_defaults(run=_cmd_measure)
+
+
+def _cmd_measure(args: argparse.Namespace) -> int:
+    import json
+
+    from . import physics
+    from .context import GLContext
+    from .measurement import measure_scene
+    from .renderer import Renderer
+
+    scene = scene_from_args(args)
+    settings = _metric_settings(args)
+    settings.phases(scene.emitter.period)  # a step longer than the period is refused before rendering
+    if args.overlay is not None:
+        _check_writable(args.overlay, "--overlay")
+    start = time.perf_counter()
+    with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
+        result = measure_scene(renderer, scene, settings, overlay=args.overlay)
+    seconds = time.perf_counter() - start
+    law = physics.laws(scene)
+    if args.json:
+        out = {**result.summary(), "scene": scene.title(), "size": [scene.camera.width, scene.camera.height],
+               "laws": {"deflection_px": _finite(law.deflection_px), "visibility_px": _finite(law.visibility_px),
+                        "fold_ratio": _finite(law.fold_ratio), "magnification": _finite(law.magnification)},
+               "seconds": round(seconds, 3)}
+        print(json.dumps(out))
+        return 0
+    cam = scene.camera
+    print(f"{scene.title()} ({cam.width}x{cam.height}, {scene.render.precision}, {scene.render.reflection})")
+    print(f"  visibility_px             {result.visibility_px:g}  (the paper's metric, best phase {result.best_phase_mm:g} mm)")
+    print(f"  visibility_continuous_px  {result.visibility_continuous_px:.2f}  (its limit: finer phase step and pixels)")
+    print(f"  deflection_px             {result.deflection_px:.2f}  (how far the rays move)")
+    fold = f"yes, {result.islands} islands at most" if result.folded else "no"
+    print(f"  folded                    {fold}")
+    print(f"  closed forms              deflection {law.deflection_px:.2f} px, visible {law.visibility_px:.2f} px, "
+          f"fold ratio {law.fold_ratio:.2f} (folds above 1)")
+    if args.overlay is not None:
+        print(f"  wrote {args.overlay}")
+    return 0
+
+
+def _finite(value: float) -> float | None:
+    """JSON has no NaN: a number, or null."""
+    import math
+
+    return round(value, 5) if math.isfinite(value) else None
 
 
 def _add_info(sub: argparse._SubParsersAction) -> None:
@@ -82,10 +162,8 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--sigma2s", type=_float_csv, metavar="LIST", help="defect variances, mm² (default 1,4,9,16)")
     p.add_argument("--dmaxs", type=_float_csv, metavar="LIST", help="defect depths, mm (default 0.003,0.005)")
     p.add_argument("--size", type=int, default=1024, metavar="N", help="pixels across, the paper's field of view (default 1024)")
-    p.add_argument("--step", type=float, default=0.25, metavar="MM", help="phase step of the metric, mm (default 0.25)")
-    p.add_argument("--threshold", type=float, default=0.5, help="binarisation threshold, fraction of the peak (default 0.5)")
-    p.add_argument("--keep-fraction", type=float, default=0.5, help="central fraction of the columns kept (default 0.5)")
-    p.add_argument("--workers", type=int, default=2, metavar="N", help="threads for the OpenCV analysis (default 2)")
+    _add_metric_flags(p)
+    p.add_argument("--workers", type=int, default=2, metavar="N", help="threads for the metric's analysis (default 2)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--device", type=int, metavar="N", help="EGL device index")
     p.set_defaults(run=_cmd_paper)
@@ -95,9 +173,8 @@ def _cmd_paper(args: argparse.Namespace) -> int:
     from . import findings, plots, study
     from .context import GLContext
     from .renderer import Renderer
-    from .visibility import MetricSettings
 
-    metric = MetricSettings(threshold=args.threshold, keep_fraction=args.keep_fraction, step_mm=args.step)
+    metric = _metric_settings(args)
     surfaces = tuple(part.strip() for part in args.surfaces.split(",") if part.strip())
     plan = study.StudyPlan(
         surfaces=surfaces,
@@ -113,8 +190,8 @@ def _cmd_paper(args: argparse.Namespace) -> int:
     figure_start = time.perf_counter()
     written = plots.write_figures(result.rows, args.out, plan)
     result.timings.figures = time.perf_counter() - figure_start
-    overlay = args.out / "fig09_contour_overlay.png"
-    report = findings.write_report(result.rows, args.out, plan, ([overlay] if overlay.exists() else []) + written, result.timings)
+    overlays = [args.out / name for name in study.OVERLAY_CASES.values() if (args.out / name).exists()]
+    report = findings.write_report(result.rows, args.out, plan, overlays + written, result.timings)
     print(
         f"{result.computed} cases computed, {result.skipped} resumed; wrote {args.out / 'results.csv'}, "
         f"{len(written)} figures and {report} in {time.perf_counter() - start:.1f} s"
@@ -168,6 +245,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
         cam = scene.camera
         print(f"{args.benchmark} at {cam.width}x{cam.height}: {stats['frames'] / stats['seconds']:.1f} fps over "
               f"{stats['frames']} frames ({stats['traces']} traces, {stats['reshades']} re-shades)")
+    if args.frames is not None and "readout" in stats:
+        print("readout: " + "; ".join(viewer.readout_lines(stats["readout"])))
     if args.screenshot is not None:
         print(f"wrote {args.screenshot}")
     return 0
@@ -225,6 +304,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"glshade {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     _add_render(sub)
+    _add_measure(sub)
     _add_info(sub)
     _add_paper(sub)
     _add_view(sub)

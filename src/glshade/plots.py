@@ -1,105 +1,230 @@
-"""Figures of the study, after the paper's: image grids (Figs. 10, 11, 14, 15, 18, 19)
-and visibility-against-θ line plots (Figs. 12, 13, 16, 17, 20, 21), as PNG.
+"""Figures of the study, after the paper's: image grids (Figs. 10, 11, 14, 15, 18, 19),
+visibility-against-θ plots (Figs. 12, 13, 16, 17, 20, 21), the Fig. 9 contour overlay,
+and the closed forms against the simulation.
 
-matplotlib runs on its Agg backend (no display); every file is written atomically.
+Every figure is drawn from ``results.csv`` rows (the overlay from the images of its case),
+names its case in its title, labels its axes with units and has a legend for every colour.
+matplotlib's object API on the Agg canvas: no display, no pyplot state, safe off the main
+thread. Every file is written atomically. Depths are shown in µm, as the titles say.
 """
 
 from __future__ import annotations
 
 import io
+import math
 from pathlib import Path
 
 import numpy as np
 
 from .files import atomic_write_bytes, read_png
 
-SURFACE_NAMES = {"flat": "flat surface", "cylinder": "cylinder, R 70 mm", "sphere": "sphere, R 70 mm"}
+SURFACE_NAMES = {"flat": "flat plate", "cylinder": "cylinder, R 70 mm", "sphere": "sphere, R 70 mm"}
+SURFACE_COLOURS = {"flat": "tab:blue", "cylinder": "tab:orange", "sphere": "tab:green"}
+#: The Fig. 9 colours (RGB 0-1) and what they mean.
+OVERLAY_LEGEND = (
+    ((0.0, 0.0, 1.0), "contour, defect-free image"),
+    ((1.0, 0.0, 0.0), "contour, image with the dent"),
+    ((1.0, 0.0, 1.0), "both (contours coincide)"),
+    ((1.0, 150 / 255, 0.0), "island of a fold (not measured)"),
+)
 
 
-def _figure():
-    import matplotlib
+def _figure(width_in: float, height_in: float):
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    return plt
+    return Figure(figsize=(width_in, height_in))
 
 
 def _save(fig, path: Path) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig)
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight")
     atomic_write_bytes(Path(path), buffer.getvalue())
 
 
+def _um(dmax_mm: float) -> str:
+    return f"{dmax_mm * 1000:g} µm"
+
+
+# --------------------------------------------------------------------------- grids
 def image_grid(rows: list[dict], cases_dir: Path, surface: str, dmax: float, thetas, sigma2s, path: Path) -> bool:
     """θ across, σ² down, each the defect image at its best phase. False when a case's
-    thumbnail is missing (the grid is then not written)."""
+    thumbnail is missing (the grid is then not written). The thumbnails are tiled into one
+    mosaic (one image to draw, not one axes per case)."""
     from .study import case_key
 
-    plt = _figure()
     lookup = {(r["theta_deg"], r["sigma2_mm2"]): r for r in rows if r["surface"] == surface and r["dmax_mm"] == dmax}
-    images = {}
+    tiles = []
     for s2 in sigma2s:
+        line = []
         for t in thetas:
             png = Path(cases_dir) / f"{case_key(surface, t, s2, dmax)}.png"
             if not png.exists() or (t, s2) not in lookup:
                 return False
-            images[(t, s2)] = read_png(png)
-    fig, axes = plt.subplots(len(sigma2s), len(thetas), figsize=(2.2 * len(thetas), 2.2 * len(sigma2s)), squeeze=False)
+            line.append(read_png(png))
+        tiles.append(line)
+    side = tiles[0][0].shape[0]
+    gap = side // 12
+    cell = side + gap
+    mosaic = np.full((len(sigma2s) * cell - gap, len(thetas) * cell - gap), 255, np.uint8)
+    for i, line in enumerate(tiles):
+        for j, tile in enumerate(line):
+            mosaic[i * cell : i * cell + side, j * cell : j * cell + side] = tile
+    width_in = 2.3 * len(thetas) + 1.3
+    fig = _figure(width_in, (width_in - 1.3) * mosaic.shape[0] / mosaic.shape[1] + 1.3)
+    ax = fig.subplots()
+    ax.imshow(mosaic, cmap="gray", vmin=0, vmax=255, interpolation="antialiased")
+    ax.set_xticks([j * cell + side / 2 for j in range(len(thetas))], [f"θ = {t:g}°" for t in thetas])
+    ax.set_yticks([i * cell + side / 2 for i in range(len(sigma2s))], [f"σ² = {s2:g} mm²" for s2 in sigma2s])
+    ax.xaxis.tick_top()
+    ax.tick_params(length=0, labelsize=10)
+    for spine in ax.spines.values():
+        spine.set_visible(False)
     for i, s2 in enumerate(sigma2s):
         for j, t in enumerate(thetas):
-            ax = axes[i][j]
-            ax.imshow(images[(t, s2)], cmap="gray", vmin=0, vmax=255, interpolation="nearest")
-            ax.set_xticks([])
-            ax.set_yticks([])
             r = lookup[(t, s2)]
-            ax.set_title(f"{r['visibility_px']:g} px @ {r['best_phase_mm']:g} mm", fontsize=8)
-            if i == 0:
-                ax.text(0.5, 1.25, f"θ = {t:g}°", transform=ax.transAxes, ha="center", fontsize=10)
-            if j == 0:
-                ax.set_ylabel(f"σ² = {s2:g} mm²", fontsize=10)
-    fig.suptitle(f"{SURFACE_NAMES[surface]}, dmax = {dmax * 1000:g} µm (defect image at the best phase)", fontsize=11)
-    fig.tight_layout()
+            fold = ", folds" if r["folded"] else ""
+            ax.text(j * cell + side / 2, i * cell + side + gap * 0.1, f"{r['visibility_px']:g} px (limit "
+                    f"{r['visibility_continuous_px']:.1f}){fold}", ha="center", va="top", fontsize=7.5)
+    fig.suptitle(f"{SURFACE_NAMES[surface]}, dmax = {_um(dmax)}: image with the dent at its best phase", fontsize=11)
+    fig.text(0.5, 0.01, "Below each image: the paper's visibility (px, whole pixels) and its continuous limit (px); "
+             "'folds': the stripe map folds.", ha="center", fontsize=8)
     _save(fig, path)
-    plt.close(fig)
     return True
 
 
+# --------------------------------------------------------------------------- against θ
+PLOT_PANELS = (
+    ("visibility_px", "visibility_law_px", "paper's metric (whole px)"),
+    ("visibility_continuous_px", "visibility_law_px", "continuous limit of the metric"),
+    ("deflection_px", "deflection_law_px", "deflection of the rays"),
+)
+
+
 def visibility_plot(rows: list[dict], surface: str, dmax: float, path: Path) -> None:
-    """Visibility against θ, one line per σ²: the paper's pixel metric and the
-    continuous metric side by side; folded cases are ringed."""
-    plt = _figure()
+    """The three numbers against θ, one colour per σ²: markers the simulation, dashed
+    lines the closed forms (docs/physics.md); rings mark cases whose stripe map folds."""
     sel = [r for r in rows if r["surface"] == surface and r["dmax_mm"] == dmax]
     sigma2s = sorted({r["sigma2_mm2"] for r in sel})
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
-    for ax, key, title in (
-        (axes[0], "visibility_px", "paper metric (contour shift, px)"),
-        (axes[1], "visibility_continuous_px", "continuous metric (px)"),
-    ):
+    fig = _figure(14, 4.3)
+    axes = fig.subplots(1, 3, sharex=True, sharey=True)
+    for ax, (key, law_key, title) in zip(axes, PLOT_PANELS):
         for s2 in sigma2s:
             line = sorted((r for r in sel if r["sigma2_mm2"] == s2), key=lambda r: r["theta_deg"])
             theta = np.array([r["theta_deg"] for r in line])
             value = np.array([r[key] for r in line])
             (handle,) = ax.plot(theta, value, marker="o", label=f"σ² = {s2:g} mm²")
+            ax.plot(theta, [r[law_key] for r in line], ls="--", lw=1, color=handle.get_color())
             folded = np.array([r["folded"] for r in line], bool)
             if folded.any():
-                ax.scatter(theta[folded], value[folded], s=120, facecolors="none", edgecolors=handle.get_color())
+                ax.scatter(theta[folded], value[folded], s=130, facecolors="none", edgecolors=handle.get_color())
         ax.set_title(title, fontsize=10)
         ax.set_xlabel("θ (deg)")
         ax.invert_xaxis()
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("visibility (px)")
-    axes[0].legend(fontsize=8)
-    fig.suptitle(f"{SURFACE_NAMES[surface]}, dmax = {dmax * 1000:g} µm (rings: stripe map folds)", fontsize=11)
+    axes[0].set_ylabel("pixels of the 1024² image")
+    from matplotlib.lines import Line2D
+
+    extra = [Line2D([], [], color="k", ls="--", lw=1, label="closed form"),
+             Line2D([], [], color="k", marker="o", ls="none", markerfacecolor="none", markersize=11, label="stripe map folds")]
+    handles, labels = axes[0].get_legend_handles_labels()
+    axes[0].legend(handles + extra, labels + [h.get_label() for h in extra], fontsize=8)
+    fig.suptitle(f"{SURFACE_NAMES[surface]}, dmax = {_um(dmax)}: visibility against the camera's elevation", fontsize=11)
     fig.tight_layout()
     _save(fig, path)
-    plt.close(fig)
+
+
+def law_plot(rows: list[dict], path: Path) -> None:
+    """Closed form against simulation for every case: the deflection (left) and the
+    visible shift (right, the continuous limit against the fold-capped law)."""
+    fig = _figure(11, 5)
+    axes = fig.subplots(1, 2)
+    for ax, (sim, law, title) in zip(axes, (
+        ("deflection_px", "deflection_law_px", "deflection"),
+        ("visibility_continuous_px", "visibility_law_px", "visible contour shift (continuous limit)"),
+    )):
+        for surface, colour in SURFACE_COLOURS.items():
+            for folded, marker in ((False, "o"), (True, "^")):
+                pick = [r for r in rows if r["surface"] == surface and r["folded"] == folded
+                        and math.isfinite(r[law]) and r[law] > 0 and r[sim] > 0]
+                if pick:
+                    ax.scatter([r[law] for r in pick], [r[sim] for r in pick], c=colour, marker=marker, s=22,
+                               label=f"{SURFACE_NAMES[surface]}{', folds' if folded else ''}")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        lo, hi = ax.get_xlim()
+        ax.plot([lo, hi], [lo, hi], color="k", lw=1, label="simulation = law")
+        ax.plot([lo, hi], [lo * 1.1, hi * 1.1], color="k", lw=0.6, ls=":", label="±10 %")
+        ax.plot([lo, hi], [lo / 1.1, hi / 1.1], color="k", lw=0.6, ls=":")
+        ax.set_xlabel("closed form (px)")
+        ax.set_ylabel("simulation (px)")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=7.5)
+    fig.suptitle(f"Closed forms against the simulation, all {len(rows)} cases (docs/physics.md)", fontsize=11)
+    fig.tight_layout()
+    _save(fig, path)
+
+
+# --------------------------------------------------------------------------- Fig. 9
+def overlay_figure(rgb: np.ndarray, result, column_start: int, title: str, path: Path, zoom_px: int = 48) -> None:
+    """The Fig. 9 overlay of one case at its best phase: the cut contour images merged
+    (left), a magnified window around the largest distance with that distance drawn
+    (right), a title naming the case and a legend for every colour.
+
+    ``rgb``: :func:`glshade.contours.overlay_rgb` of the kept columns; ``result``: the
+    case's :class:`glshade.visibility.Visibility`; ``column_start``: the first kept column.
+    """
+    from matplotlib.patches import Patch, Rectangle
+
+    shift = result.shift
+    fig = _figure(12, 6.2)
+    full, near = fig.subplots(1, 2, gridspec_kw={"width_ratios": (1.0, 1.0)})
+    height, width = rgb.shape[:2]
+    full.imshow(rgb, interpolation="antialiased", extent=(column_start - 0.5, column_start + width - 0.5, height - 0.5, -0.5))
+    full.set_title("kept columns (cut at both sides)", fontsize=9)
+    full.set_xlabel("image column (px)")
+    full.set_ylabel("image row (px)")
+    if shift.column >= 0:
+        rows = (shift.normal_row, shift.defect_row)
+        centre_row = 0.5 * (rows[0] + rows[1])
+        half = max(zoom_px, abs(rows[0] - rows[1]) * 0.75 + 8)
+        x0, x1 = shift.column - half, shift.column + half
+        y0, y1 = centre_row - half, centre_row + half
+        full.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="yellow", lw=1))
+        near.imshow(rgb, interpolation="nearest", extent=full.images[0].get_extent())
+        near.set_xlim(x0, x1)
+        near.set_ylim(y1, y0)
+        near.annotate("", xy=(shift.column, rows[1]), xytext=(shift.column, rows[0]),
+                      arrowprops={"arrowstyle": "<->", "color": "yellow", "lw": 1.5})
+        near.text(shift.column + 2, centre_row, f" {shift.distance_px:g} px\n ({shift.side} contour)",
+                  color="yellow", fontsize=10, va="center")
+        near.set_title("magnified: the largest distance between corresponding contours", fontsize=9)
+    else:
+        near.set_title("no corresponding contours to compare", fontsize=9)
+    near.set_xlabel("image column (px)")
+    handles = [Patch(color=c, label=text) for c, text in OVERLAY_LEGEND]
+    handles.append(Patch(color="yellow", label="measured distance"))
+    fig.legend(handles=handles, loc="lower center", ncol=5, fontsize=8.5)
+    fig.suptitle(
+        f"Fig. 9 overlay: {title}; phase {result.best_phase_mm:g} mm\n"
+        f"visibility {result.visibility_px:g} px (limit {result.visibility_continuous_px:.2f} px, "
+        f"deflection {result.deflection_px:.2f} px, {result.islands} islands)",
+        fontsize=10.5,
+    )
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    _save(fig, path)
 
 
 def figure_names(surface: str, dmax: float) -> tuple[str, str]:
-    """File names of the grid and the plot of one (surface, depth)."""
+    """File names of the grid and the plot of one (surface, depth); depth in µm."""
     tag = f"{surface}_dmax{dmax * 1000:g}um"
     return f"grid_{tag}.png", f"visibility_{tag}.png"
+
+
+LAW_FIGURE = "law_vs_simulation.png"
 
 
 def write_figures(rows: list[dict], out_dir: Path, plan) -> list[Path]:
@@ -117,4 +242,7 @@ def write_figures(rows: list[dict], out_dir: Path, plan) -> list[Path]:
             if len(plan.thetas) >= 2:
                 visibility_plot(rows, surface, dmax, out_dir / plot_name)
                 written.append(out_dir / plot_name)
+    if rows:
+        law_plot(rows, out_dir / LAW_FIGURE)
+        written.append(out_dir / LAW_FIGURE)
     return written

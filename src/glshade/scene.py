@@ -315,6 +315,15 @@ class Scene:
             e_v=np.array([0.0, math.cos(th), math.sin(th)]),
         )
 
+    def title(self) -> str:
+        """The case in a few words, as figure titles name it (depth in µm)."""
+        d, surface = self.defect, self.surface
+        shape = f"σ² {d.sigma_x2:g} mm²" if d.isotropic else f"Σ ({d.sigma_x2:g}, {d.sigma_z2:g}, {d.sigma_xz:g}) mm²"
+        base = "flat" if surface.kind == "flat" else f"{surface.kind} R {surface.radius:g} mm"
+        if surface.kind == "cylinder":
+            base += f" axis {surface.axis}"
+        return f"{base}, θ {self.camera.theta_deg:g}°, {shape}, dmax {d.dmax * 1000:g} µm"
+
     # ----------------------------------------------------------------- variants
     def without_defect(self) -> Scene:
         """The same scene with ``dmax = 0`` (the reference image of the visibility metric)."""

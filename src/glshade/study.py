@@ -1,17 +1,16 @@
 """The paper's study (SPEC §7, Table 1) as a resumable sweep.
 
-For every (surface, θ) the defect-free scene is traced once; for every (σ², dmax) the
-defect scene is traced once. Each trace yields the emitter map ``v`` (the uv map's
-second channel), and every phase of the paper's sweep is shaded from it: for the mirror
-model the binarised image at phase ``φ`` is exactly ``|wrap(v - φ)| < w*``
-(:func:`glshade.visibility.stripe_half_width`), so no phase is ever re-rendered. The
-defect-free image's contour analysis is shared by all defects of its (surface, θ); the
-GL context and the program stay alive for the whole sweep.
+Every case is measured by the one metric pipeline (:class:`glshade.visibility.Baseline`):
+for every (surface, θ) the defect-free scene is traced once and its analysis is shared by
+the 8 (σ², dmax) cases of that geometry, which changes no number (a case is a pure
+function of its scene and the metric settings; ``tests/test_study.py`` checks the rows
+against :func:`glshade.measure`). The GL work stays on the calling thread; the analysis
+runs in ``workers`` threads.
 
 Each finished case is written as ``cases/<key>.json`` (plus a thumbnail of its image at
 the best phase for the figure grids) atomically, so an interrupted run loses nothing and
 a rerun with the same output directory skips what is done. ``results.csv`` is rebuilt
-from the case files.
+from the case files; its columns are :data:`COLUMNS` (documented in ``docs/results.md``).
 """
 
 from __future__ import annotations
@@ -29,9 +28,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from . import contours, physics
 from . import visibility as vis
 from .errors import GlshadeError
 from .files import atomic_write_bytes, encode_png
+from .measurement import emitter_map
 from .renderer import Renderer
 from .scene import SURFACE_KINDS, Camera, Scene, paper_scene
 
@@ -42,15 +43,68 @@ PAPER_DMAXS = (0.003, 0.005)
 GRID_THETAS = (85.0, 45.0, 5.0)
 #: Side of the thumbnails kept for the grids, pixels.
 THUMBNAIL = 256
-#: The case shown as the Fig. 9 contour overlay (used when it is part of the plan).
-OVERLAY_CASE = ("flat", 45.0, 4.0, 0.005)
+#: Cases drawn as the Fig. 9 contour overlay, when they are part of the plan: the paper's
+#: default scene, and a steep dent at a grazing view whose stripe map folds.
+OVERLAY_CASES = {
+    ("flat", 45.0, 4.0, 0.005): "fig09_contour_overlay.png",
+    ("flat", 5.0, 1.0, 0.005): "fig09_contour_overlay_fold.png",
+}
+#: Changes whenever the metric's definition changes: case files of another version are
+#: never mixed into a study.
+METRIC_VERSION = 2
 
-CSV_COLUMNS = [
-    "surface", "theta_deg", "sigma2_mm2", "dmax_mm", "period_mm",
-    "visibility_px", "best_phase_mm", "visibility_continuous_px",
-    "unpaired_contours", "folded", "offset_dx_px", "offset_dy_px", "unresolved_fraction",
-    "trace_s", "shade_s", "opencv_s", "continuous_s",
-]
+
+@dataclass(frozen=True)
+class Column:
+    """One column of ``results.csv``: its name, unit and meaning (docs/results.md)."""
+
+    name: str
+    unit: str
+    meaning: str
+
+
+COLUMNS = (
+    Column("surface", "", "base surface: flat, cylinder (R 70 mm, axis in the plane of incidence) or sphere (R 70 mm)"),
+    Column("theta_deg", "deg", "camera elevation θ above the surface (90 = straight down)"),
+    Column("sigma2_mm2", "mm²", "variance σ² of the Gaussian dent (isotropic)"),
+    Column("dmax_mm", "mm", "depth of the dent (0.003 mm = 3 µm)"),
+    Column("period_mm", "mm", "stripe period on the emitter (2 mm; 10 mm on the sphere, as in the paper)"),
+    Column("visibility_px", "px", "the paper's metric: the largest distance between corresponding stripe contours "
+           "over the phase sweep, whole pixels of the image (SPEC §6)"),
+    Column("visibility_continuous_px", "px", "the limit of the paper's metric for a vanishing phase step and pixel "
+           "size, by the same contour rules (sub-pixel)"),
+    Column("deflection_px", "px", "how far the dent moves the emitter map: the largest |r - r0| with v0(r0) = v1(r); "
+           "equals the continuous visibility where nothing folds"),
+    Column("folded", "", "True where the dent's emitter map runs against the defect-free one along some kept column "
+           "(the stripe map folds)"),
+    Column("islands", "count", "the most stripe pieces cut off by a fold (touching neither a cut column nor the border) "
+           "at any phase; never measured"),
+    Column("best_phase_mm", "mm", "stripe phase at which visibility_px was reached"),
+    Column("unpaired_contours", "count", "stripes reaching a cut column or the border that found no partner at the best "
+           "phase (0 in a healthy comparison)"),
+    Column("offset_dx_px", "px", "registration offset applied to the defect image, columns (0 for rendered pairs)"),
+    Column("offset_dy_px", "px", "registration offset applied to the defect image, rows (0 for rendered pairs)"),
+    Column("unresolved_fraction", "fraction", "share of the kept pixels left out because the defect-free stripes span "
+           "fewer than 4 px per period there (aliasing)"),
+    Column("fold_ratio", "", "closed form 2 κ Dc De / ((Dc + De) sin θ), κ the largest tangential curvature of base "
+           "plus dent; the map folds where it exceeds 1 (docs/physics.md)"),
+    Column("deflection_law_px", "px", "closed form of deflection_px (docs/physics.md)"),
+    Column("visibility_law_px", "px", "closed form of visibility_continuous_px: the deflection, capped by a fold at "
+           "b sqrt(2 ln(F/m)) (docs/physics.md)"),
+    Column("trace_s", "s", "time to trace the dent's emitter map (GL)"),
+    Column("shade_s", "s", "time to binarise the defect image at every phase"),
+    Column("contours_s", "s", "time of the contour analysis over the phase sweep (OpenCV)"),
+    Column("continuous_s", "s", "time of the deflection and the continuous limit"),
+)
+CSV_COLUMNS = [c.name for c in COLUMNS]
+_INTEGER_COLUMNS = {"islands", "unpaired_contours", "offset_dx_px", "offset_dy_px"}
+
+
+def columns_markdown() -> str:
+    """The table of ``docs/results.md``."""
+    lines = ["| column | unit | meaning |", "|---|---|---|"]
+    lines += [f"| `{c.name}` | {c.unit or '—'} | {c.meaning} |" for c in COLUMNS]
+    return "\n".join(lines)
 
 
 def _float_list(name: str, values, lo: float, hi: float, closed_hi: bool = False) -> tuple[float, ...]:
@@ -108,11 +162,13 @@ class StudyPlan:
     def to_dict(self) -> dict:
         data = asdict(self)
         data["surfaces"] = list(self.surfaces)
+        data["metric_version"] = METRIC_VERSION
         return data
 
 
 def case_key(surface: str, theta: float, sigma2: float, dmax: float) -> str:
-    return f"{surface}_theta{theta:g}_sigma2_{sigma2:g}_dmax{dmax:g}"
+    """File stem of a case (dmax in µm, as the file names of the figures)."""
+    return f"{surface}_theta{theta:g}_sigma2_{sigma2:g}_dmax{dmax * 1000:g}um"
 
 
 @dataclass
@@ -121,7 +177,7 @@ class Timings:
 
     trace: float = 0.0
     shade: float = 0.0
-    opencv: float = 0.0
+    contours: float = 0.0
     continuous: float = 0.0
     io: float = 0.0
     figures: float = 0.0
@@ -139,7 +195,8 @@ class StudyResult:
 # --------------------------------------------------------------------------- output dir
 def prepare_out_dir(out_dir: Path, plan: StudyPlan) -> None:
     """Create (or reuse) the output directory; a directory that holds a study with other
-    settings is refused rather than mixed."""
+    settings, or one measured with another version of the metric, is refused rather than
+    mixed."""
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise GlshadeError(f"--out {out_dir}: is a file, expected a directory")
@@ -162,7 +219,7 @@ def prepare_out_dir(out_dir: Path, plan: StudyPlan) -> None:
             stored = None
         if stored is not None and _comparable(stored) != _comparable(wanted):
             raise GlshadeError(
-                f"--out {out_dir}: holds a study with other settings (see its study.json); "
+                f"--out {out_dir}: holds a study with other settings or an older metric (see its study.json); "
                 "use another directory or remove it"
             )
     atomic_write_bytes(manifest, json.dumps(wanted, indent=2).encode())
@@ -171,14 +228,15 @@ def prepare_out_dir(out_dir: Path, plan: StudyPlan) -> None:
 def _comparable(plan_dict: dict) -> dict:
     """The settings that change results (the case lists may differ: a rerun may add
     surfaces or angles to the same directory)."""
-    return {"size": plan_dict.get("size"), "metric": plan_dict.get("metric")}
+    return {k: plan_dict.get(k) for k in ("size", "metric", "metric_version")}
 
 
 def load_case(path: Path) -> dict | None:
     try:
-        return json.loads(path.read_text())
+        row = json.loads(path.read_text())
     except (OSError, ValueError):
         return None  # a file from an older, interrupted writer: recompute
+    return row if isinstance(row, dict) and set(CSV_COLUMNS) <= set(row) else None
 
 
 # --------------------------------------------------------------------------- the run
@@ -193,7 +251,7 @@ def run_study(
 ) -> StudyResult:
     """Run (or resume) the study into ``out_dir``; returns every case's row.
 
-    ``workers``: threads for the OpenCV analysis (the GL work stays on this thread).
+    ``workers``: threads for the analysis (the GL work stays on this thread).
     ``on_case_done(row)`` is called after each case is safely on disk.
     """
     if workers < 1:
@@ -218,7 +276,7 @@ def run_study(
     try:
         with ThreadPoolExecutor(max_workers=workers) as pool:
             for group in _groups(pending):
-                for row in _run_group(plan, group, renderer, pool, timings, cases_dir):
+                for row in _run_group(plan, group, renderer, pool, timings, out_dir):
                     done[case_key(row["surface"], row["theta_deg"], row["sigma2_mm2"], row["dmax_mm"])] = row
                     if bar is not None:
                         bar.update(1)
@@ -252,135 +310,79 @@ def _groups(cases: list[tuple[str, float, float, float]]):
     return list(groups.values())
 
 
-def _run_group(plan, group, renderer, pool, timings, cases_dir):
-    surface, theta = group[0][:2]
-    settings = plan.metric
-    normal_scene = plan.scene(surface, theta, group[0][2], group[0][3]).without_defect()
-    emitter = normal_scene.emitter
+def _run_group(plan: StudyPlan, group, renderer: Renderer, pool: ThreadPoolExecutor, timings: Timings, out_dir: Path):
+    normal_scene = plan.scene(*group[0]).without_defect()
     start = time.perf_counter()
-    v0 = renderer.render(normal_scene, ("uv",)).uv[..., 1].copy()
+    v0 = emitter_map(renderer, normal_scene)
     timings.trace += time.perf_counter() - start
-
-    half_width = vis.stripe_half_width(emitter, settings.threshold)
-    if half_width is None or settings.otsu:
-        raise GlshadeError(
-            "the study shades every phase from the traced emitter map, which needs a fixed threshold "
-            "and stripes narrower than a third of the period"
-        )
-    phases = settings.phases(emitter.period)
-    columns = vis.kept_columns(v0.shape[1], settings.keep_fraction)
-    resolved = vis.resolved_mask(v0, emitter.period, settings.min_period_px) if settings.min_period_px > 0 else None
-    kept_mask = np.isfinite(v0[:, columns])
-    unresolved = 0.0
-    if resolved is not None and kept_mask.any():
-        unresolved = float((kept_mask & ~resolved[:, columns]).sum() / kept_mask.sum())
-
-    def normal_binary(phase: float) -> np.ndarray:
-        binary = vis.binarize_v(v0, emitter, phase, half_width)
-        return binary & resolved if resolved is not None else binary
-
-    def normal_analysis(phase: float):
-        return (float(phase), columns.start, columns.stop), vis.find_stripes(normal_binary(phase)[:, columns])
-
+    baseline = vis.Baseline(v0, normal_scene.emitter, plan.metric)
     start = time.perf_counter()
-    normal_cache = dict(pool.map(normal_analysis, phases))
-    timings.opencv += time.perf_counter() - start
+    list(pool.map(baseline.normal_stripes, baseline.phases))  # the shared defect-free analysis, in parallel
+    timings.contours += time.perf_counter() - start
 
     traced = []
     for case in group:
         scene = plan.scene(*case)
         start = time.perf_counter()
-        v1 = renderer.render(scene, ("uv",)).uv[..., 1].copy()
+        v1 = emitter_map(renderer, scene)
         trace_s = time.perf_counter() - start
         timings.trace += trace_s
-        traced.append(pool.submit(_analyse_case, plan, case, scene, v0, v1, half_width, resolved, normal_cache, trace_s, unresolved))
+        traced.append(pool.submit(_analyse_case, case, scene, baseline, v1, trace_s))
     for future in traced:
-        row, thumbnail, overlay_png, stage = future.result()
-        timings.shade += stage["shade"]
-        timings.opencv += stage["opencv"]
-        timings.continuous += stage["continuous"]
+        row, thumbnail, overlay = future.result()
+        timings.shade += row["shade_s"]
+        timings.contours += row["contours_s"]
+        timings.continuous += row["continuous_s"]
         start = time.perf_counter()
         key = case_key(row["surface"], row["theta_deg"], row["sigma2_mm2"], row["dmax_mm"])
         if thumbnail is not None:
-            atomic_write_bytes(cases_dir / f"{key}.png", thumbnail)
-        if overlay_png is not None:
-            atomic_write_bytes(cases_dir.parent / "fig09_contour_overlay.png", overlay_png)
-        atomic_write_bytes(cases_dir / f"{key}.json", json.dumps(row, indent=1).encode())  # the "done" mark
+            atomic_write_bytes(out_dir / "cases" / f"{key}.png", thumbnail)
+        if overlay is not None:
+            from .plots import overlay_figure
+
+            case = (row["surface"], row["theta_deg"], row["sigma2_mm2"], row["dmax_mm"])
+            overlay_figure(*overlay, out_dir / OVERLAY_CASES[case])
+        atomic_write_bytes(out_dir / "cases" / f"{key}.json", json.dumps(row, indent=1).encode())  # the "done" mark
         timings.io += time.perf_counter() - start
         yield row
 
 
-def _analyse_case(plan, case, scene, v0, v1, half_width, resolved, normal_cache, trace_s, unresolved):
-    """Everything after the traces, for one case (runs in a worker thread)."""
+def case_row(case: tuple[str, float, float, float], scene: Scene, result: vis.Visibility) -> dict:
+    """A case's row of ``results.csv`` (without the timing columns)."""
     surface, theta, sigma2, dmax = case
-    settings = plan.metric
-    emitter = scene.emitter
-    shade_s = 0.0
-
-    def binaries(phase: float):
-        nonlocal shade_s
-        start = time.perf_counter()
-        pair = vis.binarize_v(v0, emitter, phase, half_width), vis.binarize_v(v1, emitter, phase, half_width)
-        shade_s += time.perf_counter() - start
-        return pair
-
-    start = time.perf_counter()
-    result = vis.paper_visibility(binaries, emitter.period, settings, normal_cache=normal_cache, resolved=resolved)
-    opencv_s = time.perf_counter() - start - shade_s
-    start = time.perf_counter()
-    continuous = vis.continuous_visibility(v0, v1, settings.keep_fraction)
-    continuous_s = time.perf_counter() - start
-
-    thumbnail = None
-    if theta in GRID_THETAS:
-        start = time.perf_counter()
-        image = vis.stripe_radiance(v1, emitter, result.best_phase_mm)
-        small = cv2.resize(image, (THUMBNAIL, THUMBNAIL), interpolation=cv2.INTER_AREA)
-        thumbnail = encode_png(small, bits=8)
-        shade_s += time.perf_counter() - start
-    overlay_png = None
-    if (surface, theta, sigma2, dmax) == OVERLAY_CASE:
-        normal, defect = binaries(result.best_phase_mm)
-        if resolved is not None:
-            normal, defect = normal & resolved, defect & resolved
-        overlay_png = encode_png(vis.overlay(normal, defect, settings.keep_fraction))
-
-    row = {
+    law = physics.laws(scene)
+    summary = result.summary()
+    return {
         "surface": surface,
         "theta_deg": theta,
         "sigma2_mm2": sigma2,
         "dmax_mm": dmax,
-        "period_mm": emitter.period,
-        "visibility_px": result.visibility_px,
-        "best_phase_mm": result.best_phase_mm,
-        "visibility_continuous_px": round(continuous.visibility_px, 4),
-        "unpaired_contours": result.unpaired_contours,
-        "folded": continuous.folded or result.unpaired_contours > 0,
+        "period_mm": scene.emitter.period,
+        **{k: summary[k] for k in ("visibility_px", "visibility_continuous_px", "deflection_px", "folded", "islands",
+                                   "best_phase_mm", "unpaired_contours", "unresolved_fraction")},
         "offset_dx_px": result.offset_px[0],
         "offset_dy_px": result.offset_px[1],
-        "unresolved_fraction": round(unresolved, 5),
-        "trace_s": round(trace_s, 4),
-        "shade_s": round(shade_s, 4),
-        "opencv_s": round(opencv_s, 4),
-        "continuous_s": round(continuous_s, 4),
+        "fold_ratio": round(law.fold_ratio, 5),
+        "deflection_law_px": round(law.deflection_px, 4),
+        "visibility_law_px": round(law.visibility_px, 4),
     }
-    return row, thumbnail, overlay_png, {"shade": shade_s, "opencv": opencv_s, "continuous": continuous_s}
 
 
-def measure_case(renderer: Renderer, scene: Scene, settings: vis.MetricSettings = vis.MetricSettings()):
-    """Both metrics for one scene, on its own (no sharing): ``(Visibility, Continuous)``."""
-    emitter = scene.emitter
-    v0 = renderer.render(scene.without_defect(), ("uv",)).uv[..., 1].copy()
-    v1 = renderer.render(scene, ("uv",)).uv[..., 1].copy()
-    half_width = vis.stripe_half_width(emitter, settings.threshold)
-    if half_width is None:
-        raise GlshadeError("measure_case: stripes wider than a third of the period need image binarisation")
-    resolved = vis.resolved_mask(v0, emitter.period, settings.min_period_px) if settings.min_period_px > 0 else None
-    paper = vis.paper_visibility(
-        lambda p: (vis.binarize_v(v0, emitter, p, half_width), vis.binarize_v(v1, emitter, p, half_width)),
-        emitter.period, settings, resolved=resolved,
-    )
-    return paper, vis.continuous_visibility(v0, v1, settings.keep_fraction)
+def _analyse_case(case, scene: Scene, baseline: vis.Baseline, v1: np.ndarray, trace_s: float):
+    """Everything after the trace, for one case (runs in a worker thread)."""
+    result = baseline.measure(v1)
+    row = case_row(case, scene, result)
+    row.update(trace_s=round(trace_s, 4), shade_s=round(result.seconds.shade, 4),
+               contours_s=round(result.seconds.contours, 4), continuous_s=round(result.seconds.continuous, 4))
+    thumbnail = None
+    if case[1] in GRID_THETAS:
+        image = vis.stripe_radiance(v1, scene.emitter, result.best_phase_mm)
+        thumbnail = encode_png(cv2.resize(image, (THUMBNAIL, THUMBNAIL), interpolation=cv2.INTER_AREA), bits=8)
+    overlay = None
+    if case in OVERLAY_CASES:
+        normal, defect = baseline.stripes_at(v1, result.best_phase_mm, result.offset_px)
+        overlay = (contours.overlay_rgb(normal, defect), result, baseline.columns.start, scene.title())
+    return row, thumbnail, overlay
 
 
 def write_results_csv(path: Path, rows: list[dict]) -> None:
@@ -403,7 +405,7 @@ def read_results_csv(path: Path) -> list[dict]:
                     row[key] = value
                 elif key == "folded":
                     row[key] = value == "True"
-                elif key in ("unpaired_contours", "offset_dx_px", "offset_dy_px"):
+                elif key in _INTEGER_COLUMNS:
                     row[key] = int(value)
                 else:
                     row[key] = float(value)

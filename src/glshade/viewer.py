@@ -22,6 +22,7 @@ tests and demos. Needs the ``viewer`` extra: ``pip install "glshade[viewer]"``.
 from __future__ import annotations
 
 import math
+import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -29,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import contours
 from . import visibility as vis
 from .errors import GlshadeError, SceneError
 from .scene import Scene, paper_scene
@@ -145,13 +147,47 @@ def geometry_key(scene: Scene) -> Scene:
 
 @dataclass
 class Readout:
-    """The panel's numbers (the latest the worker finished)."""
+    """The panel's numbers, the latest the worker finished: the paper's comparison at the
+    current phase, and the whole case (SPEC §6) measured by the same pipeline as
+    ``glshade paper`` and ``glshade measure``."""
 
-    visibility_px: float | None = None
-    continuous_px: float | None = None
+    at_phase_px: float | None = None       # the paper's metric at the phase shown
+    at_phase_islands: int | None = None
+    visibility_px: float | None = None     # the paper's metric over the phase sweep
+    best_phase_mm: float | None = None
+    continuous_px: float | None = None     # its continuous limit
+    deflection_px: float | None = None
     folded: bool | None = None
-    unpaired: int | None = None
-    computed_for: tuple | None = None
+    islands: int | None = None
+    phase_for: tuple | None = None
+
+
+def readout_lines(r: Readout) -> list[str]:
+    """The panel's readout as text ("..." while the worker is still measuring)."""
+
+    def px(value, fmt):
+        return "..." if value is None else f"{value:{fmt}} px"
+
+    best = "" if r.best_phase_mm is None else f" (phase {r.best_phase_mm:g} mm)"
+    return [
+        f"visibility, this phase: {px(r.at_phase_px, 'g')}",
+        f"visibility, best phase: {px(r.visibility_px, 'g')}{best}",
+        f"continuous limit: {px(r.continuous_px, '.2f')}",
+        f"deflection: {px(r.deflection_px, '.2f')}",
+    ]
+
+
+class _Once:
+    """A value made on first use by whichever thread asks first (the others wait)."""
+
+    def __init__(self, make) -> None:
+        self._make, self._lock, self._value = make, threading.Lock(), None
+
+    def get(self):
+        with self._lock:
+            if self._value is None:
+                self._value = self._make()
+            return self._value
 
 
 @dataclass
@@ -163,6 +199,7 @@ class ViewerModel:
     view: str = "image"
     animate: bool = False
     phase_speed_periods: float = 0.5  # periods per second when animating
+    settings: vis.MetricSettings = field(default_factory=vis.MetricSettings)  # as glshade paper
     v0: np.ndarray | None = None      # traced emitter maps (v only), defect-free and defect
     v1: np.ndarray | None = None
     uv1: np.ndarray | None = None
@@ -171,9 +208,11 @@ class ViewerModel:
     traced_for: Scene | None = None
     traces: int = 0
     reshades: int = 0
+    _baseline: _Once | None = None
     _pool: ThreadPoolExecutor | None = None
-    _pending: Future | None = None
-    _continuous: Future | None = None
+    _case_job: Future | None = None
+    _phase_job: Future | None = None
+    _case_done: bool = False
 
     # ---------------------------------------------------------------- edits
     def set(self, name: str, value) -> bool:
@@ -212,29 +251,39 @@ class ViewerModel:
         self.traces += 1
         self.displacement = None
         self.readout = Readout()
-        self._continuous = None
+        v0, emitter, settings = self.v0, self.scene.emitter, self.settings
+        self._baseline = _Once(lambda: vis.Baseline(v0, emitter, settings))
+        self._case_done = False
+
+    def baseline(self) -> vis.Baseline | None:
+        """The defect-free analysis of the traced geometry (made once, in whichever
+        thread asks first)."""
+        return self._baseline.get() if self._baseline is not None else None
 
     # ---------------------------------------------------------------- pictures
     def binaries(self, phase: float) -> tuple[np.ndarray, np.ndarray] | None:
         emitter = self.scene.emitter
-        half = vis.stripe_half_width(emitter, vis.MetricSettings().threshold)
+        half = vis.stripe_half_width(emitter, self.settings.threshold)
         if half is None or self.v0 is None:
             return None
         return vis.binarize_v(self.v0, emitter, phase, half), vis.binarize_v(self.v1, emitter, phase, half)
 
     def overlay_rgba(self) -> np.ndarray:
-        """Fig. 9 colours over the whole width (normal blue, defect red, both magenta)."""
-        pair = self.binaries(self.scene.emitter.phase)
+        """Fig. 9 colours on the kept columns, as the metric sees them (normal blue, defect
+        red, both magenta, islands orange); the columns cut off are dark grey."""
         h, w = self.v1.shape
         rgba = np.zeros((h, w, 4), np.uint8)
+        rgba[..., :3] = 40
         rgba[..., 3] = 255
-        if pair is not None:
-            rgba[..., :3] = vis.overlay(*pair, keep_fraction=1.0)
+        baseline = self.baseline()
+        if baseline is not None and baseline.half_width_mm is not None:
+            normal, defect = baseline.stripes_at(self.v1, self.scene.emitter.phase)
+            rgba[:, baseline.columns, :3] = contours.overlay_rgb(normal, defect)
         return rgba
 
     def displacement_rgba(self) -> tuple[np.ndarray, float]:
-        """The continuous displacement as a colour map with a scale bar (bottom right), and
-        the value at its top end (px)."""
+        """The displacement (deflection) as a colour map with a scale bar (bottom right),
+        and the value at its top end (px)."""
         from matplotlib import colormaps
 
         h, w = self.v1.shape
@@ -265,43 +314,47 @@ class ViewerModel:
         return text
 
     # ---------------------------------------------------------------- metrics
+    def collect_metrics(self) -> None:
+        """Take whatever the worker finished (call before :meth:`start_metrics`)."""
+        if self._case_job is not None and self._case_job.done():
+            trace, result = self._case_job.result()
+            self._case_job = None
+            if trace == self.traces:
+                r = self.readout
+                r.visibility_px, r.best_phase_mm = result.visibility_px, result.best_phase_mm
+                r.continuous_px, r.deflection_px = result.visibility_continuous_px, result.deflection_px
+                r.folded, r.islands = result.folded, result.islands
+                self.displacement = result.displacement_px
+                self._case_done = True
+        if self._phase_job is not None and self._phase_job.done():
+            key, result = self._phase_job.result()
+            self._phase_job = None
+            if key[0] == self.traces:
+                self.readout.at_phase_px, self.readout.at_phase_islands = result.distance_px, result.islands
+                self.readout.phase_for = key
+
     def start_metrics(self) -> None:
-        """Submit the metrics for the current scene to the worker, unless one is running
-        (the newest state is submitted once it finishes: throttled, never queued up)."""
-        if self.v0 is None:
+        """Give the worker what is missing: the whole case once per trace, and the
+        comparison at the current phase whenever the phase changed. A job is never
+        replaced before it was collected (throttled, never queued up)."""
+        if self.v0 is None or self._baseline is None:
             return
         if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="glshade-metric")
-        if self._continuous is None:
-            self._continuous = self._pool.submit(vis.continuous_visibility, self.v0, self.v1)
-        key = (geometry_key(self.scene), self.scene.emitter.phase)
-        if self.readout.computed_for == key or (self._pending is not None and not self._pending.done()):
-            return
-        self._pending = self._pool.submit(self._paper_at_phase, self.v0, self.v1, self.scene, key)
+            self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="glshade-metric")
+        trace, baseline, v1 = self.traces, self._baseline, self.v1
+        if not self._case_done and self._case_job is None:
+            self._case_job = self._pool.submit(lambda: (trace, baseline.get().measure(v1)))
+        key = (trace, self.scene.emitter.phase)
+        if self._phase_job is None and self.readout.phase_for != key:
+            phase = self.scene.emitter.phase
+            self._phase_job = self._pool.submit(lambda: (key, baseline.get().at_phase(v1, phase)))
 
-    @staticmethod
-    def _paper_at_phase(v0, v1, scene: Scene, key) -> tuple:
-        emitter, settings = scene.emitter, vis.MetricSettings()  # the same metric as glshade paper
-        half = vis.stripe_half_width(emitter, settings.threshold)
-        if half is None:
-            return key, None
-        resolved = vis.resolved_mask(v0, emitter.period, settings.min_period_px)
-        normal = vis.binarize_v(v0, emitter, emitter.phase, half) & resolved
-        defect = vis.binarize_v(v1, emitter, emitter.phase, half) & resolved
-        columns = vis.kept_columns(v0.shape[1], settings.keep_fraction)
-        return key, vis.compare_binaries(normal, defect, columns, phase_mm=emitter.phase)
-
-    def collect_metrics(self) -> None:
-        if self._continuous is not None and self._continuous.done() and self.displacement is None:
-            result = self._continuous.result()
-            self.displacement = result.displacement_px
-            self.readout.continuous_px, self.readout.folded = result.visibility_px, result.folded
-        if self._pending is not None and self._pending.done():
-            key, result = self._pending.result()
-            self._pending = None
-            if key[0] == geometry_key(self.scene) and result is not None:
-                self.readout.visibility_px, self.readout.unpaired = result.distance_px, result.unpaired
-                self.readout.computed_for = key
+    def wait_for_metrics(self, timeout_s: float = 60.0) -> None:
+        """Block until the jobs in flight are done and collected (tests, scripted runs)."""
+        for job in (self._case_job, self._phase_job):
+            if job is not None:
+                job.result(timeout=timeout_s)
+        self.collect_metrics()
 
     def close(self) -> None:
         if self._pool is not None:
@@ -430,8 +483,8 @@ def make_app(options: ViewerOptions):
             self.last = now
             if m.needs_trace:
                 self.trace()
-            m.start_metrics()
             m.collect_metrics()
+            m.start_metrics()
             state = (m.traced_for, m.scene.emitter.phase, m.view, m.displacement is not None)
             if state != self.shown_for:
                 self.mode = self.picture()
@@ -508,13 +561,11 @@ def make_app(options: ViewerOptions):
             if changed:
                 m.view = VIEWS[index]
             imgui.separator()
-            r = m.readout
-            imgui.text(f"visibility (paper, this phase): {'...' if r.visibility_px is None else f'{r.visibility_px:g} px'}")
-            imgui.text(f"visibility (continuous): {'...' if r.continuous_px is None else f'{r.continuous_px:.2f} px'}")
-            if r.folded:
-                imgui.text_colored(imgui.ImVec4(1.0, 0.6, 0.2, 1.0), "the stripe map folds")
-            if r.unpaired:
-                imgui.text_colored(imgui.ImVec4(1.0, 0.6, 0.2, 1.0), f"{r.unpaired} contours without a partner at this phase")
+            for line in readout_lines(m.readout):
+                imgui.text(line)
+            if m.readout.folded:
+                imgui.text_colored(imgui.ImVec4(1.0, 0.6, 0.2, 1.0),
+                                   f"the stripe map folds: {m.readout.islands} islands (not measured)")
             if m.view == "displacement":
                 imgui.text(f"colour scale: 0 (dark) to {self.scale_top:.2f} px (yellow)")
             imgui.text_wrapped(self.hover_text or "hover over the image")
@@ -597,6 +648,7 @@ def make_app(options: ViewerOptions):
             stats["seconds"] = time.perf_counter() - self.started
             stats["traces"] = self.model.traces
             stats["reshades"] = self.model.reshades
+            stats["readout"] = replace(self.model.readout)
             if options.screenshot is not None:
                 self.screenshot(options.screenshot)
             self.model.close()

@@ -1,55 +1,62 @@
-"""Defect visibility: the paper's contour metric (SPEC §6) and its continuous companion.
+"""Defect visibility (SPEC §6): one pipeline from the defect-free analysis of a scene to
+the three numbers of any defect measured against it.
 
-The paper's metric, in OpenCV, for one pair of images (no defect / defect) at one phase:
+:class:`Baseline` holds everything that depends only on the defect-free scene and the
+metric settings: its emitter map ``v0``, the kept columns, the pixels that resolve the
+stripes, the binarisation level and, per phase, the labelled stripes of the normal image.
+:meth:`Baseline.measure` takes a defect's emitter map ``v1`` and returns a
+:class:`Visibility`:
 
-1. binarise both (default: radiance > 0.5 of the emitter peak; Otsu as an option);
-2. keep the central columns (default: the central half), cutting the stripe contours at
-   fixed columns;
-3. register the defect image onto the normal one (the whole-pixel shift within a few
-   pixels that best correlates the contour images; reported and applied; zero for
-   rendered pairs);
-4. label the white stripes (connected components) and pair them **by identity**: a
-   stripe of one image is the partner of the stripe of the other image that occupies
-   the same rows at a cut column (the defect does not reach the cut ends), or, for a
-   stripe that touches no cut column, that covers essentially the same pixels; never
-   of whichever stripe happens to be nearest;
-5. the distance between partners: every top (bottom) edge of a stripe, compared with
-   the nearest top (bottom) edge of its partner in the same column, both ways; the
-   largest such shift over all partners, in pixels, is the visibility at this phase.
+- ``visibility_px``: the paper's metric. At each phase of the sweep (``step_mm`` apart,
+  below one period) both images are binarised, cut to the central columns, registered,
+  and their corresponding contours compared (:mod:`glshade.contours`); the largest
+  distance over the phases.
+- ``visibility_continuous_px``: its limit for a vanishing phase step and pixel size, by
+  the same contour rules (:func:`glshade.continuous.visibility_limit`).
+- ``deflection_px``: how far the dent moves the emitter map
+  (:func:`glshade.continuous.deflection`).
+- ``folded`` (the map runs against itself along a column), ``islands`` (pieces of stripes
+  that a fold cuts off: counted, never measured), ``best_phase_mm``.
 
-:func:`paper_visibility` repeats this over phase shifts of ``step_mm`` across one period
-and keeps the maximum (SPEC §6 step 7). Stripes with no partner (islands that a fold of
-the stripe map cuts out of a stripe) are counted, never silently measured.
+The study, ``glshade measure``, the viewer and ``glshade accuracy`` all measure through
+this class, so they report identical numbers for identical scenes. Nothing here needs a
+GL context; :mod:`glshade.measure` renders the maps.
 
-The continuous metric (:func:`continuous_visibility`) works on the emitter maps ``v0``
-(no defect) and ``v1`` (defect): for each pixel ``r`` of a kept column, the row ``r0``
-where ``v0(r0) = v1(r)``; the displacement is ``|r - r0|`` pixels. It is the paper's
-metric in the limit of a vanishing phase step and no pixel quantisation.
-
-Everything here works on NumPy arrays; nothing needs a GL context.
+For the mirror and one ray per pixel, the binarised image at phase ``φ`` is exactly
+``|wrap(v - φ)| < w*`` (:func:`stripe_half_width`): no phase is ever re-rendered. Other
+shading (Blinn-Phong, supersampling) passes the rendered images instead.
 """
 
 from __future__ import annotations
 
 import math
+import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
+from . import contours as ct
+from .continuous import Deflection, Limit, StripeLevels, deflection, visibility_limit
 from .errors import GlshadeError
 from .scene import Emitter
 
 
 @dataclass(frozen=True)
 class MetricSettings:
-    """``threshold``: binarisation level as a fraction of the emitter peak (0, 1);
-    ``otsu``: use Otsu's threshold per image instead; ``keep_fraction``: the central
-    fraction of the columns kept (0, 1]; ``step_mm``: phase step of the sweep (mm);
-    ``max_offset_px``: the registration's search radius (pixels); ``min_period_px``:
-    pixels where the defect-free stripe period spans fewer pixels than this are left
-    out of the contours (see :func:`resolved_mask`; 0 keeps every pixel)."""
+    """How visibility is measured.
+
+    ``threshold``: binarisation level, a fraction of the emitter peak, in (0, 1);
+    ``otsu``: Otsu's level per image instead (rendered images only); ``keep_fraction``:
+    the central fraction of the columns kept, (0, 1]; ``step_mm``: phase step of the sweep
+    (mm, at most one period); ``max_offset_px``: search radius of the registration
+    (pixels); ``min_period_px``: pixels where the defect-free stripe period spans fewer
+    pixels than this are left out of the contours (0 keeps every pixel);
+    ``limit_upsample`` and ``limit_phases``: rows per pixel row and phases per period of
+    the continuous limit's search inside a fold.
+    """
 
     threshold: float = 0.5
     otsu: bool = False
@@ -57,6 +64,8 @@ class MetricSettings:
     step_mm: float = 0.25
     max_offset_px: int = 8
     min_period_px: float = 4.0
+    limit_upsample: int = 2
+    limit_phases: int = 32
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.threshold) and 0.0 < self.threshold < 1.0):
@@ -65,9 +74,14 @@ class MetricSettings:
             raise GlshadeError(f"keep_fraction: must be in (0, 1], got {self.keep_fraction}")
         if not (math.isfinite(self.step_mm) and self.step_mm > 0.0):
             raise GlshadeError(f"step: must be a number of mm > 0, got {self.step_mm}")
-
         if not (math.isfinite(self.min_period_px) and self.min_period_px >= 0.0):
             raise GlshadeError(f"min_period_px: must be a number of pixels >= 0, got {self.min_period_px}")
+        if not 0 <= self.max_offset_px <= 64:
+            raise GlshadeError(f"max_offset_px: must be an integer in [0, 64], got {self.max_offset_px}")
+        if not 1 <= self.limit_upsample <= 32:
+            raise GlshadeError(f"limit_upsample: must be an integer in [1, 32], got {self.limit_upsample}")
+        if not 4 <= self.limit_phases <= 1024:
+            raise GlshadeError(f"limit_phases: must be an integer in [4, 1024], got {self.limit_phases}")
 
     def phases(self, period_mm: float) -> np.ndarray:
         """Phase shifts of the sweep: 0, step, 2 step, … below one period (a shift of a
@@ -164,281 +178,58 @@ def binarize(image: np.ndarray, settings: MetricSettings) -> np.ndarray:
     return np.nan_to_num(image) > settings.threshold
 
 
-def contour_image(binary: np.ndarray) -> np.ndarray:
-    """The stripe contours of a binary image: white pixels with a black 4-neighbour (uint8 0/255)."""
-    white = binary.astype(np.uint8)
-    inner = cv2.erode(white, np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8), borderType=cv2.BORDER_REPLICATE)
-    return ((white > 0) & (inner == 0)).astype(np.uint8) * 255
-
-
-# --------------------------------------------------------------------------- contours
+# --------------------------------------------------------------------------- the sweep
 @dataclass(frozen=True)
-class Stripes:
-    """The white stripes of one cut binary image: labels and their contour pixels.
-
-    A stripe's contours are its top edges (first row of a run of the stripe in a
-    column) and its bottom edges (last row of a run). They are kept as sorted keys
-    ``(label * width + column) * height + row``, so the edges of one stripe in one
-    column are a contiguous, sorted slice. Label 0 is the background.
-    """
-
-    labels: np.ndarray
-    count: int
-    top_keys: np.ndarray
-    bottom_keys: np.ndarray
-
-
-def find_stripes(binary_cut: np.ndarray) -> Stripes:
-    """Label the white stripes (8-connected) and collect their top and bottom edges."""
-    count, labels = cv2.connectedComponents(binary_cut.astype(np.uint8), connectivity=8, ltype=cv2.CV_32S)
-    height, width = labels.shape
-
-    def keys(edge: np.ndarray) -> np.ndarray:
-        rows, cols = np.nonzero(edge)
-        return np.sort((labels[rows, cols].astype(np.int64) * width + cols) * height + rows)
-
-    starts = labels > 0
-    starts[1:] &= labels[1:] != labels[:-1]
-    ends = labels > 0
-    ends[:-1] &= labels[:-1] != labels[1:]
-    return Stripes(labels=labels, count=count - 1, top_keys=keys(starts), bottom_keys=keys(ends))
-
-
-def pair_stripes(normal: Stripes, defect: Stripes, min_iou: float = 0.5) -> tuple[np.ndarray, int]:
-    """Partners by identity, never by nearness.
-
-    1. At the cut ends: stripes that share rows at the first or the last kept column
-       are partners (the defect does not reach the cut ends, SPEC §6).
-    2. A stripe that touches neither cut column (an arc of a curved surface's pattern
-       that enters and leaves through the image's top or bottom) is the partner of the
-       stripe of the other image it overlaps most, provided they are essentially the
-       same pixels (intersection over union >= ``min_iou``).
-
-    What is left has no partner: typically islands that a fold of the stripe map cuts
-    out of a stripe. Returns the pairs ``(k_normal, k_defect)`` and the number of
-    stripes, in either image, without a partner.
-    """
-    width = normal.labels.shape[1]
-    a_all, b_all = normal.labels.ravel(), defect.labels.ravel()
-    na, nb = normal.count + 1, defect.count + 1
-    overlap = np.bincount(a_all * nb + b_all, minlength=na * nb).reshape(na, nb)
-    pairs = set()
-    for column in (0, width - 1):
-        a, b = normal.labels[:, column], defect.labels[:, column]
-        both = (a > 0) & (b > 0)
-        pairs.update(zip(a[both].tolist(), b[both].tolist()))
-    paired_a = {p[0] for p in pairs}
-    paired_b = {p[1] for p in pairs}
-    area_a, area_b = overlap.sum(axis=1), overlap.sum(axis=0)
-    inner = overlap[1:, 1:]
-    if inner.size:
-        for kb in range(1, nb):
-            if kb in paired_b:
-                continue
-            ka = int(np.argmax(inner[:, kb - 1])) + 1
-            common = overlap[ka, kb]
-            if common and common / (area_a[ka] + area_b[kb] - common) >= min_iou:
-                pairs.add((ka, kb))
-        paired_a = {p[0] for p in pairs}
-        paired_b = {p[1] for p in pairs}
-    unpaired = (normal.count - len(paired_a)) + (defect.count - len(paired_b))
-    joined = np.array(sorted(pairs), np.int64).reshape(-1, 2)
-    return joined, int(unpaired)
-
-
-def _nearest_in_group(target: np.ndarray, query: np.ndarray, height: int) -> np.ndarray:
-    """For each query key, the distance (rows) to the nearest target key of the same
-    (label, column) group; inf where that group has none. ``target`` is sorted."""
-    if target.size == 0:
-        return np.full(query.shape, np.inf)
-    idx = np.searchsorted(target, query)
-    group = query // height
-    best = np.full(query.shape, np.inf)
-    for cand in (idx - 1, idx):
-        inside = (cand >= 0) & (cand < target.size)
-        cand = np.clip(cand, 0, target.size - 1)
-        same = inside & (target[cand] // height == group)
-        best = np.minimum(best, np.where(same, np.abs(target[cand] - query), np.inf))
-    return best
-
-
-def _edge_shift(source: np.ndarray, target: np.ndarray, partner: dict[int, list[int]], labels: int, shape: tuple[int, int]) -> float:
-    """Largest distance (rows) from an edge of a stripe in ``source`` to the nearest edge
-    of the same kind of its partner stripe in ``target``, in the same column."""
-    height, width = shape
-    if source.size == 0 or target.size == 0:
-        return 0.0
-    plane = width * height
-    label = source // plane
-    rest = source % plane
-    single = np.full(labels + 1, -1, np.int64)  # stripes with one partner: all at once
-    for own, others in partner.items():
-        if len(others) == 1:
-            single[own] = others[0]
-    mate = single[label]
-    chosen = mate >= 0
-    best = _nearest_in_group(target, mate[chosen] * plane + rest[chosen], height)
-    worst = float(best[np.isfinite(best)].max()) if np.isfinite(best).any() else 0.0
-    for own, others in partner.items():  # split or merged stripes: the nearest of their partners
-        if len(others) < 2:
-            continue
-        mine = rest[label == own]
-        near = np.min([_nearest_in_group(target, other * plane + mine, height) for other in others], axis=0)
-        if np.isfinite(near).any():
-            worst = max(worst, float(near[np.isfinite(near)].max()))
-    return worst
-
-
-def paired_distance(normal: Stripes, defect: Stripes, pairs: np.ndarray) -> float:
-    """Largest shift (px) between corresponding contours: every top (bottom) edge of a
-    stripe is compared with the nearest top (bottom) edge of its partner stripe in the
-    same column, both ways; edges of other stripes never count (identity, not
-    nearness). Columns where the two images agree contribute exactly 0."""
-    if len(pairs) == 0:
-        return 0.0
-    a_to_b: dict[int, list[int]] = {}
-    b_to_a: dict[int, list[int]] = {}
-    for a, b in pairs.tolist():
-        a_to_b.setdefault(a, []).append(b)
-        b_to_a.setdefault(b, []).append(a)
-    shape = normal.labels.shape
-    return max(
-        _edge_shift(normal.top_keys, defect.top_keys, a_to_b, normal.count, shape),
-        _edge_shift(defect.top_keys, normal.top_keys, b_to_a, defect.count, shape),
-        _edge_shift(normal.bottom_keys, defect.bottom_keys, a_to_b, normal.count, shape),
-        _edge_shift(defect.bottom_keys, normal.bottom_keys, b_to_a, defect.count, shape),
-    )
-
-
-def register(normal_binary_cut: np.ndarray, defect_binary_cut: np.ndarray, max_offset_px: int = 8) -> tuple[int, int]:
-    """Whole-pixel offset ``(dx, dy)`` that moves the defect image onto the normal one
-    (SPEC §6 step 4): the shift within ``±max_offset_px`` that best correlates their
-    contour images (normalised cross-correlation); among equally good shifts the
-    smallest wins, so a pattern that is blind to a direction (horizontal stripes are
-    blind to horizontal shifts) is not moved along it. Zero for rendered pairs.
-
-    Phase correlation is not used: on a periodic stripe pattern its peak is ambiguous
-    up to whole periods.
-    """
-    a = contour_image(normal_binary_cut).astype(np.float32)
-    b = contour_image(defect_binary_cut).astype(np.float32)
-    m = max_offset_px
-    h, w = a.shape
-    if not a.any() or not b.any() or h <= 2 * m + 1 or w <= 2 * m + 1:
-        return 0, 0
-    template = b[m : h - m, m : w - m]
-    if not template.any():
-        return 0, 0
-    score = cv2.matchTemplate(a, template, cv2.TM_CCORR_NORMED)  # (2m+1, 2m+1), offset (x, y) - m
-    best = float(score.max())
-    ys, xs = np.nonzero(score >= best - 1e-6)
-    k = int(np.argmin((xs - m) ** 2 + (ys - m) ** 2))
-    return int(xs[k] - m), int(ys[k] - m)
-
-
-def shift_image(binary: np.ndarray, dx: int, dy: int) -> np.ndarray:
-    """Move a binary image by whole pixels (vacated pixels are black)."""
-    if dx == 0 and dy == 0:
-        return binary
-    out = np.zeros_like(binary)
-    h, w = binary.shape
-    src = binary[max(0, -dy) : h - max(0, dy), max(0, -dx) : w - max(0, dx)]
-    out[max(0, dy) : max(0, dy) + src.shape[0], max(0, dx) : max(0, dx) + src.shape[1]] = src
-    return out
-
-
-@dataclass(frozen=True)
-class PhaseResult:
-    """The metric at one phase: ``distance_px`` between partner contours, the number of
-    ``unpaired`` stripes, and the number of ``pairs``."""
-
-    phase_mm: float
-    distance_px: float
-    unpaired: int
-    pairs: int
-
-
-def compare_binaries(
-    normal_binary: np.ndarray,
-    defect_binary: np.ndarray,
-    columns: slice,
-    offset: tuple[int, int] = (0, 0),
-    normal_stripes: Stripes | None = None,
-    phase_mm: float = 0.0,
-) -> PhaseResult:
-    """Steps 3–5 of the metric for one phase (binaries of the full width; ``columns``
-    selects the kept ones; ``offset`` is applied to the defect image)."""
-    defect = shift_image(defect_binary, *offset)
-    normal_stripes = normal_stripes or find_stripes(normal_binary[:, columns])
-    defect_stripes = find_stripes(defect[:, columns])
-    pairs, unpaired = pair_stripes(normal_stripes, defect_stripes)
-    return PhaseResult(phase_mm, paired_distance(normal_stripes, defect_stripes, pairs), unpaired, len(pairs))
-
-
-@dataclass(frozen=True)
-class Visibility:
+class PaperResult:
     """The paper's metric over a phase sweep.
 
-    ``visibility_px``: the largest contour shift; ``best_phase_mm``: where it was
-    reached; ``offset_px``: the registration offset (dx, dy), whole pixels, found at
-    phase 0 and applied to the defect image at every phase;
-    ``unpaired_contours``: stripes without a partner at the best phase (the largest
-    over the sweep in ``max_unpaired``); ``images``: (normal, defect) radiance or
-    binary images at the best phase, as the caller provided them.
+    ``visibility_px``: the largest contour distance; ``best_phase_mm``: where it was
+    reached; ``shift``: where it is (``column`` in image coordinates); ``offset_px``: the
+    registration offset (dx, dy), whole pixels, found at the first phase and applied at
+    every phase; ``islands``: the most islands the defect image showed at any phase;
+    ``unpaired``: contour-bearing stripes without a partner at the best phase.
     """
 
     visibility_px: float
     best_phase_mm: float
+    shift: ct.ContourShift
     offset_px: tuple[int, int]
-    unpaired_contours: int
-    max_unpaired: int
-    per_phase: list[PhaseResult] = field(default_factory=list)
-    images: tuple[np.ndarray, np.ndarray] | None = None
+    islands: int
+    unpaired: int
+    per_phase: tuple[ct.PhaseResult, ...]
 
 
-def paper_visibility(
-    binaries: Callable[[float], tuple[np.ndarray, np.ndarray]],
-    period_mm: float,
-    settings: MetricSettings = MetricSettings(),
-    images: Callable[[float], tuple[np.ndarray, np.ndarray]] | None = None,
-    normal_cache: dict | None = None,
-    resolved: np.ndarray | None = None,
-) -> Visibility:
-    """SPEC §6 steps 1–7. ``binaries(phase)`` returns the (normal, defect) binary images
-    at a phase; ``images(phase)`` (optional) the images to keep for the best phase.
-    ``normal_cache`` (a dict) lets several defects share the normal image's analysis.
-    ``resolved`` (bool, optional): pixels outside it are black in both binaries
-    (:func:`resolved_mask`)."""
-    phases = settings.phases(period_mm)
-    if resolved is not None:
-        plain = binaries
-
-        def binaries(phase: float) -> tuple[np.ndarray, np.ndarray]:
-            normal, defect = plain(phase)
-            return normal & resolved, defect & resolved
-
-    normal0, defect0 = binaries(float(phases[0]))
-    columns = kept_columns(normal0.shape[1], settings.keep_fraction)
-    offset = register(normal0[:, columns], defect0[:, columns], settings.max_offset_px)
+def sweep(
+    phases: np.ndarray,
+    normal_stripes: Callable[[float], ct.StripeMap],
+    defect_binary: Callable[[float], np.ndarray],
+    edge: np.ndarray | None,
+    columns: slice,
+    max_offset_px: int,
+) -> PaperResult:
+    """SPEC §6 steps 1–7 on cut images: ``normal_stripes(phase)`` gives the defect-free
+    analysis, ``defect_binary(phase)`` the cut defect image (bool)."""
     results = []
-    for phase in phases:
-        normal, defect = (normal0, defect0) if phase == phases[0] else binaries(float(phase))
-        stripes = None
-        if normal_cache is not None:
-            key = (float(phase), columns.start, columns.stop)
-            stripes = normal_cache.get(key)
-            if stripes is None:
-                stripes = normal_cache[key] = find_stripes(normal[:, columns])
-        results.append(compare_binaries(normal, defect, columns, offset, stripes, float(phase)))
+    offset = (0, 0)
+    for index, phase in enumerate(phases):
+        phase = float(phase)
+        normal = normal_stripes(phase)
+        defect = defect_binary(phase)
+        if index == 0:
+            offset = ct.register(normal.labels > 0, defect, max_offset_px)
+        results.append(ct.compare(normal, ct.shift_image(defect, *offset), edge, phase))
     best = max(results, key=lambda r: r.distance_px)
-    return Visibility(
+    shift = best.shift
+    if shift.column >= 0:
+        shift = ct.ContourShift(shift.distance_px, shift.column + columns.start, shift.normal_row, shift.defect_row, shift.side)
+    return PaperResult(
         visibility_px=best.distance_px,
         best_phase_mm=best.phase_mm,
+        shift=shift,
         offset_px=offset,
-        unpaired_contours=best.unpaired,
-        max_unpaired=max(r.unpaired for r in results),
-        per_phase=results,
-        images=images(best.phase_mm) if images is not None else None,
+        islands=max(r.islands for r in results),
+        unpaired=best.unpaired,
+        per_phase=tuple(results),
     )
 
 
@@ -447,82 +238,214 @@ def image_visibility(
     defect_images: Callable[[float], np.ndarray],
     period_mm: float,
     settings: MetricSettings = MetricSettings(),
-) -> Visibility:
-    """The paper's metric on radiance images (any source: renders, photos, synthetic),
-    binarised with ``settings``."""
+    valid: np.ndarray | None = None,
+) -> PaperResult:
+    """The paper's metric on radiance images from any source (renders, photographs,
+    synthetic arrays), binarised with ``settings``. ``valid`` (bool, optional): the
+    region that sees the emitter; without it only the image's top and bottom rows count
+    as its border."""
+    first = np.asarray(normal_images(0.0))
+    columns = kept_columns(first.shape[1], settings.keep_fraction)
+    edge = ct.border_pixels(valid[:, columns]) if valid is not None else None
+    mask = valid[:, columns] if valid is not None else True
 
-    def binaries(phase: float) -> tuple[np.ndarray, np.ndarray]:
-        return binarize(normal_images(phase), settings), binarize(defect_images(phase), settings)
+    def normal(phase: float) -> ct.StripeMap:
+        return ct.find_stripes(binarize(normal_images(phase), settings)[:, columns] & mask, edge)
 
-    return paper_visibility(
-        binaries, period_mm, settings, images=lambda p: (normal_images(p), defect_images(p))
-    )
+    def defect(phase: float) -> np.ndarray:
+        return binarize(defect_images(phase), settings)[:, columns] & mask
+
+    return sweep(settings.phases(period_mm), normal, defect, edge, columns, settings.max_offset_px)
 
 
-# --------------------------------------------------------------------------- continuous
+# --------------------------------------------------------------------------- one case
 @dataclass(frozen=True)
-class Continuous:
-    """``visibility_px``: largest displacement; ``displacement_px``: the map (NaN outside
-    the kept columns or where undefined); ``folded``: the defect's emitter map folds
-    (``v1`` is not monotonic along some kept column)."""
+class StageSeconds:
+    """Where a measurement spent its time (seconds): binarising, the contour analysis,
+    and the continuous numbers (deflection and limit)."""
+
+    shade: float = 0.0
+    contours: float = 0.0
+    continuous: float = 0.0
+
+
+@dataclass(frozen=True)
+class Visibility:
+    """The visibility of one defect (SPEC §6), every length in pixels of the image.
+
+    ``visibility_px``, ``visibility_continuous_px``, ``deflection_px``, ``folded``,
+    ``islands``, ``best_phase_mm``: see the module docstring; ``offset_px``: the
+    registration; ``unpaired_contours``: contour-bearing stripes left without a partner at
+    the best phase; ``unresolved_fraction``: the share of kept pixels left out because
+    they do not resolve the stripes; ``shift``: where the paper's distance was measured;
+    ``displacement_px``: the deflection's map; ``limit``: the continuous limit's details.
+    """
 
     visibility_px: float
-    displacement_px: np.ndarray
+    visibility_continuous_px: float
+    deflection_px: float
     folded: bool
+    islands: int
+    best_phase_mm: float
+    offset_px: tuple[int, int]
+    unpaired_contours: int
+    unresolved_fraction: float
+    shift: ct.ContourShift
+    per_phase: tuple[ct.PhaseResult, ...] = field(repr=False)
+    displacement_px: np.ndarray = field(repr=False)
+    limit: Limit = field(repr=False)
+    seconds: StageSeconds = field(default_factory=StageSeconds, repr=False)
+
+    def summary(self) -> dict:
+        """The numbers as plain JSON-able values (``glshade measure --json``)."""
+        return {
+            "visibility_px": self.visibility_px,
+            "visibility_continuous_px": round(self.visibility_continuous_px, 4),
+            "deflection_px": round(self.deflection_px, 4),
+            "folded": self.folded,
+            "islands": self.islands,
+            "best_phase_mm": self.best_phase_mm,
+            "offset_px": list(self.offset_px),
+            "unpaired_contours": self.unpaired_contours,
+            "unresolved_fraction": round(self.unresolved_fraction, 5),
+        }
 
 
-def continuous_visibility(v0: np.ndarray, v1: np.ndarray, keep_fraction: float = 0.5) -> Continuous:
-    """SPEC §6 continuous companion metric from the emitter maps (mm, NaN = no hit)."""
-    height, width = v0.shape
-    columns = kept_columns(width, keep_fraction)
-    displacement = np.full((height, width), np.nan)
-    rows = np.arange(height, dtype=np.float64)
-    folded = False
-    for j in range(columns.start, columns.stop):
-        a, b = v0[:, j].astype(np.float64), v1[:, j].astype(np.float64)
-        valid = np.isfinite(a)
-        if valid.sum() < 2:
-            continue
-        ra, va = rows[valid], a[valid]
-        step = np.diff(va)
-        if not (np.all(step > 0) or np.all(step < 0)):
-            # the defect-free map should be monotonic; keep its longest monotonic run
-            keep = _longest_monotonic(va)
-            ra, va = ra[keep], va[keep]
-        if va[0] > va[-1]:
-            ra, va = ra[::-1], va[::-1]
-        good = np.isfinite(b) & (b >= va[0]) & (b <= va[-1])
-        if good.any():
-            r0 = np.interp(b[good], va, ra)
-            displacement[good, j] = np.abs(rows[good] - r0)
-        fb = b[np.isfinite(b)]
-        if fb.size > 2:
-            d = np.diff(fb)
-            d = d[d != 0]
-            folded |= bool(d.size and np.any(np.sign(d) != np.sign(d[0])))
-    value = float(np.nanmax(displacement)) if np.isfinite(displacement).any() else 0.0
-    return Continuous(visibility_px=value, displacement_px=displacement, folded=folded)
+class Baseline:
+    """The defect-free half of the metric for one scene geometry (see the module doc).
 
+    ``v0``: the defect-free emitter map (mm, NaN = no hit); ``emitter``: its stripes;
+    ``normal_images(phase)`` (optional): rendered defect-free images, for shading that is
+    not a function of ``v`` (Blinn-Phong, supersampling). Thread-safe: the study measures
+    several defects against one baseline from worker threads.
+    """
 
-def _longest_monotonic(values: np.ndarray) -> slice:
-    sign = np.sign(np.diff(values))
-    best, start = (0, 1), 0
-    for i in range(1, len(sign) + 1):
-        if i == len(sign) or sign[i] != sign[start] or sign[i] == 0:
-            if i - start > best[1] - best[0]:
-                best = (start, i + 1)
-            start = i
-    return slice(*best)
+    def __init__(
+        self,
+        v0: np.ndarray,
+        emitter: Emitter,
+        settings: MetricSettings = MetricSettings(),
+        normal_images: Callable[[float], np.ndarray] | None = None,
+    ) -> None:
+        self.v0 = np.asarray(v0)
+        self.emitter = emitter
+        self.settings = settings
+        self.normal_images = normal_images
+        self.phases = settings.phases(emitter.period)
+        self.half_width_mm = stripe_half_width(emitter, settings.threshold)
+        if normal_images is None and (self.half_width_mm is None or settings.otsu):
+            raise GlshadeError(
+                "the metric shades the phases from the emitter map, which needs a fixed threshold and stripes "
+                "narrower than a third of the period (emitter.stripe_sigma); pass rendered images instead"
+            )
+        height, width = self.v0.shape
+        self.columns = kept_columns(width, settings.keep_fraction)
+        if settings.min_period_px > 0:
+            self.resolved = resolved_mask(self.v0, emitter.period, settings.min_period_px)
+        else:
+            self.resolved = np.isfinite(self.v0)
+        self.valid = self.resolved[:, self.columns]
+        self.edge = ct.border_pixels(self.valid)
+        seen = np.isfinite(self.v0[:, self.columns])
+        self.unresolved_fraction = float((seen & ~self.valid).sum() / seen.sum()) if seen.any() else 0.0
+        self._v0_cut = self.v0[:, self.columns]
+        self._stripes: dict[float, ct.StripeMap] = {}
+        self._lock = threading.Lock()
 
+    # ---------------------------------------------------------------- images
+    def binary(self, v: np.ndarray, phase_mm: float, images: Callable[[float], np.ndarray] | None = None) -> np.ndarray:
+        """The cut binary image at a phase, from an emitter map ``v`` (or the image
+        ``images(phase)``), with the unresolved pixels black."""
+        if images is not None:
+            binary = binarize(images(phase_mm), self.settings)[:, self.columns]
+        else:
+            binary = binarize_v(v[:, self.columns], self.emitter, phase_mm, self.half_width_mm)
+        return binary & self.valid
 
-# --------------------------------------------------------------------------- pictures
-def overlay(normal_binary: np.ndarray, defect_binary: np.ndarray, keep_fraction: float = 0.5) -> np.ndarray:
-    """Fig. 9 of the paper: contours of the cut images, normal in blue, defect in red,
-    overlap in magenta, on black (uint8 RGB, the kept columns only)."""
-    columns = kept_columns(normal_binary.shape[1], keep_fraction)
-    a = contour_image(normal_binary[:, columns]) > 0
-    b = contour_image(defect_binary[:, columns]) > 0
-    rgb = np.zeros(a.shape + (3,), np.uint8)
-    rgb[a, 2] = 255
-    rgb[b, 0] = 255
-    return rgb
+    def normal_stripes(self, phase_mm: float) -> ct.StripeMap:
+        """The defect-free image's stripes at a phase (computed once, then shared)."""
+        key = float(phase_mm)
+        stripes = self._stripes.get(key)
+        if stripes is None:
+            stripes = ct.find_stripes(self.binary(self.v0, key, self.normal_images), self.edge)
+            with self._lock:
+                stripes = self._stripes.setdefault(key, stripes)
+        return stripes
+
+    # ---------------------------------------------------------------- metrics
+    def at_phase(self, v1: np.ndarray, phase_mm: float) -> ct.PhaseResult:
+        """The paper's comparison at one phase (the viewer's live readout); no registration."""
+        result = ct.compare(self.normal_stripes(phase_mm), self.binary(v1, phase_mm), self.edge, float(phase_mm))
+        shift = result.shift
+        if shift.column >= 0:
+            shift = ct.ContourShift(shift.distance_px, shift.column + self.columns.start, shift.normal_row,
+                                    shift.defect_row, shift.side)
+        return ct.PhaseResult(result.phase_mm, shift, result.islands, result.unpaired, result.pairs)
+
+    def paper(self, v1: np.ndarray, defect_images: Callable[[float], np.ndarray] | None = None) -> tuple[PaperResult, float]:
+        """The paper's metric of a defect, and the seconds spent binarising."""
+        shading = 0.0
+
+        def defect(phase: float) -> np.ndarray:
+            nonlocal shading
+            start = time.perf_counter()
+            binary = self.binary(v1, phase, defect_images)
+            shading += time.perf_counter() - start
+            return binary
+
+        return sweep(self.phases, self.normal_stripes, defect, self.edge, self.columns, self.settings.max_offset_px), shading
+
+    def moved(self, v1: np.ndarray) -> Deflection:
+        """The deflection of a defect's map against this one."""
+        return deflection(self.v0, v1, self.columns)
+
+    def measure(self, v1: np.ndarray, defect_images: Callable[[float], np.ndarray] | None = None) -> Visibility:
+        """All three numbers of a defect whose emitter map is ``v1`` (and whose rendered
+        images are ``defect_images(phase)``, when the baseline was given images)."""
+        if (defect_images is None) != (self.normal_images is None):
+            raise GlshadeError("measure: give defect images exactly when the baseline has normal images")
+        v1 = np.asarray(v1)
+        if v1.shape != self.v0.shape:
+            raise GlshadeError(f"measure: the defect map has shape {v1.shape}, the baseline {self.v0.shape}")
+        start = time.perf_counter()
+        paper, shading = self.paper(v1, defect_images)
+        contours_s = time.perf_counter() - start - shading
+        start = time.perf_counter()
+        moved = self.moved(v1)
+        valid = np.isfinite(self.v0) & np.isfinite(v1)  # a vanishing pixel cannot alias: no resolution mask
+        limit = visibility_limit(
+            self.v0, v1, valid, self.columns, StripeLevels(self.emitter.period, self._limit_half_width()), moved,
+            self.settings.limit_upsample, self.settings.limit_phases,
+        )
+        continuous_s = time.perf_counter() - start
+        return Visibility(
+            visibility_px=paper.visibility_px,
+            visibility_continuous_px=limit.visibility_px,
+            deflection_px=moved.deflection_px,
+            folded=moved.folded,
+            islands=paper.islands,
+            best_phase_mm=paper.best_phase_mm,
+            offset_px=paper.offset_px,
+            unpaired_contours=paper.unpaired,
+            unresolved_fraction=self.unresolved_fraction,
+            shift=paper.shift,
+            per_phase=paper.per_phase,
+            displacement_px=moved.displacement_px,
+            limit=limit,
+            seconds=StageSeconds(shading, contours_s, continuous_s),
+        )
+
+    def _limit_half_width(self) -> float:
+        """The stripes' half-width on the emitter for the continuous limit: the
+        threshold's (with images, the same fixed-threshold width of the mirror)."""
+        if self.half_width_mm is not None:
+            return self.half_width_mm
+        return 0.25 * self.emitter.period
+
+    # ---------------------------------------------------------------- pictures
+    def stripes_at(self, v1: np.ndarray, phase_mm: float, offset_px: tuple[int, int] = (0, 0),
+                   defect_images: Callable[[float], np.ndarray] | None = None) -> tuple[ct.StripeMap, ct.StripeMap]:
+        """Both images' stripes at a phase, the defect image moved by ``offset_px`` (the
+        registration of :meth:`measure`): what the Fig. 9 overlay shows."""
+        defect = ct.shift_image(self.binary(v1, phase_mm, defect_images), *offset_px)
+        return self.normal_stripes(phase_mm), ct.find_stripes(defect, self.edge)

@@ -1,0 +1,142 @@
+"""Closed forms that explain the visibility numbers (SPEC §6; derived in ``docs/physics.md``).
+
+Small slopes, the pinhole camera, the emitter in the mirror position, the defect at the
+gaze point. With ``Dc``, ``De`` the camera and emitter distances, ``δ = p / f`` the angle
+one pixel row sees and ``θ`` the elevation:
+
+- A flat mirror shows ``(Dc + De) δ`` of emitter per row. A base whose height has the
+  second derivative ``κ_t`` along the plane of incidence (``-1/R`` for a convex sphere or
+  a cylinder with its axis across it) scales that by ``m = 1 - 2 κ_t Dc De / ((Dc + De) sin θ)``.
+- A slope ``α`` along the plane of incidence turns the reflected ray by ``2 α``:
+  ``deflection_px = 2 α_max De / ((Dc + De) m δ) (1 + 2 σ_z cos θ / De)``,
+  ``α_max = dmax e^(-1/2) / σ_z`` (``σ_z² = 1 / (Σ⁻¹)_zz``); the last factor is the first
+  correction to SPEC's closed form (the steepest flank's distance and depth).
+- The map **folds** where ``2 κ Dc De / ((Dc + De) sin θ) > 1``, ``κ`` the largest curvature
+  of base plus defect along the plane of incidence: a dent's floor (``dmax / σ_z²``) or a
+  bump's flanks (``2 e^(-3/2) |dmax| / σ_z²``).
+- A fold caps what a viewer sees. Down the column through a dent the emitter coordinate
+  in rows is ``w(ρ) = m ρ - Δ(ρ)``, ``Δ(ρ) = D t e^((1 - t²)/2)``, ``t = ρ / b``, ``D`` the
+  deflection on a flat mirror and ``b = σ_z sin θ / (Dc δ)`` the dent's σ in image rows.
+  Stripe pieces between the fold's two turning levels are islands, unless they reach a
+  saddle of ``w``, which sits where the fold begins (columns ``±x_s``, ``x_s² = 2 σ_x² ln(F/m)``)
+  at the level ``s`` by which the base's sagittal curvature bends the stripes against the
+  dent's image (0 on a flat plate). A contour that reaches the cut columns therefore moves
+  by at most ``Δ(t1 b) / m``, ``t1`` the root beyond 1 of ``D φ(t) - m b t = s``
+  (``φ(t) = t e^((1-t²)/2)``); without a saddle offset that is ``b sqrt(2 ln(F/m))``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .scene import Scene
+
+SQRT_E = math.sqrt(math.e)
+
+
+@dataclass(frozen=True)
+class Laws:
+    """The closed forms for one scene, every length in image pixels.
+
+    ``magnification``: ``m``, the stripe scale relative to a flat mirror;
+    ``fold_ratio``: ``2 κ Dc De / ((Dc + De) sin θ)``, ``κ`` the largest tangential
+    curvature of base plus defect (the map folds when it exceeds 1); ``folds``;
+    ``deflection_px``; ``dent_extent_px``: ``b``, the defect's σ along the image's rows;
+    ``saddle_rows``: ``s``, the level of the fold's saddles above the dent's centre, in
+    rows; ``visibility_px``: the contour shift a viewer sees (the fold cap where it
+    applies; NaN for a folding bump, whose cap has no closed form here).
+    """
+
+    magnification: float
+    fold_ratio: float
+    folds: bool
+    deflection_px: float
+    dent_extent_px: float
+    saddle_rows: float
+    visibility_px: float
+
+
+def base_curvatures(scene: Scene) -> tuple[float, float]:
+    """Second derivatives of the base height at the gaze point (1/mm): along the plane of
+    incidence (tangential, ``z``) and across it (sagittal, ``x``). Convex is negative:
+    a sphere has ``(-1/R, -1/R)``, a cylinder with axis z ``(0, -1/R)``, with axis x
+    ``(-1/R, 0)``; R < 0 (concave) flips the signs."""
+    surface = scene.surface
+    if surface.kind == "sphere":
+        return -1.0 / surface.radius, -1.0 / surface.radius
+    if surface.kind == "cylinder":
+        return (-1.0 / surface.radius, 0.0) if surface.axis == "x" else (0.0, -1.0 / surface.radius)
+    return 0.0, 0.0
+
+
+def laws(scene: Scene) -> Laws:
+    """The closed forms of SPEC §6 (and the fold cap) for ``scene``."""
+    cam, defect = scene.camera, scene.defect
+    dc, de = cam.distance, scene.emitter.distance
+    sin_t, cos_t = math.sin(cam.theta_rad), math.cos(cam.theta_rad)
+    delta = cam.pixel_pitch / cam.focal
+    lever = 2.0 * dc * de / ((dc + de) * sin_t)  # mm: curvature -> fold ratio
+    tangential, sagittal = base_curvatures(scene)
+    m = 1.0 - lever * tangential
+    inv_xx, _, inv_zz = defect.inverse_covariance()
+    sigma_z = 1.0 / math.sqrt(inv_zz)
+    b = sigma_z * sin_t / (dc * delta)
+    depth = abs(defect.dmax)
+    # SPEC's leading term, times the first correction: the flank of steepest slope lies
+    # σ_z cos θ farther from the emitter, and its depth moves the hit point along the ray
+    # by as much again (docs/physics.md)
+    flat_deflection = 2.0 * depth * math.exp(-0.5) / sigma_z * de / ((dc + de) * delta) * (1.0 + 2.0 * sigma_z * cos_t / de)
+    deflection = flat_deflection / m if m > 0 else math.nan
+    dent_curvature = depth * inv_zz * (1.0 if defect.dmax > 0 else 2.0 * math.exp(-1.5))
+    ratio = lever * (dent_curvature + tangential)
+    folds = ratio > 1.0
+    focus = lever * dent_curvature / m if m > 0 else math.nan  # F / m: > 1 where a dent folds
+    saddle, visible = 0.0, deflection
+    if defect.dmax > 0 and focus > 1.0:
+        x_s2 = 2.0 / inv_xx * math.log(focus)
+        saddle = abs(_saddle_rows(x_s2, sagittal, m, dc, de, sin_t, cos_t, delta))
+        visible = _fold_cap(flat_deflection, b, m, saddle)
+    elif folds:
+        visible = math.nan
+    return Laws(magnification=m, fold_ratio=ratio, folds=folds, deflection_px=deflection, dent_extent_px=b,
+                saddle_rows=saddle, visibility_px=visible)
+
+
+def _saddle_rows(x_s2, sagittal, m, dc, de, sin_t, cos_t, delta) -> float:
+    """How far (in rows of the emitter map) a sagittally curved base lifts the stripes
+    against the dent's image at lateral offset ``x_s`` (docs/physics.md): the dent's centre
+    moves ``-cos θ x² κ_s / (2 Dc δ)`` rows, the stripes
+    ``cos θ x² κ_s (Dc + 2 De - 2 De Dc sin θ κ_s) / (Dc (Dc + De) δ)``."""
+    scale = cos_t * x_s2 * sagittal / (dc * delta)
+    return scale * ((dc + 2.0 * de - 2.0 * de * dc * sin_t * sagittal) / (dc + de) - 0.5 * m)
+
+
+def _fold_cap(flat_deflection: float, b: float, m: float, saddle: float) -> float:
+    """The largest shift of a contour that reaches the cut columns through a dent's fold:
+    ``D φ(t1) / m`` with ``t1 >= 1`` the root of ``D φ(t) - m b t = saddle``, or the whole
+    deflection when ``D - m b <= saddle`` (no island cuts it off). Bisection: the left
+    side decreases from ``D - m b`` at ``t = 1`` towards ``-inf``."""
+    def level(t: float) -> float:
+        return flat_deflection * t * math.exp(0.5 * (1.0 - t * t)) - m * b * t
+
+    if level(1.0) <= saddle:
+        return flat_deflection / m
+    lo, hi = 1.0, 2.0
+    while level(hi) > saddle:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if level(mid) > saddle else (lo, mid)
+    t1 = 0.5 * (lo + hi)
+    return flat_deflection * t1 * math.exp(0.5 * (1.0 - t1 * t1)) / m
+
+
+def fold_onset_theta_deg(scene: Scene) -> float:
+    """The elevation below which ``scene``'s defect folds the stripe map (degrees; 90 when
+    it folds at every elevation, 0 when at none)."""
+    probe = laws(scene.updated(camera={"theta_deg": 45.0}))
+    sine = probe.fold_ratio * math.sin(math.radians(45.0))  # the fold ratio is ∝ 1 / sin θ
+    if sine <= 0:
+        return 0.0
+    return 90.0 if sine >= 1.0 else math.degrees(math.asin(sine))
