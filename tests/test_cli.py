@@ -106,3 +106,19 @@ def test_memory_budget_from_environment(tmp_path):
     assert result.returncode == 2
     assert "camera.width x camera.height" in result.stderr and "memory budget of 1 MiB" in result.stderr
     assert not (tmp_path / "x.png").exists()
+
+
+def test_png_round_trip_keeps_the_channel_order(tmp_path):
+    """Grey, RGB and RGBA images come back as written (OpenCV stores BGR(A))."""
+    import numpy as np
+
+    from glshade.files import encode_png
+
+    rgb = np.zeros((2, 3, 3), np.uint8)
+    rgb[..., 0] = 200  # red
+    rgba = np.zeros((2, 3, 4), np.uint8)
+    rgba[..., 2] = 90  # blue
+    rgba[..., 3] = 255  # opaque
+    for name, pixels in (("rgb.png", rgb), ("rgba.png", rgba), ("grey.png", rgb[..., 0])):
+        (tmp_path / name).write_bytes(encode_png(pixels))
+        assert np.array_equal(read_png(tmp_path / name), pixels), name

@@ -10,9 +10,10 @@ import pytest
 from glshade import findings
 from glshade.cli import main
 from glshade.errors import GlshadeError
+from glshade.measurement import measure_scene
 from glshade.study import CSV_COLUMNS, StudyPlan, read_results_csv, run_study
 
-TIMING = {"trace_s", "shade_s", "opencv_s", "continuous_s"}
+TIMING = {"trace_s", "shade_s", "contours_s", "continuous_s"}
 SMALL = dict(thetas=(45.0, 5.0), size=128)
 
 
@@ -30,27 +31,36 @@ def test_reduced_study_end_to_end_through_the_cli(tmp_path, capsys):
     assert {r["surface"] for r in rows} == {"flat", "cylinder", "sphere"}
     assert all(r["period_mm"] == (10.0 if r["surface"] == "sphere" else 2.0) for r in rows)
     case = {(r["surface"], r["theta_deg"], r["sigma2_mm2"], r["dmax_mm"]): r for r in rows}
-    # flat, steep deep dent at 45 deg: the continuous metric is the closed form scaled to
-    # 128 px (18 / 8 px); the 2 mm stripes span 2.9 px per period at this size, so the
-    # contour metric has nothing resolved to measure, and says so
+    # flat, steep deep dent at 45 deg: the deflection and its continuous limit are the
+    # closed form scaled to 128 px (18 / 8 px); the 2 mm stripes span 2.9 px per period at
+    # this size, so the paper's contour metric has nothing resolved to measure, and says so
     flat = case[("flat", 45.0, 1.0, 0.005)]
-    assert flat["visibility_continuous_px"] == pytest.approx(18.0 / 8, rel=0.05)
+    assert flat["deflection_px"] == pytest.approx(18.0 / 8, rel=0.05)
+    assert flat["visibility_continuous_px"] == pytest.approx(flat["deflection_px"], rel=0.02)
+    assert flat["deflection_law_px"] == pytest.approx(18.0 / 8, rel=0.01)
     assert flat["unresolved_fraction"] == pytest.approx(1.0) and flat["visibility_px"] == 0.0
+    # ... and at 5 deg it folds, as the law predicts (at 128 px the dent spans 0.3 rows, too
+    # few to resolve the cap: that is measured at 512 px and more in test_physics.py)
+    grazing = case[("flat", 5.0, 1.0, 0.005)]
+    assert grazing["folded"] and grazing["fold_ratio"] > 1
     # the convex sphere compresses even its 10 mm stripes below 4 px per period at this
-    # size; the continuous metric still measures the dent
+    # size; the continuous numbers still measure the dent
     sphere = case[("sphere", 45.0, 1.0, 0.005)]
     assert sphere["unresolved_fraction"] > 0.9
-    assert sphere["visibility_continuous_px"] > 0.2
+    assert sphere["visibility_continuous_px"] > 0.2 and not sphere["folded"]
     assert all(0.0 <= r["unresolved_fraction"] <= 1.0 for r in rows)
     for name in (
-        "fig09_contour_overlay.png", "grid_flat_dmax5um.png", "grid_sphere_dmax3um.png",
-        "visibility_cylinder_dmax5um.png", "report.md", "study.json",
+        "fig09_contour_overlay.png", "fig09_contour_overlay_fold.png", "grid_flat_dmax5um.png",
+        "grid_sphere_dmax3um.png", "visibility_cylinder_dmax5um.png", "law_vs_simulation.png",
+        "report.md", "study.json",
     ):
         assert (out / name).stat().st_size > 0, name
     report = (out / "report.md").read_text()
     for number in range(1, 6):
         assert f"## Finding {number}" in report
-    assert "## Where the two metrics disagree" in report
+    for heading in ("## What to do with it: where to put the camera", "## How the verdicts are decided",
+                    "## The closed forms against the simulation", "## Where the stripe map folds"):
+        assert heading in report, heading
     assert "not resolved" in report  # the flat cases at 128 px are called out
     assert not list(out.rglob("*.tmp"))
 
@@ -146,13 +156,46 @@ def test_findings_rules_on_made_up_rows():
                                      visibility_px=value, visibility_continuous_px=value, folded=False))
     verdicts = {(v.finding, v.scope): v.verdict for v in findings.evaluate(rows) if v.metric == "paper metric"}
     assert verdicts[(1, "flat")] == findings.HOLDS
-    assert verdicts[(3, "flat, dmax 0.005")] == findings.HOLDS
-    assert verdicts[(4, "flat, dmax 0.005")] == findings.HOLDS
-    assert verdicts[(4, "sphere, dmax 0.005")] == findings.NOT
+    assert verdicts[(3, "flat, dmax 5 µm")] == findings.HOLDS
+    assert verdicts[(4, "flat, dmax 5 µm")] == findings.HOLDS
+    assert verdicts[(4, "sphere, dmax 5 µm")] == findings.NOT
     assert verdicts[(5, "flat, sphere")] == findings.NOT
     # a perfectly ranked but tiny trend (2 %) is only "partly"
     tiny = [dict(r, visibility_px=10.0 + (90 - r["theta_deg"]) / 400) for r in rows if r["surface"] == "flat"]
     tiny_verdicts = {(v.finding, v.scope): v.verdict for v in findings.evaluate(tiny) if v.metric == "paper metric"}
-    assert tiny_verdicts[(3, "flat, dmax 0.005")] == findings.PARTLY
+    assert tiny_verdicts[(3, "flat, dmax 5 µm")] == findings.PARTLY
     assert findings.spearman([1, 2, 3], [3, 2, 1]) == pytest.approx(-1.0)
     assert findings.spearman([1, 2, 3], [5, 5, 5]) == 0.0
+
+
+def test_a_case_is_a_pure_function_of_its_scene(tmp_path, renderer):
+    """The study shares one defect-free analysis between the defects of a geometry; its
+    rows are nevertheless exactly what measure_scene gives for each scene on its own."""
+    plan = StudyPlan(surfaces=("flat", "sphere"), thetas=(45.0, 5.0), sigma2s=(1.0,), dmaxs=(0.005,), size=256)
+    rows = run_study(plan, tmp_path, progress=False, renderer=renderer).rows
+    keys = ("visibility_px", "visibility_continuous_px", "deflection_px", "folded", "islands", "best_phase_mm")
+    for row, case in zip(rows, plan.cases(), strict=True):
+        alone = measure_scene(renderer, plan.scene(*case), plan.metric).summary()
+        assert {k: row[k] for k in keys} == {k: alone[k] for k in keys}, case
+    assert any(row["folded"] for row in rows)  # the fold case is among them
+
+
+def test_findings_advice_names_the_fold_and_the_magnification():
+    """The report's advice, on rows where a steep dent folds on the flat plate and every
+    dent shrinks on the sphere: the θ ranges and the closed form behind each."""
+    rows = []
+    for theta in (85.0, 45.0, 5.0):
+        for sigma2 in (1.0, 16.0):
+            folded = sigma2 == 1.0 and theta == 5.0
+            rows.append(dict(surface="flat", theta_deg=theta, sigma2_mm2=sigma2, dmax_mm=0.005, folded=folded,
+                             visibility_px=5.0 if folded else 18.0 / sigma2 ** 0.5,
+                             visibility_continuous_px=5.5 if folded else 18.0 / sigma2 ** 0.5,
+                             deflection_px=18.0 / sigma2 ** 0.5))
+            rows.append(dict(surface="sphere", theta_deg=theta, sigma2_mm2=sigma2, dmax_mm=0.005, folded=False,
+                             visibility_px=1.0, visibility_continuous_px=theta / 20, deflection_px=theta / 20))
+    text = "\n".join(findings.advice(rows))
+    assert "**flat, steep dents (σ² 1, 4)**: θ 85–45° (5 µm)" in text
+    assert "**flat, gentle dents (σ² 9, 16)**: θ 85–5° (5 µm)" in text
+    assert "moves the rays by 18.0 px and its contours by 5.5 px" in text
+    assert "**sphere, steep dents (σ² 1, 4)**: θ 85° (5 µm)" in text and "magnifies the stripes" in text
+    assert findings.theta_ranges({85.0, 45.0, 5.0}, (85.0, 65.0, 45.0, 5.0)) == "85°, 45–5°"

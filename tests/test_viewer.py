@@ -4,18 +4,29 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
 
 from glshade.errors import GlshadeError
 from glshade.files import read_png
+from glshade.measurement import measure
 from glshade.renderer import render
 from glshade.scene import paper_scene
-from glshade.viewer import ViewerModel, apply_setting, geometry_key, parse_sets
+from glshade.viewer import (
+    ViewerModel,
+    apply_setting,
+    geometry_key,
+    parse_sets,
+    readout_lines,
+)
+from glshade.visibility import Visibility
 
 SIZE = 96
 
@@ -74,17 +85,112 @@ def test_model_pictures_metrics_and_hover():
     model.traced(render(scene, ("uv",)).uv, render(scene.without_defect(), ("uv",)).uv[..., 1].copy())
     rgba = model.overlay_rgba()
     assert rgba.shape == (256, 256, 4) and (rgba[..., 0] == 255).any() and (rgba[..., 2] == 255).any()
+    assert readout_lines(model.readout)[0].endswith("...")  # nothing measured yet
     model.start_metrics()
-    model._continuous.result()
-    model._pending.result()
-    model.collect_metrics()
-    # the continuous metric at 256 px: the closed form scaled (18 / 4 px)
-    assert model.readout.continuous_px == pytest.approx(18.0 / 4, rel=0.05)
-    assert model.readout.visibility_px is not None
+    model.wait_for_metrics()
+    r = model.readout
+    # the continuous limit and the deflection at 256 px: the closed form scaled (18 / 4 px)
+    assert r.continuous_px == pytest.approx(18.0 / 4, rel=0.05)
+    assert r.deflection_px == pytest.approx(18.0 / 4, rel=0.05)
+    # the paper's number at the phase shown (0 mm, one of the sweep's phases), and over the sweep
+    assert r.phase_for == (model.traces, 0.0)
+    assert r.at_phase_px is not None and 0 < r.at_phase_px <= r.visibility_px
+    assert r.best_phase_mm is not None and r.folded is not None and r.islands is not None
+    assert not any("..." in line for line in readout_lines(r))
     colour, top = model.displacement_rgba()
-    assert top == pytest.approx(model.readout.continuous_px) and colour[..., :3].any()
+    assert top == pytest.approx(r.deflection_px) and colour[..., :3].any()
     assert "u " in model.hover(128, 128) and "displacement" in model.hover(128, 128)
     assert model.hover(-1, 5) == ""
+    model.close()
+
+
+class _RecordingPool(ThreadPoolExecutor):
+    """The model's worker pool, recording every job it is given."""
+
+    def __init__(self):
+        super().__init__(max_workers=2)
+        self.jobs = []
+
+    def submit(self, fn, /, *args, **kwargs):
+        job = super().submit(fn, *args, **kwargs)
+        self.jobs.append(job)
+        return job
+
+
+def test_render_loop_schedule_fills_the_readout_and_drops_no_finished_job():
+    """The old bug: the render loop replaced a finished job with a new one every frame
+    before anyone read it, so with the phase animated the readout stayed "..." for ever.
+    Here the loop runs as the window's does (collect, then start, the phase moving every
+    frame) and every job is checked: a finished one is taken at the next collect and its
+    numbers reach the readout; one in flight is never replaced."""
+    scene = paper_scene("flat", 45.0, 1.0, 0.005).with_size(128).updated(emitter={"period": 4.0})
+    model = ViewerModel(scene, animate=True)
+    model.traced(render(scene, ("uv",)).uv, render(scene.without_defect(), ("uv",)).uv[..., 1].copy())
+    pool = model._pool = _RecordingPool()
+    phases_taken = set()
+    deadline = time.monotonic() + 120.0  # a bound on a stuck worker, not a timing assertion
+    iterations = 0
+    while iterations < 300 or (model.readout.visibility_px is None or len(phases_taken) < 3):
+        if time.monotonic() > deadline:
+            break
+        iterations += 1
+        phase = model.scene.emitter.phase
+        model.advance(0.01)  # the animation moves the phase every frame
+        assert model.scene.emitter.phase != phase and not model.needs_trace
+        slots = (model._case_job, model._phase_job)
+        finished = [job is not None and job.done() for job in slots]
+        model.collect_metrics()
+        after = (model._case_job, model._phase_job)
+        for job, was_done, now in zip(slots, finished, after):
+            if was_done:
+                assert now is None  # taken, not left behind or replaced
+            if job is not None and now is None:
+                assert job.done()  # only a finished job leaves its slot
+        case, phase_job = slots
+        if finished[0] or (case is not None and after[0] is None):
+            _, result, error = case.result()
+            assert error is None and model.readout.visibility_px == result.visibility_px
+            assert model.readout.deflection_px == result.deflection_px
+        if finished[1] or (phase_job is not None and after[1] is None):
+            key, result, error = phase_job.result()
+            assert error is None and model.readout.phase_for == key
+            assert model.readout.at_phase_px == result.distance_px
+            phases_taken.add(key[1])
+        model.start_metrics()
+        for old, new in zip(after, (model._case_job, model._phase_job)):
+            assert old is None or new is old  # a job in flight is never replaced
+        time.sleep(0.002)
+    # the loop alone (no wait) filled the readout, and it followed the animation
+    assert model.readout.visibility_px is not None and model.readout.at_phase_px is not None
+    assert model.readout.continuous_px is not None and model.readout.deflection_px is not None
+    assert len(phases_taken) >= 3
+    assert not any("..." in line for line in readout_lines(model.readout))
+    # one whole-case job per trace; the phase jobs never pile up
+    model.wait_for_metrics()
+    whole_case = [job for job in pool.jobs if isinstance(job.result()[1], Visibility)]
+    assert len(whole_case) == 1 and len(pool.jobs) - 1 <= iterations
+    model.close()
+
+
+def test_metric_refusal_is_shown_not_raised():
+    """The period slider goes below the metric's 0.25 mm phase step: the metric refuses
+    the scene, and the viewer says why instead of dying in the render loop."""
+    scene = apply_setting(paper_scene().with_size(SIZE), "period", 0.2)
+    model = ViewerModel(scene, view="overlay")
+    model.traced(render(scene, ("uv",)).uv, render(scene.without_defect(), ("uv",)).uv[..., 1].copy())
+    model.start_metrics()
+    model.wait_for_metrics()
+    assert model.readout.error is not None and "step" in model.readout.error
+    lines = readout_lines(model.readout)
+    assert lines[0].endswith(": -") and lines[-1].startswith("not measured: step")
+    model.start_metrics()
+    assert model._case_job is None and model._phase_job is None  # nothing resubmitted
+    assert model.overlay_rgba().shape == (SIZE, SIZE, 4)
+    model.set("period", 2.0)  # a geometry the metric accepts measures again
+    model.traced(render(model.scene, ("uv",)).uv, render(model.scene.without_defect(), ("uv",)).uv[..., 1].copy())
+    model.start_metrics()
+    model.wait_for_metrics()
+    assert model.readout.error is None and model.readout.deflection_px is not None
     model.close()
 
 
@@ -149,6 +255,31 @@ def test_phase_animation_never_retraces():
     assert "(1 traces, 20 re-shades)" in result.stdout
     result = view("--size", "128", "--frames", "10", "--benchmark", "theta", "--no-panel")
     assert "(10 traces" in result.stdout
+
+
+@needs_display
+def test_scripted_run_ends_with_the_measured_readout():
+    """A few hundred frames with the phase animated and the panel drawn: the readout line
+    has numbers (the worker's results reached the window), the same as glshade.measure's
+    for the scene."""
+    result = view("--size", "128", "--frames", "300", "--set", "theta=45", "--set", "sigma2=1",
+                  "--set", "period=4", "--set", "animate=1")
+    assert result.returncode == 0, result.stderr[-3000:]
+    lines = [line for line in result.stdout.splitlines() if line.startswith("readout: ")]
+    assert len(lines) == 1, result.stdout
+    line = lines[0]
+    number = r"(\d+(?:\.\d+)?) px"
+    at_phase = re.search(r"visibility, this phase: " + number, line)
+    best = re.search(r"visibility, best phase: " + number, line)
+    continuous = re.search(r"continuous limit: " + number, line)
+    moved = re.search(r"deflection: " + number, line)
+    assert at_phase and best and continuous and moved, line
+    assert "..." not in line
+    scene = paper_scene("flat", 45.0, 1.0, 0.005).with_size(128).updated(emitter={"period": 4.0})
+    truth = measure(scene)
+    assert float(best.group(1)) == truth.visibility_px > 0
+    assert float(continuous.group(1)) == round(truth.visibility_continuous_px, 2)
+    assert float(moved.group(1)) == round(truth.deflection_px, 2)
 
 
 def test_bad_scene_file_opens_nothing(tmp_path):

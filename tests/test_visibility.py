@@ -1,5 +1,5 @@
-"""The visibility metrics on synthetic emitter maps and images (no GL), and against the
-flat closed form (GL)."""
+"""The visibility pipeline on synthetic emitter maps and images (no GL), and against the
+flat closed form (GL). The contour rules themselves are tested in test_contours.py."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from glshade import contours as ct
 from glshade import visibility as V
 from glshade.errors import GlshadeError
 from glshade.scene import Emitter, paper_scene
@@ -36,19 +37,23 @@ def test_paper_metric_recovers_an_imposed_displacement(shift_px):
     v0, v1 = emitter_maps(shift_px * MM_PER_ROW)
     result = V.image_visibility(*images(v0, v1), EMITTER.period)
     assert abs(result.visibility_px - shift_px) <= 1.0
-    assert result.offset_px == (0, 0) and result.unpaired_contours == 0
+    assert result.offset_px == (0, 0) and result.unpaired == 0 and result.islands == 0
     assert len(result.per_phase) == 8  # 0, 0.25, …, 1.75 mm
     # and no displacement, no visibility
     assert V.image_visibility(*images(v0, v0), EMITTER.period).visibility_px == 0.0
+    # the pipeline from the emitter maps gives the same paper metric as from the images
+    assert V.Baseline(v0, EMITTER).measure(v1).visibility_px == result.visibility_px
 
 
 @pytest.mark.parametrize("shift_px", [2.0, 5.0, 8.5])
-def test_continuous_metric_is_exact_on_an_imposed_displacement(shift_px):
+def test_continuous_numbers_are_exact_on_an_imposed_displacement(shift_px):
     v0, v1 = emitter_maps(shift_px * MM_PER_ROW)
-    result = V.continuous_visibility(v0, v1)
-    # the largest |r - r0| sits at the bump's centre: exactly the imposed shift
-    assert result.visibility_px == pytest.approx(shift_px, abs=0.02)
-    assert not result.folded
+    result = V.Baseline(v0, EMITTER).measure(v1)
+    # the largest |r - r0| sits at the bump's centre: exactly the imposed shift, and
+    # where nothing folds the continuous limit of the paper's metric is that displacement
+    assert result.deflection_px == pytest.approx(shift_px, abs=0.02)
+    assert result.visibility_continuous_px == result.deflection_px
+    assert not result.folded and result.limit.window is None
     kept = V.kept_columns(W, 0.5)
     assert np.isnan(result.displacement_px[:, : kept.start]).all()
 
@@ -63,7 +68,7 @@ def test_identity_wins_over_nearness():
     columns = V.kept_columns(W, 0.5)
     # the nearest-neighbour answer, for contrast: distance of each defect edge pixel to
     # the nearest normal edge pixel in its column
-    a, b = V.contour_image(normal[:, columns]) > 0, V.contour_image(defect[:, columns]) > 0
+    a, b = ct.contour_image(normal[:, columns]) > 0, ct.contour_image(defect[:, columns]) > 0
     nearest = max(
         np.abs(np.nonzero(a[:, j])[0][:, None] - np.nonzero(b[:, j])[0][None, :]).min(axis=0).max()
         for j in range(a.shape[1])
@@ -87,12 +92,17 @@ def test_registration_of_a_shifted_pair():
 
 
 def test_fold_is_reported_not_hidden():
-    """A bump steep enough to fold the map: v1 is not monotonic along the columns."""
+    """A bump steep enough to fold the map: v1 is not monotonic along the columns, islands
+    appear, and what the contours show (the paper's metric and its limit) stays far below
+    how far the rays move."""
     v0, v1 = emitter_maps(3.0, width_px=4.0)  # 30 px of shift over a 4 px wide bump
-    continuous = V.continuous_visibility(v0, v1)
-    assert continuous.folded
+    result = V.Baseline(v0, EMITTER).measure(v1)
+    assert result.folded and result.islands > 0
+    assert result.deflection_px == pytest.approx(30.0, abs=0.5)
+    assert result.visibility_continuous_px < 0.6 * result.deflection_px  # islands and a capped contour: 15.8 of 30 px
+    assert abs(result.visibility_px - result.visibility_continuous_px) <= 1.5
     paper = V.image_visibility(*images(v0, v1), EMITTER.period)
-    assert paper.max_unpaired > 0
+    assert paper.islands > 0 and paper.visibility_px == result.visibility_px
 
 
 def test_phases_and_settings_validation():
@@ -101,7 +111,8 @@ def test_phases_and_settings_validation():
     assert len(settings.phases(10.0)) == 40
     with pytest.raises(GlshadeError, match="at most one stripe period"):
         V.MetricSettings(step_mm=3.0).phases(2.0)
-    for bad in (dict(threshold=1.0), dict(keep_fraction=0.0), dict(step_mm=-1.0), dict(min_period_px=-1)):
+    for bad in (dict(threshold=1.0), dict(keep_fraction=0.0), dict(step_mm=-1.0), dict(min_period_px=-1),
+                dict(max_offset_px=-1), dict(limit_upsample=0), dict(limit_phases=2)):
         with pytest.raises(GlshadeError):
             V.MetricSettings(**bad)
 
@@ -129,7 +140,7 @@ def test_overlay_colours_of_fig9():
     v0, v1 = emitter_maps(0.5)
     normal = V.stripe_radiance(v0, EMITTER, 0.0) > 0.5
     defect = V.stripe_radiance(v1, EMITTER, 0.0) > 0.5
-    rgb = V.overlay(normal, defect)
+    rgb = ct.overlay_rgb(ct.find_stripes(normal), ct.find_stripes(defect))
     magenta = (rgb[..., 0] == 255) & (rgb[..., 2] == 255)
     red = (rgb[..., 0] == 255) & (rgb[..., 2] == 0)
     blue = (rgb[..., 0] == 0) & (rgb[..., 2] == 255)
@@ -146,13 +157,19 @@ def test_resolved_mask_leaves_out_aliased_stripes():
     assert not mask[10:45].any() and mask[55:95].all()
 
 
-def test_continuous_metric_flat_closed_form(renderer):
-    """SPEC §6: on a flat mirror, small slopes, the continuous metric tends to
-    2 (dmax/σ) e^(-1/2) De f / ((Dc + De) pitch) ≈ 18.0 px for σ² 1, dmax 5 µm."""
+def test_deflection_flat_closed_form(renderer):
+    """SPEC §6: on a flat mirror, small slopes, the deflection tends to
+    2 (dmax/σ) e^(-1/2) De f / ((Dc + De) pitch) ≈ 18.0 px for σ² 1, dmax 5 µm, at every θ;
+    where the fold does not cap it (θ 85, 45) the continuous limit is that deflection."""
     expected = 2 * (0.005 / 1.0) * math.exp(-0.5) * 256.0 * 25.0 / ((175.6 + 256.0) * 0.005)
     assert expected == pytest.approx(18.0, abs=0.02)
     for theta in (85.0, 45.0, 15.0):
         scene = paper_scene("flat", theta, 1.0, 0.005)
         v0 = renderer.render(scene.without_defect(), ("uv",)).uv[..., 1]
         v1 = renderer.render(scene, ("uv",)).uv[..., 1]
-        assert V.continuous_visibility(v0, v1).visibility_px == pytest.approx(expected, rel=0.02), theta
+        result = V.Baseline(v0, scene.emitter).measure(v1)
+        assert result.deflection_px == pytest.approx(expected, rel=0.02), theta
+        if theta >= 45.0:
+            assert result.visibility_continuous_px == pytest.approx(result.deflection_px, rel=0.01), theta
+        else:  # at 15° the fold caps it (physics.md §3: 12.3 px)
+            assert result.visibility_continuous_px == pytest.approx(12.3, rel=0.02)

@@ -28,7 +28,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Deflection:
-    """``displacement_px``: ``|r - r0|`` per pixel (float64, H×W; NaN outside the kept
+    """``displacement_px``: ``|r - r0|`` per pixel (float32, H×W; NaN outside the kept
     columns or where ``v1`` leaves the column's range of ``v0``); ``deflection_px``: its
     largest value; ``fold_columns``: image columns (kept) where ``v1`` runs against ``v0``;
     ``folded``: there is at least one."""
@@ -47,15 +47,15 @@ def deflection(v0: np.ndarray, v1: np.ndarray, columns: slice) -> Deflection:
 
     Only pixels where ``v1`` differs from ``v0`` need a search: elsewhere ``r0 = r``.
     """
-    v0 = np.asarray(v0, np.float64)
-    v1 = np.asarray(v1, np.float64)
     height, width = v0.shape
-    displacement = np.full((height, width), np.nan)
-    a, b = v0[:, columns], v1[:, columns]
-    out = displacement[:, columns]
+    dtype = np.result_type(v0.dtype, v1.dtype, np.float32)  # fp32 maps stay fp32: more bits would be noise
+    a = np.asarray(v0[:, columns], dtype)
+    b = np.asarray(v1[:, columns], dtype)
+    displacement = np.full((height, width), np.nan, np.float32)
+    out = np.full(a.shape, np.nan, dtype)
     out[np.isfinite(a) & (a == b)] = 0.0
     changed = np.isfinite(b) & ~(a == b)
-    direction = _monotone_direction(a)
+    direction = _monotone_direction(a).astype(dtype)
     regular = direction != 0
     _inverse_regular(a * direction, b * direction, changed & regular[None, :], out)
     rows = np.arange(height, dtype=np.float64)
@@ -73,7 +73,8 @@ def deflection(v0: np.ndarray, v1: np.ndarray, columns: slice) -> Deflection:
         target = changed[:, j] & (b[:, j] >= va[0]) & (b[:, j] <= va[-1])
         out[target, j] = np.abs(rows[target] - np.interp(b[target, j], va, ra))
     value = float(np.nanmax(out)) if np.isfinite(out).any() else 0.0
-    return Deflection(displacement, value, fold_columns(v0, v1, columns))
+    displacement[:, columns] = out
+    return Deflection(displacement, value, _against(a, b) + columns.start)
 
 
 def _monotone_direction(v0: np.ndarray) -> np.ndarray:
@@ -127,11 +128,14 @@ def _inverse_regular(v0: np.ndarray, v1: np.ndarray, target: np.ndarray, out: np
 def fold_columns(v0: np.ndarray, v1: np.ndarray, columns: slice) -> np.ndarray:
     """Image columns (among the kept ones) where ``v1`` runs against ``v0`` between two
     neighbouring rows: the stripe map folds there."""
-    d0 = np.diff(np.asarray(v0[:, columns], np.float64), axis=0)
-    d1 = np.diff(np.asarray(v1[:, columns], np.float64), axis=0)
+    return _against(v0[:, columns], v1[:, columns]) + columns.start
+
+
+def _against(v0: np.ndarray, v1: np.ndarray) -> np.ndarray:
+    """Columns where the two maps change in opposite directions between two rows."""
     with np.errstate(invalid="ignore"):
-        against = (d0 * d1) < 0
-    return np.nonzero(against.any(axis=0))[0] + columns.start
+        against = (np.diff(v0, axis=0) * np.diff(v1, axis=0)) < 0
+    return np.nonzero(against.any(axis=0))[0]
 
 
 def _longest_monotonic(values: np.ndarray) -> slice:

@@ -26,6 +26,7 @@ of the defect-free image; :mod:`glshade.visibility` sweeps the phases.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -65,6 +66,18 @@ class StripeMap:
     @property
     def islands(self) -> int:
         return int(np.count_nonzero(self.roles[1:] == ISLAND))
+
+    @cached_property
+    def areas(self) -> np.ndarray:
+        """Pixels per label (made on first use: only overlap pairing needs it)."""
+        return np.bincount(self.labels.ravel(), minlength=len(self.roles))
+
+    def box(self, label: int) -> tuple[slice, slice]:
+        """The rows and columns a stripe spans (from its runs)."""
+        top, bottom = self.top.labels == label, self.bottom.labels == label
+        cols = self.top.cols[top]
+        return (slice(int(self.top.rows[top].min()), int(self.bottom.rows[bottom].max()) + 1),
+                slice(int(cols.min()), int(cols.max()) + 1))
 
 
 def border_pixels(valid: np.ndarray) -> np.ndarray:
@@ -134,29 +147,23 @@ def pair_stripes(normal: StripeMap, defect: StripeMap, min_iou: float = 0.5) -> 
 
 
 def _overlap_pairs(normal: StripeMap, defect: StripeMap, pairs: np.ndarray, min_iou: float) -> np.ndarray:
-    """Pairs for ``BORDER`` stripes that no cut column paired, by overlap."""
-    lone_a = (normal.roles == BORDER) & ~np.isin(np.arange(normal.count + 1), pairs[:, 0])
-    lone_b = (defect.roles == BORDER) & ~np.isin(np.arange(defect.count + 1), pairs[:, 1])
-    if not lone_a.any() and not lone_b.any():
-        return np.empty((0, 2), np.int64)
-    a_all, b_all = normal.labels.ravel(), defect.labels.ravel()
-    nb = defect.count + 1
-    touched = (lone_a[a_all] | lone_b[b_all]) & (a_all > 0) & (b_all > 0)
-    joint = np.bincount(a_all[touched].astype(np.int64) * nb + b_all[touched])
-    area_a = np.bincount(a_all, minlength=normal.count + 1)
-    area_b = np.bincount(b_all, minlength=nb)
-    bearing_a = normal.roles != ISLAND
-    bearing_b = defect.roles != ISLAND
-    best: dict[tuple[int, int], float] = {}
-    for key in np.nonzero(joint)[0]:
-        a, b = divmod(int(key), nb)
-        if not (bearing_a[a] and bearing_b[b]):
-            continue
-        common = joint[key]
-        iou = common / (area_a[a] + area_b[b] - common)
-        if iou >= min_iou and (lone_a[a] or lone_b[b]):
-            best[(a, b)] = iou
-    return np.array(sorted(best), np.int64).reshape(-1, 2)
+    """Pairs for ``BORDER`` stripes that no cut column paired, by overlap: each lone
+    stripe is compared, inside its bounding box, with the other image's contour-bearing
+    stripes."""
+    found = set()
+    for mine, other, paired, flip in ((defect, normal, pairs[:, 1], False), (normal, defect, pairs[:, 0], True)):
+        lone = np.nonzero(mine.roles == BORDER)[0]
+        for label in lone[~np.isin(lone, paired)]:
+            box = mine.box(int(label))
+            inside = mine.labels[box] == label
+            common = np.bincount(other.labels[box][inside])
+            common[0] = 0
+            common[other.roles[: len(common)] == ISLAND] = 0
+            best = int(np.argmax(common))
+            area, best_area = int(inside.sum()), int(other.areas[best])
+            if common[best] and common[best] / (area + best_area - common[best]) >= min_iou:
+                found.add((best, int(label)) if not flip else (int(label), best))
+    return np.array(sorted(found), np.int64).reshape(-1, 2)
 
 
 def _groups(pairs: np.ndarray, na: int, nb: int) -> tuple[np.ndarray, np.ndarray, int]:
@@ -232,8 +239,8 @@ def contour_shift(normal: StripeMap, defect: StripeMap, pairs: np.ndarray) -> Co
 @dataclass(frozen=True)
 class PhaseResult:
     """The comparison at one phase: the ``shift`` between corresponding contours, the
-    ``islands`` of the defect image, stripes of either image left ``unpaired``, and the
-    number of partner ``pairs``."""
+    ``islands`` the defect adds (the defect image's islands beyond the defect-free one's),
+    stripes of either image left ``unpaired``, and the number of partner ``pairs``."""
 
     phase_mm: float
     shift: ContourShift
@@ -254,7 +261,8 @@ def compare(normal: StripeMap, defect_binary: np.ndarray, edge: np.ndarray | Non
     paired_b = np.unique(pairs[:, 1]) if len(pairs) else np.empty(0, np.int64)
     bearing = int(np.count_nonzero(normal.roles[1:] != ISLAND) + np.count_nonzero(defect.roles[1:] != ISLAND))
     unpaired = bearing - len(paired_a) - len(paired_b)
-    return PhaseResult(phase_mm, contour_shift(normal, defect, pairs), defect.islands, unpaired, len(pairs))
+    islands = max(0, defect.islands - normal.islands)  # a curved base may close stripes by itself
+    return PhaseResult(phase_mm, contour_shift(normal, defect, pairs), islands, unpaired, len(pairs))
 
 
 # --------------------------------------------------------------------------- registration

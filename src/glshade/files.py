@@ -62,13 +62,13 @@ def quantize(image: np.ndarray, bits: int = 8) -> np.ndarray:
 
 def encode_png(image: np.ndarray, bits: int = 8) -> bytes:
     """PNG bytes of a float radiance image (H×W) or an already-quantised uint8/uint16 array
-    (H×W or H×W×3 in RGB order)."""
+    (H×W, or H×W×3 / H×W×4 in RGB(A) order)."""
     if image.dtype in (np.uint8, np.uint16):
         pixels = image
     else:
         pixels = quantize(image, bits)
-    if pixels.ndim == 3:
-        pixels = np.ascontiguousarray(pixels[..., ::-1])  # OpenCV wants BGR
+    if pixels.ndim == 3 and pixels.shape[2] in (3, 4):
+        pixels = np.ascontiguousarray(pixels[..., [2, 1, 0, 3][: pixels.shape[2]]])  # OpenCV wants BGR(A)
     ok, buf = cv2.imencode(".png", pixels)
     if not ok:  # pragma: no cover - OpenCV only fails on unsupported dtypes
         raise GlshadeError("PNG encoding failed")
@@ -85,8 +85,8 @@ def read_png(path: str | os.PathLike[str]) -> np.ndarray:
     pixels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if pixels is None:
         raise GlshadeError(f"{path}: not a readable PNG")
-    if pixels.ndim == 3:
-        pixels = pixels[..., ::-1]
+    if pixels.ndim == 3:  # OpenCV reads BGR(A): back to RGB(A), alpha stays last
+        pixels = pixels[..., [2, 1, 0, 3][: pixels.shape[2]]] if pixels.shape[2] in (3, 4) else pixels
     return pixels
 
 

@@ -217,47 +217,61 @@ def best_thetas(rows: list[dict], surface: str, sigma2s, dmax: float, key: str =
     return sorted(keep, reverse=True)
 
 
-def _why(surface: str, sigma2s, dmaxs) -> str:
-    """The closed form behind the advice for one surface and defect class."""
+def _why(rows: list[dict], surface: str, sigma2s, dmaxs) -> str:
+    """The closed form behind the advice for one surface and class of dent, with the
+    numbers at the lowest view."""
+    table = _table(rows)
+    low = min(r["theta_deg"] for r in rows)
+    if surface == "sphere":
+        m_high = physics.laws(paper_scene(surface, max(r["theta_deg"] for r in rows))).magnification
+        m_low = physics.laws(paper_scene(surface, low)).magnification
+        return (
+            "The convex sphere magnifies the stripes by m = 1 + 2 Dc De / (R sin θ (Dc + De)), from "
+            f"{m_high:.1f} at the highest view to {m_low:.0f} at θ {low:g}°, and every displacement in pixels shrinks "
+            "by m: a low view loses every dent. No dent of Table 1 folds on it (its floor curvature dmax/σ² is below "
+            "the base's 1/R)."
+        )
     onsets = []
     for s2 in sigma2s:
         for d in dmaxs:
             onset = physics.fold_onset_theta_deg(paper_scene(surface, 45.0, s2, d))
             if onset > 0:
-                onsets.append(f"σ² {s2:g}, {um(d)}: θ < {onset:.1f}°" if onset < 90 else f"σ² {s2:g}, {um(d)}: every θ")
-    if surface == "sphere":
-        m85 = physics.laws(paper_scene(surface, 85.0)).magnification
-        m5 = physics.laws(paper_scene(surface, 5.0)).magnification
-        return (
-            "The convex sphere magnifies the emitter by m = 1 + 2 Dc De / (R sin θ (Dc + De)), which grows from "
-            f"{m85:.1f} at θ 85° to {m5:.0f} at θ 5°; every displacement in pixels shrinks by m, so a low view "
-            "loses every dent. No dent of Table 1 folds on it (its curvature is below the base's 1/R)."
-        )
-    folds = ("It folds where sin θ < 2 κ Dc De / (Dc + De), κ = dmax / σ² the dent's floor curvature ("
-             + "; ".join(onsets) + "); below that, the contours that reach the cut columns move only by "
-             "b sqrt(2 ln F) (b the dent's σ in image rows, ∝ sin θ), so the visible shift collapses as θ falls."
-             if onsets else "None of these dents folds at the study's elevations.")
-    return ("The deflection 2 (dmax/σ) e^(-1/2) De f / ((Dc + De) p) does not depend on θ: where nothing folds every "
-            "viewpoint sees the same shift (a low view adds 2-3 %, the flank facing the camera sitting σ cos θ farther "
-            "from the emitter). " + folds)
+                onsets.append(f"σ² {s2:g}, {um(d)}: " + ("every θ" if onset >= 90 else f"θ < {onset:.1f}°"))
+    worst = [table[k] for k in ((surface, low, s2, d) for s2 in sigma2s for d in dmaxs) if k in table]
+    worst = max(worst, key=lambda r: r["deflection_px"] - r["visibility_continuous_px"], default=None)
+    text = ("Where nothing folds the deflection 2 (dmax/σ) e^(-1/2) De f / ((Dc + De) p) does not depend on θ; a low "
+            "view adds 2-3 % (the steepest flank lies σ cos θ farther from the emitter). ")
+    if onsets:
+        text += ("The stripe map folds where sin θ < 2 κ Dc De / (Dc + De), κ = dmax/σ² (" + "; ".join(onsets) + "). "
+                 "Below that only the contours outside the band where the rays move more than their distance from "
+                 "the dent reach the cut columns, b sqrt(2 ln F) with b ∝ sin θ")
+        if worst is not None and worst["folded"]:
+            text += (f": at θ {low:g}° the σ² {worst['sigma2_mm2']:g}, {um(worst['dmax_mm'])} dent moves the rays by "
+                     f"{worst['deflection_px']:.1f} px and its contours by {worst['visibility_continuous_px']:.1f} px")
+        text += "."
+        if physics.base_curvatures(paper_scene(surface))[1] != 0:
+            text += (" The cylinder's curvature across the plane of incidence lifts the fold's saddles and with them "
+                     "the cap (docs/physics.md §3): a dent that folds keeps more of its shift at low views than on the "
+                     "flat plate.")
+    return text
 
 
 def advice(rows: list[dict]) -> list[str]:
-    """For each surface and defect class, the θ that keep the dent most visible, and why."""
+    """For each surface and class of dent, the θ that keep the dent most visible, and why."""
     lines = []
     dmaxs = sorted({r["dmax_mm"] for r in rows})
     sigma2s = sorted({r["sigma2_mm2"] for r in rows})
-    if len({r["theta_deg"] for r in rows}) < 3:
+    thetas = {r["theta_deg"] for r in rows}
+    if len(thetas) < 3:
         return ["Not given: the advice needs at least three θ."]
     for surface in dict.fromkeys(r["surface"] for r in rows):
         for label, group in (("steep dents (σ² 1, 4)", STEEP), ("gentle dents (σ² 9, 16)", GENTLE)):
             present = [v for v in group if v in sigma2s]
             if not present:
                 continue
-            thetas = {r["theta_deg"] for r in rows}
-            ranges = [f"{um(d)}: θ {theta_ranges(best_thetas(rows, surface, present, d), thetas)}" for d in dmaxs]
-            lines.append(f"- **{surface}, {label}**: within {1 - NEAR_BEST:.0%} of the best view at "
-                         + "; ".join(ranges) + ". " + _why(surface, present, dmaxs))
+            ranges = "; ".join(f"θ {theta_ranges(best_thetas(rows, surface, present, d), thetas)} ({um(d)})"
+                               for d in dmaxs)
+            lines.append(f"- **{surface}, {label}**: {ranges}. {_why(rows, surface, present, dmaxs)}")
     return lines
 
 
@@ -310,9 +324,9 @@ def write_report(rows: list[dict], out_dir: Path, plan, figures: list[Path], tim
         "",
         "## What to do with it: where to put the camera",
         "",
-        f"For each surface and class of dent, the elevations θ (of the study's) at which every dent of the class keeps "
-        f"at least {NEAR_BEST:.0%} of its best visibility (continuous limit), and the closed form that explains it "
-        "([docs/physics.md](../physics.md)):",
+        f"For each surface and class of dent: the study's elevations θ at which every dent of the class keeps at "
+        f"least {NEAR_BEST:.0%} of its best visibility (continuous limit), per depth, and the closed form that explains "
+        "it (derived in glshade's `docs/physics.md`):",
         "",
         *advice(rows),
         "",

@@ -227,21 +227,33 @@ def figure_names(surface: str, dmax: float) -> tuple[str, str]:
 LAW_FIGURE = "law_vs_simulation.png"
 
 
-def write_figures(rows: list[dict], out_dir: Path, plan) -> list[Path]:
-    """Every grid and plot the plan's rows allow; returns the paths written."""
+def surface_figures(rows: list[dict], out_dir: Path, plan, surface: str) -> list[Path]:
+    """The grids and plots of one surface (from its rows); returns the paths written."""
     from .study import GRID_THETAS
 
     out_dir = Path(out_dir)
     written = []
     grid_thetas = [t for t in GRID_THETAS if t in plan.thetas]
+    mine = [r for r in rows if r["surface"] == surface]
+    for dmax in plan.dmaxs:
+        grid_name, plot_name = figure_names(surface, dmax)
+        if grid_thetas and image_grid(mine, out_dir / "cases", surface, dmax, grid_thetas, plan.sigma2s, out_dir / grid_name):
+            written.append(out_dir / grid_name)
+        if len(plan.thetas) >= 2:
+            visibility_plot(mine, surface, dmax, out_dir / plot_name)
+            written.append(out_dir / plot_name)
+    return written
+
+
+def write_figures(rows: list[dict], out_dir: Path, plan, drawn: dict[str, list[Path]] | None = None) -> list[Path]:
+    """Every grid and plot the plan's rows allow, and the closed forms against the
+    simulation; ``drawn``: surfaces whose figures were drawn already (and their paths).
+    Returns the paths of all of them."""
+    out_dir = Path(out_dir)
+    drawn = drawn or {}
+    written = []
     for surface in plan.surfaces:
-        for dmax in plan.dmaxs:
-            grid_name, plot_name = figure_names(surface, dmax)
-            if grid_thetas and image_grid(rows, out_dir / "cases", surface, dmax, grid_thetas, plan.sigma2s, out_dir / grid_name):
-                written.append(out_dir / grid_name)
-            if len(plan.thetas) >= 2:
-                visibility_plot(rows, surface, dmax, out_dir / plot_name)
-                written.append(out_dir / plot_name)
+        written += drawn[surface] if surface in drawn else surface_figures(rows, out_dir, plan, surface)
     if rows:
         law_plot(rows, out_dir / LAW_FIGURE)
         written.append(out_dir / LAW_FIGURE)

@@ -20,6 +20,7 @@ import io
 import json
 import math
 import time
+from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
@@ -73,12 +74,12 @@ COLUMNS = (
            "over the phase sweep, whole pixels of the image (SPEC §6)"),
     Column("visibility_continuous_px", "px", "the limit of the paper's metric for a vanishing phase step and pixel "
            "size, by the same contour rules (sub-pixel)"),
-    Column("deflection_px", "px", "how far the dent moves the emitter map: the largest |r - r0| with v0(r0) = v1(r); "
-           "equals the continuous visibility where nothing folds"),
+    Column("deflection_px", "px", "how far the dent moves the emitter map: the largest distance between a row r and "
+           "the row r0 where v0(r0) = v1(r), in a kept column; equals the continuous visibility where nothing folds"),
     Column("folded", "", "True where the dent's emitter map runs against the defect-free one along some kept column "
            "(the stripe map folds)"),
-    Column("islands", "count", "the most stripe pieces cut off by a fold (touching neither a cut column nor the border) "
-           "at any phase; never measured"),
+    Column("islands", "count", "the most stripe pieces the dent cuts off (touching neither a cut column nor the border; "
+           "beyond those the defect-free image has) at any phase; never measured"),
     Column("best_phase_mm", "mm", "stripe phase at which visibility_px was reached"),
     Column("unpaired_contours", "count", "stripes reaching a cut column or the border that found no partner at the best "
            "phase (0 in a healthy comparison)"),
@@ -248,11 +249,15 @@ def run_study(
     progress: bool = True,
     renderer: Renderer | None = None,
     on_case_done: Callable[[dict], None] | None = None,
+    on_surface_done: Callable[[str, list[dict]], None] | None = None,
 ) -> StudyResult:
     """Run (or resume) the study into ``out_dir``; returns every case's row.
 
     ``workers``: threads for the analysis (the GL work stays on this thread).
-    ``on_case_done(row)`` is called after each case is safely on disk.
+    ``on_case_done(row)`` is called after each case is safely on disk;
+    ``on_surface_done(surface, rows)`` once the last case of a surface computed in this
+    run is, with all of that surface's rows (the CLI draws its figures there, on this
+    thread, while the workers measure the next surface).
     """
     if workers < 1:
         raise GlshadeError(f"--workers: must be an integer >= 1, got {workers}")
@@ -273,15 +278,23 @@ def run_study(
     bar = _progress(len(plan.cases()), skipped, progress)
     owns = renderer is None
     renderer = renderer or Renderer()
+
+    left = {surface: sum(case[0] == surface for case in pending) for surface in plan.surfaces}
+
+    def finished(row: dict) -> None:
+        done[case_key(row["surface"], row["theta_deg"], row["sigma2_mm2"], row["dmax_mm"])] = row
+        if bar is not None:
+            bar.update(1)
+        if on_case_done is not None:
+            on_case_done(row)
+        left[row["surface"]] -= 1
+        if left[row["surface"]] == 0 and on_surface_done is not None:
+            mine = [done[case_key(*c)] for c in plan.cases() if c[0] == row["surface"] and case_key(*c) in done]
+            on_surface_done(row["surface"], mine)
+
     try:
         with ThreadPoolExecutor(max_workers=workers) as pool:
-            for group in _groups(pending):
-                for row in _run_group(plan, group, renderer, pool, timings, out_dir):
-                    done[case_key(row["surface"], row["theta_deg"], row["sigma2_mm2"], row["dmax_mm"])] = row
-                    if bar is not None:
-                        bar.update(1)
-                    if on_case_done is not None:
-                        on_case_done(row)
+            _run_cases(plan, pending, renderer, pool, timings, out_dir, finished)
     finally:
         if bar is not None:
             bar.close()
@@ -310,41 +323,59 @@ def _groups(cases: list[tuple[str, float, float, float]]):
     return list(groups.values())
 
 
-def _run_group(plan: StudyPlan, group, renderer: Renderer, pool: ThreadPoolExecutor, timings: Timings, out_dir: Path):
-    normal_scene = plan.scene(*group[0]).without_defect()
-    start = time.perf_counter()
-    v0 = emitter_map(renderer, normal_scene)
-    timings.trace += time.perf_counter() - start
-    baseline = vis.Baseline(v0, normal_scene.emitter, plan.metric)
-    start = time.perf_counter()
-    list(pool.map(baseline.normal_stripes, baseline.phases))  # the shared defect-free analysis, in parallel
-    timings.contours += time.perf_counter() - start
+#: Cases traced ahead of the analysis: the GL thread keeps tracing while the workers
+#: measure, and at most this many emitter maps wait in memory (4 MiB each at 1024²).
+_AHEAD = 16
 
-    traced = []
-    for case in group:
-        scene = plan.scene(*case)
-        start = time.perf_counter()
-        v1 = emitter_map(renderer, scene)
-        trace_s = time.perf_counter() - start
-        timings.trace += trace_s
-        traced.append(pool.submit(_analyse_case, case, scene, baseline, v1, trace_s))
-    for future in traced:
-        row, thumbnail, overlay = future.result()
-        timings.shade += row["shade_s"]
-        timings.contours += row["contours_s"]
-        timings.continuous += row["continuous_s"]
-        start = time.perf_counter()
-        key = case_key(row["surface"], row["theta_deg"], row["sigma2_mm2"], row["dmax_mm"])
-        if thumbnail is not None:
-            atomic_write_bytes(out_dir / "cases" / f"{key}.png", thumbnail)
-        if overlay is not None:
-            from .plots import overlay_figure
 
-            case = (row["surface"], row["theta_deg"], row["sigma2_mm2"], row["dmax_mm"])
-            overlay_figure(*overlay, out_dir / OVERLAY_CASES[case])
-        atomic_write_bytes(out_dir / "cases" / f"{key}.json", json.dumps(row, indent=1).encode())  # the "done" mark
-        timings.io += time.perf_counter() - start
-        yield row
+def _run_cases(plan: StudyPlan, cases, renderer: Renderer, pool: ThreadPoolExecutor, timings: Timings,
+               out_dir: Path, finished: Callable[[dict], None]) -> None:
+    """Trace every pending case on this (the GL) thread, measure it in the pool, and
+    write each result as soon as it is done, in order. The defect-free trace and analysis
+    of a (surface, θ) is made once and shared by its cases (:class:`vis.Baseline` labels
+    the normal stripes of a phase the first time a worker needs them)."""
+    waiting: deque = deque()
+
+    def drain(keep: int) -> None:
+        """Write what is done at the head of the queue; wait while more than ``keep`` wait."""
+        while len(waiting) > keep or (waiting and waiting[0].done()):
+            row, thumbnail, overlay = waiting.popleft().result()
+            _write_case(row, thumbnail, overlay, timings, out_dir)
+            finished(row)
+
+    for group in _groups(cases):
+        normal_scene = plan.scene(*group[0]).without_defect()
+        start = time.perf_counter()
+        baseline = vis.Baseline(emitter_map(renderer, normal_scene), normal_scene.emitter, plan.metric)
+        timings.trace += time.perf_counter() - start
+        for case in group:
+            scene = plan.scene(*case)
+            start = time.perf_counter()
+            v1 = emitter_map(renderer, scene)
+            trace_s = time.perf_counter() - start
+            timings.trace += trace_s
+            waiting.append(pool.submit(_analyse_case, case, scene, baseline, v1, trace_s))
+            drain(keep=_AHEAD)
+    drain(keep=0)
+
+
+def _write_case(row: dict, thumbnail: bytes | None, overlay, timings: Timings, out_dir: Path) -> None:
+    """A finished case on disk: its thumbnail, its overlay figure, and last its JSON (the
+    "done" mark a rerun looks for)."""
+    timings.shade += row["shade_s"]
+    timings.contours += row["contours_s"]
+    timings.continuous += row["continuous_s"]
+    start = time.perf_counter()
+    key = case_key(row["surface"], row["theta_deg"], row["sigma2_mm2"], row["dmax_mm"])
+    if thumbnail is not None:
+        atomic_write_bytes(out_dir / "cases" / f"{key}.png", thumbnail)
+    if overlay is not None:
+        from .plots import overlay_figure
+
+        case = (row["surface"], row["theta_deg"], row["sigma2_mm2"], row["dmax_mm"])
+        overlay_figure(*overlay, out_dir / OVERLAY_CASES[case])
+    atomic_write_bytes(out_dir / "cases" / f"{key}.json", json.dumps(row, indent=1).encode())
+    timings.io += time.perf_counter() - start
 
 
 def case_row(case: tuple[str, float, float, float], scene: Scene, result: vis.Visibility) -> dict:

@@ -25,6 +25,7 @@ import math
 import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import wait as wait_for
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -160,21 +161,38 @@ class Readout:
     folded: bool | None = None
     islands: int | None = None
     phase_for: tuple | None = None
+    error: str | None = None               # why this geometry cannot be measured
 
 
 def readout_lines(r: Readout) -> list[str]:
-    """The panel's readout as text ("..." while the worker is still measuring)."""
+    """The panel's readout as text ("..." while the worker is still measuring, "-" and
+    the reason when the metric refuses the scene)."""
 
     def px(value, fmt):
-        return "..." if value is None else f"{value:{fmt}} px"
+        if value is None:
+            return "-" if r.error is not None else "..."
+        return f"{value:{fmt}} px"
 
     best = "" if r.best_phase_mm is None else f" (phase {r.best_phase_mm:g} mm)"
-    return [
+    lines = [
         f"visibility, this phase: {px(r.at_phase_px, 'g')}",
         f"visibility, best phase: {px(r.visibility_px, 'g')}{best}",
         f"continuous limit: {px(r.continuous_px, '.2f')}",
         f"deflection: {px(r.deflection_px, '.2f')}",
     ]
+    if r.error is not None:
+        lines.append(f"not measured: {r.error}")
+    return lines
+
+
+def _attempt(key, work):
+    """A worker job: ``(key, result, None)``, or ``(key, None, reason)`` when the metric
+    refuses the scene (e.g. a stripe period shorter than the phase step): the viewer shows
+    the reason instead of dying on it."""
+    try:
+        return key, work(), None
+    except GlshadeError as exc:
+        return key, None, " ".join(str(exc).split())
 
 
 class _Once:
@@ -275,7 +293,10 @@ class ViewerModel:
         rgba = np.zeros((h, w, 4), np.uint8)
         rgba[..., :3] = 40
         rgba[..., 3] = 255
-        baseline = self.baseline()
+        try:
+            baseline = self.baseline()
+        except GlshadeError:  # the metric refuses this scene (the readout says why)
+            baseline = None
         if baseline is not None and baseline.half_width_mm is not None:
             normal, defect = baseline.stripes_at(self.v1, self.scene.emitter.phase)
             rgba[:, baseline.columns, :3] = contours.overlay_rgb(normal, defect)
@@ -317,9 +338,12 @@ class ViewerModel:
     def collect_metrics(self) -> None:
         """Take whatever the worker finished (call before :meth:`start_metrics`)."""
         if self._case_job is not None and self._case_job.done():
-            trace, result = self._case_job.result()
+            trace, result, error = self._case_job.result()
             self._case_job = None
-            if trace == self.traces:
+            if trace == self.traces and error is not None:
+                self.readout.error = error
+                self._case_done = True
+            elif trace == self.traces:
                 r = self.readout
                 r.visibility_px, r.best_phase_mm = result.visibility_px, result.best_phase_mm
                 r.continuous_px, r.deflection_px = result.visibility_continuous_px, result.deflection_px
@@ -327,9 +351,12 @@ class ViewerModel:
                 self.displacement = result.displacement_px
                 self._case_done = True
         if self._phase_job is not None and self._phase_job.done():
-            key, result = self._phase_job.result()
+            key, result, error = self._phase_job.result()
             self._phase_job = None
-            if key[0] == self.traces:
+            if key[0] == self.traces and error is not None:
+                self.readout.error = error
+                self.readout.phase_for = key
+            elif key[0] == self.traces:
                 self.readout.at_phase_px, self.readout.at_phase_islands = result.distance_px, result.islands
                 self.readout.phase_for = key
 
@@ -337,24 +364,33 @@ class ViewerModel:
         """Give the worker what is missing: the whole case once per trace, and the
         comparison at the current phase whenever the phase changed. A job is never
         replaced before it was collected (throttled, never queued up)."""
-        if self.v0 is None or self._baseline is None:
+        if self.v0 is None or self._baseline is None or self.readout.error is not None:
             return
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="glshade-metric")
         trace, baseline, v1 = self.traces, self._baseline, self.v1
         if not self._case_done and self._case_job is None:
-            self._case_job = self._pool.submit(lambda: (trace, baseline.get().measure(v1)))
+            self._case_job = self._pool.submit(_attempt, trace, lambda: baseline.get().measure(v1))
         key = (trace, self.scene.emitter.phase)
         if self._phase_job is None and self.readout.phase_for != key:
             phase = self.scene.emitter.phase
-            self._phase_job = self._pool.submit(lambda: (key, baseline.get().at_phase(v1, phase)))
+            self._phase_job = self._pool.submit(_attempt, key, lambda: baseline.get().at_phase(v1, phase))
 
     def wait_for_metrics(self, timeout_s: float = 60.0) -> None:
         """Block until the jobs in flight are done and collected (tests, scripted runs)."""
-        for job in (self._case_job, self._phase_job):
-            if job is not None:
-                job.result(timeout=timeout_s)
+        jobs = [job for job in (self._case_job, self._phase_job) if job is not None]
+        _, pending = wait_for(jobs, timeout=timeout_s)
+        if pending:
+            raise TimeoutError(f"the visibility metrics took more than {timeout_s:g} s")
         self.collect_metrics()
+
+    def settle_metrics(self, timeout_s: float = 60.0) -> None:
+        """Wait until the readout is that of the current scene and phase: the jobs in
+        flight, then the current phase's comparison if they were for an earlier one (the
+        end of a scripted run)."""
+        self.wait_for_metrics(timeout_s)
+        self.start_metrics()
+        self.wait_for_metrics(timeout_s)
 
     def close(self) -> None:
         if self._pool is not None:
@@ -648,7 +684,20 @@ def make_app(options: ViewerOptions):
             stats["seconds"] = time.perf_counter() - self.started
             stats["traces"] = self.model.traces
             stats["reshades"] = self.model.reshades
-            stats["readout"] = replace(self.model.readout)
+            # a scripted run ends on the numbers of its last frame, however fast it drew:
+            # wait for the worker, and draw that frame again if the readout changed
+            m = self.model
+            before = replace(m.readout)
+            m.settle_metrics()
+            redraw = m.readout != before
+            state = (m.traced_for, m.scene.emitter.phase, m.view, m.displacement is not None)
+            if state != self.shown_for:  # the displacement view waits for the metrics
+                self.mode = self.picture()
+                self.shown_for = state
+                redraw = True
+            if redraw:
+                self.draw()
+            stats["readout"] = replace(m.readout)
             if options.screenshot is not None:
                 self.screenshot(options.screenshot)
             self.model.close()

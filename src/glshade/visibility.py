@@ -350,7 +350,8 @@ class Baseline:
         self.unresolved_fraction = float((seen & ~self.valid).sum() / seen.sum()) if seen.any() else 0.0
         self._v0_cut = self.v0[:, self.columns]
         self._stripes: dict[float, ct.StripeMap] = {}
-        self._lock = threading.Lock()
+        self._locks = {float(phase): threading.Lock() for phase in self.phases}  # one analysis per phase
+        self._lock = threading.Lock()  # for phases outside the sweep (the viewer's)
 
     # ---------------------------------------------------------------- images
     def binary(self, v: np.ndarray, phase_mm: float, images: Callable[[float], np.ndarray] | None = None) -> np.ndarray:
@@ -365,11 +366,10 @@ class Baseline:
     def normal_stripes(self, phase_mm: float) -> ct.StripeMap:
         """The defect-free image's stripes at a phase (computed once, then shared)."""
         key = float(phase_mm)
-        stripes = self._stripes.get(key)
-        if stripes is None:
-            stripes = ct.find_stripes(self.binary(self.v0, key, self.normal_images), self.edge)
-            with self._lock:
-                stripes = self._stripes.setdefault(key, stripes)
+        with self._locks.get(key, self._lock):
+            stripes = self._stripes.get(key)
+            if stripes is None:
+                stripes = self._stripes[key] = ct.find_stripes(self.binary(self.v0, key, self.normal_images), self.edge)
         return stripes
 
     # ---------------------------------------------------------------- metrics
