@@ -18,7 +18,6 @@ in the repository.
 from __future__ import annotations
 
 import io
-import math
 import platform
 import statistics
 import time

@@ -32,8 +32,6 @@ from dataclasses import dataclass
 
 from .scene import Scene
 
-SQRT_E = math.sqrt(math.e)
-
 
 @dataclass(frozen=True)
 class Laws:

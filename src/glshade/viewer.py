@@ -279,13 +279,6 @@ class ViewerModel:
         return self._baseline.get() if self._baseline is not None else None
 
     # ---------------------------------------------------------------- pictures
-    def binaries(self, phase: float) -> tuple[np.ndarray, np.ndarray] | None:
-        emitter = self.scene.emitter
-        half = vis.stripe_half_width(emitter, self.settings.threshold)
-        if half is None or self.v0 is None:
-            return None
-        return vis.binarize_v(self.v0, emitter, phase, half), vis.binarize_v(self.v1, emitter, phase, half)
-
     def overlay_rgba(self) -> np.ndarray:
         """Fig. 9 colours on the kept columns, as the metric sees them (normal blue, defect
         red, both magenta, islands orange); the columns cut off are dark grey."""
