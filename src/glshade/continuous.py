@@ -224,9 +224,9 @@ def _fold_window(v0, v1, columns: slice, folds: np.ndarray, period_mm: float) ->
 
 
 #: The phase search inside a fold: after the grid, the two best phases are refined on a
-#: grid ``_ZOOM`` times finer over ±1 step, then the best once more. On the paper's folded
-#: scenes this is within 0.01 px of a 512-phase grid refined 8 times (74 evaluations
-#: instead of 4600).
+#: grid ``_ZOOM`` times finer over ±1 step, then the best once more (74 evaluations with 32
+#: phases). With 2 samples per row this is within 0.02 px of 8 samples per row on a
+#: 512-phase grid on the paper's folded scenes (``benchmarks/limit_settings.py``).
 _ZOOM = 8
 _ZOOM_SEEDS = (2, 1)
 
