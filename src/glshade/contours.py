@@ -25,7 +25,7 @@ of the defect-free image; :mod:`glshade.visibility` sweeps the phases.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import cv2
@@ -203,6 +203,10 @@ class ContourShift:
     normal_row: float = float("nan")
     defect_row: float = float("nan")
     side: str = ""
+
+    def in_image(self, first_column: int) -> ContourShift:
+        """The same shift with its column counted in the uncut image."""
+        return self if self.column < 0 else replace(self, column=self.column + first_column)
 
 
 def _extremes(runs: Runs, group: np.ndarray, groups: int, width: int, upper: bool) -> np.ndarray:

@@ -258,8 +258,9 @@ class ViewerModel:
     @property
     def shades_from_uv(self) -> bool:
         """The picture is a function of the uv map (mirror, one ray per pixel)."""
-        r = self.scene.render
-        return r.reflection == "mirror" and r.supersample == 1
+        from .measurement import shades_from_map
+
+        return shades_from_map(self.scene)
 
     def traced(self, uv_defect: np.ndarray, v_normal: np.ndarray) -> None:
         self.uv1 = uv_defect

@@ -33,7 +33,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -219,13 +219,10 @@ def sweep(
             offset = ct.register(normal.labels > 0, defect, max_offset_px)
         results.append(ct.compare(normal, ct.shift_image(defect, *offset), edge, phase))
     best = max(results, key=lambda r: r.distance_px)
-    shift = best.shift
-    if shift.column >= 0:
-        shift = ct.ContourShift(shift.distance_px, shift.column + columns.start, shift.normal_row, shift.defect_row, shift.side)
     return PaperResult(
         visibility_px=best.distance_px,
         best_phase_mm=best.phase_mm,
-        shift=shift,
+        shift=best.shift.in_image(columns.start),
         offset_px=offset,
         islands=max(r.islands for r in results),
         unpaired=best.unpaired,
@@ -376,11 +373,7 @@ class Baseline:
     def at_phase(self, v1: np.ndarray, phase_mm: float) -> ct.PhaseResult:
         """The paper's comparison at one phase (the viewer's live readout); no registration."""
         result = ct.compare(self.normal_stripes(phase_mm), self.binary(v1, phase_mm), self.edge, float(phase_mm))
-        shift = result.shift
-        if shift.column >= 0:
-            shift = ct.ContourShift(shift.distance_px, shift.column + self.columns.start, shift.normal_row,
-                                    shift.defect_row, shift.side)
-        return ct.PhaseResult(result.phase_mm, shift, result.islands, result.unpaired, result.pairs)
+        return replace(result, shift=result.shift.in_image(self.columns.start))
 
     def paper(self, v1: np.ndarray, defect_images: Callable[[float], np.ndarray] | None = None) -> tuple[PaperResult, float]:
         """The paper's metric of a defect, and the seconds spent binarising."""
