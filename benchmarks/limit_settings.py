@@ -14,11 +14,11 @@ import time
 
 import numpy as np
 
-from glshade.continuous import StripeLevels, visibility_limit
-from glshade.measurement import emitter_map
-from glshade.renderer import Renderer
+from glshade.gpu.renderer import Renderer
+from glshade.metrics.continuous import StripeLevels, visibility_limit
+from glshade.metrics.measurement import emitter_map
+from glshade.metrics.visibility import Baseline
 from glshade.scene import paper_scene
-from glshade.visibility import Baseline
 
 CASES = (  # folded cases of Table 1, flat and cylinder, steep to gentle
     ("flat", 5.0, 1.0, 0.005), ("flat", 15.0, 1.0, 0.005), ("flat", 5.0, 4.0, 0.005), ("flat", 25.0, 1.0, 0.005),

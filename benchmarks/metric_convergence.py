@@ -15,12 +15,12 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from glshade import physics
 from glshade.files import atomic_write_bytes
-from glshade.measurement import emitter_map
-from glshade.renderer import Renderer
+from glshade.gpu.renderer import Renderer
+from glshade.metrics import physics
+from glshade.metrics.measurement import emitter_map
+from glshade.metrics.visibility import Baseline, MetricSettings
 from glshade.scene import paper_scene
-from glshade.visibility import Baseline, MetricSettings
 
 CASES = (  # (surface, θ, σ², dmax): four that fold, three that do not
     ("flat", 5.0, 1.0, 0.005),
@@ -99,7 +99,7 @@ def main() -> None:
         "",
         "`visibility_px` is the paper's metric: whole pixels of the sensor, phases `step` apart. "
         "`visibility_continuous_px` is its limit for a vanishing phase step and pixel size, by the same contour "
-        "rules (SPEC §6; `glshade.continuous`). Every number here is in pixels of the paper's 1024² camera "
+        "rules (SPEC §6; `glshade.metrics.continuous`). Every number here is in pixels of the paper's 1024² camera "
         "(a result at N² is multiplied by 1024/N), so the columns can be compared directly.",
         "",
         "What to read: down each column the paper's metric approaches the limit as the sensor gets finer (its "

@@ -22,8 +22,8 @@ import time
 import cv2
 import numpy as np
 
-from glshade import reference
-from glshade.renderer import Renderer
+from glshade.gpu.renderer import Renderer
+from glshade.oracle import tracer as reference
 from glshade.scene import paper_scene
 
 THETAS = (85.0, 75.0, 65.0, 55.0, 45.0, 35.0, 25.0, 15.0, 5.0)

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import time
 
-from glshade import visibility as vis
-from glshade.renderer import Renderer
+from glshade.gpu.renderer import Renderer
+from glshade.metrics import visibility as vis
 from glshade.scene import paper_scene
 
 SUBSET_THETAS = (85.0, 45.0, 5.0)

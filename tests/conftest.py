@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from glshade.context import GLContext
-from glshade.renderer import Renderer
+from glshade.gpu.context import GLContext
+from glshade.gpu.renderer import Renderer
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

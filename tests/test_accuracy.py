@@ -9,9 +9,10 @@ import sys
 import numpy as np
 import pytest
 
-from glshade import accuracy, reference
-from glshade.accuracy import Point, pareto
+from glshade.oracle import tracer as reference
 from glshade.scene import paper_scene
+from glshade.validation import accuracy
+from glshade.validation.accuracy import Point, pareto
 
 
 def test_pareto_front_ignores_noise_and_keeps_tradeoffs():
@@ -36,7 +37,7 @@ def test_monte_carlo_converges_to_the_quadrature():
 def test_accuracy_command_reduced(tmp_path):
     out = tmp_path / "acc"
     result = subprocess.run(
-        [sys.executable, "-m", "glshade.cli", "accuracy", "--out", str(out), "--repeats", "1", "--size", "48", "--scenes", "flat"],
+        [sys.executable, "-m", "glshade", "accuracy", "--out", str(out), "--repeats", "1", "--size", "48", "--scenes", "flat"],
         capture_output=True, text=True, timeout=600,
     )
     assert result.returncode == 0, result.stderr[-2000:]
@@ -57,6 +58,6 @@ def test_accuracy_command_reduced(tmp_path):
     (["--repeats", "0"], "--repeats: must be an integer >= 1"),
 ])
 def test_accuracy_bad_input(tmp_path, args, fragment):
-    result = subprocess.run([sys.executable, "-m", "glshade.cli", "accuracy", "--out", str(tmp_path / "a"), *args],
+    result = subprocess.run([sys.executable, "-m", "glshade", "accuracy", "--out", str(tmp_path / "a"), *args],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 2 and fragment in result.stderr, result.stderr

@@ -9,15 +9,15 @@ import sys
 import numpy as np
 import pytest
 
-from glshade.cli import main
+from glshade.app.cli import main
 from glshade.files import read_png
-from glshade.renderer import render
+from glshade.gpu.renderer import render
 from glshade.scene import Scene, paper_scene
 
 
 def run_cli(*args, env=None):
     return subprocess.run(
-        [sys.executable, "-m", "glshade.cli", *args],
+        [sys.executable, "-m", "glshade", *args],
         capture_output=True,
         text=True,
         env={**os.environ, **(env or {})},
@@ -75,7 +75,7 @@ def test_info_reports_renderer_and_fp64():
 )
 def test_bad_input_is_one_line_exit_2(tmp_path, args, fragment):
     result = subprocess.run(
-        [sys.executable, "-m", "glshade.cli", *args], capture_output=True, text=True, cwd=tmp_path, timeout=120
+        [sys.executable, "-m", "glshade", *args], capture_output=True, text=True, cwd=tmp_path, timeout=120
     )
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()

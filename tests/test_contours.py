@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from glshade import contours as ct
-from glshade import visibility as V
-from glshade.continuous import StripeLevels, deflection, visibility_limit
+from glshade.metrics import contours as ct
+from glshade.metrics import visibility as V
+from glshade.metrics.continuous import StripeLevels, deflection, visibility_limit
 
 H, W = 150, 200  # a cut image: columns 0 and W-1 are the cut columns
 BASE_ROWS = (10, 40, 70, 100, 130)  # stripes 6 px thick, 30 px apart

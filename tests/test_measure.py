@@ -11,18 +11,18 @@ import numpy as np
 import pytest
 
 import glshade
+from glshade.app.viewer import ViewerModel
 from glshade.files import read_png
-from glshade.measurement import measure_scene
-from glshade.renderer import Renderer
+from glshade.gpu.renderer import Renderer
+from glshade.metrics.measurement import measure_scene
 from glshade.scene import paper_scene
-from glshade.viewer import ViewerModel
 
 KEYS = ("visibility_px", "visibility_continuous_px", "deflection_px", "folded", "islands", "best_phase_mm")
 FOLDING = ["--surface", "flat", "--theta", "5", "--sigma2", "1", "--dmax", "0.005"]
 
 
 def cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "glshade.cli", "measure", *args],
+    return subprocess.run([sys.executable, "-m", "glshade", "measure", *args],
                           capture_output=True, text=True, timeout=300, cwd=cwd, check=False)
 
 

@@ -1,4 +1,4 @@
-"""The shaders against the NumPy float64 reference tracer (glshade.reference).
+"""The shaders against the NumPy float64 reference tracer (glshade.oracle.tracer).
 
 Tolerances (SPEC §5, issue 2): uv within 5e-4 mm in fp32 and 1e-6 mm in fp64 wherever
 both reach the emitter, one pixel inside the mask (4x that on the mask's edge, where a
@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 import pytest
 
-from glshade import reference
+from glshade.oracle import tracer as reference
 from glshade.scene import Defect, Scene, Surface, paper_scene
 
 UV_TOL = {"fp32": 5e-4, "fp64": 1e-6}

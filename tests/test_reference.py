@@ -1,6 +1,6 @@
 """The float64 reference tracer against analytic oracles (no GPU needed).
 
-Each test derives its expected values independently of ``glshade.reference``: mirror
+Each test derives its expected values independently of ``glshade.oracle.tracer``: mirror
 images for the flat mirror, sphere/cylinder normals from their centres, the small-slope
 closed form of SPEC §6, central differences of the height, a Blinn-Phong quadrature over
 the light direction (the tracer integrates over the half vector), a finer camera for
@@ -15,10 +15,18 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from glshade import reference as ref
 from glshade.errors import SceneError
 from glshade.frame import Frame
-from glshade.scene import Camera, Defect, Emitter, RenderSettings, Scene, Surface, paper_scene
+from glshade.oracle import tracer as ref
+from glshade.scene import (
+    Camera,
+    Defect,
+    Emitter,
+    RenderSettings,
+    Scene,
+    Surface,
+    paper_scene,
+)
 
 
 # --------------------------------------------------------------------------- helpers

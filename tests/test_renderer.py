@@ -8,10 +8,10 @@ import os
 import numpy as np
 import pytest
 
-from glshade.context import GLContext
 from glshade.errors import GlshadeError, SceneError
 from glshade.frame import Frame
-from glshade.renderer import Renderer
+from glshade.gpu.context import GLContext
+from glshade.gpu.renderer import Renderer
 from glshade.scene import paper_scene
 
 

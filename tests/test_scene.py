@@ -8,7 +8,15 @@ from dataclasses import replace
 import pytest
 
 from glshade.errors import SceneError
-from glshade.scene import Camera, Defect, Emitter, RenderSettings, Scene, Surface, paper_scene
+from glshade.scene import (
+    Camera,
+    Defect,
+    Emitter,
+    RenderSettings,
+    Scene,
+    Surface,
+    paper_scene,
+)
 
 
 def test_paper_scene_matches_the_paper():

@@ -8,11 +8,18 @@ from dataclasses import replace
 import jinja2
 import pytest
 
-import glshade.renderer as renderer_module
-from glshade.renderer import Renderer
+import glshade.gpu.renderer as renderer_module
 from glshade.errors import ShaderCompileError
+from glshade.gpu.compose import (
+    FRAGMENT_TEMPLATE,
+    ShaderFeatures,
+    compose,
+    error_lines,
+    numbered_excerpt,
+    render_template,
+)
+from glshade.gpu.renderer import Renderer
 from glshade.scene import Defect, RenderSettings, paper_scene
-from glshade.shaders import FRAGMENT_TEMPLATE, ShaderFeatures, compose, error_lines, numbered_excerpt, render_template
 
 # Identifiers that only one feature's code declares.
 MARKERS = {

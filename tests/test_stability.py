@@ -1,5 +1,5 @@
 """The stability matrix of issue 4: extreme scenes, shader (fp32 and fp64) against the
-NumPy fp64 oracle. Every case of glshade.stability.cases(), in its centre and field
+NumPy fp64 oracle. Every case of glshade.validation.stability.cases(), in its centre and field
 views. Limits where fp32 cannot meet the default tolerance are documented per case
 (uv_tolerance_fp32 and its note; docs/accuracy.md)."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from glshade import stability as S
+from glshade.validation import stability as S
 
 CASES = S.cases()
 MAX_MISMATCH = 0.005  # pixels whose hit disagrees (silhouettes, the emitter's edge)
@@ -35,7 +35,7 @@ def test_extreme_case_against_oracle(renderer, case, view, precision):
 def test_grazing_bump_first_root_needs_the_safe_march(gl_context):
     """The case that a plain scan gets wrong: 8 evenly spaced samples step over the
     ray's dip under the bump and find a farther crossing."""
-    from glshade.renderer import Renderer, RootSolver
+    from glshade.gpu.renderer import Renderer, RootSolver
 
     case = next(c for c in CASES if c.name == "grazing steep bump")
     with Renderer(gl_context, root_solver=RootSolver(march_steps=1)) as crippled:

@@ -7,11 +7,11 @@ import sys
 
 import pytest
 
-from glshade import findings
-from glshade.cli import main
+from glshade.app.cli import main
 from glshade.errors import GlshadeError
-from glshade.measurement import measure_scene
-from glshade.study import CSV_COLUMNS, StudyPlan, read_results_csv, run_study
+from glshade.metrics.measurement import measure_scene
+from glshade.study import findings
+from glshade.study.run import CSV_COLUMNS, StudyPlan, read_results_csv, run_study
 
 TIMING = {"trace_s", "shade_s", "contours_s", "continuous_s"}
 SMALL = dict(thetas=(45.0, 5.0), size=128)
@@ -118,7 +118,7 @@ def test_directory_with_other_settings_is_refused(tmp_path):
 def test_bad_input_is_one_line_exit_2(tmp_path, args, fragment):
     out = tmp_path / "out"
     result = subprocess.run(
-        [sys.executable, "-m", "glshade.cli", "paper", "--out", str(out), "--no-progress", *args],
+        [sys.executable, "-m", "glshade", "paper", "--out", str(out), "--no-progress", *args],
         capture_output=True, text=True, timeout=120,
     )
     assert result.returncode == 2, result.stderr
@@ -133,7 +133,7 @@ def test_output_path_that_is_a_file(tmp_path):
     target.write_text("keep me")
     for out, fragment in ((target, "is a file"), (target / "sub", "cannot create it")):
         result = subprocess.run(
-            [sys.executable, "-m", "glshade.cli", "paper", "--out", str(out), "--size", "32", "--no-progress"],
+            [sys.executable, "-m", "glshade", "paper", "--out", str(out), "--size", "32", "--no-progress"],
             capture_output=True, text=True, timeout=120,
         )
         assert result.returncode == 2 and fragment in result.stderr, result.stderr

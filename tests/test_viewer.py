@@ -14,19 +14,19 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pytest
 
-from glshade.errors import GlshadeError
-from glshade.files import read_png
-from glshade.measurement import measure
-from glshade.renderer import render
-from glshade.scene import paper_scene
-from glshade.viewer import (
+from glshade.app.viewer import (
     ViewerModel,
     apply_setting,
     geometry_key,
     parse_sets,
     readout_lines,
 )
-from glshade.visibility import Visibility
+from glshade.errors import GlshadeError
+from glshade.files import read_png
+from glshade.gpu.renderer import render
+from glshade.metrics.measurement import measure
+from glshade.metrics.visibility import Visibility
+from glshade.scene import paper_scene
 
 SIZE = 96
 
@@ -210,7 +210,7 @@ needs_display = pytest.mark.skipif(_viewer_available() is not None, reason=str(_
 
 
 def view(*args, timeout=180):
-    command = [sys.executable, "-m", "glshade.cli", "view", *args]
+    command = [sys.executable, "-m", "glshade", "view", *args]
     if not os.environ.get("DISPLAY"):
         command = ["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24", *command]
     return subprocess.run(command, capture_output=True, text=True, timeout=timeout)
@@ -285,10 +285,10 @@ def test_scripted_run_ends_with_the_measured_readout():
 def test_bad_scene_file_opens_nothing(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[camera]\ntheta_deg = 120.0\n")
-    result = subprocess.run([sys.executable, "-m", "glshade.cli", "view", str(bad), "--frames", "1"],
+    result = subprocess.run([sys.executable, "-m", "glshade", "view", str(bad), "--frames", "1"],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2
     assert result.stderr.strip() == "glshade: error: camera.theta_deg: must be in (0, 90) degrees, got 120.0"
-    result = subprocess.run([sys.executable, "-m", "glshade.cli", "view", "--set", "theta=abc"],
+    result = subprocess.run([sys.executable, "-m", "glshade", "view", "--set", "theta=abc"],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and "--set theta: expected a number" in result.stderr

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from glshade import contours as ct
-from glshade import visibility as V
 from glshade.errors import GlshadeError
+from glshade.metrics import contours as ct
+from glshade.metrics import visibility as V
 from glshade.scene import Emitter, paper_scene
 
 H, W = 240, 320

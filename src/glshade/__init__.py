@@ -8,16 +8,39 @@ in degrees. Start with :func:`paper_scene`, :class:`Renderer` and :func:`measure
     import glshade
     result = glshade.measure(glshade.paper_scene("flat", theta_deg=5, sigma2=1.0, dmax=0.005))
     result.visibility_px, result.visibility_continuous_px, result.deflection_px
+
+Importing ``glshade`` (or its ``scene``, ``metrics``, ``oracle`` and ``study`` planning
+modules) needs no GL: :class:`Renderer` and :func:`measure` load ``glshade.gpu`` (and
+moderngl) on first use.
 """
 
-from .errors import ContextError, GlshadeError, SceneError, ShaderCompileError
-from .frame import Frame
-from .measurement import measure
-from .renderer import Renderer
-from .scene import Camera, Defect, Emitter, RenderSettings, Scene, Surface, paper_scene
-from .visibility import MetricSettings, Visibility
+from glshade.errors import ContextError, GlshadeError, SceneError, ShaderCompileError
+from glshade.frame import Frame
+from glshade.metrics.visibility import MetricSettings, Visibility
+from glshade.scene import (
+    Camera,
+    Defect,
+    Emitter,
+    RenderSettings,
+    Scene,
+    Surface,
+    paper_scene,
+)
 
 __version__ = "0.1.0"
+
+_LAZY = {"Renderer": ("glshade.gpu.renderer", "Renderer"), "measure": ("glshade.metrics.measurement", "measure")}
+
+
+def __getattr__(name: str):
+    """``Renderer`` and ``measure`` on first use (they need moderngl)."""
+    if name in _LAZY:
+        import importlib
+
+        module, attribute = _LAZY[name]
+        return getattr(importlib.import_module(module), attribute)
+    raise AttributeError(f"module 'glshade' has no attribute {name!r}")
+
 
 __all__ = [
     "Camera",

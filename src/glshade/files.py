@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .errors import GlshadeError
+from glshade.errors import GlshadeError
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:

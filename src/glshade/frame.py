@@ -48,7 +48,7 @@ class Frame:
 
 def normalize_outputs(outputs: str | tuple[str, ...] | list[str] | frozenset[str]) -> frozenset[str]:
     """Check and canonicalise a request such as ``("image", "uv")``."""
-    from .errors import GlshadeError
+    from glshade.errors import GlshadeError
 
     wanted = frozenset([outputs] if isinstance(outputs, str) else outputs)
     unknown = wanted - set(OUTPUTS)

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import jinja2
 
-from .errors import ShaderCompileError
-from .frame import OUTPUTS, normalize_outputs
-from .scene import Scene
+from glshade.errors import ShaderCompileError
+from glshade.frame import OUTPUTS, normalize_outputs
+from glshade.scene import Scene
 
 VERTEX_TEMPLATE = "fullscreen.vert.glsl"
 FRAGMENT_TEMPLATE = "deflectometry.frag.glsl"
@@ -68,7 +68,7 @@ def shader_dir() -> Path:
     packaged = Path(str(resources.files("glshade"))) / "shaders"
     if packaged.is_dir():
         return packaged
-    checkout = Path(__file__).resolve().parents[2] / "shaders"
+    checkout = Path(__file__).resolve().parents[3] / "shaders"
     if checkout.is_dir():
         return checkout
     raise FileNotFoundError(f"glshade's GLSL sources are missing (looked in {packaged} and {checkout})")

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import physics
-from .files import atomic_write_bytes
-from .scene import paper_scene
+from glshade.files import atomic_write_bytes
+from glshade.metrics import physics
+from glshade.scene import paper_scene
 
 HOLDS, PARTLY, NOT = "holds", "partly holds", "does not hold"
 METRICS = {"visibility_px": "paper metric", "visibility_continuous_px": "continuous limit"}
@@ -426,7 +426,7 @@ def _notes(rows: list[dict], plan) -> list[str]:
         f"from its continuous limit by at most {gap:.2f} px here. Where the limit is below a pixel (the sphere at low "
         "θ), the paper's metric reads 1 px or 0 px and cannot rank the dents; the limit can.",
         f"- Pixels where the defect-free stripes span fewer than {plan.metric.min_period_px:g} px per period are left out "
-        f"of the contours (aliasing; see `glshade.visibility.resolved_mask`); at most {unresolved:.1%} of a case's "
+        f"of the contours (aliasing; see `glshade.metrics.visibility.resolved_mask`); at most {unresolved:.1%} of a case's "
         "kept pixels were.",
     ]
     if mostly:

@@ -20,7 +20,7 @@ Figs. 8 and 9:
   vertical distances, in pixels, is the distance at this phase.
 
 :func:`compare` does all of it for one phase against a precomputed :class:`StripeMap`
-of the defect-free image; :mod:`glshade.visibility` sweeps the phases.
+of the defect-free image; :mod:`glshade.metrics.visibility` sweeps the phases.
 """
 
 from __future__ import annotations

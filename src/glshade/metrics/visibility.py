@@ -9,12 +9,12 @@ stripes, the binarisation level and, per phase, the labelled stripes of the norm
 
 - ``visibility_px``: the paper's metric. At each phase of the sweep (``step_mm`` apart,
   below one period) both images are binarised, cut to the central columns, registered,
-  and their corresponding contours compared (:mod:`glshade.contours`); the largest
+  and their corresponding contours compared (:mod:`glshade.metrics.contours`); the largest
   distance over the phases.
 - ``visibility_continuous_px``: its limit for a vanishing phase step and pixel size, by
-  the same contour rules (:func:`glshade.continuous.visibility_limit`).
+  the same contour rules (:func:`glshade.metrics.continuous.visibility_limit`).
 - ``deflection_px``: how far the dent moves the emitter map
-  (:func:`glshade.continuous.deflection`).
+  (:func:`glshade.metrics.continuous.deflection`).
 - ``folded`` (the map runs against itself along a column), ``islands`` (pieces of stripes
   that a fold cuts off: counted, never measured), ``best_phase_mm``.
 
@@ -38,10 +38,16 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from . import contours as ct
-from .continuous import Deflection, Limit, StripeLevels, deflection, visibility_limit
-from .errors import GlshadeError
-from .scene import Emitter
+from glshade.errors import GlshadeError
+from glshade.metrics import contours as ct
+from glshade.metrics.continuous import (
+    Deflection,
+    Limit,
+    StripeLevels,
+    deflection,
+    visibility_limit,
+)
+from glshade.scene import Emitter
 
 
 @dataclass(frozen=True)

@@ -29,11 +29,11 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from .context import GLContext
-from .errors import ContextError, GlshadeError, SceneError
-from .frame import Frame, normalize_outputs
-from .scene import Scene
-from .shaders import ShaderFeatures, compile_error, compose
+from glshade.errors import ContextError, GlshadeError, SceneError
+from glshade.frame import Frame, normalize_outputs
+from glshade.gpu.compose import ShaderFeatures, compile_error, compose
+from glshade.gpu.context import GLContext
+from glshade.scene import Scene
 
 #: Bytes per pixel of each output: GPU render target + host array (fp64 uv: an RGBA32F
 #: target of float hi/lo pairs, a float64 host array).

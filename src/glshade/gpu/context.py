@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import moderngl
 
-from .errors import ContextError
+from glshade.errors import ContextError
 
 log = logging.getLogger("glshade")
 

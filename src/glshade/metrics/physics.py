@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .scene import Scene
+from glshade.scene import Scene
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .errors import SceneError
+from glshade.errors import SceneError
 
 SurfaceKind = Literal["flat", "cylinder", "sphere"]
 SURFACE_KINDS: tuple[str, ...] = ("flat", "cylinder", "sphere")
@@ -421,7 +421,7 @@ class Scene:
         """Write the scene as TOML, atomically."""
         import tomli_w
 
-        from .files import atomic_write_bytes
+        from glshade.files import atomic_write_bytes
 
         atomic_write_bytes(Path(path), tomli_w.dumps(self.to_dict()).encode())
 

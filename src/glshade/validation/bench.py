@@ -14,9 +14,9 @@ import statistics
 import time
 from dataclasses import dataclass
 
-from .context import GLContext
-from .renderer import Renderer
-from .scene import Scene, paper_scene
+from glshade.gpu.context import GLContext
+from glshade.gpu.renderer import Renderer
+from glshade.scene import Scene, paper_scene
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,7 @@ def run(
     outputs: tuple[str, ...] = ("image",),
 ) -> tuple[list[Timing], str]:
     """Time fp32, fp64 and the NumPy reference; returns the timings and the GL renderer."""
-    from . import reference
+    from glshade.oracle import tracer as reference
 
     base = paper_scene("flat", theta_deg, 4.0, 0.005).with_size(size)
     pixels = base.camera.width * base.camera.height

@@ -89,9 +89,9 @@ from typing import Iterable
 
 import numpy as np
 
-from .errors import SceneError
-from .frame import Frame, normalize_outputs
-from .scene import Camera, Defect, Emitter, Scene, Surface
+from glshade.errors import SceneError
+from glshade.frame import Frame, normalize_outputs
+from glshade.scene import Camera, Defect, Emitter, Scene, Surface
 
 #: Uniform samples of the gap per segment between breakpoints.
 _SAMPLES_PER_SEGMENT = 64

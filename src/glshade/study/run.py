@@ -1,6 +1,6 @@
 """The paper's study (SPEC §7, Table 1) as a resumable sweep.
 
-Every case is measured by the one metric pipeline (:class:`glshade.visibility.Baseline`):
+Every case is measured by the one metric pipeline (:class:`glshade.metrics.visibility.Baseline`):
 for every (surface, θ) the defect-free scene is traced once and its analysis is shared by
 the 8 (σ², dmax) cases of that geometry, which changes no number (a case is a pure
 function of its scene and the metric settings; ``tests/test_study.py`` checks the rows
@@ -29,13 +29,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from . import contours, physics
-from . import visibility as vis
-from .errors import GlshadeError
-from .files import atomic_write_bytes, encode_png
-from .measurement import emitter_map
-from .renderer import Renderer
-from .scene import SURFACE_KINDS, Camera, Scene, paper_scene
+from glshade.errors import GlshadeError
+from glshade.files import atomic_write_bytes, encode_png
+from glshade.gpu.renderer import Renderer
+from glshade.metrics import contours, physics
+from glshade.metrics import visibility as vis
+from glshade.metrics.measurement import emitter_map
+from glshade.scene import SURFACE_KINDS, Camera, Scene, paper_scene
 
 PAPER_THETAS = (85.0, 75.0, 65.0, 55.0, 45.0, 35.0, 25.0, 15.0, 5.0)
 PAPER_SIGMA2S = (1.0, 4.0, 9.0, 16.0)
@@ -370,7 +370,7 @@ def _write_case(row: dict, thumbnail: bytes | None, overlay, timings: Timings, o
     if thumbnail is not None:
         atomic_write_bytes(out_dir / "cases" / f"{key}.png", thumbnail)
     if overlay is not None:
-        from .plots import overlay_figure
+        from glshade.study.plots import overlay_figure
 
         case = (row["surface"], row["theta_deg"], row["sigma2_mm2"], row["dmax_mm"])
         overlay_figure(*overlay, out_dir / OVERLAY_CASES[case])

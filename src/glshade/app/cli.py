@@ -12,9 +12,16 @@ import sys
 import time
 from pathlib import Path
 
-from . import __version__
-from .errors import GlshadeError
-from .scene import PRECISIONS, REFLECTIONS, SURFACE_KINDS, Camera, Scene, paper_scene
+from glshade import __version__
+from glshade.errors import GlshadeError
+from glshade.scene import (
+    PRECISIONS,
+    REFLECTIONS,
+    SURFACE_KINDS,
+    Camera,
+    Scene,
+    paper_scene,
+)
 
 EXIT_USAGE = 2
 
@@ -53,7 +60,7 @@ def _add_metric_flags(p: argparse.ArgumentParser) -> None:
 
 
 def _metric_settings(args: argparse.Namespace):
-    from .visibility import MetricSettings
+    from glshade.metrics.visibility import MetricSettings
 
     return MetricSettings(threshold=args.threshold, keep_fraction=args.keep_fraction, step_mm=args.step)
 
@@ -92,10 +99,10 @@ def _add_measure(sub: argparse._SubParsersAction) -> None:
 def _cmd_measure(args: argparse.Namespace) -> int:
     import json
 
-    from . import physics
-    from .context import GLContext
-    from .measurement import measure_scene
-    from .renderer import Renderer
+    from glshade.gpu.context import GLContext
+    from glshade.gpu.renderer import Renderer
+    from glshade.metrics import physics
+    from glshade.metrics.measurement import measure_scene
 
     scene = scene_from_args(args)
     settings = _metric_settings(args)
@@ -190,9 +197,10 @@ def _reuse_freed_memory() -> None:
 
 
 def _cmd_paper(args: argparse.Namespace) -> int:
-    from . import findings, plots, study
-    from .context import GLContext
-    from .renderer import Renderer
+    from glshade.gpu.context import GLContext
+    from glshade.gpu.renderer import Renderer
+    from glshade.study import findings, plots
+    from glshade.study import run as study
 
     _reuse_freed_memory()
     metric = _metric_settings(args)
@@ -251,7 +259,7 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
-    from . import viewer
+    from glshade.app import viewer
 
     scene = Scene.load(args.scene) if args.scene is not None else paper_scene()
     scene = scene.with_size(args.size)
@@ -301,7 +309,7 @@ def _add_accuracy(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_accuracy(args: argparse.Namespace) -> int:
-    from . import accuracy
+    from glshade.validation import accuracy
 
     if args.repeats < 1:
         raise GlshadeError(f"--repeats: must be an integer >= 1, got {args.repeats}")
@@ -380,9 +388,9 @@ def _check_writable(path: Path, flag: str) -> None:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
-    from .context import GLContext
-    from .files import write_npy, write_png
-    from .renderer import Renderer
+    from glshade.files import write_npy, write_png
+    from glshade.gpu.context import GLContext
+    from glshade.gpu.renderer import Renderer
 
     scene = scene_from_args(args)
     for path, flag in ((args.output, "-o"), (args.uv, "--uv"), (args.save_scene, "--save-scene")):
@@ -407,7 +415,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    from .context import GLContext
+    from glshade.gpu.context import GLContext
 
     with GLContext(device_index=args.device) as context:
         info = context.info()
@@ -418,7 +426,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from . import bench
+    from glshade.validation import bench
 
     if args.repeats < 1:
         raise GlshadeError(f"--repeats: must be an integer >= 1, got {args.repeats}")

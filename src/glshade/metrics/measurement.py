@@ -2,7 +2,7 @@
 
 A case is a pure function of its scene and the metric settings: :func:`measure_scene`
 renders the defect-free twin (``dmax = 0``) and the scene itself and measures one against
-the other with :class:`glshade.visibility.Baseline`. A caller that measures many defects
+the other with :class:`glshade.metrics.visibility.Baseline`. A caller that measures many defects
 on one geometry (the study, the viewer) passes the same baseline to each; that saves the
 defect-free trace and analysis and changes no number.
 
@@ -16,12 +16,15 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .renderer import Renderer
-from .scene import Scene
-from .visibility import Baseline, MetricSettings, Visibility
+from glshade.metrics.visibility import Baseline, MetricSettings, Visibility
+from glshade.scene import Scene
+
+if TYPE_CHECKING:  # the GPU is loaded only by measure() when it must make a renderer
+    from glshade.gpu.renderer import Renderer
 
 
 def emitter_map(renderer: Renderer, scene: Scene) -> np.ndarray:
@@ -65,8 +68,8 @@ def measure_scene(
     v1 = emitter_map(renderer, scene)
     result = baseline.measure(v1, images)
     if overlay is not None:
-        from .contours import overlay_rgb
-        from .plots import overlay_figure
+        from glshade.metrics.contours import overlay_rgb
+        from glshade.study.plots import overlay_figure
 
         normal, defect = baseline.stripes_at(v1, result.best_phase_mm, result.offset_px, images)
         overlay_figure(overlay_rgb(normal, defect), result, baseline.columns.start, scene.title(), Path(overlay))
@@ -82,7 +85,7 @@ def measure(
 ) -> Visibility:
     """How visible is this scene's defect? ``glshade.measure(paper_scene("flat", 5, 1.0, 0.005))``.
 
-    Returns a :class:`glshade.visibility.Visibility`: ``visibility_px`` (the paper's
+    Returns a :class:`glshade.metrics.visibility.Visibility`: ``visibility_px`` (the paper's
     metric), ``visibility_continuous_px`` (its limit), ``deflection_px`` (how far the
     rays move), ``folded``, ``islands``, ``best_phase_mm``. ``overlay``: also write the
     Fig. 9 overlay there (PNG). Creates (and releases) a renderer unless one is given.
@@ -90,5 +93,7 @@ def measure(
     settings = settings or MetricSettings()
     if renderer is not None:
         return measure_scene(renderer, scene, settings, overlay=overlay)
+    from glshade.gpu.renderer import Renderer
+
     with Renderer() as own:
         return measure_scene(own, scene, settings, overlay=overlay)

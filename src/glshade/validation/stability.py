@@ -8,7 +8,7 @@ silhouettes, a folding stripe map, an emitter seen edge-on and a tiny emitter.
 Every case is rendered twice: the **centre** (a 32x32 camera at the paper's pitch, i.e.
 the central crop of the paper's 1024² image, where the dent is) and the **field** (the
 whole view on 48x48 pixels). :func:`check` compares both with
-:func:`glshade.reference.trace` and ``first_hit`` and returns the measured errors;
+:func:`glshade.oracle.tracer.trace` and ``first_hit`` and returns the measured errors;
 ``tests/test_stability.py`` asserts on them and ``glshade accuracy`` tabulates them.
 """
 
@@ -18,11 +18,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import reference
-from .frame import Frame
-from .renderer import Renderer, RootSolver
-from .scene import Defect, Scene, paper_scene
-
+from glshade.frame import Frame
+from glshade.gpu.renderer import Renderer, RootSolver
+from glshade.oracle import tracer as reference
+from glshade.scene import Defect, Scene, paper_scene
 
 #: uv tolerances (mm) where no case says otherwise (issue 2's goals).
 UV_TOLERANCE = {"fp32": 5e-4, "fp64": 1e-6}

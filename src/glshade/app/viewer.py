@@ -1,7 +1,7 @@
 """Interactive viewer (``glshade view``): turn the knobs and watch the stripes bend.
 
 A moderngl-window window (pyglet) with an imgui-bundle control panel. The scene is traced
-by the same :class:`~glshade.renderer.Renderer` and shaders as the batch renderer, into the
+by the same :class:`~glshade.gpu.renderer.Renderer` and shaders as the batch renderer, into the
 window's own GL context. What is recomputed is only what changed:
 
 - a change of geometry (surface, θ, defect, emitter distance or stripes, precision,
@@ -31,10 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import contours
-from . import visibility as vis
-from .errors import GlshadeError, SceneError
-from .scene import Scene, paper_scene
+from glshade.errors import GlshadeError, SceneError
+from glshade.metrics import contours
+from glshade.metrics import visibility as vis
+from glshade.scene import Scene, paper_scene
 
 VIEWS = ("image", "defect-free", "overlay", "displacement")
 PANEL_WIDTH = 360
@@ -258,7 +258,7 @@ class ViewerModel:
     @property
     def shades_from_uv(self) -> bool:
         """The picture is a function of the uv map (mirror, one ray per pixel)."""
-        from .measurement import shades_from_map
+        from glshade.metrics.measurement import shades_from_map
 
         return shades_from_map(self.scene)
 
@@ -426,10 +426,10 @@ def make_app(options: ViewerOptions):
     from imgui_bundle import imgui
     from moderngl_window.integrations.imgui_bundle import ModernglWindowRenderer
 
-    from .context import GLContext
-    from .files import write_png
-    from .renderer import Renderer
-    from .shaders import render_template
+    from glshade.files import write_png
+    from glshade.gpu.compose import render_template
+    from glshade.gpu.context import GLContext
+    from glshade.gpu.renderer import Renderer
 
     cam = options.scene.camera
     panel_width = PANEL_WIDTH if options.panel else 0

@@ -28,12 +28,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from . import reference, stability
-from . import visibility as vis
-from .files import atomic_write_bytes
-from .renderer import Renderer, RootSolver
-from .scene import Scene, paper_scene
-from .measurement import measure_scene
+from glshade.files import atomic_write_bytes
+from glshade.gpu.renderer import Renderer, RootSolver
+from glshade.metrics import visibility as vis
+from glshade.metrics.measurement import measure_scene
+from glshade.oracle import tracer as reference
+from glshade.scene import Scene, paper_scene
+from glshade.validation import stability
 
 CONVERGED = RootSolver(march_steps=4096, newton_iterations=200, tolerance_mm=1e-14)
 SIZE = 256
@@ -350,7 +351,7 @@ def stability_table(renderer: Renderer, log) -> tuple[list[str], dict[str, int]]
 def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=ALL_SURFACES) -> Path:
     """Measure everything and write ``out_dir/accuracy.md`` and its figures; ``surfaces``
     restricts the knobs' scenes (the stability matrix always runs whole)."""
-    from .errors import GlshadeError
+    from glshade.errors import GlshadeError
 
     surfaces = tuple(surfaces)
     if not surfaces or any(s not in ALL_SURFACES for s in surfaces):
@@ -419,7 +420,7 @@ def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=A
         "",
         "## Blinn-Phong: the closed-form lobe against Monte-Carlo",
         "",
-        "Against the reference's converged quadrature over the half vector (`glshade.reference`), n = 1e5, flat",
+        "Against the reference's converged quadrature over the half vector (`glshade.oracle.tracer`), n = 1e5, flat",
         "and sphere at θ 45, 24x24. Monte-Carlo draws half vectors from the (n·h)^N lobe (importance sampling,",
         "self-normalised), in NumPy; the closed form runs in the shader. Errors over the pixels whose mirror ray",
         f"lands at least {EDGE_MARGIN_MM:g} mm inside the emitter, and (last column) over all: the closed form does",
@@ -433,7 +434,7 @@ def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=A
         "",
         "## Stability on stiff and extreme cases",
         "",
-        "`glshade.stability.cases()`, the same matrix `tests/test_stability.py` asserts on. Centre: the central",
+        "`glshade.validation.stability.cases()`, the same matrix `tests/test_stability.py` asserts on. Centre: the central",
         "32x32 pixels of the paper's 1024² camera; field: the whole view at 48². Errors against the NumPy fp64",
         "oracle; distance errors relative, over pixels that reach the emitter; every case had no NaN or Inf",
         "inside its mask (asserted by the test).",

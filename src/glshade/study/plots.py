@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import atomic_write_bytes, read_png
+from glshade.files import atomic_write_bytes, read_png
 
 SURFACE_NAMES = {"flat": "flat plate", "cylinder": "cylinder, R 70 mm", "sphere": "sphere, R 70 mm"}
 SURFACE_COLOURS = {"flat": "tab:blue", "cylinder": "tab:orange", "sphere": "tab:green"}
@@ -53,7 +53,7 @@ def image_grid(rows: list[dict], cases_dir: Path, surface: str, dmax: float, the
     """θ across, σ² down, each the defect image at its best phase. False when a case's
     thumbnail is missing (the grid is then not written). The thumbnails are tiled into one
     mosaic (one image to draw, not one axes per case)."""
-    from .study import case_key
+    from glshade.study.run import case_key
 
     lookup = {(r["theta_deg"], r["sigma2_mm2"]): r for r in rows if r["surface"] == surface and r["dmax_mm"] == dmax}
     tiles = []
@@ -174,8 +174,8 @@ def overlay_figure(rgb: np.ndarray, result, column_start: int, title: str, path:
     (left), a magnified window around the largest distance with that distance drawn
     (right), a title naming the case and a legend for every colour.
 
-    ``rgb``: :func:`glshade.contours.overlay_rgb` of the kept columns; ``result``: the
-    case's :class:`glshade.visibility.Visibility`; ``column_start``: the first kept column.
+    ``rgb``: :func:`glshade.metrics.contours.overlay_rgb` of the kept columns; ``result``: the
+    case's :class:`glshade.metrics.visibility.Visibility`; ``column_start``: the first kept column.
     """
     from matplotlib.patches import Patch, Rectangle
 
@@ -229,7 +229,7 @@ LAW_FIGURE = "law_vs_simulation.png"
 
 def surface_figures(rows: list[dict], out_dir: Path, plan, surface: str) -> list[Path]:
     """The grids and plots of one surface (from its rows); returns the paths written."""
-    from .study import GRID_THETAS
+    from glshade.study.run import GRID_THETAS
 
     out_dir = Path(out_dir)
     written = []
