@@ -1,7 +1,11 @@
 #version 450
 // glshade fragment shader: one camera pixel per fragment (SPEC §5). Composed per scene
-// from the files under shaders/; only the code the scene needs is in it.
-{$ include "precision_" ~ precision ~ ".glsl" $}
+// from the files under shaders/; only the code the scene needs is in it. The active
+// components (glshade.components) name the files: "preamble" (precision) and "stages"
+// (camera, surface, defect and first hit, emitter, reflection), in that order.
+{$ for file in preamble $}
+{$ include file $}
+{$ endfor $}
 
 {$ for name in outputs $}
 {$ if name == "image" $}
@@ -19,22 +23,9 @@ layout(location = {{ loop.index0 }}) out float out_iterations; // evaluations of
 {$ endif $}
 {$ endfor $}
 
-{$ include "camera.glsl" $}
-{$ if surface != "flat" $}
-{$ include "quadric_crossing.glsl" $}
-{$ endif $}
-{$ include "surface_" ~ surface ~ ".glsl" $}
-{$ if defect == "none" $}
-{$ include "surface_hit_base.glsl" $}
-{$ else $}
-{$ include "defect_" ~ defect ~ ".glsl" $}
-{$ include "surface_hit_dent.glsl" $}
-{$ endif $}
-{$ include "emitter.glsl" $}
-{$ if "image" in outputs $}
-{$ include "stripes.glsl" $}
-{$ include "reflect_" ~ reflection ~ ".glsl" $}
-{$ endif $}
+{$ for file in stages $}
+{$ include file $}
+{$ endfor $}
 
 {$ if "distance" in outputs $}
 float hit_distance;                          // of the last trace(): camera to hit, mm (-1: none)

@@ -14,14 +14,9 @@ from pathlib import Path
 
 from glshade import __version__
 from glshade.errors import GlshadeError
-from glshade.scene import (
-    PRECISIONS,
-    REFLECTIONS,
-    SURFACE_KINDS,
-    Camera,
-    Scene,
-    paper_scene,
-)
+from glshade.components.registry import registry
+from glshade.scene import PAPER_SURFACES, Camera, Scene, paper_scene
+from glshade.scene.params import Param
 
 EXIT_USAGE = 2
 
@@ -34,22 +29,34 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _add_scene_flags(p: argparse.ArgumentParser) -> None:
-    """The scene file and the flags that override it (render and measure)."""
+    """The scene file and the flags that override it (render and measure): a short flag
+    for each parameter that declares one, ``--set PATH=VALUE`` for any parameter."""
     p.add_argument("scene", nargs="?", type=Path, help="scene file (TOML)")
-    p.add_argument("--surface", choices=SURFACE_KINDS, help="base surface kind")
-    p.add_argument("--radius", type=float, metavar="MM", help="cylinder/sphere radius, negative = concave")
-    p.add_argument("--axis", choices=("z", "x"), help="cylinder axis")
-    p.add_argument("--theta", type=float, metavar="DEG", help="camera elevation in (0, 90) degrees")
-    p.add_argument("--sigma2", type=float, metavar="MM2", help="isotropic defect variance, mm²")
-    p.add_argument("--dmax", type=float, metavar="MM", help="defect depth, mm (> 0 dent, < 0 bump, 0 none)")
-    p.add_argument("--phase", type=float, metavar="MM", help="stripe phase, mm")
-    p.add_argument("--period", type=float, metavar="MM", help="stripe period, mm")
+    for param in registry().params():
+        if param.flag is not None:
+            p.add_argument(param.flag, dest=_flag_dest(param), **_flag_options(param))
+    p.add_argument("--set", dest="settings", action="append", default=[], metavar="PATH=VALUE",
+                   help="set any scene parameter by its dotted path, e.g. --set camera.theta_deg=15 "
+                   "(see docs/scene-format.md); applied after the short flags")
     p.add_argument("--size", type=int, metavar="N", help="N pixels across, same field of view (SPEC §2)")
-    p.add_argument("--precision", choices=PRECISIONS)
-    p.add_argument("--supersample", type=int, metavar="N", help="rays per pixel side (1..16)")
-    p.add_argument("--reflection", choices=REFLECTIONS)
-    p.add_argument("--shininess", type=float, metavar="N", help="Blinn-Phong exponent")
     p.add_argument("--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)")
+
+
+def _flag_dest(param: Param) -> str:
+    return "flag_" + param.flag.lstrip("-").replace("-", "_")
+
+
+def _flag_options(param: Param) -> dict[str, object]:
+    """argparse options of a parameter's short flag, from its declaration."""
+    unit = f" ({param.unit})" if param.unit else ""
+    options: dict[str, object] = {"help": f"{param.path}: {param.doc}{unit}"}
+    if param.kind == "choice":
+        options["choices"] = registry().choices(param) or param.choices
+    elif param.kind == "integer":
+        options.update(type=int, metavar="N")
+    elif param.kind == "real":
+        options.update(type=float, metavar=(param.unit or "X").upper().replace("²", "2"))
+    return options
 
 
 def _add_metric_flags(p: argparse.ArgumentParser) -> None:
@@ -353,29 +360,35 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def scene_from_args(args: argparse.Namespace) -> Scene:
-    """The scene a ``render`` call describes: file (or paper default) + flag overrides."""
+    """The scene a ``render``/``measure`` call describes: the file (or the paper's scene),
+    then the short flags, then ``--set PATH=VALUE`` in order, then ``--size``."""
+    surface = getattr(args, _flag_dest(registry().param("surface.kind")), None)
     if args.scene is not None:
         scene = Scene.load(args.scene)
-        if args.surface is not None:
-            scene = scene.updated(surface={"kind": args.surface})
-    else:
-        scene = paper_scene(args.surface or "flat")
-    tables: dict[str, dict[str, object]] = {"camera": {}, "emitter": {}, "surface": {}, "defect": {}, "render": {}}
-    pairs = [
-        ("radius", "surface", "radius"), ("axis", "surface", "axis"), ("theta", "camera", "theta_deg"),
-        ("sigma2", "defect", "sigma2"), ("dmax", "defect", "dmax"), ("phase", "emitter", "phase"),
-        ("period", "emitter", "period"), ("precision", "render", "precision"),
-        ("supersample", "render", "supersample"), ("reflection", "render", "reflection"),
-        ("shininess", "render", "shininess"),
-    ]
-    for attr, table, key in pairs:
-        value = getattr(args, attr)
+    else:  # the paper's scene, of the surface asked for when it is one of the paper's
+        scene = paper_scene(surface if surface in PAPER_SURFACES else "flat")
+    tables: dict[str, dict[str, object]] = {}
+    for param in registry().params():
+        value = getattr(args, _flag_dest(param), None) if param.flag is not None else None
         if value is not None:
-            tables[table][key] = value
-    scene = scene.updated(**{t: v for t, v in tables.items() if v})
+            tables.setdefault(param.table, {})[param.key] = value
+    scene = scene.updated(**tables)
+    for item in args.settings:
+        path, value = parse_setting(item)
+        scene = scene.with_value(path, value)
     if args.size is not None:
         scene = scene.with_size(args.size)
     return scene
+
+
+def parse_setting(item: str) -> tuple[str, object]:
+    """``PATH=VALUE`` -> the parameter's path and its value parsed by its declaration (a
+    SceneError names an unknown path, and the value is checked when it is applied)."""
+    path, sep, text = item.partition("=")
+    path = path.strip()
+    if not sep or "." not in path:
+        raise GlshadeError(f"--set {item!r}: expected PATH=VALUE with a dotted path such as camera.theta_deg=15")
+    return path, registry().param(path).parse(text)
 
 
 def _check_writable(path: Path, flag: str) -> None:

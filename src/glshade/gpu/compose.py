@@ -7,20 +7,24 @@ conditional includes keep unused code out of the source itself, and an undefined
 template variable is an error, never a silent default. Composition needs no GPU and is
 cached by feature set; the GL program cache (in the renderer) uses the same key.
 
-Everything that changes continuously (θ, the phase, radii, dmax, σ²) is a uniform, so
-sweeping it never recompiles.
+Which files go in is the active components' choice (:mod:`glshade.components`): the
+composer loops over them and knows no component by name. Everything that changes
+continuously (θ, the phase, radii, dmax, σ²) is a uniform, so sweeping it never
+recompiles.
 """
 
 from __future__ import annotations
 
 import functools
 import re
+from collections.abc import Hashable
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 import jinja2
 
+from glshade.components.registry import registry
 from glshade.errors import ShaderCompileError
 from glshade.frame import OUTPUTS, normalize_outputs
 from glshade.scene import Scene
@@ -33,34 +37,43 @@ FRAGMENT_TEMPLATE = "deflectometry.frag.glsl"
 class ShaderFeatures:
     """What a program must contain; the key of the composition and program caches.
 
-    ``surface``: flat | cylinder | sphere; ``cylinder_axis``: z | x (cylinder only,
-    else None); ``defect``: none | isotropic | full; ``reflection``: mirror |
-    blinn_phong; ``precision``: fp32 | fp64; ``supersample``: more than one ray per
-    pixel; ``outputs``: the render targets, in canonical order.
+    ``components``: ``(slot, name)`` of the component filling each slot, in composition
+    order; ``variables``: the template variables they ask for (``(name, value)``, sorted:
+    ``precision``, ``supersample``, ``defect``, ``cylinder_axis``, …); ``outputs``: the
+    render targets, in canonical order. Two scenes with equal features share a program:
+    everything else they differ in is a uniform.
     """
 
-    surface: str
-    cylinder_axis: str | None
-    defect: str
-    reflection: str
-    precision: str
-    supersample: bool
+    components: tuple[tuple[str, str], ...]
+    variables: tuple[tuple[str, Hashable], ...]
     outputs: tuple[str, ...]
 
     @classmethod
     def from_scene(cls, scene: Scene, outputs=("image",)) -> ShaderFeatures:
         wanted = normalize_outputs(outputs)
-        d = scene.defect
-        defect = "none" if not d.present else ("isotropic" if d.isotropic else "full")
+        variables: dict[str, Hashable] = {}
+        active = registry().active(scene)
+        for component in active:
+            for name, value in component.features(scene).items():
+                if variables.setdefault(name, value) != value:
+                    raise ValueError(f"template variable {name!r} set twice ({component!r})")
         return cls(
-            surface=scene.surface.kind,
-            cylinder_axis=scene.surface.axis if scene.surface.kind == "cylinder" else None,
-            defect=defect,
-            reflection=scene.render.reflection.replace("-", "_"),
-            precision=scene.render.precision,
-            supersample=scene.render.supersample > 1,
+            components=tuple((c.slot, c.name) for c in active),
+            variables=tuple(sorted(variables.items())),
             outputs=tuple(name for name in OUTPUTS if name in wanted),
         )
+
+    def template_variables(self) -> dict[str, object]:
+        """The components' variables and ``outputs``: what every GLSL file may use."""
+        return {**dict(self.variables), "outputs": self.outputs}
+
+    @property
+    def precision(self) -> str:
+        return dict(self.variables)["precision"]
+
+    def selected(self) -> dict[str, str]:
+        """Slot -> component name."""
+        return dict(self.components)
 
 
 def shader_dir() -> Path:
@@ -99,17 +112,18 @@ def render_template(name: str, **variables: object) -> str:
 
 @functools.lru_cache(maxsize=64)
 def compose(features: ShaderFeatures) -> tuple[str, str]:
-    """``(vertex_source, fragment_source)`` for a feature set (cached)."""
-    fragment = render_template(
-        FRAGMENT_TEMPLATE,
-        surface=features.surface,
-        cylinder_axis=features.cylinder_axis,
-        defect=features.defect,
-        reflection=features.reflection,
-        precision=features.precision,
-        supersample=features.supersample,
-        outputs=features.outputs,
-    )
+    """``(vertex_source, fragment_source)`` for a feature set (cached): the fragment
+    template with the files the active components name, nothing else."""
+    variables = features.template_variables()
+    reg = registry()
+    slots = {slot.name: slot for slot in reg.slots()}
+    preamble: list[str] = []
+    stages: list[str] = []
+    for slot, name in features.components:
+        files = reg.get(slot, name).glsl(variables)
+        target = preamble if slots[slot].preamble else stages
+        target.extend(f for f in files if f not in target)  # a file shared by two is included once
+    fragment = render_template(FRAGMENT_TEMPLATE, preamble=preamble, stages=stages, **variables)
     # Blank lines left by removed blocks carry no meaning: squeeze runs of them.
     fragment = re.sub(r"\n{3,}", "\n\n", fragment)
     return render_template(VERTEX_TEMPLATE), fragment

@@ -29,6 +29,8 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
+from glshade.components.base import UniformFrame
+from glshade.components.registry import registry
 from glshade.errors import ContextError, GlshadeError, SceneError
 from glshade.frame import Frame, normalize_outputs
 from glshade.gpu.compose import ShaderFeatures, compile_error, compose
@@ -112,52 +114,22 @@ def check_frame_budget(scene: Scene, outputs, budget_bytes: int) -> None:
         )
 
 
-def scene_uniforms(scene: Scene, solver: RootSolver = RootSolver()) -> dict[str, object]:
-    """Every uniform a program for ``scene`` may declare, computed in float64.
+def scene_uniforms(
+    scene: Scene, solver: RootSolver = RootSolver(), features: ShaderFeatures | None = None
+) -> dict[str, object]:
+    """Every uniform the program for ``scene`` (and ``features``, default: the image)
+    declares, computed in float64 by the active components.
 
-    The local frame is the world shifted by the dent centre ``O = (x0, 0, z0)``.
+    The local frame is the world shifted by the dent centre ``O`` (``Scene.local_origin``).
     """
-    cam, em, surf, dent = scene.camera, scene.emitter, scene.surface, scene.defect
-    origin = np.array([dent.x0, 0.0, dent.z0])
-    forward, right, up = cam.basis()
-    variances, axes = np.linalg.eigh(np.array([[dent.sigma_x2, dent.sigma_xz], [dent.sigma_xz, dent.sigma_z2]]))
-    axis = (float(axes[0, 0]), float(axes[1, 0]))  # first principal axis (x, z)
-    inverse_variances = (float(1.0 / variances[0]), float(1.0 / variances[1]))
-    frame = scene.emitter_frame()
-    values: dict[str, object] = {
-        "u_cam_dist": cam.distance,
-        "u_local_origin": tuple(origin),
-        "u_cam_forward": tuple(forward),
-        "u_cam_right": tuple(right),
-        "u_cam_up": tuple(up),
-        "u_focal": cam.focal,
-        "u_pitch": cam.pixel_pitch,
-        "u_size": (cam.width, cam.height),
-        "u_em_normal": tuple(frame.normal),
-        "u_em_eu": tuple(frame.e_u),
-        "u_em_ev": tuple(frame.e_v),
-        "u_em_dist": em.distance,
-        "u_em_offset": (float(origin @ frame.e_u), float(origin @ frame.e_v), float(origin @ frame.normal)),
-        "u_em_half": em.half_size,
-        "u_period": em.period,
-        "u_stripe_sigma": em.sigma_mm,
-        "u_phase": em.phase,
-        "u_radius": surf.radius,
-        "u_axis_xz": (dent.x0, dent.z0),
-        "u_axis_off": dent.x0 if surf.axis == "z" else dent.z0,
-        "u_dmax": dent.dmax,
-        "u_inv_sigma2": 1.0 / dent.sigma_x2,
-        "u_cov_axis": axis,
-        "u_inv_var": inverse_variances,
-        "u_dent_curvature": abs(dent.dmax) * max(inverse_variances),
-        "u_dent_lo": min(0.0, -dent.dmax),
-        "u_dent_hi": max(0.0, -dent.dmax),
-        "u_march_steps": solver.march_steps,
-        "u_newton_iterations": solver.newton_iterations,
-        "u_root_tol": solver.tolerance_for(scene.render.precision),
-        "u_supersample": scene.render.supersample,
-        "u_shininess": scene.render.shininess,
-    }
+    features = features or ShaderFeatures.from_scene(scene)
+    frame = UniformFrame(scene.local_origin(), features.template_variables(), solver)
+    values: dict[str, object] = {}
+    for component in registry().active(scene):
+        for name, value in component.uniforms(scene, frame).items():
+            if name in values:
+                raise ValueError(f"uniform {name} provided twice ({component!r})")
+            values[name] = value
     return values
 
 
@@ -203,6 +175,7 @@ class Renderer:
         self.root_solver = root_solver
         self._programs: dict[ShaderFeatures, tuple[moderngl.Program, moderngl.VertexArray]] = {}
         self._targets: dict[tuple[int, int, tuple[str, ...]], _Targets] = {}
+        self._uniform_names: dict[ShaderFeatures, tuple[str, ...]] = {}
         self._max_side = self.context.info().max_texture_size
         self._fp64 = self.context.info().fp64
 
@@ -216,6 +189,7 @@ class Renderer:
                 for targets in self._targets.values():
                     targets.release()
         self._programs.clear()
+        self._uniform_names.clear()
         self._targets.clear()
         if self._owns_context:
             self.context.release()
@@ -250,6 +224,15 @@ class Renderer:
         self._programs[features] = (program, vao)
         return program, vao
 
+    def _active_uniforms(self, program: moderngl.Program, features: ShaderFeatures) -> tuple[str, ...]:
+        """The uniforms the driver kept in ``program`` (each must be given a value: a
+        uniform left unset would silently read 0)."""
+        names = self._uniform_names.get(features)
+        if names is None:
+            names = tuple(name for name in program if isinstance(program[name], moderngl.Uniform))
+            self._uniform_names[features] = names
+        return names
+
     def _render_targets(self, width: int, height: int, outputs: tuple[str, ...], precision: str) -> _Targets:
         key = (width, height, outputs, precision == "fp64" and "uv" in outputs)
         targets = self._targets.get(key)
@@ -280,10 +263,11 @@ class Renderer:
     def _draw(self, scene: Scene, features: ShaderFeatures, out: Frame | None) -> Frame:
         width, height = scene.camera.width, scene.camera.height
         program, vao = self._program(features)
-        uniforms = scene_uniforms(scene, self.root_solver)
-        for name in program:
-            if name in uniforms:
-                program[name].value = uniforms[name]
+        uniforms = scene_uniforms(scene, self.root_solver, features)
+        for name in self._active_uniforms(program, features):
+            if name not in uniforms:
+                raise GlshadeError(f"uniform {name} of {features.selected()} is provided by no active component")
+            program[name].value = uniforms[name]
         targets = self._render_targets(width, height, features.outputs, features.precision)
         targets.fbo.use()
         targets.fbo.viewport = (0, 0, width, height)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from glshade.components.registry import registry
 from glshade.scene import Scene
 
 
@@ -60,12 +61,7 @@ def base_curvatures(scene: Scene) -> tuple[float, float]:
     incidence (tangential, ``z``) and across it (sagittal, ``x``). Convex is negative:
     a sphere has ``(-1/R, -1/R)``, a cylinder with axis z ``(0, -1/R)``, with axis x
     ``(-1/R, 0)``; R < 0 (concave) flips the signs."""
-    surface = scene.surface
-    if surface.kind == "sphere":
-        return -1.0 / surface.radius, -1.0 / surface.radius
-    if surface.kind == "cylinder":
-        return (-1.0 / surface.radius, 0.0) if surface.axis == "x" else (0.0, -1.0 / surface.radius)
-    return 0.0, 0.0
+    return registry().active(scene).surface.second_derivatives(scene)
 
 
 def laws(scene: Scene) -> Laws:

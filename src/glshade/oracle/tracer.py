@@ -1,5 +1,11 @@
 """A NumPy float64 backward ray tracer: the test oracle for the GLSL renderer.
 
+The tracer is generic: each component of the scene (:mod:`glshade.components`) brings
+its own float64 oracle (the surface its domain, band roots, height and normal; the
+defect its depth, gradient, band and breakpoints; the camera its rays; the emitter where
+rays land and its radiance; the reflection model its pixel value). What follows is the
+method as the built-in components implement it.
+
 Written from ``SPEC.md`` alone (no shader code was consulted), it traces one ray per
 pixel sample through the pinhole, finds the first crossing of the height field
 ``y = f(x, z) + D(x, z)`` from above, reflects about the analytic normal, intersects the
@@ -85,11 +91,12 @@ Error budget
 from __future__ import annotations
 
 import math
-from typing import Iterable
+from collections.abc import Iterable
 
 import numpy as np
 
-from glshade.errors import SceneError
+from glshade.components.reflection_blinn_phong import MIN_SHININESS
+from glshade.components.registry import Active, registry
 from glshade.frame import Frame, normalize_outputs
 from glshade.scene import Camera, Defect, Emitter, Scene, Surface
 
@@ -99,251 +106,64 @@ _SAMPLES_PER_SEGMENT = 64
 _CHUNK_RAYS = 2048
 #: Margin (mm) added to the band [lo, hi] so that its ends bracket a zero-depth defect.
 _BAND_MARGIN_MM = 1e-9
-#: Mahalanobis radii of the defect ellipses used as breakpoints.
-_DEFECT_RADII = (1.0, 3.0, 8.5)
 #: Golden-section iterations for hidden dips (bracket shrinks by 0.618^k).
 _GOLDEN_ITERATIONS = 64
-#: Blinn-Phong box half-width in lobe standard deviations (of the half vector's angle,
-#: 1/sqrt(n)): the weight beyond is below exp(-32).
-_LOBE_SPAN_STD = 8.0
-#: The box's half-width is capped at this angle (rad) from the normal.
-_LOBE_MAX_ANGLE = 1.3
-#: Blinn-Phong grid points per lobe standard deviation (midpoint rule on a Gaussian of
-#: std s with step s/2 errs by ~2 exp(-8π²) ~ 1e-34 relative).
-_LOBE_POINTS_PER_STD = 2.0
-#: Blinn-Phong grid points per stripe sigma on the emitter, at the steepest ∂v/∂(a, b)
-#: (step σ/1.25, with the slope safety below σ/1.5: aliasing ~2 exp(-2π² 1.5²) ~ 1e-19).
-_STRIPE_POINTS_PER_SIGMA = 1.25
-#: Margin on the slope of v measured on a 9 x 9 coarse grid of the box.
-_SLOPE_SAFETY = 1.2
-#: Minimum grid points per axis of the Blinn-Phong quadrature.
-_LOBE_MIN_POINTS = 48
-#: Most grid points per axis (beyond it the call is refused rather than under-resolved).
-_LOBE_MAX_POINTS = 8192
-#: Work-array budget (grid points x pixels) of one Blinn-Phong batch.
-_LOBE_BATCH = 1_000_000
-#: The smallest Blinn-Phong exponent whose lobe (8 std) fits the gnomonic box.
-MIN_SHININESS = 50.0
 
 
-# ============================================================================ camera
-def pixel_rays(
-    camera: Camera,
-    rows: slice | None = None,
-    cols: slice | None = None,
-    supersample: int = 1,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Camera rays of SPEC §2: ``(origin, directions)``, float64.
-
-    ``origin`` is the principal point ``C`` (3,) in mm. ``directions`` are unit vectors;
-    their shape is ``(h, w, 3)`` for ``supersample == 1`` and ``(h, w, n, n, 3)`` for
-    ``n = supersample > 1``, where ``[..., a, b, :]`` is the sub-pixel sample at
-    ``((b + 0.5)/n, (a + 0.5)/n)`` inside the pixel (``b`` along the row, ``a`` down the
-    column). ``rows``/``cols`` select pixels of the full sensor (row 0 at the top).
-    """
-    n = int(supersample)
-    if n < 1:
-        raise ValueError(f"supersample: must be >= 1, got {supersample!r}")
-    i = np.arange(camera.height, dtype=np.float64)[rows if rows is not None else slice(None)]
-    j = np.arange(camera.width, dtype=np.float64)[cols if cols is not None else slice(None)]
-    offset = (np.arange(n, dtype=np.float64) + 0.5) / n
-    pitch = camera.pixel_pitch
-    # sensor coordinates (mm), indexed (i, j, a, b)
-    sx = (j[None, :, None, None] + offset[None, None, None, :] - camera.width / 2.0) * pitch
-    sy = (camera.height / 2.0 - i[:, None, None, None] - offset[None, None, :, None]) * pitch
-    forward, right, up = camera.basis()
-    d = camera.focal * forward + sx[..., None] * right + sy[..., None] * up
-    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
-    if n == 1:
-        d = d[:, :, 0, 0, :]
-    return camera.position(), d
+# ============================================================================ the pieces
+def pixel_rays(camera: Camera, rows: slice | None = None, cols: slice | None = None, supersample: int = 1):
+    """Camera rays of SPEC §2: ``(origin, directions)``, float64 (the camera component's
+    oracle: see its ``pixel_rays``). ``rows``/``cols`` select pixels of the full sensor
+    (row 0 at the top)."""
+    scene = Scene(camera=camera)
+    return registry().active(scene).camera.pixel_rays(scene, rows, cols, supersample)
 
 
-# ============================================================================ surface
-def _radius(surface: Surface) -> tuple[float, float]:
-    """``(s, a)``: ``s = sign(R)`` (+1 convex, -1 concave), ``a = |R|`` (mm)."""
-    return (1.0 if surface.radius > 0 else -1.0), abs(surface.radius)
+def radiance(emitter: Emitter, v) -> np.ndarray:
+    """The emitter's radiance at ``v`` (mm): the emitter component's oracle."""
+    scene = Scene(emitter=emitter)
+    return registry().active(scene).emitter.radiance(scene, v)
 
 
-def _rho(surface: Surface, x: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """Distance (mm) from the surface's axis in the ``xz`` plane: the sqrt's argument is
-    ``R² - rho²``."""
-    if surface.kind == "sphere":
-        return np.hypot(x, z)
-    if surface.axis == "z":
-        return np.abs(x)
-    return np.abs(z)
-
-
-def _sag(surface: Surface, x: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Base height ``f`` (mm) and ``w = sqrt(R² - rho²)`` with ``rho`` clipped to ``|R|``.
-
-    ``f = -s rho² / (a + w)`` equals ``s (w - a)`` without its cancellation near the
-    apex; ``w = sqrt((a - rho)(a + rho))`` keeps its digits near the rim.
-    """
-    s, a = _radius(surface)
-    rho = np.minimum(_rho(surface, x, z), a)
-    w = np.sqrt((a - rho) * (a + rho))
-    return -s * rho * rho / (a + w), w
-
-
-def _defect(defect: Defect, x: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """``D = -dmax exp(-1/2 p^T Σ^-1 p)`` (mm), ``p = (x - x0, z - z0)``."""
-    if not defect.present:
-        return np.zeros(np.broadcast(x, z).shape)
-    ia, ib, ic = defect.inverse_covariance()
-    px = x - defect.x0
-    pz = z - defect.z0
-    q = ia * px * px + 2.0 * ib * px * pz + ic * pz * pz
-    return -defect.dmax * np.exp(-0.5 * q)
-
-
-def _defect_gradient(defect: Defect, x: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(D_x, D_z)`` (dimensionless): ``∇D = -D Σ^-1 p``."""
-    if not defect.present:
-        zero = np.zeros(np.broadcast(x, z).shape)
-        return zero, zero
-    ia, ib, ic = defect.inverse_covariance()
-    px = x - defect.x0
-    pz = z - defect.z0
-    d = _defect(defect, x, z)
-    return -d * (ia * px + ib * pz), -d * (ib * px + ic * pz)
+def emitter_coordinates(scene: Scene, points, directions):
+    """Where rays ``points + t r`` (mm) meet the emitter: ``(u, v, valid)``, NaN where not
+    valid (the emitter component's oracle)."""
+    return registry().active(scene).emitter.coordinates(scene, points, directions)
 
 
 def surface_height(surface: Surface, defect: Defect, x, z) -> np.ndarray:
     """Height ``y = f(x, z) + D(x, z)`` (mm) of the surface at ``(x, z)`` (mm); NaN where
-    the base surface does not exist (``R² - rho² < 0``)."""
+    the base surface does not exist."""
+    scene = Scene(surface=surface, defect=defect)
+    parts = registry().active(scene)
     x = np.asarray(x, dtype=np.float64)
     z = np.asarray(z, dtype=np.float64)
-    d = _defect(defect, x, z)
-    if surface.kind == "flat":
-        return d
-    f, _ = _sag(surface, x, z)
-    outside = _rho(surface, x, z) > abs(surface.radius)
-    return np.where(outside, np.nan, f + d)
+    d = parts.defect.depth(scene, x, z)
+    height = parts.surface.height(scene, x, z) + d
+    return np.where(parts.surface.outside(scene, x, z), np.nan, height)
 
 
-def _gap(surface: Surface, defect: Defect, o: np.ndarray, d: np.ndarray, t: np.ndarray) -> np.ndarray:
+def _gap(scene: Scene, parts: Active, o: np.ndarray, d: np.ndarray, t: np.ndarray) -> np.ndarray:
     """``g(t) = y - f - D`` (mm) along rays ``o + t d``; ``o, d`` (N, 3), ``t`` (N,) or
-    (N, M). ``rho`` is clipped to the domain (samples there are inside up to roundoff)."""
+    (N, M). The surface's height is clipped to its domain (samples there are inside up
+    to roundoff)."""
     ex = (slice(None),) + (None,) * (t.ndim - 1)
     x = o[:, 0][ex] + t * d[:, 0][ex]
     y = o[:, 1][ex] + t * d[:, 1][ex]
     z = o[:, 2][ex] + t * d[:, 2][ex]
-    g = y - _defect(defect, x, z)
-    if surface.kind != "flat":
-        g = g - _sag(surface, x, z)[0]
-    return g
+    g = y - parts.defect.depth(scene, x, z)
+    return g - parts.surface.height(scene, x, z)
 
 
-def _normals(surface: Surface, defect: Defect, x: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """Unit normals (…, 3) of ``h = f + D``: ``(-h_x, 1, -h_z)`` times ``w`` for curved
-    kinds, i.e. ``(s x - w D_x, w, s z - w D_z)`` for a sphere (finite at ``w = 0``)."""
-    dx, dz = _defect_gradient(defect, x, z)
-    if surface.kind == "flat":
-        n = np.stack([-dx, np.ones_like(dx), -dz], axis=-1)
-    else:
-        s, _ = _radius(surface)
-        _, w = _sag(surface, x, z)
-        if surface.kind == "sphere":
-            n = np.stack([s * x - w * dx, w, s * z - w * dz], axis=-1)
-        elif surface.axis == "z":
-            n = np.stack([s * x - w * dx, w, -w * dz], axis=-1)
-        else:
-            n = np.stack([-w * dx, w, s * z - w * dz], axis=-1)
+def _normals(scene: Scene, parts: Active, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Unit normals (…, 3) of ``h = f + D``, from the surface's unnormalised normal."""
+    dx, dz = parts.defect.gradient(scene, x, z)
+    n = parts.surface.normal(scene, x, z, dx, dz)
     return n / np.linalg.norm(n, axis=-1, keepdims=True)
 
 
-# ============================================================================ roots
-def _stable_roots(qa: np.ndarray, qb: np.ndarray, qc: np.ndarray, sqrt_disc: np.ndarray):
-    """Roots ``t1 <= t2`` of ``qa t² + 2 qb t + qc = 0`` given ``sqrt(qb² - qa qc)``
-    (NaN where negative/NaN or ``qa == 0``), without cancellation:
-    ``q = -(qb + sign(qb) sqrt_disc)``, ``t = q / qa`` and ``qc / q``."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        q = -(qb + np.copysign(sqrt_disc, qb))
-        t1 = q / qa
-        t2 = np.where(q == 0.0, 0.0, qc / q)
-        bad = ~np.isfinite(sqrt_disc) | (qa == 0.0)
-        t1 = np.where(bad, np.nan, t1)
-        t2 = np.where(bad, np.nan, t2)
-    return np.minimum(t1, t2), np.maximum(t1, t2)
-
-
-def _circle_roots(oc: np.ndarray, dv: np.ndarray, radius: float):
-    """Ray ``oc + t dv`` against the sphere/circle ``|p| = radius`` in ``k`` dims
-    (``oc, dv``: (N, k)). The discriminant is ``qa (r² - |perp|²)`` with ``perp`` the
-    closest-approach vector, computed as ``(r - |perp|)(r + |perp|)``: no cancellation
-    between ``qb²`` and ``qa qc`` for rays passing close to the centre or far away."""
-    qa = np.einsum("nk,nk->n", dv, dv)
-    qb = np.einsum("nk,nk->n", oc, dv)
-    qc = np.einsum("nk,nk->n", oc, oc) - radius * radius
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tc = -qb / qa
-        perp = np.linalg.norm(oc + tc[:, None] * dv, axis=1)
-        inner = (radius - perp) * (radius + perp)
-        sqrt_disc = np.where(inner >= 0.0, np.sqrt(qa * np.maximum(inner, 0.0)), np.nan)
-    return _stable_roots(qa, qb, qc, sqrt_disc)
-
-
-def _domain_interval(surface: Surface, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``[t_in, t_out]`` (mm) where the ray is over the surface's domain; ``±inf`` when
-    unbounded, NaN when empty."""
-    n = len(d)
-    if surface.kind == "flat":
-        return np.full(n, -np.inf), np.full(n, np.inf)
-    _, a = _radius(surface)
-    if surface.kind == "sphere":
-        dv = d[:, [0, 2]]
-        t1, t2 = _circle_roots(o[:, [0, 2]], dv, a)
-        vertical = np.einsum("nk,nk->n", dv, dv) == 0.0
-        inside = np.hypot(o[:, 0], o[:, 2]) <= a
-    else:
-        k = 0 if surface.axis == "z" else 2
-        oc, dc = o[:, k], d[:, k]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ta, tb = (-a - oc) / dc, (a - oc) / dc
-        t1, t2 = np.minimum(ta, tb), np.maximum(ta, tb)
-        vertical = dc == 0.0
-        inside = np.abs(oc) <= a
-    t1 = np.where(vertical, np.where(inside, -np.inf, np.nan), t1)
-    t2 = np.where(vertical, np.where(inside, np.inf, np.nan), t2)
-    return t1, t2
-
-
-def _band_roots(surface: Surface, o: np.ndarray, d: np.ndarray, shift: float) -> list[np.ndarray]:
-    """Ray parameters where ``y - f = shift`` (mm) on the full base quadric (spurious
-    roots on the other hemisphere are harmless: they only add breakpoints)."""
-    if surface.kind == "flat":
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (shift - o[:, 1]) / d[:, 1]
-        return [np.where(np.isfinite(t), t, np.nan)]
-    s, a = _radius(surface)
-    y_centre = shift - s * a  # centre of the shifted sphere / circle
-    oc = o - np.array([0.0, y_centre, 0.0])
-    if surface.kind == "sphere":
-        dims = [0, 1, 2]
-    elif surface.axis == "z":
-        dims = [0, 1]
-    else:
-        dims = [2, 1]
-    return list(_circle_roots(oc[:, dims], d[:, dims], a))
-
-
-def _ellipse_roots(defect: Defect, o: np.ndarray, d: np.ndarray, radius: float) -> list[np.ndarray]:
-    """Ray parameters where the Mahalanobis distance to the defect centre is ``radius``."""
-    ia, ib, ic = defect.inverse_covariance()
-    px, pz = o[:, 0] - defect.x0, o[:, 2] - defect.z0
-    dx, dz = d[:, 0], d[:, 2]
-    qa = ia * dx * dx + 2.0 * ib * dx * dz + ic * dz * dz
-    qb = ia * px * dx + ib * (px * dz + pz * dx) + ic * pz * dz
-    qc = ia * px * px + 2.0 * ib * px * pz + ic * pz * pz - radius * radius
-    disc = qb * qb - qa * qc
-    sqrt_disc = np.where(disc >= 0.0, np.sqrt(np.maximum(disc, 0.0)), np.nan)
-    return list(_stable_roots(qa, qb, qc, sqrt_disc))
-
-
 # ============================================================================ solvers
-def _bisect(surface, defect, o, d, ta, tb):
+def _bisect(scene, parts, o, d, ta, tb):
     """Shrink ``[ta, tb]`` with ``g(ta) > 0 >= g(tb)`` to adjacent floats; returns its
     midpoint (mm)."""
     ta = ta.copy()
@@ -353,20 +173,20 @@ def _bisect(surface, defect, o, d, ta, tb):
         live = (tm > ta) & (tm < tb)
         if not live.any():
             break
-        pos = _gap(surface, defect, o, d, tm) > 0.0
+        pos = _gap(scene, parts, o, d, tm) > 0.0
         ta = np.where(live & pos, tm, ta)
         tb = np.where(live & ~pos, tm, tb)
     return ta + 0.5 * (tb - ta)
 
 
-def _golden_minimum(surface, defect, o, d, a, b):
+def _golden_minimum(scene, parts, o, d, a, b):
     """Golden-section search for the minimum of ``g`` on ``[a, b]`` (per ray); returns
     ``(t_min, g_min)``, stopping early for rays where a negative value is found."""
     phi = (math.sqrt(5.0) - 1.0) / 2.0
     c = b - phi * (b - a)
     e = a + phi * (b - a)
-    gc = _gap(surface, defect, o, d, c)
-    ge = _gap(surface, defect, o, d, e)
+    gc = _gap(scene, parts, o, d, c)
+    ge = _gap(scene, parts, o, d, e)
     best_t = np.where(gc < ge, c, e)
     best_g = np.minimum(gc, ge)
     for _ in range(_GOLDEN_ITERATIONS):
@@ -376,7 +196,7 @@ def _golden_minimum(surface, defect, o, d, a, b):
         b = np.where(left, e, b)
         a = np.where(left, a, c)
         new = np.where(left, b - phi * (b - a), a + phi * (b - a))
-        gn = _gap(surface, defect, o, d, new)
+        gn = _gap(scene, parts, o, d, new)
         c, e, gc, ge = (
             np.where(left, new, e),
             np.where(left, c, new),
@@ -392,17 +212,32 @@ def _golden_minimum(surface, defect, o, d, a, b):
 def _first_hit_rays(scene: Scene, o: np.ndarray, d: np.ndarray):
     """First crossing from above for rays ``o + t d`` (``o, d``: (N, 3), ``|d| = 1``).
     Returns ``(t, valid)``; ``t`` in mm, NaN where invalid."""
-    surface, defect = scene.surface, scene.defect
-    n = len(d)
-    t_in, t_out = _domain_interval(surface, o, d)
+    parts = registry().active(scene)
+    bp, t_stop, empty = _breakpoints(scene, parts, o, d)
+    k = _SAMPLES_PER_SEGMENT
+    frac = np.arange(k, dtype=np.float64) / k
+    seg_lo, seg_hi = bp[:, :-1], bp[:, 1:]
+    ts = (seg_lo[:, :, None] + (seg_hi - seg_lo)[:, :, None] * frac).reshape(len(d), -1)
+    ts = np.concatenate([ts, t_stop[:, None]], axis=1)
+    g = _gap(scene, parts, o, d, ts)
+    ta, tb, hit, limit = _first_sign_change(ts, g, empty)
+    _hidden_dips(scene, parts, o, d, ts, g, limit, empty, (ta, tb, hit))
+    t = np.full(len(d), np.nan)
+    if hit.any():
+        t[hit] = _bisect(scene, parts, o[hit], d[hit], ta[hit], tb[hit])
+    return t, hit
+
+
+def _breakpoints(scene: Scene, parts: Active, o: np.ndarray, d: np.ndarray):
+    """The sorted breakpoints ``(N, K)`` of each ray's search (domain ends, band roots,
+    the defect's breakpoints), its end ``t_stop`` and whether its domain is ``empty``."""
+    t_in, t_out = parts.surface.domain(scene, o, d)
     t_start = np.maximum(t_in, 0.0)
     empty = ~(t_out >= t_start)  # also NaN (no domain)
-
-    lo, hi = min(0.0, -defect.dmax), max(0.0, -defect.dmax)
-    roots = _band_roots(surface, o, d, hi + _BAND_MARGIN_MM) + _band_roots(surface, o, d, lo - _BAND_MARGIN_MM)
-    if defect.present:
-        for radius in _DEFECT_RADII:
-            roots += _ellipse_roots(defect, o, d, radius)
+    lo, hi = parts.defect.band(scene)
+    roots = parts.surface.band_roots(scene, o, d, hi + _BAND_MARGIN_MM)
+    roots = roots + parts.surface.band_roots(scene, o, d, lo - _BAND_MARGIN_MM)
+    roots += parts.defect.breakpoints(scene, o, d)
     bp = np.stack(roots, axis=1)
     finite = np.isfinite(bp)
     last_root = np.max(np.where(finite, bp, -np.inf), axis=1)
@@ -412,28 +247,31 @@ def _first_hit_rays(scene: Scene, o: np.ndarray, d: np.ndarray):
     t_stop = np.where(empty, 0.0, t_stop)
     bp = np.clip(np.where(finite, bp, t_stop[:, None]), t_start[:, None], t_stop[:, None])
     bp = np.sort(np.concatenate([t_start[:, None], bp, t_stop[:, None]], axis=1), axis=1)
+    return bp, t_stop, empty
 
-    k = _SAMPLES_PER_SEGMENT
-    frac = np.arange(k, dtype=np.float64) / k
-    seg_lo, seg_hi = bp[:, :-1], bp[:, 1:]
-    ts = (seg_lo[:, :, None] + (seg_hi - seg_lo)[:, :, None] * frac).reshape(n, -1)
-    ts = np.concatenate([ts, t_stop[:, None]], axis=1)
-    g = _gap(surface, defect, o, d, ts)
+
+def _first_sign_change(ts: np.ndarray, g: np.ndarray, empty: np.ndarray):
+    """The bracket ``[ta, tb]`` of the first sample-level crossing from above, whether
+    there is one (``hit``) and the last sample before any change (``limit``)."""
     above = g > 0.0
-
     change = above[:, :-1] != above[:, 1:]
     has_change = change.any(axis=1)
     first = np.argmax(change, axis=1)
-    rows = np.arange(n)
+    rows = np.arange(len(ts))
     from_above = has_change & above[rows, first]
-    # bracket of the first sample-level crossing from above
     ta = np.where(from_above, ts[rows, first], np.nan)
     tb = np.where(from_above, ts[rows, np.minimum(first + 1, ts.shape[1] - 1)], np.nan)
     hit = from_above & ~empty
+    limit = np.where(has_change, first, ts.shape[1] - 1)  # samples 0..limit are all on one side
+    return ta, tb, hit, limit
 
-    # hidden dips: local minima of positive samples before the first change
+
+def _hidden_dips(scene, parts, o, d, ts, g, limit, empty, bracket) -> None:
+    """Refine every local minimum of positive samples before the first change by
+    golden-section search; a negative one moves the ray's bracket ``(ta, tb, hit)``
+    (updated in place) to the earliest such dip."""
+    ta, tb, hit = bracket
     m = ts.shape[1]
-    limit = np.where(has_change, first, m - 1)  # samples 0..limit are all on one side
     idx = np.arange(1, m - 1)
     gm, g0, gp = g[:, :-2], g[:, 1:-1], g[:, 2:]
     cand = (
@@ -441,32 +279,27 @@ def _first_hit_rays(scene: Scene, o: np.ndarray, d: np.ndarray):
         & (g0 <= gp)
         & (ts[:, 2:] > ts[:, :-2])
         & (idx[None, :] + 1 <= limit[:, None])
-        & above[:, [0]]
+        & (g[:, [0]] > 0.0)
         & ~empty[:, None]
     )
     ray_i, col = np.nonzero(cand)
-    if len(ray_i):
-        k_mid = col + 1
-        t_min, g_min = _golden_minimum(
-            surface, defect, o[ray_i], d[ray_i], ts[ray_i, k_mid - 1], ts[ray_i, k_mid + 1]
-        )
-        neg = g_min <= 0.0
-        if neg.any():
-            ray_n, k_n, tmin_n = ray_i[neg], k_mid[neg], t_min[neg]
-            # keep the earliest dip per ray (nonzero() is row-major: k ascending)
-            order = np.lexsort((k_n, ray_n))
-            ray_n, k_n, tmin_n = ray_n[order], k_n[order], tmin_n[order]
-            first_of_ray = np.ones(len(ray_n), dtype=bool)
-            first_of_ray[1:] = ray_n[1:] != ray_n[:-1]
-            ray_n, k_n, tmin_n = ray_n[first_of_ray], k_n[first_of_ray], tmin_n[first_of_ray]
-            ta[ray_n] = ts[ray_n, k_n - 1]
-            tb[ray_n] = tmin_n
-            hit[ray_n] = True
-
-    t = np.full(n, np.nan)
-    if hit.any():
-        t[hit] = _bisect(surface, defect, o[hit], d[hit], ta[hit], tb[hit])
-    return t, hit
+    if not len(ray_i):
+        return
+    k_mid = col + 1
+    t_min, g_min = _golden_minimum(scene, parts, o[ray_i], d[ray_i], ts[ray_i, k_mid - 1], ts[ray_i, k_mid + 1])
+    neg = g_min <= 0.0
+    if not neg.any():
+        return
+    ray_n, k_n, tmin_n = ray_i[neg], k_mid[neg], t_min[neg]
+    # keep the earliest dip per ray (nonzero() is row-major: k ascending)
+    order = np.lexsort((k_n, ray_n))
+    ray_n, k_n, tmin_n = ray_n[order], k_n[order], tmin_n[order]
+    first_of_ray = np.ones(len(ray_n), dtype=bool)
+    first_of_ray[1:] = ray_n[1:] != ray_n[:-1]
+    ray_n, k_n, tmin_n = ray_n[first_of_ray], k_n[first_of_ray], tmin_n[first_of_ray]
+    ta[ray_n] = ts[ray_n, k_n - 1]
+    tb[ray_n] = tmin_n
+    hit[ray_n] = True
 
 
 def first_hit(scene: Scene, origin, directions):
@@ -492,186 +325,19 @@ def first_hit(scene: Scene, origin, directions):
     points = o + t[:, None] * d
     normals = np.full((n, 3), np.nan)
     if valid.any():
-        normals[valid] = _normals(scene.surface, scene.defect, points[valid, 0], points[valid, 2])
+        normals[valid] = _normals(scene, registry().active(scene), points[valid, 0], points[valid, 2])
     return t.reshape(shape), points.reshape(shape + (3,)), normals.reshape(shape + (3,)), valid.reshape(shape)
 
 
-# ============================================================================ emitter
-def emitter_coordinates(scene: Scene, points, directions):
-    """Where rays ``points + t r`` (mm; ``r`` need not be unit) meet the emitter.
-
-    Returns ``(u, v, valid)``: screen coordinates in mm, shape (…); ``valid`` requires
-    ``r·n_E < 0`` (towards the front), ``t_e > 0`` and ``|u|, |v| <= half_size``.
-    ``u, v`` are NaN where not valid.
-    """
-    frame = scene.emitter_frame()
-    p = np.asarray(points, dtype=np.float64)
-    r = np.asarray(directions, dtype=np.float64)
-    denom = r @ frame.normal
-    rel = p - frame.centre
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_e = -(rel @ frame.normal) / denom
-        q = rel + t_e[..., None] * r
-    u = q @ frame.e_u
-    v = q @ frame.e_v
-    hu, hv = scene.emitter.half_size
-    valid = (denom < 0.0) & (t_e > 0.0) & (np.abs(u) <= hu) & (np.abs(v) <= hv)
-    return np.where(valid, u, np.nan), np.where(valid, v, np.nan), valid
-
-
-def radiance(emitter: Emitter, v) -> np.ndarray:
-    """Stripe radiance ``L(v) = Σ_k exp(-(v - phase - k period)² / (2 σ²))`` at ``v`` (mm).
-
-    Every stripe within ``10σ`` of ``v`` is summed (at most one more, beyond, adds
-    < exp(-50)).
-    When more than 64 stripes would overlap (``σ > 3.1 period``) the identical Poisson
-    form ``(σ sqrt(2π)/period) (1 + 2 Σ_m exp(-2π² σ² m²/period²) cos(2π m x/period))`` is
-    used instead. NaN propagates.
-    """
-    v = np.asarray(v, dtype=np.float64)
-    sigma = emitter.sigma_mm
-    period = emitter.period
-    x = v - emitter.phase
-    span = 10.0 * sigma
-    terms = int(math.floor(2.0 * span / period)) + 1  # stripes k with |x - k period| <= span
-    if terms <= 64:
-        with np.errstate(invalid="ignore"):
-            k0 = np.ceil((x - span) / period)
-        out = np.zeros_like(x)
-        for j in range(terms):
-            r = x - (k0 + j) * period
-            out += np.exp(-(r * r) / (2.0 * sigma * sigma))
-        return out
-    ratio = sigma / period
-    m_max = int(math.ceil(math.sqrt(45.0 / (2.0 * math.pi**2)) / ratio)) + 1  # exp(-45) ~ 3e-20
-    phase = 2.0 * math.pi * x / period
-    series = np.ones_like(x)
-    for m in range(1, m_max + 1):
-        series += 2.0 * math.exp(-2.0 * math.pi**2 * ratio**2 * m * m) * np.cos(m * phase)
-    return ratio * math.sqrt(2.0 * math.pi) * series
-
-
+# ============================================================================ tracing
 def _reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     return d - 2.0 * np.einsum("nk,nk->n", d, n)[:, None] * n
 
 
-# ============================================================================ Blinn-Phong
-def _lobe_basis(n_s: np.ndarray, wo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Tangent basis of the normal: ``e1`` towards ``wo`` (in the plane of incidence, the
-    direction in which ``v`` mostly changes), ``e2 = n × e1`` across."""
-    e1 = wo - np.einsum("nk,nk->n", wo, n_s)[:, None] * n_s
-    norm = np.linalg.norm(e1, axis=1)
-    degenerate = norm < 1e-12  # normal incidence: any perpendicular of n
-    if degenerate.any():
-        helper = np.where(np.abs(n_s[:, [0]]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
-        e1 = np.where(degenerate[:, None], np.cross(n_s, helper), e1)
-        norm = np.linalg.norm(e1, axis=1)
-    e1 = e1 / norm[:, None]
-    return e1, np.cross(n_s, e1)
 
-
-def _lobe_samples(scene, p, wo, n_s, e1, e2, a, b):
-    """Weights ``∝ w dω_l`` and the emitter's ``v`` (mm) and validity at the gnomonic
-    half-vector offsets ``(a, b)`` (grid arrays (1, n1, n2)) for the N pixels of ``p``.
-
-    ``h = (n + a e1 + b e2)/sqrt(1 + a² + b²)`` (unit: the basis is orthonormal), so
-    ``n·h = (1 + a² + b²)^{-1/2}``, ``dω_h = da db (1 + a² + b²)^{-3/2}`` and the weight
-    ``(n·h)^n 4 (wo·h) dω_h / (da db)`` is ``(1 + a² + b²)^{-(n+3)/2} 4 max(wo·h, 0)``. The
-    direction ``l = 2 (wo·h) h - wo`` is needed only through its dot products with the
-    emitter's axes, which are linear in ``(a, b)``: no 3-vectors per sample.
-    """
-    frame = scene.emitter_frame()
-    shininess = scene.render.shininess
-    rr = 1.0 + a * a + b * b
-    inv = 1.0 / np.sqrt(rr)
-    base = np.exp(-0.5 * (shininess + 3.0) * np.log(rr))
-
-    def along(x: np.ndarray):
-        """``(h·x, wo·x)`` for a fixed vector ``x``, per pixel and sample."""
-        hx = ((n_s @ x)[:, None, None] + a * (e1 @ x)[:, None, None] + b * (e2 @ x)[:, None, None]) * inv
-        return hx, (wo @ x)[:, None, None]
-
-    wo_h = (
-        np.einsum("nk,nk->n", wo, n_s)[:, None, None]
-        + a * np.einsum("nk,nk->n", wo, e1)[:, None, None]
-        + b * np.einsum("nk,nk->n", wo, e2)[:, None, None]
-    ) * inv
-    weight = base * 4.0 * np.maximum(wo_h, 0.0)
-    h_n, wo_n = along(frame.normal)
-    h_v, wo_v = along(frame.e_v)
-    h_u, wo_u = along(frame.e_u)
-    l_n = 2.0 * wo_h * h_n - wo_n  # l·n_E
-    rel = p - frame.centre
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_e = -(rel @ frame.normal)[:, None, None] / l_n
-        v = (rel @ frame.e_v)[:, None, None] + t_e * (2.0 * wo_h * h_v - wo_v)
-        u = (rel @ frame.e_u)[:, None, None] + t_e * (2.0 * wo_h * h_u - wo_u)
-    hu, hv = scene.emitter.half_size
-    ok = (l_n < 0.0) & (t_e > 0.0) & (np.abs(u) <= hu) & (np.abs(v) <= hv) & (wo_h > 0.0)
-    return weight, v, ok
-
-
-def _grid_points(scene, p, wo, n_s, e1, e2, half) -> tuple[np.ndarray, np.ndarray]:
-    """Per-pixel grid sizes ``(N1, N2)`` along ``(e1, e2)`` that resolve the lobe and the
-    stripes, rounded up to multiples of 16 (pixels with equal sizes share a batch).
-    ``v`` is sampled on a 9 x 9 coarse grid of each box to bound its slopes."""
-    step_lobe = 1.0 / (math.sqrt(scene.render.shininess) * _LOBE_POINTS_PER_STD)
-    n_lobe = 2.0 * half / step_lobe
-    c = np.linspace(-1.0, 1.0, 9) * half
-    a, b = np.meshgrid(c, c, indexing="ij")
-    _, v, ok = _lobe_samples(scene, p, wo, n_s, e1, e2, a[None], b[None])
-    step = 2.0 * half / 8.0
-    with np.errstate(invalid="ignore"):
-        dv1 = np.where(ok[:, 1:, :] & ok[:, :-1, :], np.abs(np.diff(v, axis=1)), 0.0) / step
-        dv2 = np.where(ok[:, :, 1:] & ok[:, :, :-1], np.abs(np.diff(v, axis=2)), 0.0) / step
-    h_v = scene.emitter.sigma_mm / _STRIPE_POINTS_PER_SIGMA
-    sizes = []
-    for slope in (dv1.max(axis=(1, 2)), dv2.max(axis=(1, 2))):
-        wanted = np.maximum(max(_LOBE_MIN_POINTS, n_lobe), _SLOPE_SAFETY * slope * 2.0 * half / h_v)
-        if wanted.max() > _LOBE_MAX_POINTS:
-            raise SceneError(
-                "render.shininess",
-                f"large enough for the NumPy reference's Blinn-Phong grid ({wanted.max():.0f} points per "
-                f"axis needed to resolve stripes of sigma {scene.emitter.sigma_mm:g} mm; limit {_LOBE_MAX_POINTS})",
-                scene.render.shininess,
-            )
-        sizes.append((16 * np.ceil(wanted / 16.0)).astype(np.int64))
-    return sizes[0], sizes[1]
-
-
-def _blinn_phong(scene: Scene, p: np.ndarray, d: np.ndarray, n_s: np.ndarray) -> np.ndarray:
-    """Blinn-Phong pixel values at hit points ``p`` (N, 3) for unit camera directions ``d``
-    and normals ``n_s``: brute-force midpoint quadrature of ``∫ L w dω_l / ∫ w dω_l`` over
-    the half vector (see the module docstring)."""
-    shininess = scene.render.shininess
-    if shininess < MIN_SHININESS:
-        raise SceneError(
-            "render.shininess", f">= {MIN_SHININESS:g} for the NumPy reference's Blinn-Phong quadrature", shininess
-        )
-    out = np.zeros(len(p))
-    if not len(p):
-        return out
-    wo = -d
-    e1, e2 = _lobe_basis(n_s, wo)
-    half = math.tan(min(_LOBE_SPAN_STD / math.sqrt(shininess), _LOBE_MAX_ANGLE))
-    sizes1, sizes2 = _grid_points(scene, p, wo, n_s, e1, e2, half)
-    for n1, n2 in sorted(set(zip(sizes1.tolist(), sizes2.tolist()))):
-        group = np.nonzero((sizes1 == n1) & (sizes2 == n2))[0]
-        a = (-1.0 + (2.0 * np.arange(n1) + 1.0) / n1) * half  # midpoints of [-half, half]
-        b = (-1.0 + (2.0 * np.arange(n2) + 1.0) / n2) * half
-        a, b = np.meshgrid(a, b, indexing="ij")
-        batch = max(1, _LOBE_BATCH // (n1 * n2))
-        for s in range(0, len(group), batch):
-            idx = group[s : s + batch]
-            weight, v, ok = _lobe_samples(scene, p[idx], wo[idx], n_s[idx], e1[idx], e2[idx], a[None], b[None])
-            lum = np.where(ok, radiance(scene.emitter, np.where(ok, v, 0.0)), 0.0)
-            out[idx] = np.sum(lum * weight, axis=(1, 2)) / np.sum(weight, axis=(1, 2))
-    return out
-
-
-# ============================================================================ tracing
 def _shade(scene: Scene, origin: np.ndarray, d: np.ndarray, want_image: bool):
     """Per-ray ``(value, u, v, reaches_emitter)`` for unit directions ``d`` (N, 3)."""
+    parts = registry().active(scene)
     n = len(d)
     value = np.zeros(n)
     u = np.full(n, np.nan)
@@ -687,15 +353,11 @@ def _shade(scene: Scene, origin: np.ndarray, d: np.ndarray, want_image: bool):
         idx = np.nonzero(hit)[0] + s
         dh = dd[hit]
         p = oo[hit] + t[hit, None] * dh
-        n_s = _normals(scene.surface, scene.defect, p[:, 0], p[:, 2])
-        r = _reflect(dh, n_s)
-        uu, vv, okk = emitter_coordinates(scene, p, r)
+        n_s = _normals(scene, parts, p[:, 0], p[:, 2])
+        uu, vv, okk = parts.emitter.coordinates(scene, p, _reflect(dh, n_s))
         u[idx], v[idx], ok[idx] = uu, vv, okk
         if want_image:
-            if scene.render.reflection == "blinn-phong":
-                value[idx] = _blinn_phong(scene, p, dh, n_s)
-            else:
-                value[idx] = np.where(okk, radiance(scene.emitter, np.where(okk, vv, 0.0)), 0.0)
+            value[idx] = parts.reflection.shade(scene, p, dh, n_s, vv, okk)
     return value, u, v, ok
 
 
@@ -713,7 +375,7 @@ def trace(
     ignored (always float64). With Blinn-Phong, ``uv``/``mask`` are the mirror ray's."""
     wanted = normalize_outputs(outputs if isinstance(outputs, str) else tuple(outputs))
     n = scene.render.supersample
-    origin, dirs = pixel_rays(scene.camera, rows, cols, n)
+    origin, dirs = registry().active(scene).camera.pixel_rays(scene, rows, cols, n)
     h, w = dirs.shape[:2]
     flat = dirs.reshape(-1, 3)
     value, u, v, ok = _shade(scene, origin, flat, "image" in wanted)

@@ -1,27 +1,29 @@
-"""The scene: what the camera sees, as tables of parameters declared by the components."""
+"""The scene: what the camera sees, as tables of the parameters the components declare.
+
+:mod:`glshade.scene.params` declares what a parameter is; :mod:`glshade.scene.model`
+builds the tables and the :class:`Scene` from the registered declarations.
+"""
 
 from glshade.scene.model import (
-    PRECISIONS,
-    REFLECTIONS,
-    SURFACE_KINDS,
+    PAPER_SURFACES,
     Camera,
     Defect,
     Emitter,
     RenderSettings,
     Scene,
     Surface,
+    Table,
     paper_scene,
 )
 
 __all__ = [
-    "PRECISIONS",
-    "REFLECTIONS",
-    "SURFACE_KINDS",
+    "PAPER_SURFACES",
     "Camera",
     "Defect",
     "Emitter",
     "RenderSettings",
     "Scene",
     "Surface",
+    "Table",
     "paper_scene",
 ]

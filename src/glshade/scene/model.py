@@ -1,109 +1,100 @@
-"""The scene model: camera, stripe emitter, surface, Gaussian defect, render settings.
+"""The scene model: camera, stripe emitter, surface, defect, render settings.
 
 Conventions are those of ``SPEC.md`` (world frame with the gazing point at the origin,
 ``+y`` up, plane of incidence ``yz``, camera on ``+z``, emitter on ``-z``). Every length is
 in millimetres, every angle that crosses the user boundary in degrees.
 
-All classes are small frozen dataclasses that validate themselves on construction; a
-value out of range raises :class:`~glshade.errors.SceneError` naming the field as it is
-spelled in a scene file (``camera.theta_deg``) and the allowed range. ``Scene.from_dict``
-/ ``Scene.to_dict`` map to and from the TOML layout of SPEC §8 and round-trip.
+A scene is five tables. A table's fields are not written here: they are the parameters
+the registered components declare for it (:mod:`glshade.components.registry`), so a new
+component's parameters join its table, its validation and its TOML without an edit
+here. Each table is a frozen dataclass generated from those declarations (``Camera(...)``
+builds one; ``dataclasses.replace`` works) that validates itself on construction: a
+value out of range raises :class:`~glshade.errors.SceneError` naming the field as a
+scene file spells it (``camera.theta_deg``) and the allowed range.
+``Scene.from_dict`` / ``Scene.to_dict`` map to and from the TOML layout of SPEC §8 and
+round-trip.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 import os
 import tomllib
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar
 
 import numpy as np
 
+from glshade.components.registry import registry
 from glshade.errors import SceneError
 
-SurfaceKind = Literal["flat", "cylinder", "sphere"]
-SURFACE_KINDS: tuple[str, ...] = ("flat", "cylinder", "sphere")
-CYLINDER_AXES: tuple[str, ...] = ("z", "x")
-PRECISIONS: tuple[str, ...] = ("fp32", "fp64")
-REFLECTIONS: tuple[str, ...] = ("mirror", "blinn-phong")
-MAX_SUPERSAMPLE = 16
-MAX_IMAGE_SIDE = 16384
-
-#: FWHM of one stripe = half a period  =>  sigma = period / (4 sqrt(2 ln 2)).
-STRIPE_SIGMA_PER_PERIOD = 1.0 / (4.0 * math.sqrt(2.0 * math.log(2.0)))
-
-
-# --------------------------------------------------------------------------- checks
-def _number(table: str, name: str, value: Any) -> float:
-    """A finite real number (bool is not a number here)."""
-    where = f"{table}.{name}"
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise SceneError(where, "a finite number", value)
-    value = float(value)
-    if not math.isfinite(value):
-        raise SceneError(where, "a finite number", value)
-    return value
-
-
-def _positive(table: str, name: str, value: Any) -> float:
-    value = _number(table, name, value)
-    if value <= 0.0:
-        raise SceneError(f"{table}.{name}", "a finite number > 0", value)
-    return value
-
-
-def _integer(table: str, name: str, value: Any, lo: int, hi: int) -> int:
-    where = f"{table}.{name}"
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        if isinstance(value, float) and value.is_integer():
-            value = int(value)
-        else:
-            raise SceneError(where, f"an integer in [{lo}, {hi}]", value)
-    value = int(value)
-    if not lo <= value <= hi:
-        raise SceneError(where, f"an integer in [{lo}, {hi}]", value)
-    return value
-
-
-def _choice(table: str, name: str, value: Any, allowed: tuple[str, ...]) -> str:
-    if value not in allowed:
-        raise SceneError(f"{table}.{name}", "one of " + ", ".join(allowed), value)
-    return value
-
-
-def _set(obj: object, name: str, value: Any) -> None:
-    """Store a normalised value on a frozen dataclass during ``__post_init__``."""
-    object.__setattr__(obj, name, value)
+#: The paper's three surfaces (its study runs over them).
+PAPER_SURFACES: tuple[str, ...] = ("flat", "cylinder", "sphere")
+#: Stripe period the paper uses on the sphere (the others use the Emitter default, 2 mm).
+PAPER_SPHERE_PERIOD_MM = 10.0
 
 
 # --------------------------------------------------------------------------- tables
-@dataclass(frozen=True)
-class Camera:
-    """Pinhole camera looking at the origin from elevation ``theta_deg`` (SPEC §2).
+class Table:
+    """Base of the scene's tables. ``Camera(theta_deg=5)`` returns an instance of a
+    frozen dataclass generated from the parameters registered for the table now; its
+    ``__post_init__`` checks each value against its declaration, then the components'
+    checks over several values."""
 
-    ``distance`` (mm) is origin to principal point, ``focal`` (mm) the focal length,
-    ``pixel_pitch`` (mm) the sensor pitch, ``width`` x ``height`` the sensor in pixels.
-    """
+    table: ClassVar[str]
 
-    theta_deg: float = 45.0
-    distance: float = 175.6
-    focal: float = 25.0
-    pixel_pitch: float = 0.005
-    width: int = 1024
-    height: int = 1024
+    def __new__(cls, *args: Any, **kwargs: Any) -> Table:
+        generated = cls if "__dataclass_fields__" in cls.__dict__ else _fields_class(cls, registry().version)
+        return object.__new__(generated)
 
     def __post_init__(self) -> None:
-        t = "camera"
-        theta = _number(t, "theta_deg", self.theta_deg)
-        if not 0.0 < theta < 90.0:
-            raise SceneError(f"{t}.theta_deg", "in (0, 90) degrees", theta)
-        _set(self, "theta_deg", theta)
-        for name in ("distance", "focal", "pixel_pitch"):
-            _set(self, name, _positive(t, name, getattr(self, name)))
-        for name in ("width", "height"):
-            _set(self, name, _integer(t, name, getattr(self, name), 1, MAX_IMAGE_SIDE))
+        reg = registry()
+        values = {}
+        for param in reg.table_params(self.table):
+            if param.stored:
+                value = param.check(getattr(self, param.key), reg.choices(param))
+                object.__setattr__(self, param.key, value)
+                values[param.key] = value
+        for check in reg.checks(self.table):
+            check(values)
+
+    def values(self) -> dict[str, Any]:
+        """Field name -> value, in declaration order."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    def replace(self, **changes: Any) -> Table:
+        """A copy with some fields changed (validated)."""
+        return replace(self, **changes)
+
+    def __reduce__(self):
+        return _rebuild_table, (self.table, self.values())
+
+
+@functools.lru_cache(maxsize=64)
+def _fields_class(public: type, version: int) -> type:
+    """The dataclass of ``public``'s table for registry ``version``."""
+    params = [p for p in registry().table_params(public.table) if p.stored]
+    spec = [(p.key, object, field(default=p.default)) for p in params]
+    generated = dataclasses.make_dataclass(public.__name__, spec, bases=(public,), frozen=True)
+    generated.__module__ = public.__module__
+    generated.__qualname__ = public.__qualname__
+    generated.__doc__ = public.__doc__
+    return generated
+
+
+def _rebuild_table(table: str, values: dict[str, Any]) -> Table:
+    return TABLE_CLASSES[table](**values)
+
+
+class Camera(Table):
+    """Where the camera is and what its sensor is (SPEC §2): ``theta_deg``,
+    ``distance`` (mm, origin to principal point), ``focal`` (mm), ``pixel_pitch`` (mm),
+    ``width`` x ``height`` pixels, and what the camera component declares beyond."""
+
+    table = "camera"
 
     @property
     def theta_rad(self) -> float:
@@ -138,101 +129,44 @@ class Camera:
 
         The pitch becomes ``pixel_pitch * width / size``; the height keeps the aspect.
         """
-        size = _integer("camera", "width", size, 1, MAX_IMAGE_SIDE)
+        size = registry().param("camera.width").check(size)
         height = max(1, round(self.height * size / self.width))
         return replace(self, width=size, height=height, pixel_pitch=self.pixel_pitch * self.width / size)
 
 
-@dataclass(frozen=True)
-class Emitter:
-    """Stripe emitter in the mirror position of the camera (SPEC §3).
+class Emitter(Table):
+    """The stripe emitter (SPEC §3): ``distance``, ``period``, ``stripe_sigma`` (None:
+    FWHM = half a period), ``phase``, ``half_size`` (mm)."""
 
-    ``distance`` (mm) origin to centre, ``period`` (mm) stripe spacing, ``stripe_sigma``
-    (mm) Gaussian width of one stripe (``None``: FWHM = half a period), ``phase`` (mm)
-    shift along ``v``, ``half_size`` (mm) half extents in ``u`` and ``v``.
-    """
-
-    distance: float = 256.0
-    period: float = 2.0
-    stripe_sigma: float | None = None
-    phase: float = 0.0
-    half_size: tuple[float, float] = (150.0, 150.0)
-
-    def __post_init__(self) -> None:
-        t = "emitter"
-        for name in ("distance", "period"):
-            _set(self, name, _positive(t, name, getattr(self, name)))
-        if self.stripe_sigma is not None:
-            _set(self, "stripe_sigma", _positive(t, "stripe_sigma", self.stripe_sigma))
-        _set(self, "phase", _number(t, "phase", self.phase))
-        hs = self.half_size
-        if isinstance(hs, (str, bytes)) or not hasattr(hs, "__len__") or len(hs) != 2:
-            raise SceneError(f"{t}.half_size", "two numbers [u, v] > 0 (mm)", hs)
-        _set(self, "half_size", (_positive(t, "half_size", hs[0]), _positive(t, "half_size", hs[1])))
+    table = "emitter"
 
     @property
     def sigma_mm(self) -> float:
         """The stripe's Gaussian width in mm (the default when ``stripe_sigma`` is unset)."""
+        from glshade.components.emitter_stripes import STRIPE_SIGMA_PER_PERIOD
+
         return self.stripe_sigma if self.stripe_sigma is not None else self.period * STRIPE_SIGMA_PER_PERIOD
 
 
-@dataclass(frozen=True)
-class Surface:
-    """Base surface ``y = f(x, z)`` (SPEC §4).
+class Surface(Table):
+    """The base surface ``y = f(x, z)`` (SPEC §4): ``kind`` names the surface component;
+    the others (``radius``, ``axis``, …) are the parameters the kinds declare."""
 
-    ``kind``: flat, cylinder or sphere; ``radius`` (mm, negative = concave) for the
-    curved kinds; ``axis``: the cylinder's axis, ``z`` (in the plane of incidence) or ``x``.
-    """
-
-    kind: str = "flat"
-    radius: float = 70.0
-    axis: str = "z"
-
-    def __post_init__(self) -> None:
-        t = "surface"
-        _choice(t, "kind", self.kind, SURFACE_KINDS)
-        radius = _number(t, "radius", self.radius)
-        if radius == 0.0:
-            raise SceneError(f"{t}.radius", "non-zero (mm; negative = concave)", radius)
-        _set(self, "radius", radius)
-        _choice(t, "axis", self.axis, CYLINDER_AXES)
+    table = "surface"
 
     @property
     def concave(self) -> bool:
-        return self.kind != "flat" and self.radius < 0.0
+        """Curved upwards somewhere at the gaze point (a bowl, a trough)."""
+        component = registry().get("surface", self.kind)
+        return any(f2 > 0.0 for f2 in component.second_derivatives(Scene(surface=self)))
 
 
-@dataclass(frozen=True)
-class Defect:
-    """Gaussian dent of paper eq. 2, ``D = -dmax exp(-1/2 p^T Σ^-1 p)``, ``p = (x-x0, z-z0)``.
+class Defect(Table):
+    """The defect (paper eq. 2): ``dmax`` (mm; > 0 dent, < 0 bump, 0 none), the covariance
+    ``sigma_x2``, ``sigma_z2``, ``sigma_xz`` (mm², positive definite), the centre ``x0``,
+    ``z0`` (mm)."""
 
-    ``dmax`` (mm): > 0 dent, < 0 bump, 0 none. ``Σ = [[sigma_x2, sigma_xz], [sigma_xz,
-    sigma_z2]]`` (mm²) must be positive definite. ``x0``, ``z0`` (mm): the centre.
-    """
-
-    dmax: float = 0.005
-    sigma_x2: float = 4.0
-    sigma_z2: float = 4.0
-    sigma_xz: float = 0.0
-    x0: float = 0.0
-    z0: float = 0.0
-
-    def __post_init__(self) -> None:
-        t = "defect"
-        _set(self, "dmax", _number(t, "dmax", self.dmax))
-        for name in ("sigma_x2", "sigma_z2"):
-            _set(self, name, _positive(t, name, getattr(self, name)))
-        sxz = _number(t, "sigma_xz", self.sigma_xz)
-        if sxz * sxz >= self.sigma_x2 * self.sigma_z2:
-            raise SceneError(
-                f"{t}.sigma_xz",
-                f"|sigma_xz| < sqrt(sigma_x2*sigma_z2) = {math.sqrt(self.sigma_x2 * self.sigma_z2):.6g} "
-                "(covariance positive definite)",
-                sxz,
-            )
-        _set(self, "sigma_xz", sxz)
-        for name in ("x0", "z0"):
-            _set(self, name, _number(t, name, getattr(self, name)))
+    table = "defect"
 
     @classmethod
     def isotropic_dent(cls, dmax: float, sigma2: float, x0: float = 0.0, z0: float = 0.0) -> Defect:
@@ -252,29 +186,14 @@ class Defect:
         return self.sigma_z2 / det, -self.sigma_xz / det, self.sigma_x2 / det
 
 
-@dataclass(frozen=True)
-class RenderSettings:
-    """How a frame is computed (SPEC §5, §8 ``[render]``).
+class RenderSettings(Table):
+    """How a frame is computed (SPEC §5, §8 ``[render]``): ``precision``, ``supersample``,
+    ``reflection`` (names the reflection component) and its parameters."""
 
-    ``precision``: fp32 (default) or fp64 (the GPU-side reference); ``supersample``:
-    rays per pixel side (1 … 16); ``reflection``: mirror or blinn-phong;
-    ``shininess``: the Blinn-Phong exponent n (> 0).
-    """
-
-    precision: str = "fp32"
-    supersample: int = 1
-    reflection: str = "mirror"
-    shininess: float = 1000.0
-
-    def __post_init__(self) -> None:
-        t = "render"
-        _choice(t, "precision", self.precision, PRECISIONS)
-        _set(self, "supersample", _integer(t, "supersample", self.supersample, 1, MAX_SUPERSAMPLE))
-        _choice(t, "reflection", self.reflection, REFLECTIONS)
-        _set(self, "shininess", _positive(t, "shininess", self.shininess))
+    table = "render"
 
 
-_TABLES: dict[str, type] = {
+TABLE_CLASSES: dict[str, type[Table]] = {
     "camera": Camera,
     "emitter": Emitter,
     "surface": Surface,
@@ -283,6 +202,7 @@ _TABLES: dict[str, type] = {
 }
 
 
+# --------------------------------------------------------------------------- scene
 @dataclass(frozen=True)
 class EmitterFrame:
     """The emitter plane in world coordinates (float64): centre, normal, in-plane axes."""
@@ -317,12 +237,15 @@ class Scene:
 
     def title(self) -> str:
         """The case in a few words, as figure titles name it (depth in µm)."""
-        d, surface = self.defect, self.surface
+        d = self.defect
         shape = f"σ² {d.sigma_x2:g} mm²" if d.isotropic else f"Σ ({d.sigma_x2:g}, {d.sigma_z2:g}, {d.sigma_xz:g}) mm²"
-        base = "flat" if surface.kind == "flat" else f"{surface.kind} R {surface.radius:g} mm"
-        if surface.kind == "cylinder":
-            base += f" axis {surface.axis}"
+        base = registry().active(self).surface.describe(self)
         return f"{base}, θ {self.camera.theta_deg:g}°, {shape}, dmax {d.dmax * 1000:g} µm"
+
+    def local_origin(self) -> np.ndarray:
+        """The centre of the local frame every shader computes in: the defect's centre
+        (world mm, float64; SPEC §5, a frame centred on the dent)."""
+        return registry().active(self).defect.centre(self)
 
     # ----------------------------------------------------------------- variants
     def without_defect(self) -> Scene:
@@ -336,72 +259,55 @@ class Scene:
         """Same field of view on ``size`` pixels across (SPEC §2)."""
         return replace(self, camera=self.camera.resampled(size))
 
+    def with_value(self, path: str, value: Any) -> Scene:
+        """A copy with one parameter changed: ``scene.with_value("camera.theta_deg", 5)``."""
+        table, _, key = path.partition(".")
+        registry().param(path)  # unknown table or key: a SceneError naming it
+        return self.updated(**{table: {key: value}})
+
+    def value(self, path: str) -> Any:
+        """A parameter's value by its dotted path (``defect.sigma2`` of an anisotropic
+        defect: None)."""
+        param = registry().param(path)
+        table = getattr(self, param.table)
+        if param.stored:
+            return getattr(table, param.key)
+        return _file_values(self, param.table, everything=True).get(param.key)
+
     def updated(self, **tables: dict[str, Any]) -> Scene:
         """A copy with some keys of some tables replaced: ``scene.updated(camera={"theta_deg": 5})``.
 
         Keys use the scene-file names (``defect={"sigma2": 9}`` works too).
         """
-        data = self.to_dict()
-        for table, values in tables.items():
-            if table not in _TABLES:
-                raise SceneError(table, "one of the tables " + ", ".join(_TABLES))
-            if table == "defect" and "sigma2" in values:
-                for k in ("sigma_x2", "sigma_z2", "sigma_xz", "sigma2"):
-                    data["defect"].pop(k, None)
-            if table == "defect" and "sigma2" in data["defect"] and {"sigma_x2", "sigma_z2", "sigma_xz"} & set(values):
-                s2 = data["defect"].pop("sigma2")  # an isotropic defect, one component edited
-                data["defect"].update(sigma_x2=s2, sigma_z2=s2, sigma_xz=0.0)
-            data[table].update(values)
-        return Scene.from_dict(data)
+        parts = {}
+        for table, changes in tables.items():
+            if table not in TABLE_CLASSES:
+                raise SceneError(table, "one of the tables " + ", ".join(TABLE_CLASSES))
+            values = getattr(self, table).values()
+            values.update(_read_file(table, dict(changes)))
+            parts[table] = TABLE_CLASSES[table](**values)
+        return replace(self, **parts)
 
     # ----------------------------------------------------------------- files
     def to_dict(self) -> dict[str, dict[str, Any]]:
-        """The TOML layout of SPEC §8 (isotropic defects are written as ``sigma2``)."""
-        out: dict[str, dict[str, Any]] = {}
-        for name in _TABLES:
-            table = asdict(getattr(self, name))
-            if name == "emitter":
-                table["half_size"] = list(table["half_size"])
-                if table["stripe_sigma"] is None:
-                    del table["stripe_sigma"]
-            out[name] = table
-        d = out["defect"]
-        if self.defect.isotropic:
-            sigma2 = d.pop("sigma_x2")
-            del d["sigma_z2"], d["sigma_xz"]
-            out["defect"] = {"dmax": d["dmax"], "sigma2": sigma2, "x0": d["x0"], "z0": d["z0"]}
-        return out
+        """The TOML layout of SPEC §8: per table, the parameters of the components in use
+        (and any other that differs from its default); unset values are left out and an
+        isotropic defect is written as ``sigma2``."""
+        return {table: _file_values(self, table) for table in TABLE_CLASSES}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Scene:
         """Build from the SPEC §8 layout; missing keys take the paper's defaults, unknown
         tables or keys are an error."""
         if not isinstance(data, dict):
-            raise SceneError("scene", "a table of tables (camera, emitter, surface, defect, render)", data)
+            raise SceneError("scene", "a table of tables (" + ", ".join(TABLE_CLASSES) + ")", data)
         parts: dict[str, Any] = {}
         for table, values in data.items():
-            if table not in _TABLES:
-                raise SceneError(table, "one of the tables " + ", ".join(_TABLES) + " (unknown table)")
+            if table not in TABLE_CLASSES:
+                raise SceneError(table, "one of the tables " + ", ".join(TABLE_CLASSES) + " (unknown table)")
             if not isinstance(values, dict):
                 raise SceneError(table, "a table of keys", values)
-            values = dict(values)
-            allowed = [f.name for f in fields(_TABLES[table])]
-            if table == "defect":
-                allowed.append("sigma2")
-                if "sigma2" in values:
-                    clash = [k for k in ("sigma_x2", "sigma_z2", "sigma_xz") if k in values]
-                    if clash:
-                        raise SceneError(
-                            f"defect.{clash[0]}", "absent when defect.sigma2 is given (isotropic)"
-                        )
-                    s2 = values.pop("sigma2")
-                    values["sigma_x2"] = values["sigma_z2"] = s2
-            for key in values:
-                if key not in allowed:
-                    raise SceneError(f"{table}.{key}", "one of the keys " + ", ".join(allowed) + " (unknown key)")
-            if table == "emitter" and "half_size" in values and isinstance(values["half_size"], list):
-                values["half_size"] = tuple(values["half_size"])
-            parts[table] = _TABLES[table](**values)
+            parts[table] = TABLE_CLASSES[table](**_read_file(table, dict(values)))
         return cls(**parts)
 
     @classmethod
@@ -426,11 +332,44 @@ class Scene:
         atomic_write_bytes(Path(path), tomli_w.dumps(self.to_dict()).encode())
 
 
+def _read_file(table: str, values: dict[str, Any]) -> dict[str, Any]:
+    """Scene-file keys of one table -> its fields: the components' shorthands expanded,
+    every key checked to be declared."""
+    reg = registry()
+    for component in _table_components(table):
+        values = component.read_file(values)
+    declared = [p.key for p in reg.table_params(table)]
+    stored = {p.key for p in reg.table_params(table) if p.stored}
+    for key in values:
+        if key not in stored:
+            raise SceneError(f"{table}.{key}", "one of the keys " + ", ".join(declared) + " (unknown key)")
+    return values
+
+
+def _file_values(scene: Scene, table: str, everything: bool = False) -> dict[str, Any]:
+    """One table as a scene file writes it (``everything``: inactive parameters too)."""
+    reg = registry()
+    active = reg.active(scene)
+    values = {}
+    for param in reg.table_params(table):
+        if not param.stored:
+            continue
+        value = getattr(getattr(scene, table), param.key)
+        in_use = reg.choices(param) is not None or any(owner in active for owner in reg.owners(param))
+        if value is None or not (everything or in_use or value != param.default):
+            continue
+        values[param.key] = list(value) if param.kind == "pair" else value
+    for component in _table_components(table):
+        values = component.write_file(values)
+    return values
+
+
+def _table_components(table: str):
+    reg = registry()
+    return tuple(c for slot in reg.slots() if slot.table == table for c in reg.components(slot.name))
+
+
 # --------------------------------------------------------------------------- paper
-#: Stripe period the paper uses on the sphere (the others use the Emitter default, 2 mm).
-PAPER_SPHERE_PERIOD_MM = 10.0
-
-
 def paper_scene(
     surface: str = "flat",
     theta_deg: float = 45.0,
@@ -440,7 +379,8 @@ def paper_scene(
 ) -> Scene:
     """The paper's geometry (Table 1, section III): camera 175.6 mm, emitter 256 mm,
     1024² pixels of 5 µm, f = 25 mm; cylinder and sphere R = 70 mm; sphere period 10 mm."""
-    _choice("surface", "kind", surface, SURFACE_KINDS)
+    if surface not in PAPER_SURFACES:
+        raise SceneError("surface.kind", "one of " + ", ".join(PAPER_SURFACES) + " (the paper's surfaces)", surface)
     period = PAPER_SPHERE_PERIOD_MM if surface == "sphere" else Emitter().period
     return Scene(
         camera=Camera(theta_deg=theta_deg),

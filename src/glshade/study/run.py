@@ -35,7 +35,7 @@ from glshade.gpu.renderer import Renderer
 from glshade.metrics import contours, physics
 from glshade.metrics import visibility as vis
 from glshade.metrics.measurement import emitter_map
-from glshade.scene import SURFACE_KINDS, Camera, Scene, paper_scene
+from glshade.scene import PAPER_SURFACES, Camera, Scene, paper_scene
 
 PAPER_THETAS = (85.0, 75.0, 65.0, 55.0, 45.0, 35.0, 25.0, 15.0, 5.0)
 PAPER_SIGMA2S = (1.0, 4.0, 9.0, 16.0)
@@ -126,7 +126,7 @@ def _float_list(name: str, values, lo: float, hi: float, closed_hi: bool = False
 class StudyPlan:
     """What to sweep: Table 1 by default, at ``size`` pixels across (paper: 1024)."""
 
-    surfaces: tuple[str, ...] = SURFACE_KINDS
+    surfaces: tuple[str, ...] = PAPER_SURFACES
     thetas: tuple[float, ...] = PAPER_THETAS
     sigma2s: tuple[float, ...] = PAPER_SIGMA2S
     dmaxs: tuple[float, ...] = PAPER_DMAXS
@@ -135,10 +135,10 @@ class StudyPlan:
 
     def __post_init__(self) -> None:
         if not self.surfaces:
-            raise GlshadeError("surfaces: must list at least one of " + ", ".join(SURFACE_KINDS))
+            raise GlshadeError("surfaces: must list at least one of " + ", ".join(PAPER_SURFACES))
         for s in self.surfaces:
-            if s not in SURFACE_KINDS:
-                raise GlshadeError(f"surfaces: unknown surface {s!r}; allowed: {', '.join(SURFACE_KINDS)}")
+            if s not in PAPER_SURFACES:
+                raise GlshadeError(f"surfaces: unknown surface {s!r}; allowed: {', '.join(PAPER_SURFACES)}")
         if len(set(self.surfaces)) != len(self.surfaces):
             raise GlshadeError("surfaces: must not repeat")
         thetas = _float_list("thetas", self.thetas, 0.0, 90.0)

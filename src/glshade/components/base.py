@@ -1,0 +1,203 @@
+"""The shape every component has: parameters, shader features, uniforms, GLSL, oracle.
+
+A component is one kind of one *slot* of the scene: the ``cylinder`` of the ``surface``
+slot, the ``blinn-phong`` of the ``reflection`` slot. In the spirit of Mitsuba 3's
+plugins, it owns, in one module plus its GLSL file(s) under ``shaders/``:
+
+- ``params``: its :class:`~glshade.scene.params.Param` declarations (and ``checks`` over
+  several of them);
+- ``features(scene)``: the template variables its GLSL needs (the key of the program);
+- ``glsl(variables)``: the files it puts into the composed shader, in order;
+- ``uniforms(scene, frame)``: every uniform its GLSL declares, computed in float64;
+- its NumPy float64 oracle: the functions the reference tracer
+  (:mod:`glshade.oracle.tracer`) calls for its slot (listed on each slot's base class
+  below).
+
+The renderer, the composer and the tracer loop over the active components of a scene
+(:meth:`glshade.components.registry.Registry.active`); none of them knows a kind by name.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from glshade.scene.params import Param, TableCheck
+
+if TYPE_CHECKING:
+    from glshade.scene.model import Scene
+
+
+@dataclass(frozen=True)
+class Slot:
+    """A place in the scene that one component fills at a time.
+
+    ``table``: the scene table holding its parameters; ``selector``: the parameter whose
+    value names the component (``surface.kind``), or None when the slot has one
+    component; ``preamble``: its GLSL goes before the outputs' declarations (precision);
+    ``oracle``: the base class whose methods the NumPy tracer calls.
+    """
+
+    name: str
+    table: str
+    selector: Param | None
+    preamble: bool
+    doc: str
+
+
+@dataclass(frozen=True)
+class UniformFrame:
+    """What every component's uniforms are computed in: the local frame centred on the
+    dent (``origin``, world mm, float64), the composed program's ``variables`` and the
+    renderer's dent solver (``march_steps``, ``newton_iterations``, ``tolerance_for``)."""
+
+    origin: np.ndarray
+    variables: Mapping[str, Hashable]
+    solver: Any
+
+
+class Component:
+    """Base of every component; a subclass sets ``slot`` and ``name`` and overrides what
+    it needs. Instances hold no scene state (one instance serves every scene)."""
+
+    slot: ClassVar[str]
+    name: ClassVar[str]
+    doc: ClassVar[str] = ""
+    params: ClassVar[tuple[Param, ...]] = ()
+    checks: ClassVar[tuple[TableCheck, ...]] = ()
+
+    def features(self, scene: Scene) -> dict[str, Hashable]:
+        """Template variables its GLSL needs; equal features share one program."""
+        return {}
+
+    def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
+        """The files under ``shaders/`` it contributes, in composition order."""
+        return ()
+
+    def uniforms(self, scene: Scene, frame: UniformFrame) -> dict[str, object]:
+        """Every uniform its GLSL (for this scene's features) declares, float64 values."""
+        return {}
+
+    def read_file(self, values: dict[str, Any]) -> dict[str, Any]:
+        """Its table's keys as a scene file gives them -> the table's fields (shorthands
+        expanded); the identity unless the component has a shorthand."""
+        return values
+
+    def write_file(self, values: dict[str, Any]) -> dict[str, Any]:
+        """The inverse of :meth:`read_file`, for writing a scene file."""
+        return values
+
+    def __repr__(self) -> str:
+        return f"<{self.slot} component {self.name!r}>"
+
+
+# ------------------------------------------------------------------ slot interfaces
+class SurfaceComponent(Component):
+    """A base surface ``y = f(x, z)`` (SPEC §4). Oracle, all lengths mm, arrays float64:"""
+
+    slot = "surface"
+
+    def domain(self, scene: Scene, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``[t_in, t_out]`` where rays ``o + t d`` ((N, 3) each) are over the domain;
+        ``±inf`` when unbounded, NaN when empty."""
+        n = len(d)
+        return np.full(n, -np.inf), np.full(n, np.inf)
+
+    def band_roots(self, scene: Scene, o: np.ndarray, d: np.ndarray, shift: float) -> list[np.ndarray]:
+        """Ray parameters where ``y - f = shift`` (every root; spurious ones only add
+        breakpoints to the search)."""
+        raise NotImplementedError
+
+    def height(self, scene: Scene, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """``f(x, z)``, clipped to the domain's edge outside it."""
+        raise NotImplementedError
+
+    def outside(self, scene: Scene, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """True where the surface does not exist (its height is NaN)."""
+        return np.zeros(np.broadcast(x, z).shape, dtype=bool)
+
+    def normal(self, scene: Scene, x: np.ndarray, z: np.ndarray, dx: np.ndarray, dz: np.ndarray) -> np.ndarray:
+        """Unnormalised normal (…, 3) of ``f + D`` given the defect's gradient
+        ``(D_x, D_z)``; finite wherever the surface exists."""
+        raise NotImplementedError
+
+    def second_derivatives(self, scene: Scene) -> tuple[float, float]:
+        """``(f_zz, f_xx)`` at the gaze point (1/mm): along the plane of incidence and
+        across it; convex is negative (:func:`glshade.metrics.physics.base_curvatures`)."""
+        return 0.0, 0.0
+
+    def describe(self, scene: Scene) -> str:
+        """The surface in a few words, for figure titles."""
+        return self.name
+
+
+class DefectComponent(Component):
+    """A defect ``D(x, z)`` added to the base surface. Oracle:"""
+
+    slot = "defect"
+
+    def present(self, scene: Scene) -> bool:
+        return True
+
+    def band(self, scene: Scene) -> tuple[float, float]:
+        """``(lo, hi)``: ``D`` lies between them everywhere (mm)."""
+        raise NotImplementedError
+
+    def depth(self, scene: Scene, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """``D(x, z)`` (mm)."""
+        raise NotImplementedError
+
+    def gradient(self, scene: Scene, x: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(D_x, D_z)``."""
+        raise NotImplementedError
+
+    def breakpoints(self, scene: Scene, o: np.ndarray, d: np.ndarray) -> list[np.ndarray]:
+        """Ray parameters where the defect changes character (the search samples each
+        stretch between breakpoints densely)."""
+        return []
+
+    def centre(self, scene: Scene) -> np.ndarray:
+        """The defect's centre ``(x0, 0, z0)`` (world mm): the origin of the local frame."""
+        return np.zeros(3)
+
+
+class CameraComponent(Component):
+    """How pixels become rays. Oracle: ``pixel_rays``."""
+
+    slot = "camera"
+
+    def pixel_rays(self, scene: Scene, rows, cols, supersample: int) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+
+class EmitterComponent(Component):
+    """The light source. Oracle: ``coordinates`` (where reflected rays land) and
+    ``radiance`` (what they see there)."""
+
+    slot = "emitter"
+
+    def coordinates(self, scene: Scene, points, directions):
+        raise NotImplementedError
+
+    def radiance(self, scene: Scene, v) -> np.ndarray:
+        raise NotImplementedError
+
+
+class ReflectionComponent(Component):
+    """How the surface reflects. Oracle: ``shade``, the pixel value of hits ``p`` seen
+    along unit ``d`` with unit normals ``n`` whose mirror rays land at ``v`` (``ok``:
+    on the emitter)."""
+
+    slot = "reflection"
+
+    def shade(self, scene: Scene, p, d, n, v, ok) -> np.ndarray:
+        raise NotImplementedError
+
+
+class RenderComponent(Component):
+    """How a frame is computed (precision, rays per pixel): the program's preamble."""
+
+    slot = "render"

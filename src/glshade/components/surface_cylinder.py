@@ -1,0 +1,67 @@
+"""The cylinder of signed radius R, its axis along z (in the plane of incidence) or x.
+
+GLSL: ``quadric_crossing.glsl`` and ``surface_cylinder.glsl`` (the axis is a feature:
+only its branch is compiled). Oracle: the sag form across the axis, a slab domain.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from glshade.components.quadric import RADIUS, Quadric
+from glshade.scene.params import Param
+
+AXIS = Param(
+    "surface.axis", "", "z", "the cylinder's axis: z (in the plane of incidence) or x (across it)",
+    kind="choice", choices=("z", "x"), role="feature", flag="--axis",
+)
+
+
+class Cylinder(Quadric):
+    name = "cylinder"
+    doc = "y = sqrt(R² - a²) - R with a = x (axis z) or z (axis x)"
+    params = (RADIUS, AXIS)
+
+    def features(self, scene):
+        return {"cylinder_axis": scene.surface.axis}
+
+    def glsl(self, variables):
+        return ("quadric_crossing.glsl", "surface_cylinder.glsl")
+
+    def uniforms(self, scene, frame):
+        across = frame.origin[0] if scene.surface.axis == "z" else frame.origin[2]
+        return {**self.uniform_radius(scene), "u_axis_off": float(across)}
+
+    def second_derivatives(self, scene):
+        r = scene.surface.radius
+        return (-1.0 / r, 0.0) if scene.surface.axis == "x" else (0.0, -1.0 / r)
+
+    def describe(self, scene):
+        return f"cylinder R {scene.surface.radius:g} mm axis {scene.surface.axis}"
+
+    # ------------------------------------------------------------------ oracle
+    def rho(self, scene, x, z):
+        return np.abs(x) if scene.surface.axis == "z" else np.abs(z)
+
+    def dims(self, scene):
+        return [0, 1] if scene.surface.axis == "z" else [2, 1]
+
+    def domain(self, scene, o, d):
+        _, a = self.signed_radius(scene)
+        k = 0 if scene.surface.axis == "z" else 2
+        oc, dc = o[:, k], d[:, k]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ta, tb = (-a - oc) / dc, (a - oc) / dc
+        t1, t2 = np.minimum(ta, tb), np.maximum(ta, tb)
+        vertical = dc == 0.0
+        inside = np.abs(oc) <= a
+        t1 = np.where(vertical, np.where(inside, -np.inf, np.nan), t1)
+        t2 = np.where(vertical, np.where(inside, np.inf, np.nan), t2)
+        return t1, t2
+
+    def normal(self, scene, x, z, dx, dz):
+        s, _ = self.signed_radius(scene)
+        _, w = self.sag(scene, x, z)
+        if scene.surface.axis == "z":
+            return np.stack([s * x - w * dx, w, -w * dz], axis=-1)
+        return np.stack([-w * dx, w, s * z - w * dz], axis=-1)

@@ -1,0 +1,188 @@
+"""One parameter schema: every scene parameter declared once, by the component that owns it.
+
+A :class:`Param` carries its dotted path as it is spelled in a scene file
+(``camera.theta_deg``), its unit, default, allowed range and role:
+
+- ``feature``: its value picks shader code (changing it may compile another program);
+- ``uniform``: its value reaches the shader as a uniform (changing it never recompiles).
+
+Scene validation, TOML reading and writing, the CLI's ``--set PATH=VALUE`` and short flags,
+the viewer's controls and ``docs/scene-format.md`` are all generated from these
+declarations (see :mod:`glshade.components.registry` for the list of them).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from glshade.errors import SceneError
+
+#: How a value is typed: a real number, an integer, one of some names, a pair of numbers.
+KINDS = ("real", "integer", "choice", "pair")
+ROLES = ("feature", "uniform")
+
+
+@dataclass(frozen=True)
+class Control:
+    """How the viewer shows a parameter: a slider over ``[lo, hi]`` (logarithmic when
+    ``log``), its label ``name`` and ``fmt``. A slider's range is narrower than what
+    validation allows: it is the range worth dragging through."""
+
+    name: str
+    lo: float
+    hi: float
+    log: bool = False
+    fmt: str = "%.3f"
+    signed: bool = False  # the slider sets |value|, the sign is kept (a concave radius)
+
+
+@dataclass(frozen=True)
+class Param:
+    """One scene parameter.
+
+    ``path``: ``table.key``; ``unit``: as the docs print it (``""`` when unitless);
+    ``default``: the paper's value (``None``: unset, a documented fallback applies);
+    ``kind``: real | integer | choice | pair; ``lo``/``hi``: bounds (``None``: none),
+    open unless ``closed``; ``nonzero``: 0 is refused; ``choices``: the allowed names
+    (for a component selector the registry supplies them); ``role``: feature | uniform;
+    ``flag``: the short CLI flag (``--theta``); ``control``: the viewer's slider;
+    ``allowed_text``: what the error message says it accepts, where the range alone
+    does not say it (a signed radius); ``stored``: False for a shorthand that sets other
+    parameters (``defect.sigma2``) and is not a field of its table.
+    """
+
+    path: str
+    unit: str
+    default: Any
+    doc: str
+    kind: str = "real"
+    lo: float | None = None
+    hi: float | None = None
+    closed: bool = False
+    nonzero: bool = False
+    choices: tuple[str, ...] = ()
+    role: str = "uniform"
+    flag: str | None = None
+    control: Control | None = None
+    allowed_text: str | None = None
+    stored: bool = True
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS or self.role not in ROLES or self.path.count(".") != 1:
+            raise ValueError(f"malformed parameter declaration {self.path!r} ({self.kind}, {self.role})")
+
+    @property
+    def table(self) -> str:
+        return self.path.partition(".")[0]
+
+    @property
+    def key(self) -> str:
+        return self.path.partition(".")[2]
+
+    # ------------------------------------------------------------- validation
+    def allowed(self, choices: tuple[str, ...] | None = None) -> str:
+        """What the parameter accepts, in words: the text of its error message."""
+        unit = f" {self.unit}" if self.unit else ""
+        if self.allowed_text is not None:
+            return self.allowed_text
+        if self.kind == "choice":
+            return "one of " + ", ".join(choices if choices is not None else self.choices)
+        if self.kind == "pair":
+            return f"two numbers [u, v] > 0 ({self.unit})"
+        if self.kind == "integer":
+            return f"an integer in [{self.lo:g}, {self.hi:g}]"
+        if self.nonzero:
+            return f"non-zero{unit}"
+        if self.lo is not None and self.hi is not None:
+            left, right = ("[", "]") if self.closed else ("(", ")")
+            return f"in {left}{self.lo:g}, {self.hi:g}{right}{' degrees' if self.unit == 'deg' else unit}"
+        if self.lo is not None:
+            return f"a finite number {'>=' if self.closed else '>'} {self.lo:g}"
+        return "a finite number"
+
+    def check(self, value: Any, choices: tuple[str, ...] | None = None) -> Any:
+        """The value normalised (float, int, str, tuple), or a :class:`SceneError` naming
+        the field and what it allows."""
+        if value is None and self.default is None:
+            return None
+        if self.kind == "choice":
+            allowed = choices if choices is not None else self.choices
+            if value not in allowed:
+                raise SceneError(self.path, self.allowed(allowed), value)
+            return value
+        if self.kind == "integer":
+            return self._integer(value)
+        if self.kind == "pair":
+            if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+                raise SceneError(self.path, self.allowed(), value)
+            return (self._real(value[0]), self._real(value[1]))
+        return self._real(value)
+
+    def _finite(self, value: Any) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+            raise SceneError(self.path, "a finite number", value)
+        value = float(value)
+        if not math.isfinite(value):
+            raise SceneError(self.path, "a finite number", value)
+        return value
+
+    def _real(self, value: Any) -> float:
+        value = self._finite(value)
+        if self.nonzero and value == 0.0:
+            raise SceneError(self.path, self.allowed(), value)
+        below = self.lo is not None and (value < self.lo if self.closed else value <= self.lo)
+        above = self.hi is not None and (value > self.hi if self.closed else value >= self.hi)
+        if below or above:
+            raise SceneError(self.path, self.allowed(), value)
+        return value
+
+    def _integer(self, value: Any) -> int:
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            if isinstance(value, float) and value.is_integer():
+                value = int(value)
+            else:
+                raise SceneError(self.path, self.allowed(), value)
+        value = int(value)
+        if not self.lo <= value <= self.hi:
+            raise SceneError(self.path, self.allowed(), value)
+        return value
+
+    # ------------------------------------------------------------- text
+    def parse(self, text: str) -> Any:
+        """A value from command-line text (``--set camera.theta_deg=15``), unchecked."""
+        text = text.strip()
+        if self.kind == "choice":
+            return text
+        if self.kind == "pair":
+            parts = [p for p in text.strip("[]()").replace(",", " ").split() if p]
+            return tuple(_number(self.path, p) for p in parts)
+        number = _number(self.path, text)
+        if self.kind == "integer" and number.is_integer():
+            return int(number)
+        return number
+
+    def default_text(self) -> str:
+        """The default as a scene file would spell it."""
+        if self.default is None:
+            return "unset"
+        if self.kind == "choice":
+            return f'"{self.default}"'
+        if self.kind == "pair":
+            return f"[{self.default[0]:g}, {self.default[1]:g}]"
+        return f"{self.default:g}"
+
+
+def _number(path: str, text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise SceneError(path, "a finite number", text) from None
+
+
+#: A check over several values of one table (after each was checked on its own).
+TableCheck = Callable[[dict[str, Any]], None]
