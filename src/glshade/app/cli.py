@@ -13,8 +13,8 @@ import time
 from pathlib import Path
 
 from glshade import __version__
-from glshade.errors import GlshadeError
 from glshade.components.registry import registry
+from glshade.errors import GlshadeError
 from glshade.scene import PAPER_SURFACES, Camera, Scene, paper_scene
 from glshade.scene.params import Param
 
@@ -50,11 +50,11 @@ def _flag_options(param: Param) -> dict[str, object]:
     """argparse options of a parameter's short flag, from its declaration."""
     unit = f" ({param.unit})" if param.unit else ""
     options: dict[str, object] = {"help": f"{param.path}: {param.doc}{unit}"}
-    if param.kind == "choice":
+    if param.value_type == "choice":
         options["choices"] = registry().choices(param) or param.choices
-    elif param.kind == "integer":
+    elif param.value_type == "integer":
         options.update(type=int, metavar="N")
-    elif param.kind == "real":
+    elif param.value_type == "real":
         options.update(type=float, metavar=(param.unit or "X").upper().replace("²", "2"))
     return options
 

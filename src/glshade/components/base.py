@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -68,6 +69,8 @@ class Component:
     doc: ClassVar[str] = ""
     params: ClassVar[tuple[Param, ...]] = ()
     checks: ClassVar[tuple[TableCheck, ...]] = ()
+    #: Where its GLSL files are when they are not under ``shaders/`` (a plug-in's own).
+    glsl_dir: ClassVar[Path | None] = None
 
     def features(self, scene: Scene) -> dict[str, Hashable]:
         """Template variables its GLSL needs; equal features share one program."""
@@ -192,6 +195,9 @@ class ReflectionComponent(Component):
     on the emitter)."""
 
     slot = "reflection"
+    #: The pixel is the emitter's radiance at the mirror ray's ``v``: a picture can be
+    #: shaded from the uv map alone (the metric's fast path, the viewer's re-shading).
+    shades_from_v: ClassVar[bool] = False
 
     def shade(self, scene: Scene, p, d, n, v, ok) -> np.ndarray:
         raise NotImplementedError

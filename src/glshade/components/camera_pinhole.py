@@ -20,8 +20,8 @@ THETA = Param(
 DISTANCE = Param("camera.distance", "mm", 175.6, "origin (the gaze point) to the principal point", lo=0.0)
 FOCAL = Param("camera.focal", "mm", 25.0, "focal length", lo=0.0)
 PITCH = Param("camera.pixel_pitch", "mm", 0.005, "sensor pixel pitch", lo=0.0)
-WIDTH = Param("camera.width", "px", 1024, "sensor width", kind="integer", lo=1, hi=MAX_IMAGE_SIDE)
-HEIGHT = Param("camera.height", "px", 1024, "sensor height", kind="integer", lo=1, hi=MAX_IMAGE_SIDE)
+WIDTH = Param("camera.width", "px", 1024, "sensor width", value_type="integer", lo=1, hi=MAX_IMAGE_SIDE)
+HEIGHT = Param("camera.height", "px", 1024, "sensor height", value_type="integer", lo=1, hi=MAX_IMAGE_SIDE)
 
 
 class Pinhole(CameraComponent):

@@ -91,12 +91,14 @@ class Gaussian(DefectComponent):
         return {"defect": "none" if not d.present else ("isotropic" if d.isotropic else "full")}
 
     def glsl(self, variables):
-        kind = variables["defect"]
-        return ("surface_hit_base.glsl",) if kind == "none" else (f"defect_{kind}.glsl", "surface_hit_dent.glsl")
+        variant = variables["defect"]
+        if variant == "none":
+            return ("surface_hit_base.glsl",)
+        return (f"defect_{variant}.glsl", "surface_hit_dent.glsl")
 
     def uniforms(self, scene, frame):
-        kind = frame.variables["defect"]
-        if kind == "none":
+        variant = frame.variables["defect"]
+        if variant == "none":
             return {}
         dent, solver = scene.defect, frame.solver
         inverse_variances = self._principal(dent)[1]
@@ -109,7 +111,7 @@ class Gaussian(DefectComponent):
             "u_newton_iterations": solver.newton_iterations,
             "u_root_tol": solver.tolerance_for(frame.variables["precision"]),
         }
-        if kind == "isotropic":
+        if variant == "isotropic":
             values["u_inv_sigma2"] = 1.0 / dent.sigma_x2
         else:
             values["u_cov_axis"], values["u_inv_var"] = self._principal(dent)

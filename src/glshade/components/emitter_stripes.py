@@ -31,7 +31,7 @@ PHASE = Param(
     "emitter.phase", "mm", 0.0, "shift of the stripes along v", flag="--phase",
     control=Control("phase", -1000.0, 1000.0, fmt="%.3f mm"),
 )
-HALF_SIZE = Param("emitter.half_size", "mm", (150.0, 150.0), "half extents in u and v", kind="pair")
+HALF_SIZE = Param("emitter.half_size", "mm", (150.0, 150.0), "half extents in u and v", value_type="pair")
 
 
 class Stripes(EmitterComponent):

@@ -14,6 +14,7 @@ from glshade.components.emitter_stripes import stripe_radiance
 class Mirror(ReflectionComponent):
     name = "mirror"
     doc = "an ideal mirror"
+    shades_from_v = True
 
     def glsl(self, variables):
         return ("reflect_mirror.glsl",) if "image" in variables["outputs"] else ()

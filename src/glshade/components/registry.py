@@ -29,11 +29,11 @@ if TYPE_CHECKING:
 TABLES: tuple[str, ...] = ("camera", "emitter", "surface", "defect", "render")
 
 SURFACE_KIND = Param(
-    "surface.kind", "", "flat", "the base surface: which surface component", kind="choice",
+    "surface.kind", "", "flat", "the base surface: which surface component", value_type="choice",
     role="feature", flag="--surface",
 )
 REFLECTION = Param(
-    "render.reflection", "", "mirror", "the reflection model: which reflection component", kind="choice",
+    "render.reflection", "", "mirror", "the reflection model: which reflection component", value_type="choice",
     role="feature", flag="--reflection",
 )
 

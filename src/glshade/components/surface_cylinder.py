@@ -13,7 +13,7 @@ from glshade.scene.params import Param
 
 AXIS = Param(
     "surface.axis", "", "z", "the cylinder's axis: z (in the plane of incidence) or x (across it)",
-    kind="choice", choices=("z", "x"), role="feature", flag="--axis",
+    value_type="choice", choices=("z", "x"), role="feature", flag="--axis",
 )
 
 

@@ -87,10 +87,10 @@ def shader_dir() -> Path:
     raise FileNotFoundError(f"glshade's GLSL sources are missing (looked in {packaged} and {checkout})")
 
 
-@functools.lru_cache(maxsize=None)
-def _environment(directory: str) -> jinja2.Environment:
+@functools.cache
+def _environment(directories: tuple[str, ...]) -> jinja2.Environment:
     return jinja2.Environment(
-        loader=jinja2.FileSystemLoader(directory),
+        loader=jinja2.FileSystemLoader(list(directories)),
         block_start_string="{$",
         block_end_string="$}",
         variable_start_string="{{",
@@ -105,25 +105,38 @@ def _environment(directory: str) -> jinja2.Environment:
     )
 
 
-def render_template(name: str, **variables: object) -> str:
-    """Compose one template; a variable the template uses but was not given raises."""
-    return _environment(str(shader_dir())).get_template(name).render(**variables)
+def render_template(name: str, directories: tuple[str, ...] = (), **variables: object) -> str:
+    """Compose one template (looked up in ``shaders/``, then ``directories``); a variable
+    the template uses but was not given raises."""
+    return _environment((str(shader_dir()), *directories)).get_template(name).render(**variables)
+
+
+def component_files(features: ShaderFeatures) -> tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]:
+    """``(preamble, stages, directories)``: the GLSL files the active components name, in
+    composition order (a file two of them name comes once), and where plug-ins keep theirs."""
+    variables = features.template_variables()
+    reg = registry()
+    preambles = {slot.name for slot in reg.slots() if slot.preamble}
+    preamble: list[str] = []
+    stages: list[str] = []
+    directories: list[str] = []
+    for slot, name in features.components:
+        component = reg.get(slot, name)
+        if component.glsl_dir is not None and str(component.glsl_dir) not in directories:
+            directories.append(str(component.glsl_dir))
+        target = preamble if slot in preambles else stages
+        target.extend(f for f in component.glsl(variables) if f not in target)
+    return tuple(preamble), tuple(stages), tuple(directories)
 
 
 @functools.lru_cache(maxsize=64)
 def compose(features: ShaderFeatures) -> tuple[str, str]:
     """``(vertex_source, fragment_source)`` for a feature set (cached): the fragment
     template with the files the active components name, nothing else."""
-    variables = features.template_variables()
-    reg = registry()
-    slots = {slot.name: slot for slot in reg.slots()}
-    preamble: list[str] = []
-    stages: list[str] = []
-    for slot, name in features.components:
-        files = reg.get(slot, name).glsl(variables)
-        target = preamble if slots[slot].preamble else stages
-        target.extend(f for f in files if f not in target)  # a file shared by two is included once
-    fragment = render_template(FRAGMENT_TEMPLATE, preamble=preamble, stages=stages, **variables)
+    preamble, stages, directories = component_files(features)
+    fragment = render_template(
+        FRAGMENT_TEMPLATE, directories, preamble=preamble, stages=stages, **features.template_variables()
+    )
     # Blank lines left by removed blocks carry no meaning: squeeze runs of them.
     fragment = re.sub(r"\n{3,}", "\n\n", fragment)
     return render_template(VERTEX_TEMPLATE), fragment

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from glshade.components.registry import registry
 from glshade.metrics.visibility import Baseline, MetricSettings, Visibility
 from glshade.scene import Scene
 
@@ -33,8 +34,9 @@ def emitter_map(renderer: Renderer, scene: Scene) -> np.ndarray:
 
 
 def shades_from_map(scene: Scene) -> bool:
-    """True when the picture is a function of the emitter map (mirror, one ray per pixel)."""
-    return scene.render.reflection == "mirror" and scene.render.supersample == 1
+    """True when the picture is a function of the emitter map: a reflection model whose
+    pixel is the stripe radiance at its mirror ray's ``v`` (the mirror), one ray per pixel."""
+    return registry().active(scene).reflection.shades_from_v and scene.render.supersample == 1
 
 
 def phase_images(renderer: Renderer, scene: Scene) -> Callable[[float], np.ndarray]:

@@ -33,8 +33,8 @@ from glshade.errors import SceneError
 
 #: The paper's three surfaces (its study runs over them).
 PAPER_SURFACES: tuple[str, ...] = ("flat", "cylinder", "sphere")
-#: Stripe period the paper uses on the sphere (the others use the Emitter default, 2 mm).
-PAPER_SPHERE_PERIOD_MM = 10.0
+#: Stripe periods the paper uses where they are not the Emitter default (2 mm), mm.
+PAPER_PERIOD_MM: dict[str, float] = {"sphere": 10.0}
 
 
 # --------------------------------------------------------------------------- tables
@@ -47,7 +47,10 @@ class Table:
     table: ClassVar[str]
 
     def __new__(cls, *args: Any, **kwargs: Any) -> Table:
-        generated = cls if "__dataclass_fields__" in cls.__dict__ else _fields_class(cls, registry().version)
+        if "__dataclass_fields__" in cls.__dict__:
+            generated = cls
+        else:
+            generated = _fields_class(cls, tuple(p for p in registry().table_params(cls.table) if p.stored))
         return object.__new__(generated)
 
     def __post_init__(self) -> None:
@@ -74,9 +77,10 @@ class Table:
 
 
 @functools.lru_cache(maxsize=64)
-def _fields_class(public: type, version: int) -> type:
-    """The dataclass of ``public``'s table for registry ``version``."""
-    params = [p for p in registry().table_params(public.table) if p.stored]
+def _fields_class(public: type, params: tuple) -> type:
+    """The dataclass of ``public``'s table with these (stored) parameters as fields: one
+    class per set of declarations, so tables made before and after a plug-in came and
+    went compare equal."""
     spec = [(p.key, object, field(default=p.default)) for p in params]
     generated = dataclasses.make_dataclass(public.__name__, spec, bases=(public,), frozen=True)
     generated.__module__ = public.__module__
@@ -358,7 +362,7 @@ def _file_values(scene: Scene, table: str, everything: bool = False) -> dict[str
         in_use = reg.choices(param) is not None or any(owner in active for owner in reg.owners(param))
         if value is None or not (everything or in_use or value != param.default):
             continue
-        values[param.key] = list(value) if param.kind == "pair" else value
+        values[param.key] = list(value) if param.value_type == "pair" else value
     for component in _table_components(table):
         values = component.write_file(values)
     return values
@@ -381,7 +385,7 @@ def paper_scene(
     1024² pixels of 5 µm, f = 25 mm; cylinder and sphere R = 70 mm; sphere period 10 mm."""
     if surface not in PAPER_SURFACES:
         raise SceneError("surface.kind", "one of " + ", ".join(PAPER_SURFACES) + " (the paper's surfaces)", surface)
-    period = PAPER_SPHERE_PERIOD_MM if surface == "sphere" else Emitter().period
+    period = PAPER_PERIOD_MM.get(surface, Emitter().period)
     return Scene(
         camera=Camera(theta_deg=theta_deg),
         emitter=Emitter(period=period, phase=phase),

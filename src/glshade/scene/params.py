@@ -23,7 +23,7 @@ import numpy as np
 from glshade.errors import SceneError
 
 #: How a value is typed: a real number, an integer, one of some names, a pair of numbers.
-KINDS = ("real", "integer", "choice", "pair")
+VALUE_TYPES = ("real", "integer", "choice", "pair")
 ROLES = ("feature", "uniform")
 
 
@@ -47,7 +47,7 @@ class Param:
 
     ``path``: ``table.key``; ``unit``: as the docs print it (``""`` when unitless);
     ``default``: the paper's value (``None``: unset, a documented fallback applies);
-    ``kind``: real | integer | choice | pair; ``lo``/``hi``: bounds (``None``: none),
+    ``value_type``: real | integer | choice | pair; ``lo``/``hi``: bounds (``None``: none),
     open unless ``closed``; ``nonzero``: 0 is refused; ``choices``: the allowed names
     (for a component selector the registry supplies them); ``role``: feature | uniform;
     ``flag``: the short CLI flag (``--theta``); ``control``: the viewer's slider;
@@ -60,7 +60,7 @@ class Param:
     unit: str
     default: Any
     doc: str
-    kind: str = "real"
+    value_type: str = "real"
     lo: float | None = None
     hi: float | None = None
     closed: bool = False
@@ -73,8 +73,8 @@ class Param:
     stored: bool = True
 
     def __post_init__(self) -> None:
-        if self.kind not in KINDS or self.role not in ROLES or self.path.count(".") != 1:
-            raise ValueError(f"malformed parameter declaration {self.path!r} ({self.kind}, {self.role})")
+        if self.value_type not in VALUE_TYPES or self.role not in ROLES or self.path.count(".") != 1:
+            raise ValueError(f"malformed parameter declaration {self.path!r} ({self.value_type}, {self.role})")
 
     @property
     def table(self) -> str:
@@ -90,11 +90,11 @@ class Param:
         unit = f" {self.unit}" if self.unit else ""
         if self.allowed_text is not None:
             return self.allowed_text
-        if self.kind == "choice":
+        if self.value_type == "choice":
             return "one of " + ", ".join(choices if choices is not None else self.choices)
-        if self.kind == "pair":
+        if self.value_type == "pair":
             return f"two numbers [u, v] > 0 ({self.unit})"
-        if self.kind == "integer":
+        if self.value_type == "integer":
             return f"an integer in [{self.lo:g}, {self.hi:g}]"
         if self.nonzero:
             return f"non-zero{unit}"
@@ -110,14 +110,14 @@ class Param:
         the field and what it allows."""
         if value is None and self.default is None:
             return None
-        if self.kind == "choice":
+        if self.value_type == "choice":
             allowed = choices if choices is not None else self.choices
             if value not in allowed:
                 raise SceneError(self.path, self.allowed(allowed), value)
             return value
-        if self.kind == "integer":
+        if self.value_type == "integer":
             return self._integer(value)
-        if self.kind == "pair":
+        if self.value_type == "pair":
             if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
                 raise SceneError(self.path, self.allowed(), value)
             return (self._real(value[0]), self._real(value[1]))
@@ -156,13 +156,13 @@ class Param:
     def parse(self, text: str) -> Any:
         """A value from command-line text (``--set camera.theta_deg=15``), unchecked."""
         text = text.strip()
-        if self.kind == "choice":
+        if self.value_type == "choice":
             return text
-        if self.kind == "pair":
+        if self.value_type == "pair":
             parts = [p for p in text.strip("[]()").replace(",", " ").split() if p]
             return tuple(_number(self.path, p) for p in parts)
         number = _number(self.path, text)
-        if self.kind == "integer" and number.is_integer():
+        if self.value_type == "integer" and number.is_integer():
             return int(number)
         return number
 
@@ -170,9 +170,9 @@ class Param:
         """The default as a scene file would spell it."""
         if self.default is None:
             return "unset"
-        if self.kind == "choice":
+        if self.value_type == "choice":
             return f'"{self.default}"'
-        if self.kind == "pair":
+        if self.value_type == "pair":
             return f"[{self.default[0]:g}, {self.default[1]:g}]"
         return f"{self.default:g}"
 
