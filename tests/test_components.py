@@ -257,6 +257,25 @@ def test_a_toy_surface_plugs_in_without_touching_glshade(renderer, tmp_path):
     assert Scene().surface == Scene().surface and not hasattr(Scene().surface, "tilt_deg")
 
 
+def test_sweeps_group_cases_by_program():
+    """A sweep over θ, σ², dmax and the surface needs one program per surface and defect
+    variant, whatever the number of cases."""
+    from glshade.gpu.compose import group_by_program
+
+    scenes = [
+        paper_scene(surface, theta, sigma2, dmax)
+        for surface in ("flat", "sphere")
+        for theta in (5.0, 45.0)
+        for sigma2 in (1.0, 4.0)
+        for dmax in (0.0, 0.003, 0.005)
+    ]
+    groups = group_by_program(scenes, ("uv",))
+    assert len(groups) == 4  # (flat, sphere) x (no defect, isotropic dent)
+    assert sorted(i for members in groups.values() for i in members) == list(range(len(scenes)))
+    for features, members in groups.items():
+        assert {ShaderFeatures.from_scene(scenes[i], ("uv",)) for i in members} == {features}
+
+
 def test_metrics_and_plans_import_without_gl():
     """Only glshade.gpu and glshade.app load moderngl."""
     code = ("import sys, glshade, glshade.metrics.visibility, glshade.metrics.measurement, glshade.oracle.tracer, "

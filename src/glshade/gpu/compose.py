@@ -76,6 +76,16 @@ class ShaderFeatures:
         return dict(self.components)
 
 
+def group_by_program(scenes, outputs=("image",)) -> dict[ShaderFeatures, list[int]]:
+    """The indices of ``scenes`` grouped by the program they need (in first-seen order):
+    a sweep worker that renders one group after another compiles each program once.
+    Needs no GL context."""
+    groups: dict[ShaderFeatures, list[int]] = {}
+    for index, scene in enumerate(scenes):
+        groups.setdefault(ShaderFeatures.from_scene(scene, outputs), []).append(index)
+    return groups
+
+
 def shader_dir() -> Path:
     """The GLSL sources: inside the installed package, else ``shaders/`` of a checkout."""
     packaged = Path(str(resources.files("glshade"))) / "shaders"

@@ -20,7 +20,8 @@ name their axes by the same paths.
 
 *Role*: `feature` parameters pick shader code (a change may compile another program, once
 per feature set); `uniform` parameters reach the shader as uniforms (a change never
-recompiles). *Used by*: the component(s) that declare the parameter; a component is in
+recompiles; the defect's `dmax = 0` and an isotropic covariance also select simpler code,
+which its features say). *Used by*: the component(s) that declare the parameter; a component is in
 use when its table's selector names it (`surface.kind`, `render.reflection`) or when its
 slot has only one component. A scene file written by glshade lists the parameters of the
 components in use and any other that differs from its default.
