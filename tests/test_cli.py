@@ -71,6 +71,12 @@ def test_info_reports_renderer_and_fp64():
         (["render", "--surface", "torus"], "invalid choice: 'torus'"),
         (["render", "missing.toml"], "scene file: must be an existing TOML file"),
         (["render", "-o", "no/such/dir/x.png", "--size", "8"], "directory no/such/dir does not exist"),
+        (["render", "--set", "camera.zoom=2"], "camera.zoom: must be one of the keys"),
+        (["render", "--set", "lens.f=2"], "lens: must be one of the tables"),
+        (["render", "--set", "camera.theta_deg=abc"], "camera.theta_deg: must be a finite number"),
+        (["render", "--set", "camera.theta_deg=90"], "camera.theta_deg: must be in (0, 90)"),
+        (["render", "--set", "theta=5"], "expected PATH=VALUE"),
+        (["render", "--set", "surface.kind=torus"], "surface.kind: must be one of flat, cylinder, sphere"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(tmp_path, args, fragment):
@@ -83,6 +89,20 @@ def test_bad_input_is_one_line_exit_2(tmp_path, args, fragment):
     assert lines[0].startswith("glshade: error: ") and fragment in lines[0]
     assert "Traceback" not in result.stderr
     assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+def test_set_any_parameter_by_its_path(tmp_path):
+    saved = tmp_path / "scene.toml"
+    code = main([
+        "render", "--theta", "30", "--set", "camera.theta_deg=20", "--set", "emitter.half_size=100,80",
+        "--set", "defect.sigma_xz=0.5", "--set", "render.supersample=2", "--size", "16",
+        "-o", str(tmp_path / "x.png"), "--save-scene", str(saved),
+    ])
+    assert code == 0
+    scene = Scene.load(saved)
+    assert scene.camera.theta_deg == 20.0  # --set comes after the short flags
+    assert scene.emitter.half_size == (100.0, 80.0) and scene.defect.sigma_xz == 0.5
+    assert scene.render.supersample == 2
 
 
 def test_unknown_key_in_scene_file(tmp_path):
