@@ -247,6 +247,12 @@ def test_a_toy_surface_plugs_in_without_touching_glshade(renderer, tmp_path):
         v_tilt = tracer.trace(tilted.without_defect(), ("uv",)).uv[12, 12, 1]
         assert abs(v_tilt - v_flat) > 256.0 * math.tan(math.radians(3.0))
         assert "surface.tilt_deg" in {p.path for p in registry().params()}
+        from glshade.app.viewer.controls import apply_setting, controls, panel_params
+
+        assert "tilt" in controls() and "tilted" in apply_setting(scene, "surface", "tilted").surface.kind
+        assert apply_setting(scene, "tilt", 25.0).surface.tilt_deg == 10.0  # clamped to its slider
+        assert "surface.tilt_deg" in [p.path for p in panel_params(scene)]
+        assert "surface.radius" not in [p.path for p in panel_params(scene)]
         assert "`tilt_deg`" in scene_format_markdown() and "`tilted`" in scene_format_markdown()
         out = tmp_path / "tilted.png"
         code = cli.main(["render", "--surface", "tilted", "--set", "surface.tilt_deg=1.5", "--size", "16",

@@ -1,0 +1,69 @@
+"""Interactive viewer (``glshade view``): turn the knobs and watch the stripes bend.
+
+A moderngl-window window (pyglet) with an imgui-bundle control panel. The scene is traced
+by the same :class:`~glshade.gpu.renderer.Renderer` and shaders as the batch renderer, into the
+window's own GL context. What is recomputed is only what changed:
+
+- a change of geometry (surface, θ, defect, emitter distance or stripes, precision,
+  reflection, supersampling) re-traces the uv maps of the scene and of its defect-free
+  twin;
+- a change of phase (or its animation) only re-shades them on the GPU
+  (``shaders/viewer_display.frag.glsl`` uses the renderer's own ``stripes.glsl``); with
+  Blinn-Phong or supersampling, where the picture is not a function of the uv map, the
+  image is re-rendered instead;
+- the visibility metrics run in a worker thread, never on the render thread, and the
+  panel shows the latest finished result.
+
+The package: ``controls`` (the controls, generated from the parameter schema),
+``model`` (``ViewerModel``: everything but the window, tested without a display),
+``panel`` (the imgui panel) and ``window`` (the moderngl-window window). The
+scripted mode (``--frames N --screenshot out.png --set theta=5``) runs a real window for
+tests and demos. Needs the ``viewer`` extra: ``pip install "glshade[viewer]"``.
+"""
+
+from __future__ import annotations
+
+from glshade.app.viewer.controls import (
+    VIEWS,
+    Choice,
+    Control,
+    apply_setting,
+    choices,
+    clamp,
+    controls,
+    geometry_key,
+    parse_sets,
+)
+from glshade.app.viewer.model import Readout, ViewerModel, ViewerOptions, readout_lines
+from glshade.errors import GlshadeError
+
+
+def run(options: ViewerOptions) -> dict:
+    """Open the window and run until it is closed (or ``options.frames`` frames were
+    drawn). Returns the run's statistics (frames, seconds, traces)."""
+    try:
+        import moderngl_window  # noqa: F401
+        from imgui_bundle import imgui  # noqa: F401
+    except ImportError as exc:
+        raise GlshadeError(f"the viewer needs the viewer extra ({exc.name} is missing): pip install \"glshade[viewer]\"") from None
+    from glshade.app.viewer import window
+
+    return window.run(options)
+
+
+__all__ = [
+    "VIEWS",
+    "Choice",
+    "Control",
+    "Readout",
+    "ViewerModel",
+    "ViewerOptions",
+    "apply_setting",
+    "choices",
+    "clamp",
+    "controls",
+    "geometry_key",
+    "parse_sets",
+    "readout_lines",
+    "run",
+]

@@ -1,0 +1,162 @@
+"""The viewer's controls, generated from the parameter schema.
+
+Every parameter that declares a viewer slider (``Param.control``) is a slider; every
+choice (a slot's selector, the cylinder's axis, the precision) is a combo box. A control
+is named by its short name (``theta``, ``radius``, the choice's flag without dashes) or
+by its dotted path (``camera.theta_deg``); ``--set`` takes either.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from glshade.components.registry import registry
+from glshade.errors import GlshadeError, SceneError
+from glshade.scene import Scene
+from glshade.scene.params import Param
+
+VIEWS = ("image", "defect-free", "overlay", "displacement")
+
+
+@dataclass(frozen=True)
+class Control:
+    """A slider: the parameter it edits (``param.path``) and its range (values are
+    clamped to it); ``signed``: the slider sets the magnitude and the sign is kept."""
+
+    name: str
+    param: Param
+    lo: float
+    hi: float
+    log: bool = False
+    fmt: str = "%.3f"
+    signed: bool = False
+
+
+@dataclass(frozen=True)
+class Choice:
+    """A combo box over a choice parameter's allowed names."""
+
+    name: str
+    param: Param
+    allowed: tuple[str, ...]
+
+
+def controls() -> dict[str, Control]:
+    """Short name -> slider, for every parameter that declares one."""
+    out = {}
+    for param in registry().params():
+        c = param.control
+        if c is not None:
+            out[c.name] = Control(c.name, param, c.lo, c.hi, c.log, c.fmt, c.signed)
+    return out
+
+
+def choices() -> dict[str, Choice]:
+    """Short name -> combo box, for every choice parameter."""
+    out = {}
+    for param in registry().params():
+        if param.value_type == "choice":
+            name = param.flag.lstrip("-") if param.flag else param.key
+            out[name] = Choice(name, param, registry().choices(param) or param.choices)
+    return out
+
+
+def by_name(name: str) -> Control | Choice | None:
+    """The control called ``name`` (short name or dotted path)."""
+    for table in (controls(), choices()):
+        for control in table.values():
+            if name in (control.name, control.param.path):
+                return control
+    return None
+
+
+def clamp(control: Control, value: float) -> float:
+    value = min(max(float(value), control.lo), control.hi)
+    return int(round(value)) if control.param.value_type == "integer" else value
+
+
+def _constrained(scene: Scene, path: str, value: float) -> float:
+    """Keep a slider inside what the scene accepts: the covariance positive definite,
+    a stripe no wider than half a period."""
+    if path == "defect.sigma_xz":
+        bound = 0.999 * math.sqrt(scene.defect.sigma_x2 * scene.defect.sigma_z2)
+        return min(max(value, -bound), bound)
+    if path == "emitter.stripe_sigma":
+        return min(value, 0.5 * scene.emitter.period)
+    return value
+
+
+def apply_setting(scene: Scene, name: str, value) -> Scene:
+    """The scene with one viewer setting changed; numbers are clamped to the control's
+    range and the result validated by the scene model (a SceneError leaves it unchanged
+    for the caller to report)."""
+    if name == "concave":
+        radius = abs(scene.surface.radius)
+        return scene.with_value("surface.radius", -radius if bool(value) else radius)
+    control = by_name(name)
+    if control is None:
+        allowed = [*controls(), *choices(), "concave"]
+        raise GlshadeError(f"--set {name}: unknown setting; allowed: {', '.join(allowed)} or a dotted path")
+    path = control.param.path
+    if isinstance(control, Choice):
+        if value not in control.allowed:
+            raise SceneError(path, "one of " + ", ".join(control.allowed), value)
+        return scene.with_value(path, value)
+    value = clamp(control, value)
+    if control.signed:
+        value = math.copysign(value, scene.value(path))
+    return scene.with_value(path, _constrained(scene, path, value))
+
+
+def parse_sets(items: list[str], scene: Scene) -> tuple[Scene, dict[str, str]]:
+    """``--set name=value`` items: scene settings are applied (clamped, validated); the
+    viewer's own (``view``, ``animate``) are returned."""
+    extra: dict[str, str] = {}
+    for item in items:
+        name, sep, raw = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise GlshadeError(f"--set {item!r}: expected name=value")
+        if name == "view":
+            if raw not in VIEWS:
+                raise GlshadeError(f"--set view: must be one of {', '.join(VIEWS)}, got {raw!r}")
+            extra[name] = raw
+        elif name == "animate":
+            extra[name] = raw
+        elif name == "concave":
+            scene = apply_setting(scene, name, raw.lower() in ("1", "true", "yes"))
+        elif isinstance(by_name(name), Choice):
+            scene = apply_setting(scene, name, raw)
+        else:
+            scene = apply_setting(scene, name, _number(name, raw))
+    return scene, extra
+
+
+def _number(name: str, raw: str) -> float:
+    try:
+        number = float(raw)
+    except ValueError:
+        raise GlshadeError(f"--set {name}: expected a number, got {raw!r}") from None
+    if not math.isfinite(number):
+        raise GlshadeError(f"--set {name}: expected a finite number, got {raw!r}")
+    return number
+
+
+def geometry_key(scene: Scene) -> Scene:
+    """What a trace depends on: everything but the phase."""
+    return scene.with_phase(0.0)
+
+
+def panel_params(scene: Scene) -> list[Param]:
+    """The parameters the panel shows for ``scene``: the selectors, and the parameters of
+    the components in use that have a control, in the schema's order."""
+    reg = registry()
+    active = set(reg.active(scene))
+    shown = []
+    for param in reg.params():
+        if param.control is None and param.value_type != "choice":
+            continue
+        if reg.choices(param) is not None or any(owner in active for owner in reg.owners(param)):
+            shown.append(param)
+    return shown

@@ -1,0 +1,280 @@
+"""The viewer's state without a window: the scene, the traced maps, the metrics in a
+worker thread, and which work a change calls for (tested without a display)."""
+
+from __future__ import annotations
+
+import threading
+from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import wait as wait_for
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from glshade.app.viewer.controls import apply_setting, geometry_key
+from glshade.errors import GlshadeError, SceneError
+from glshade.metrics import contours
+from glshade.metrics import visibility as vis
+from glshade.scene import PAPER_SURFACES, Scene, paper_scene
+
+
+@dataclass
+class Readout:
+    """The panel's numbers, the latest the worker finished: the paper's comparison at the
+    current phase, and the whole case (SPEC §6) measured by the same pipeline as
+    ``glshade paper`` and ``glshade measure``."""
+
+    at_phase_px: float | None = None       # the paper's metric at the phase shown
+    at_phase_islands: int | None = None
+    visibility_px: float | None = None     # the paper's metric over the phase sweep
+    best_phase_mm: float | None = None
+    continuous_px: float | None = None     # its continuous limit
+    deflection_px: float | None = None
+    folded: bool | None = None
+    islands: int | None = None
+    phase_for: tuple | None = None
+    error: str | None = None               # why this geometry cannot be measured
+
+
+def readout_lines(r: Readout) -> list[str]:
+    """The panel's readout as text ("..." while the worker is still measuring, "-" and
+    the reason when the metric refuses the scene)."""
+
+    def px(value, fmt):
+        if value is None:
+            return "-" if r.error is not None else "..."
+        return f"{value:{fmt}} px"
+
+    best = "" if r.best_phase_mm is None else f" (phase {r.best_phase_mm:g} mm)"
+    lines = [
+        f"visibility, this phase: {px(r.at_phase_px, 'g')}",
+        f"visibility, best phase: {px(r.visibility_px, 'g')}{best}",
+        f"continuous limit: {px(r.continuous_px, '.2f')}",
+        f"deflection: {px(r.deflection_px, '.2f')}",
+    ]
+    if r.error is not None:
+        lines.append(f"not measured: {r.error}")
+    return lines
+
+
+def _attempt(key, work):
+    """A worker job: ``(key, result, None)``, or ``(key, None, reason)`` when the metric
+    refuses the scene (e.g. a stripe period shorter than the phase step): the viewer shows
+    the reason instead of dying on it."""
+    try:
+        return key, work(), None
+    except GlshadeError as exc:
+        return key, None, " ".join(str(exc).split())
+
+
+class _Once:
+    """A value made on first use by whichever thread asks first (the others wait)."""
+
+    def __init__(self, make) -> None:
+        self._make, self._lock, self._value = make, threading.Lock(), None
+
+    def get(self):
+        with self._lock:
+            if self._value is None:
+                self._value = self._make()
+            return self._value
+
+
+@dataclass
+class ViewerModel:
+    """Everything the viewer knows, without a window: the scene, the traced maps, the
+    metrics, and which work a change calls for."""
+
+    scene: Scene
+    view: str = "image"
+    animate: bool = False
+    phase_speed_periods: float = 0.5  # periods per second when animating
+    settings: vis.MetricSettings = field(default_factory=vis.MetricSettings)  # as glshade paper
+    v0: np.ndarray | None = None      # traced emitter maps (v only), defect-free and defect
+    v1: np.ndarray | None = None
+    uv1: np.ndarray | None = None
+    displacement: np.ndarray | None = None
+    readout: Readout = field(default_factory=Readout)
+    traced_for: Scene | None = None
+    traces: int = 0
+    reshades: int = 0
+    _baseline: _Once | None = None
+    _pool: ThreadPoolExecutor | None = None
+    _case_job: Future | None = None
+    _phase_job: Future | None = None
+    _case_done: bool = False
+
+    # ---------------------------------------------------------------- edits
+    def set(self, name: str, value) -> bool:
+        """Apply one control; False (and no change) when the value is rejected."""
+        try:
+            self.scene = apply_setting(self.scene, name, value)
+        except (SceneError, GlshadeError):
+            return False
+        return True
+
+    def reset(self) -> None:
+        cam = self.scene.camera
+        kind = self.scene.surface.kind
+        scene = paper_scene(kind) if kind in PAPER_SURFACES else paper_scene().with_value("surface.kind", kind)
+        self.scene = scene.with_size(cam.width)
+        self.view, self.animate = "image", False
+
+    def advance(self, seconds: float) -> None:
+        if self.animate:
+            period = self.scene.emitter.period
+            self.scene = self.scene.with_phase((self.scene.emitter.phase + self.phase_speed_periods * period * seconds) % period)
+
+    @property
+    def needs_trace(self) -> bool:
+        return self.traced_for != geometry_key(self.scene)
+
+    @property
+    def shades_from_uv(self) -> bool:
+        """The picture is a function of the uv map (mirror, one ray per pixel)."""
+        from glshade.metrics.measurement import shades_from_map
+
+        return shades_from_map(self.scene)
+
+    def traced(self, uv_defect: np.ndarray, v_normal: np.ndarray) -> None:
+        self.uv1 = uv_defect
+        self.v1 = np.ascontiguousarray(uv_defect[..., 1])
+        self.v0 = v_normal
+        self.traced_for = geometry_key(self.scene)
+        self.traces += 1
+        self.displacement = None
+        self.readout = Readout()
+        v0, emitter, settings = self.v0, self.scene.emitter, self.settings
+        self._baseline = _Once(lambda: vis.Baseline(v0, emitter, settings))
+        self._case_done = False
+
+    def baseline(self) -> vis.Baseline | None:
+        """The defect-free analysis of the traced geometry (made once, in whichever
+        thread asks first)."""
+        return self._baseline.get() if self._baseline is not None else None
+
+    # ---------------------------------------------------------------- pictures
+    def overlay_rgba(self) -> np.ndarray:
+        """Fig. 9 colours on the kept columns, as the metric sees them (normal blue, defect
+        red, both magenta, islands orange); the columns cut off are dark grey."""
+        h, w = self.v1.shape
+        rgba = np.zeros((h, w, 4), np.uint8)
+        rgba[..., :3] = 40
+        rgba[..., 3] = 255
+        try:
+            baseline = self.baseline()
+        except GlshadeError:  # the metric refuses this scene (the readout says why)
+            baseline = None
+        if baseline is not None and baseline.half_width_mm is not None:
+            normal, defect = baseline.stripes_at(self.v1, self.scene.emitter.phase)
+            rgba[:, baseline.columns, :3] = contours.overlay_rgb(normal, defect)
+        return rgba
+
+    def displacement_rgba(self) -> tuple[np.ndarray, float]:
+        """The displacement (deflection) as a colour map with a scale bar (bottom right),
+        and the value at its top end (px)."""
+        from matplotlib import colormaps
+
+        h, w = self.v1.shape
+        rgba = np.zeros((h, w, 4), np.uint8)
+        rgba[..., 3] = 255
+        if self.displacement is None:
+            return rgba, 0.0
+        top = float(np.nanmax(self.displacement)) if np.isfinite(self.displacement).any() else 0.0
+        scale = top if top > 0 else 1.0
+        lut = (colormaps["viridis"](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
+        values = np.nan_to_num(self.displacement / scale, nan=-1.0)
+        index = np.clip((values * 255).astype(int), 0, 255)
+        rgba[..., :3] = np.where(values[..., None] >= 0, lut[index], 0)
+        bar_h, bar_w = max(4, h // 40), max(16, w // 4)
+        ramp = np.linspace(0, 255, bar_w).astype(int)
+        rgba[h - 2 * bar_h : h - bar_h, w - bar_w - bar_h : w - bar_h, :3] = lut[ramp][None]
+        return rgba, top
+
+    def hover(self, col: int, row: int) -> str:
+        if self.uv1 is None or not (0 <= row < self.uv1.shape[0] and 0 <= col < self.uv1.shape[1]):
+            return ""
+        u, v = self.uv1[row, col]
+        if not np.isfinite(v):
+            return f"pixel ({col}, {row}): no emitter hit"
+        text = f"pixel ({col}, {row}): u {u:.3f} mm, v {v:.3f} mm"
+        if self.displacement is not None and np.isfinite(self.displacement[row, col]):
+            text += f", displacement {self.displacement[row, col]:.2f} px"
+        return text
+
+    # ---------------------------------------------------------------- metrics
+    def collect_metrics(self) -> None:
+        """Take whatever the worker finished (call before :meth:`start_metrics`)."""
+        if self._case_job is not None and self._case_job.done():
+            trace, result, error = self._case_job.result()
+            self._case_job = None
+            if trace == self.traces and error is not None:
+                self.readout.error = error
+                self._case_done = True
+            elif trace == self.traces:
+                r = self.readout
+                r.visibility_px, r.best_phase_mm = result.visibility_px, result.best_phase_mm
+                r.continuous_px, r.deflection_px = result.visibility_continuous_px, result.deflection_px
+                r.folded, r.islands = result.folded, result.islands
+                self.displacement = result.displacement_px
+                self._case_done = True
+        if self._phase_job is not None and self._phase_job.done():
+            key, result, error = self._phase_job.result()
+            self._phase_job = None
+            if key[0] == self.traces and error is not None:
+                self.readout.error = error
+                self.readout.phase_for = key
+            elif key[0] == self.traces:
+                self.readout.at_phase_px, self.readout.at_phase_islands = result.distance_px, result.islands
+                self.readout.phase_for = key
+
+    def start_metrics(self) -> None:
+        """Give the worker what is missing: the whole case once per trace, and the
+        comparison at the current phase whenever the phase changed. A job is never
+        replaced before it was collected (throttled, never queued up)."""
+        if self.v0 is None or self._baseline is None or self.readout.error is not None:
+            return
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="glshade-metric")
+        trace, baseline, v1 = self.traces, self._baseline, self.v1
+        if not self._case_done and self._case_job is None:
+            self._case_job = self._pool.submit(_attempt, trace, lambda: baseline.get().measure(v1))
+        key = (trace, self.scene.emitter.phase)
+        if self._phase_job is None and self.readout.phase_for != key:
+            phase = self.scene.emitter.phase
+            self._phase_job = self._pool.submit(_attempt, key, lambda: baseline.get().at_phase(v1, phase))
+
+    def wait_for_metrics(self, timeout_s: float = 60.0) -> None:
+        """Block until the jobs in flight are done and collected (tests, scripted runs)."""
+        jobs = [job for job in (self._case_job, self._phase_job) if job is not None]
+        _, pending = wait_for(jobs, timeout=timeout_s)
+        if pending:
+            raise TimeoutError(f"the visibility metrics took more than {timeout_s:g} s")
+        self.collect_metrics()
+
+    def settle_metrics(self, timeout_s: float = 60.0) -> None:
+        """Wait until the readout is that of the current scene and phase: the jobs in
+        flight, then the current phase's comparison if they were for an earlier one (the
+        end of a scripted run)."""
+        self.wait_for_metrics(timeout_s)
+        self.start_metrics()
+        self.wait_for_metrics(timeout_s)
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+
+@dataclass
+class ViewerOptions:
+    """What ``glshade view`` was asked for."""
+
+    scene: Scene
+    view: str = "image"
+    animate: bool = False
+    frames: int | None = None
+    screenshot: Path | None = None
+    benchmark: str | None = None  # "phase" or "theta": time frames and print fps
+    panel: bool = True
+    out_dir: Path = Path(".")
