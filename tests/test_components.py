@@ -285,7 +285,8 @@ def test_sweeps_group_cases_by_program():
 def test_metrics_and_plans_import_without_gl():
     """Only glshade.gpu and glshade.app load moderngl."""
     code = ("import sys, glshade, glshade.metrics.visibility, glshade.metrics.measurement, glshade.oracle.tracer, "
-            "glshade.scene.schema_doc, glshade.metrics.physics; "
+            "glshade.scene.schema_doc, glshade.metrics.physics, glshade.study.plan, glshade.study.store, "
+            "glshade.study.findings, glshade.components.registry; glshade.components.registry.registry(); "
             "print('moderngl' in sys.modules)")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert result.stdout.strip() == "False"

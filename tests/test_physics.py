@@ -11,7 +11,7 @@ from glshade.metrics.continuous import deflection, fold_columns
 from glshade.metrics.measurement import emitter_map, measure_scene
 from glshade.metrics.visibility import kept_columns
 from glshade.scene import paper_scene
-from glshade.study.run import PAPER_DMAXS, PAPER_SIGMA2S, PAPER_THETAS
+from glshade.study.plan import PAPER_DMAXS, PAPER_SIGMA2S, PAPER_THETAS
 
 SIZE = 512
 
@@ -116,7 +116,7 @@ def test_results_columns_are_documented():
     """docs/results.md holds the table generated from the study's column schema."""
     from pathlib import Path
 
-    from glshade.study.run import CSV_COLUMNS, columns_markdown
+    from glshade.study.store import CSV_COLUMNS, columns_markdown
 
     doc = (Path(__file__).parents[1] / "docs" / "results.md").read_text()
     assert columns_markdown() in doc

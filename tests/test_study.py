@@ -11,7 +11,9 @@ from glshade.app.cli import main
 from glshade.errors import GlshadeError
 from glshade.metrics.measurement import measure_scene
 from glshade.study import findings
-from glshade.study.run import CSV_COLUMNS, StudyPlan, read_results_csv, run_study
+from glshade.study.plan import StudyPlan
+from glshade.study.run import run_study
+from glshade.study.store import CSV_COLUMNS, read_results_csv
 
 TIMING = {"trace_s", "shade_s", "contours_s", "continuous_s"}
 SMALL = dict(thetas=(45.0, 5.0), size=128)

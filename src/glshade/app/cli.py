@@ -207,7 +207,8 @@ def _cmd_paper(args: argparse.Namespace) -> int:
     from glshade.gpu.context import GLContext
     from glshade.gpu.renderer import Renderer
     from glshade.study import findings, plots
-    from glshade.study import run as study
+    from glshade.study import plan as study
+    from glshade.study.run import run_study
 
     _reuse_freed_memory()
     metric = _metric_settings(args)
@@ -224,14 +225,14 @@ def _cmd_paper(args: argparse.Namespace) -> int:
     drawn: dict = {}
     figure_seconds = 0.0
 
-    def draw(surface: str, rows: list[dict]) -> None:  # while the workers measure the next surface
+    def draw(surface: str, rows: list) -> None:  # while the workers measure the next surface
         nonlocal figure_seconds
         begin = time.perf_counter()
         drawn[surface] = plots.surface_figures(rows, args.out, plan, surface)
         figure_seconds += time.perf_counter() - begin
 
     with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
-        result = study.run_study(plan, args.out, workers=args.workers, progress=not args.no_progress,
+        result = run_study(plan, args.out, workers=args.workers, progress=not args.no_progress,
                                  renderer=renderer, on_surface_done=draw)
     figure_start = time.perf_counter()
     written = plots.write_figures(result.rows, args.out, plan, drawn)

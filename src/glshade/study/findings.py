@@ -10,6 +10,7 @@ metric and for its continuous limit. The simulation is never tuned to agree.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -85,86 +86,118 @@ def _worst(verdicts: list[str]) -> str:
     return NOT
 
 
-def _table(rows: list[dict]) -> dict:
+def _table(rows: list[Mapping]) -> dict:
     return {(r["surface"], r["theta_deg"], r["sigma2_mm2"], r["dmax_mm"]): r for r in rows}
 
 
-def evaluate(rows: list[dict]) -> list[Verdict]:
-    """Every verdict the rows support (a finding needs its σ², depths and ≥ 3 θ)."""
+@dataclass(frozen=True)
+class _Grid:
+    """The rows of a study as a grid: its axes, and ``value(s, t, v, d)`` of one metric."""
+
+    surfaces: list[str]
+    dmaxs: list[float]
+    sigma2s: list[float]
+    thetas: list[float]
+    table: dict
+    metric: str
+
+    def has(self, s, t, v, d) -> bool:
+        return (s, t, v, d) in self.table
+
+    def value(self, s, t, v, d) -> float:
+        return self.table[(s, t, v, d)][self.metric]
+
+
+def evaluate(rows: list[Mapping]) -> list[Verdict]:
+    """Every verdict the rows support (a finding needs its σ², depths and ≥ 3 θ). A row is
+    a :class:`~glshade.study.store.CaseResult` or any mapping of its columns (the
+    functions here read rows by column name)."""
     out: list[Verdict] = []
-    surfaces = list(dict.fromkeys(r["surface"] for r in rows))
-    dmaxs = sorted({r["dmax_mm"] for r in rows})
-    sigma2s = sorted({r["sigma2_mm2"] for r in rows})
-    thetas = sorted({r["theta_deg"] for r in rows})
-    table = _table(rows)
-
+    axes = [list(dict.fromkeys(r[key] for r in rows)) for key in ("surface", "dmax_mm", "sigma2_mm2", "theta_deg")]
     for metric, metric_name in METRICS.items():
-        def value(s, t, v, d):
-            return table[(s, t, v, d)][metric]
-
-        # 1: deeper is more visible
-        if len(dmaxs) >= 2:
-            lo, hi = dmaxs[0], dmaxs[-1]
-            for s in surfaces:
-                pairs = [(value(s, t, v, hi), value(s, t, v, lo)) for t in thetas for v in sigma2s
-                         if (s, t, v, hi) in table and (s, t, v, lo) in table]
-                if not pairs:
-                    continue
-                more = sum(a > b for a, b in pairs)
-                less = sum(a < b for a, b in pairs)
-                share = more / len(pairs)
-                verdict = HOLDS if share >= 0.9 and less == 0 else PARTLY if share >= 0.6 else NOT
-                out.append(Verdict(1, s, metric_name, verdict,
-                                   f"dmax {um(hi)} more visible than {um(lo)} in {more}/{len(pairs)} cases, less in {less}"))
-
-        # 2: larger sigma2 less visible overall
-        if len(sigma2s) >= 2:
-            for s in surfaces:
-                for d in dmaxs:
-                    means = [np.mean([value(s, t, v, d) for t in thetas if (s, t, v, d) in table]) for v in sigma2s]
-                    rho = spearman(sigma2s, means)
-                    strictly = all(a > b for a, b in zip(means, means[1:]))
-                    verdict = HOLDS if strictly else PARTLY if rho <= -0.8 else NOT
-                    shown = ", ".join(f"σ² {v:g}: {m:.1f}" for v, m in zip(sigma2s, means))
-                    out.append(Verdict(2, f"{s}, dmax {um(d)}", metric_name, verdict,
-                                       f"mean over θ {shown} px; Spearman ρ = {rho:.2f}"))
-
-        # 3 and 4: trends with theta
-        if len(thetas) >= 3:
-            for number, group, sign in ((3, GENTLE, -1.0), (4, STEEP, 1.0)):
-                present = [v for v in group if v in sigma2s]
-                if not present:
-                    continue
-                for s in surfaces:
-                    for d in dmaxs:
-                        parts, shown = [], []
-                        for v in present:
-                            ts = [t for t in thetas if (s, t, v, d) in table]
-                            vals = [value(s, t, v, d) for t in ts]
-                            rho = spearman(ts, vals)
-                            high, low = vals[-1], vals[0]  # at the highest and the lowest θ
-                            change = (low - high) / high if high > 0 else (math.inf if low > 0 else 0.0)
-                            strength, effect = sign * rho, -sign * change
-                            if strength >= 0.8 and effect >= MIN_EFFECT:
-                                parts.append(HOLDS)
-                            elif strength >= 0.4 and effect > 0:
-                                parts.append(PARTLY)
-                            else:
-                                parts.append(NOT)
-                            shown.append(
-                                f"σ² {v:g}: ρ(θ, visibility) = {rho:+.2f}, θ {ts[-1]:g} → {ts[0]:g}: "
-                                f"{high:.2f} → {low:.2f} px ({change:+.0%})"
-                            )
-                        out.append(Verdict(number, f"{s}, dmax {um(d)}", metric_name, _worst(parts), "; ".join(shown)))
-
-        # 5: 3 and 4 alike on every surface
-        three_four = [v for v in out if v.metric == metric_name and v.finding in (3, 4)]
-        if three_four and len(surfaces) >= 2:
-            verdict = _worst([v.verdict for v in three_four])
-            failing = sorted({v.scope for v in three_four if v.verdict != HOLDS})
-            evidence = "findings 3 and 4 hold everywhere" if not failing else "not holding in: " + "; ".join(failing)
-            out.append(Verdict(5, ", ".join(surfaces), metric_name, verdict, evidence))
+        grid = _Grid(axes[0], sorted(axes[1]), sorted(axes[2]), sorted(axes[3]), _table(rows), metric)
+        found = _deeper(grid, metric_name) + _wider(grid, metric_name) + _theta_trends(grid, metric_name)
+        out += found + _alike(grid, metric_name, found)
     return out
+
+
+def _deeper(g: _Grid, metric_name: str) -> list[Verdict]:
+    """Finding 1: a deeper dent is more visible."""
+    if len(g.dmaxs) < 2:
+        return []
+    out = []
+    lo, hi = g.dmaxs[0], g.dmaxs[-1]
+    for s in g.surfaces:
+        pairs = [(g.value(s, t, v, hi), g.value(s, t, v, lo)) for t in g.thetas for v in g.sigma2s
+                 if g.has(s, t, v, hi) and g.has(s, t, v, lo)]
+        if not pairs:
+            continue
+        more = sum(a > b for a, b in pairs)
+        less = sum(a < b for a, b in pairs)
+        share = more / len(pairs)
+        verdict = HOLDS if share >= 0.9 and less == 0 else PARTLY if share >= 0.6 else NOT
+        out.append(Verdict(1, s, metric_name, verdict,
+                           f"dmax {um(hi)} more visible than {um(lo)} in {more}/{len(pairs)} cases, less in {less}"))
+    return out
+
+
+def _wider(g: _Grid, metric_name: str) -> list[Verdict]:
+    """Finding 2: a larger σ² is less visible overall."""
+    if len(g.sigma2s) < 2:
+        return []
+    out = []
+    for s in g.surfaces:
+        for d in g.dmaxs:
+            means = [np.mean([g.value(s, t, v, d) for t in g.thetas if g.has(s, t, v, d)]) for v in g.sigma2s]
+            rho = spearman(g.sigma2s, means)
+            strictly = all(a > b for a, b in zip(means, means[1:]))
+            verdict = HOLDS if strictly else PARTLY if rho <= -0.8 else NOT
+            shown = ", ".join(f"σ² {v:g}: {m:.1f}" for v, m in zip(g.sigma2s, means))
+            out.append(Verdict(2, f"{s}, dmax {um(d)}", metric_name, verdict,
+                               f"mean over θ {shown} px; Spearman ρ = {rho:.2f}"))
+    return out
+
+
+def _theta_trends(g: _Grid, metric_name: str) -> list[Verdict]:
+    """Findings 3 and 4: gentle dents fade, steep ones grow, as θ falls."""
+    if len(g.thetas) < 3:
+        return []
+    out = []
+    for number, group, sign in ((3, GENTLE, -1.0), (4, STEEP, 1.0)):
+        present = [v for v in group if v in g.sigma2s]
+        for s in g.surfaces if present else ():
+            for d in g.dmaxs:
+                parts, shown = zip(*(_trend(g, s, v, d, sign) for v in present))
+                out.append(Verdict(number, f"{s}, dmax {um(d)}", metric_name, _worst(list(parts)), "; ".join(shown)))
+    return out
+
+
+def _trend(g: _Grid, s: str, v: float, d: float, sign: float) -> tuple[str, str]:
+    """One σ²'s verdict on a θ trend of sign ``sign``, and its evidence."""
+    ts = [t for t in g.thetas if g.has(s, t, v, d)]
+    vals = [g.value(s, t, v, d) for t in ts]
+    rho = spearman(ts, vals)
+    high, low = vals[-1], vals[0]  # at the highest and the lowest θ
+    change = (low - high) / high if high > 0 else (math.inf if low > 0 else 0.0)
+    strength, effect = sign * rho, -sign * change
+    if strength >= 0.8 and effect >= MIN_EFFECT:
+        verdict = HOLDS
+    elif strength >= 0.4 and effect > 0:
+        verdict = PARTLY
+    else:
+        verdict = NOT
+    return verdict, f"σ² {v:g}: ρ(θ, visibility) = {rho:+.2f}, θ {ts[-1]:g} → {ts[0]:g}: {high:.2f} → {low:.2f} px ({change:+.0%})"
+
+
+def _alike(g: _Grid, metric_name: str, found: list[Verdict]) -> list[Verdict]:
+    """Finding 5: findings 3 and 4 alike on every surface."""
+    three_four = [v for v in found if v.finding in (3, 4)]
+    if not three_four or len(g.surfaces) < 2:
+        return []
+    verdict = _worst([v.verdict for v in three_four])
+    failing = sorted({v.scope for v in three_four if v.verdict != HOLDS})
+    evidence = "findings 3 and 4 hold everywhere" if not failing else "not holding in: " + "; ".join(failing)
+    return [Verdict(5, ", ".join(g.surfaces), metric_name, verdict, evidence)]
 
 
 FINDING_TEXT = {
@@ -202,7 +235,7 @@ def theta_ranges(chosen, plan_thetas) -> str:
     return ", ".join(f"{r[0]:g}–{r[-1]:g}°" if len(r) > 1 else f"{r[0]:g}°" for r in runs)
 
 
-def best_thetas(rows: list[dict], surface: str, sigma2s, dmax: float, key: str = "visibility_continuous_px") -> list[float]:
+def best_thetas(rows: list[Mapping], surface: str, sigma2s, dmax: float, key: str = "visibility_continuous_px") -> list[float]:
     """The θ at which every σ² of ``sigma2s`` keeps at least :data:`NEAR_BEST` of its
     largest visibility over θ (at depth ``dmax``)."""
     table = _table(rows)
@@ -217,16 +250,22 @@ def best_thetas(rows: list[dict], surface: str, sigma2s, dmax: float, key: str =
     return sorted(keep, reverse=True)
 
 
-def _why(rows: list[dict], surface: str, sigma2s, dmaxs) -> str:
+def _magnifies(surface: str) -> bool:
+    """The paper's ``surface`` is convex along the plane of incidence at the gaze point:
+    it magnifies the stripes by m (docs/physics.md), which decides its advice."""
+    return physics.base_curvatures(paper_scene(surface))[0] < 0.0
+
+
+def _why(rows: list[Mapping], surface: str, sigma2s, dmaxs) -> str:
     """The closed form behind the advice for one surface and class of dent, with the
     numbers at the lowest view."""
     table = _table(rows)
     low = min(r["theta_deg"] for r in rows)
-    if surface == "sphere":
+    if _magnifies(surface):
         m_high = physics.laws(paper_scene(surface, max(r["theta_deg"] for r in rows))).magnification
         m_low = physics.laws(paper_scene(surface, low)).magnification
         return (
-            "The convex sphere magnifies the stripes by m = 1 + 2 Dc De / (R sin θ (Dc + De)), from "
+            f"The convex {surface} magnifies the stripes by m = 1 + 2 Dc De / (R sin θ (Dc + De)), from "
             f"{m_high:.1f} at the highest view to {m_low:.0f} at θ {low:g}°, and every displacement in pixels shrinks "
             "by m: a low view loses every dent. No dent of Table 1 folds on it (its floor curvature dmax/σ² is below "
             "the base's 1/R)."
@@ -256,7 +295,7 @@ def _why(rows: list[dict], surface: str, sigma2s, dmaxs) -> str:
     return text
 
 
-def advice(rows: list[dict]) -> list[str]:
+def advice(rows: list[Mapping]) -> list[str]:
     """For each surface and class of dent, the θ that keep the dent most visible, and why."""
     lines = []
     dmaxs = sorted({r["dmax_mm"] for r in rows})
@@ -275,7 +314,7 @@ def advice(rows: list[dict]) -> list[str]:
     return lines
 
 
-def law_summary(rows: list[dict]) -> list[str]:
+def law_summary(rows: list[Mapping]) -> list[str]:
     """Where the closed forms hold and where they break, per surface, in numbers."""
     lines = ["| surface | cases | deflection: law within 3 % | worst deflection error | visible shift: law within 5 % "
              "| worst visible error | worst case |", "|---|---:|---:|---:|---:|---:|---|"]
@@ -294,7 +333,7 @@ def law_summary(rows: list[dict]) -> list[str]:
     return lines
 
 
-def law_by_theta(rows: list[dict], surface: str) -> str:
+def law_by_theta(rows: list[Mapping], surface: str) -> str:
     """The largest deflection error of the law at each θ on one surface."""
     parts = []
     for t in sorted({r["theta_deg"] for r in rows if r["surface"] == surface}, reverse=True):
@@ -305,11 +344,33 @@ def law_by_theta(rows: list[dict], surface: str) -> str:
 
 
 # --------------------------------------------------------------------------- report
-def write_report(rows: list[dict], out_dir: Path, plan, figures: list[Path], timings=None) -> Path:
+def write_report(rows: list[Mapping], out_dir: Path, plan, figures: list[Path], timings=None) -> Path:
     """``report.md``: the conclusion, the verdicts with their rules and numbers, the closed
     forms against the simulation, the folded cases, and the figures."""
     verdicts = evaluate(rows)
-    lines = [
+    lines = _opening(rows, plan) + _findings_sections(verdicts)
+    lines += _laws_section(rows)
+    lines += _folds_section(rows)
+    lines += _notes(rows, plan)
+    lines += ["## Figures", ""]
+    lines += [f"![{path.stem}]({path.name})" for path in figures]
+    if timings is not None:
+        lines += [
+            "",
+            "## Run time of this run",
+            "",
+            f"trace {timings.trace:.1f} s, shade {timings.shade:.1f} s, contours {timings.contours:.1f} s, "
+            f"continuous numbers {timings.continuous:.1f} s, I/O {timings.io:.1f} s, figures {timings.figures:.1f} s "
+            "(stage sums over worker threads; cases computed in this run only).",
+        ]
+    path = Path(out_dir) / "report.md"
+    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
+    return path
+
+
+def _opening(rows: list[Mapping], plan) -> list[str]:
+    """The report's title, what was run, and the advice."""
+    return [
         "# glshade: the paper's study",
         "",
         f"{len(rows)} cases: surfaces {', '.join(plan.surfaces)}; θ {', '.join(f'{t:g}' for t in plan.thetas)}°; "
@@ -336,6 +397,11 @@ def write_report(rows: list[dict], out_dir: Path, plan, figures: list[Path], tim
         "hurts steep dents once they fold, and every dent on a convex part.",
         "",
     ]
+
+
+def _findings_sections(verdicts: list[Verdict]) -> list[str]:
+    """The verdicts' summary, their rules, and one section per finding."""
+    lines = []
     summary = _summary_table(verdicts)
     if summary:
         lines += ["## The paper's findings: summary", "", *summary, ""]
@@ -350,26 +416,10 @@ def write_report(rows: list[dict], out_dir: Path, plan, figures: list[Path], tim
         lines += [f"## Finding {number}: {text}", "", "| scope | metric | verdict | numbers |", "|---|---|---|---|"]
         lines += [f"| {v.scope} | {v.metric} | **{v.verdict}** | {v.evidence} |" for v in mine]
         lines.append("")
-    lines += _laws_section(rows)
-    lines += _folds_section(rows)
-    lines += _notes(rows, plan)
-    lines += ["## Figures", ""]
-    lines += [f"![{path.stem}]({path.name})" for path in figures]
-    if timings is not None:
-        lines += [
-            "",
-            "## Run time of this run",
-            "",
-            f"trace {timings.trace:.1f} s, shade {timings.shade:.1f} s, contours {timings.contours:.1f} s, "
-            f"continuous numbers {timings.continuous:.1f} s, I/O {timings.io:.1f} s, figures {timings.figures:.1f} s "
-            "(stage sums over worker threads; cases computed in this run only).",
-        ]
-    path = Path(out_dir) / "report.md"
-    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
-    return path
+    return lines
 
 
-def _laws_section(rows: list[dict]) -> list[str]:
+def _laws_section(rows: list[Mapping]) -> list[str]:
     lines = [
         "## The closed forms against the simulation",
         "",
@@ -384,16 +434,16 @@ def _laws_section(rows: list[dict]) -> list[str]:
     agree = sum((r["fold_ratio"] > 1.0) == r["folded"] for r in rows)
     lines.append(f"- Fold onset: the law predicts {len(predicted)} folded cases; it agrees with the `folded` flag in "
                  f"{agree} of {len(rows)} cases.")
-    if any(r["surface"] == "sphere" for r in rows):
-        lines.append("- Where the sphere's law breaks: the worst deflection error per θ is "
-                     f"{law_by_theta(rows, 'sphere')}. At grazing views the dent's flank facing the camera is seen at "
+    for surface in [s for s in dict.fromkeys(r["surface"] for r in rows) if _magnifies(s)]:
+        lines.append(f"- Where the {surface}'s law breaks: the worst deflection error per θ is "
+                     f"{law_by_theta(rows, surface)}. At grazing views the dent's flank facing the camera is seen at "
                      "the local elevation θ + z/R, a large change when σ/R is comparable to θ, and m (∝ 1/sin θ) is "
                      "then far from its value at the gaze point. The law holds where σ/R ≪ θ.")
     lines.append("")
     return lines
 
 
-def _folds_section(rows: list[dict]) -> list[str]:
+def _folds_section(rows: list[Mapping]) -> list[str]:
     folded = [r for r in rows if r["folded"]]
     lines = ["## Where the stripe map folds", ""]
     if not folded:
@@ -415,7 +465,7 @@ def _folds_section(rows: list[dict]) -> list[str]:
     return lines + [""]
 
 
-def _notes(rows: list[dict], plan) -> list[str]:
+def _notes(rows: list[Mapping], plan) -> list[str]:
     unresolved = max((r["unresolved_fraction"] for r in rows), default=0.0)
     mostly = [r for r in rows if r["unresolved_fraction"] > 0.5]
     gap = max((abs(r["visibility_px"] - r["visibility_continuous_px"]) for r in rows), default=0.0)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from glshade.files import atomic_write_bytes, read_png
+from glshade.study.store import CaseResult
 
 SURFACE_NAMES = {"flat": "flat plate", "cylinder": "cylinder, R 70 mm", "sphere": "sphere, R 70 mm"}
 SURFACE_COLOURS = {"flat": "tab:blue", "cylinder": "tab:orange", "sphere": "tab:green"}
@@ -49,13 +50,13 @@ def _um(dmax_mm: float) -> str:
 
 
 # --------------------------------------------------------------------------- grids
-def image_grid(rows: list[dict], cases_dir: Path, surface: str, dmax: float, thetas, sigma2s, path: Path) -> bool:
+def image_grid(rows: list[CaseResult], cases_dir: Path, surface: str, dmax: float, thetas, sigma2s, path: Path) -> bool:
     """θ across, σ² down, each the defect image at its best phase. False when a case's
     thumbnail is missing (the grid is then not written). The thumbnails are tiled into one
     mosaic (one image to draw, not one axes per case)."""
-    from glshade.study.run import case_key
+    from glshade.study.store import case_key
 
-    lookup = {(r["theta_deg"], r["sigma2_mm2"]): r for r in rows if r["surface"] == surface and r["dmax_mm"] == dmax}
+    lookup = {(r.theta_deg, r.sigma2_mm2): r for r in rows if r.surface == surface and r.dmax_mm == dmax}
     tiles = []
     for s2 in sigma2s:
         line = []
@@ -85,7 +86,7 @@ def image_grid(rows: list[dict], cases_dir: Path, surface: str, dmax: float, the
     for i, s2 in enumerate(sigma2s):
         for j, t in enumerate(thetas):
             r = lookup[(t, s2)]
-            fold = ", folds" if r["folded"] else ""
+            fold = ", folds" if r.folded else ""
             ax.text(j * cell + side / 2, i * cell + side + gap * 0.1, f"{r['visibility_px']:g} px (limit "
                     f"{r['visibility_continuous_px']:.1f}){fold}", ha="center", va="top", fontsize=7.5)
     fig.suptitle(f"{SURFACE_NAMES[surface]}, dmax = {_um(dmax)}: image with the dent at its best phase", fontsize=11)
@@ -103,21 +104,21 @@ PLOT_PANELS = (
 )
 
 
-def visibility_plot(rows: list[dict], surface: str, dmax: float, path: Path) -> None:
+def visibility_plot(rows: list[CaseResult], surface: str, dmax: float, path: Path) -> None:
     """The three numbers against θ, one colour per σ²: markers the simulation, dashed
     lines the closed forms (docs/physics.md); rings mark cases whose stripe map folds."""
-    sel = [r for r in rows if r["surface"] == surface and r["dmax_mm"] == dmax]
-    sigma2s = sorted({r["sigma2_mm2"] for r in sel})
+    sel = [r for r in rows if r.surface == surface and r.dmax_mm == dmax]
+    sigma2s = sorted({r.sigma2_mm2 for r in sel})
     fig = _figure(14, 4.3)
     axes = fig.subplots(1, 3, sharex=True, sharey=True)
     for ax, (key, law_key, title) in zip(axes, PLOT_PANELS):
         for s2 in sigma2s:
-            line = sorted((r for r in sel if r["sigma2_mm2"] == s2), key=lambda r: r["theta_deg"])
-            theta = np.array([r["theta_deg"] for r in line])
+            line = sorted((r for r in sel if r.sigma2_mm2 == s2), key=lambda r: r.theta_deg)
+            theta = np.array([r.theta_deg for r in line])
             value = np.array([r[key] for r in line])
             (handle,) = ax.plot(theta, value, marker="o", label=f"σ² = {s2:g} mm²")
             ax.plot(theta, [r[law_key] for r in line], ls="--", lw=1, color=handle.get_color())
-            folded = np.array([r["folded"] for r in line], bool)
+            folded = np.array([r.folded for r in line], bool)
             if folded.any():
                 ax.scatter(theta[folded], value[folded], s=130, facecolors="none", edgecolors=handle.get_color())
         ax.set_title(title, fontsize=10)
@@ -136,7 +137,7 @@ def visibility_plot(rows: list[dict], surface: str, dmax: float, path: Path) -> 
     _save(fig, path)
 
 
-def law_plot(rows: list[dict], path: Path) -> None:
+def law_plot(rows: list[CaseResult], path: Path) -> None:
     """Closed form against simulation for every case: the deflection (left) and the
     visible shift (right, the continuous limit against the fold-capped law)."""
     fig = _figure(11, 5)
@@ -147,7 +148,7 @@ def law_plot(rows: list[dict], path: Path) -> None:
     )):
         for surface, colour in SURFACE_COLOURS.items():
             for folded, marker in ((False, "o"), (True, "^")):
-                pick = [r for r in rows if r["surface"] == surface and r["folded"] == folded
+                pick = [r for r in rows if r.surface == surface and r.folded == folded
                         and math.isfinite(r[law]) and r[law] > 0 and r[sim] > 0]
                 if pick:
                     ax.scatter([r[law] for r in pick], [r[sim] for r in pick], c=colour, marker=marker, s=22,
@@ -227,14 +228,14 @@ def figure_names(surface: str, dmax: float) -> tuple[str, str]:
 LAW_FIGURE = "law_vs_simulation.png"
 
 
-def surface_figures(rows: list[dict], out_dir: Path, plan, surface: str) -> list[Path]:
+def surface_figures(rows: list[CaseResult], out_dir: Path, plan, surface: str) -> list[Path]:
     """The grids and plots of one surface (from its rows); returns the paths written."""
-    from glshade.study.run import GRID_THETAS
+    from glshade.study.plan import GRID_THETAS
 
     out_dir = Path(out_dir)
     written = []
     grid_thetas = [t for t in GRID_THETAS if t in plan.thetas]
-    mine = [r for r in rows if r["surface"] == surface]
+    mine = [r for r in rows if r.surface == surface]
     for dmax in plan.dmaxs:
         grid_name, plot_name = figure_names(surface, dmax)
         if grid_thetas and image_grid(mine, out_dir / "cases", surface, dmax, grid_thetas, plan.sigma2s, out_dir / grid_name):
@@ -245,7 +246,7 @@ def surface_figures(rows: list[dict], out_dir: Path, plan, surface: str) -> list
     return written
 
 
-def write_figures(rows: list[dict], out_dir: Path, plan, drawn: dict[str, list[Path]] | None = None) -> list[Path]:
+def write_figures(rows: list[CaseResult], out_dir: Path, plan, drawn: dict[str, list[Path]] | None = None) -> list[Path]:
     """Every grid and plot the plan's rows allow, and the closed forms against the
     simulation; ``drawn``: surfaces whose figures were drawn already (and their paths).
     Returns the paths of all of them."""

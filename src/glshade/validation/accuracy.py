@@ -54,6 +54,10 @@ class Point:
 ALL_SURFACES = ("flat", "cylinder", "sphere")
 
 
+#: The surfaces the Blinn-Phong knob is measured on (the cylinder adds nothing the two do not show).
+BLINN_PHONG_SURFACES = ("flat", "sphere")
+
+
 def default_scenes(size: int = SIZE, surfaces=ALL_SURFACES) -> list[tuple[str, Scene]]:
     """Paper scenes: flat, cylinder, sphere; θ 85, 45, 15, 5; a steep and a gentle dent."""
     out = []
@@ -90,11 +94,8 @@ def _image_errors(image, ref_image, mask) -> tuple[float, float]:
 
 
 # --------------------------------------------------------------------------- frames
-def frame_knobs(renderer: Renderer, scenes, repeats: int, log) -> tuple[list[Point], list[str]]:
-    """Precision, root solve and supersampling: errors per frame against the converged
-    reference; returns the points and the reference's cross-check lines."""
-    outputs = ("image", "uv", "mask")
-    converged = Renderer(renderer.context, root_solver=CONVERGED)
+def _frame_settings() -> list[tuple[str, str, Callable[[Scene], Scene], RootSolver, bool]]:
+    """Every per-frame knob: (knob, label, scene transform, root solver, is the default)."""
     settings: list[tuple[str, str, Callable[[Scene], Scene], RootSolver, bool]] = [
         ("precision", "fp32", lambda s: s, RootSolver(), True),
         ("precision", "fp64", lambda s: s.updated(render={"precision": "fp64"}), RootSolver(), False),
@@ -105,7 +106,36 @@ def frame_knobs(renderer: Renderer, scenes, repeats: int, log) -> tuple[list[Poi
                              RootSolver(march_steps=steps, tolerance_mm=tol), tol == 1e-7 and steps == 48))
     for n in (1, 2, 4, 8):
         settings.append(("supersampling", f"{n}x{n}", (lambda n: lambda s: s.updated(render={"supersample": n}))(n), RootSolver(), n == 1))
+    return settings
 
+
+def _frame_errors(knob: str, frame, ref, ref_ss) -> dict[str, float]:
+    """A frame's errors against the converged references."""
+    if knob == "supersampling":
+        # against the supersampled reference, on the image only: a pixel's mean uv
+        # is not its centre's, and the error is the averaging the setting leaves out
+        peak, rms = _image_errors(frame.image, ref_ss, frame.mask | ref.mask)
+        return {"pixel_image": peak, "pixel_image_rms": rms}
+    peak, rms = _image_errors(frame.image, ref.image.astype(np.float64), frame.mask | ref.mask)
+    errors = {"image": peak, "image_rms": rms}
+    errors["uv"], errors["uv_edge"] = _uv_errors(frame, ref)
+    return errors
+
+
+def _oracle_gap(ref64: Scene, ref) -> float:
+    """The converged reference against the NumPy tracer, in a 16x16 window at the centre."""
+    rows = cols = slice(SIZE // 2 - 8, SIZE // 2 + 8)
+    oracle = reference.trace(ref64, ("uv", "mask"), rows=rows, cols=cols)
+    both = ref.mask[rows, cols] & oracle.mask
+    return float(np.abs(ref.uv[rows, cols][both] - oracle.uv[both]).max()) if both.any() else 0.0
+
+
+def frame_knobs(renderer: Renderer, scenes, repeats: int, log) -> tuple[list[Point], list[str]]:
+    """Precision, root solve and supersampling: errors per frame against the converged
+    reference; returns the points and the reference's cross-check lines."""
+    outputs = ("image", "uv", "mask")
+    converged = Renderer(renderer.context, root_solver=CONVERGED)
+    settings = _frame_settings()
     worst: dict[tuple[str, str], dict[str, float]] = {}
     times: dict[tuple[str, str], list[float]] = {}
     defaults = {}
@@ -116,11 +146,7 @@ def frame_knobs(renderer: Renderer, scenes, repeats: int, log) -> tuple[list[Poi
             ref64 = scene.updated(render={"precision": "fp64"})
             ref = converged.render(ref64, outputs)
             ref_ss = converged.render(ref64.updated(render={"supersample": 16}), ("image",)).image.astype(np.float64)
-            rows = cols = slice(SIZE // 2 - 8, SIZE // 2 + 8)
-            oracle = reference.trace(ref64, ("uv", "mask"), rows=rows, cols=cols)
-            both = ref.mask[rows, cols] & oracle.mask
-            gap = float(np.abs(ref.uv[rows, cols][both] - oracle.uv[both]).max()) if both.any() else 0.0
-            crosscheck.append(gap)
+            crosscheck.append(_oracle_gap(ref64, ref))
             for knob, label, transform, solver, is_default in settings:
                 r = renderers.get(solver)
                 if r is None:
@@ -128,21 +154,12 @@ def frame_knobs(renderer: Renderer, scenes, repeats: int, log) -> tuple[list[Poi
                 s = transform(scene)
                 r.render(s, outputs)  # compile, warm
                 seconds, frame = _median_time(lambda: r.render(s, outputs), repeats)
-                if knob == "supersampling":
-                    # against the supersampled reference, on the image only: a pixel's mean uv
-                    # is not its centre's, and the error is the averaging the setting leaves out
-                    peak, rms = _image_errors(frame.image, ref_ss, frame.mask | ref.mask)
-                    errors = {"pixel_image": peak, "pixel_image_rms": rms}
-                else:
-                    peak, rms = _image_errors(frame.image, ref.image.astype(np.float64), frame.mask | ref.mask)
-                    errors = {"image": peak, "image_rms": rms}
-                    errors["uv"], errors["uv_edge"] = _uv_errors(frame, ref)
-                key = (knob, label)
-                agg = worst.setdefault(key, {k: 0.0 for k in errors})
+                errors = _frame_errors(knob, frame, ref, ref_ss)
+                agg = worst.setdefault((knob, label), {k: 0.0 for k in errors})
                 for k, v in errors.items():
                     agg[k] = max(agg[k], v)
-                times.setdefault(key, []).append(seconds)
-                defaults[key] = is_default
+                times.setdefault((knob, label), []).append(seconds)
+                defaults[(knob, label)] = is_default
             log(f"frames: {name}")
     finally:
         for r in renderers.values():
@@ -364,7 +381,7 @@ def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=A
         gl = renderer.context.info().renderer
         frame_points, crosscheck = frame_knobs(renderer, default_scenes(size, surfaces), repeats, log)
         vis_points = visibility_knobs(renderer, repeats, log, surfaces)
-        bp_points = blinn_phong_knob(renderer, repeats, log, [s for s in surfaces if s != "cylinder"] or ["flat"])
+        bp_points = blinn_phong_knob(renderer, repeats, log, [s for s in surfaces if s in BLINN_PHONG_SURFACES] or ["flat"])
         stab_lines, histogram = stability_table(renderer, log)
     frame_and_bp = frame_points + bp_points
     plot(frame_points, "uv", "uv error against time per frame", "mm on the emitter", figures / "accuracy_uv.png")
@@ -377,8 +394,24 @@ def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=A
         "# Accuracy against run time, and stability",
         "",
         f"Generated by `glshade accuracy --out {out_dir}` in {time.perf_counter() - started:.0f} s on "
-        f"{gl} ({platform.machine()}, {repeats} repeats per timing). Method: `glshade.accuracy`'s docstring.",
+        f"{gl} ({platform.machine()}, {repeats} repeats per timing). Method: `glshade.validation.accuracy`'s docstring.",
         "",
+        *_frame_section(frame_points, crosscheck, size, surfaces),
+        *_visibility_section(vis_points, surfaces),
+        *_blinn_phong_section(bp_points),
+        "## Defaults, and why",
+        "",
+        *defaults_section(frame_points, vis_points, bp_points),
+        "",
+        *_stability_section(stab_lines, histogram),
+    ]
+    path = out_dir / "accuracy.md"
+    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
+    return path
+
+
+def _frame_section(frame_points, crosscheck, size, surfaces) -> list[str]:
+    return [
         "## The converged reference",
         "",
         f"fp64 shader, root tolerance 1e-14 mm, up to 4096 march steps; 16x16 supersampling for the "
@@ -402,6 +435,11 @@ def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=A
         "stripe edges foremost), not arithmetic; a supersampled pixel's mean uv is not comparable with a centre",
         "sample's. The other knobs are measured against the single-sample reference.",
         "",
+    ]
+
+
+def _visibility_section(vis_points, surfaces) -> list[str]:
+    return [
         "## Per case: resolution and phase step (visibility in pixels of the paper's 1024² camera)",
         "",
         f"{3 * len(surfaces)} cases ({', '.join(surfaces)} at θ 45 and 15 with σ² 1, dmax 5 µm; at θ 45 with σ² 16, dmax 3 µm).",
@@ -418,6 +456,11 @@ def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=A
         "",
         "![visibility error against time](figures/accuracy_visibility.png)",
         "",
+    ]
+
+
+def _blinn_phong_section(bp_points) -> list[str]:
+    return [
         "## Blinn-Phong: the closed-form lobe against Monte-Carlo",
         "",
         "Against the reference's converged quadrature over the half vector (`glshade.oracle.tracer`), n = 1e5, flat",
@@ -428,10 +471,11 @@ def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=A
         "",
         *_table(bp_points, [("image", "image max"), ("image_rms", "image RMS"), ("image_edge", "image max incl. the edge")]),
         "",
-        "## Defaults, and why",
-        "",
-        *defaults_section(frame_points, vis_points, bp_points),
-        "",
+    ]
+
+
+def _stability_section(stab_lines, histogram) -> list[str]:
+    return [
         "## Stability on stiff and extreme cases",
         "",
         "`glshade.validation.stability.cases()`, the same matrix `tests/test_stability.py` asserts on. Centre: the central",
@@ -447,9 +491,6 @@ def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=A
         "",
         *LIMITS,
     ]
-    path = out_dir / "accuracy.md"
-    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
-    return path
 
 
 def defaults_section(frame_points, vis_points, bp_points) -> list[str]:

@@ -1,0 +1,97 @@
+"""What the paper's study sweeps (SPEC §7, Table 1): the grid of cases and what a case is.
+No GL here: plans are made, validated and split anywhere (a Dask client included)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+from glshade.errors import GlshadeError
+from glshade.metrics import visibility as vis
+from glshade.scene import PAPER_SURFACES, Camera, Scene, paper_scene
+
+PAPER_THETAS = (85.0, 75.0, 65.0, 55.0, 45.0, 35.0, 25.0, 15.0, 5.0)
+PAPER_SIGMA2S = (1.0, 4.0, 9.0, 16.0)
+PAPER_DMAXS = (0.003, 0.005)
+#: θ columns of the paper's image grids (Figs. 10, 11, 14, 15, 18, 19).
+GRID_THETAS = (85.0, 45.0, 5.0)
+#: Side of the thumbnails kept for the grids, pixels.
+THUMBNAIL = 256
+#: Cases drawn as the Fig. 9 contour overlay, when they are part of the plan: the paper's
+#: default scene, and a steep dent at a grazing view whose stripe map folds.
+OVERLAY_CASES = {
+    ("flat", 45.0, 4.0, 0.005): "fig09_contour_overlay.png",
+    ("flat", 5.0, 1.0, 0.005): "fig09_contour_overlay_fold.png",
+}
+#: Changes whenever the metric's definition changes: case files of another version are
+#: never mixed into a study.
+METRIC_VERSION = 2
+
+#: A case: (surface, θ in degrees, σ² in mm², dmax in mm).
+Case = tuple[str, float, float, float]
+
+
+def _float_list(name: str, values, lo: float, hi: float, closed_hi: bool = False) -> tuple[float, ...]:
+    values = tuple(float(v) for v in values)
+    if not values:
+        raise GlshadeError(f"{name}: must list at least one value")
+    for v in values:
+        inside = lo < v <= hi if closed_hi else lo < v < hi
+        if not (math.isfinite(v) and inside):
+            bracket = "]" if closed_hi else ")"
+            raise GlshadeError(f"{name}: every value must be in ({lo:g}, {hi:g}{bracket}, got {v:g}")
+    if len(set(values)) != len(values):
+        raise GlshadeError(f"{name}: values must not repeat, got {', '.join(f'{v:g}' for v in values)}")
+    return values
+
+
+@dataclass(frozen=True)
+class StudyPlan:
+    """What to sweep: Table 1 by default, at ``size`` pixels across (paper: 1024)."""
+
+    surfaces: tuple[str, ...] = PAPER_SURFACES
+    thetas: tuple[float, ...] = PAPER_THETAS
+    sigma2s: tuple[float, ...] = PAPER_SIGMA2S
+    dmaxs: tuple[float, ...] = PAPER_DMAXS
+    size: int = 1024
+    metric: vis.MetricSettings = field(default_factory=vis.MetricSettings)
+
+    def __post_init__(self) -> None:
+        if not self.surfaces:
+            raise GlshadeError("surfaces: must list at least one of " + ", ".join(PAPER_SURFACES))
+        for s in self.surfaces:
+            if s not in PAPER_SURFACES:
+                raise GlshadeError(f"surfaces: unknown surface {s!r}; allowed: {', '.join(PAPER_SURFACES)}")
+        if len(set(self.surfaces)) != len(self.surfaces):
+            raise GlshadeError("surfaces: must not repeat")
+        thetas = _float_list("thetas", self.thetas, 0.0, 90.0)
+        if any(a <= b for a, b in zip(thetas, thetas[1:])):
+            raise GlshadeError(
+                "thetas: must be strictly decreasing, from high to low viewpoints as in the paper "
+                f"(85 … 5), got {', '.join(f'{t:g}' for t in thetas)}"
+            )
+        object.__setattr__(self, "thetas", thetas)
+        object.__setattr__(self, "sigma2s", _float_list("sigma2s", self.sigma2s, 0.0, math.inf))
+        object.__setattr__(self, "dmaxs", _float_list("dmaxs", self.dmaxs, 0.0, math.inf))
+        Camera().resampled(self.size)  # validates the size
+        for surface in self.surfaces:
+            self.metric.phases(self.scene(surface, self.thetas[0], self.sigma2s[0], self.dmaxs[0]).emitter.period)
+
+    def scene(self, surface: str, theta: float, sigma2: float, dmax: float) -> Scene:
+        return paper_scene(surface, theta, sigma2, dmax).with_size(self.size)
+
+    def cases(self) -> list[Case]:
+        return [(s, t, v, d) for s in self.surfaces for t in self.thetas for v in self.sigma2s for d in self.dmaxs]
+
+    def geometries(self, cases: list[Case]) -> list[list[Case]]:
+        """``cases`` grouped by (surface, θ): the cases sharing one defect-free trace."""
+        groups: dict[tuple[str, float], list[Case]] = {}
+        for case in cases:
+            groups.setdefault(case[:2], []).append(case)
+        return list(groups.values())
+
+    def to_dict(self) -> dict:
+        data = asdict(self)
+        data["surfaces"] = list(self.surfaces)
+        data["metric_version"] = METRIC_VERSION
+        return data
