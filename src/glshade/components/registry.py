@@ -85,7 +85,8 @@ class Registry:
         self._slots = {slot.name: slot for slot in slots}
         self._tables = tables
         self._components: dict[str, dict[str, Component]] = {slot.name: {} for slot in slots}
-        self.version = 0  # bumped by every change: caches of generated classes follow it
+        self.version = 0  # bumped by every change
+        self._schema: dict[str | None, tuple[Param, ...]] = {}  # params() by table, for this version
 
     # ------------------------------------------------------------------ changes
     def register(self, component: Component) -> Component:
@@ -105,12 +106,16 @@ class Registry:
             if param.path in known and known[param.path] is not param:
                 raise ValueError(f"{param.path} is declared twice ({component!r}); share one Param")
         self._components[slot.name][component.name] = component
-        self.version += 1
+        self._changed()
         return component
+
+    def _changed(self) -> None:
+        self.version += 1
+        self._schema = {}
 
     def unregister(self, slot: str, name: str) -> None:
         del self._components[slot][name]
-        self.version += 1
+        self._changed()
 
     @contextlib.contextmanager
     def registered(self, component: Component) -> Iterator[Component]:
@@ -159,6 +164,11 @@ class Registry:
     def params(self) -> tuple[Param, ...]:
         """Every parameter, once: by table in file order, within a table by slot in
         composition order, each slot's selector before its components' parameters."""
+        if None not in self._schema:
+            self._schema[None] = self._collect_params()
+        return self._schema[None]
+
+    def _collect_params(self) -> tuple[Param, ...]:
         seen: dict[str, Param] = {}
         for table in self._tables:
             for slot in self._slots.values():
@@ -172,7 +182,9 @@ class Registry:
         return tuple(seen.values())
 
     def table_params(self, table: str) -> tuple[Param, ...]:
-        return tuple(p for p in self.params() if p.table == table)
+        if table not in self._schema:
+            self._schema[table] = tuple(p for p in self.params() if p.table == table)
+        return self._schema[table]
 
     def param(self, path: str) -> Param:
         """The declaration of ``table.key``; a SceneError naming the known ones if none."""
