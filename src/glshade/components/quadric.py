@@ -59,5 +59,12 @@ class Quadric(SurfaceComponent):
         dims = self.dims(scene)
         return list(circle_roots(oc[:, dims], d[:, dims], a))
 
+    @staticmethod
+    def vertical_rays(t1, t2, vertical, inside):
+        """Rays that do not move across the domain: all of it (inside) or none of it."""
+        t1 = np.where(vertical, np.where(inside, -np.inf, np.nan), t1)
+        t2 = np.where(vertical, np.where(inside, np.inf, np.nan), t2)
+        return t1, t2
+
     def uniform_radius(self, scene) -> dict[str, object]:
         return {"u_radius": scene.surface.radius}

@@ -55,9 +55,7 @@ class Cylinder(Quadric):
         t1, t2 = np.minimum(ta, tb), np.maximum(ta, tb)
         vertical = dc == 0.0
         inside = np.abs(oc) <= a
-        t1 = np.where(vertical, np.where(inside, -np.inf, np.nan), t1)
-        t2 = np.where(vertical, np.where(inside, np.inf, np.nan), t2)
-        return t1, t2
+        return self.vertical_rays(t1, t2, vertical, inside)
 
     def normal(self, scene, x, z, dx, dz):
         s, _ = self.signed_radius(scene)

@@ -43,9 +43,7 @@ class Sphere(Quadric):
         t1, t2 = circle_roots(o[:, [0, 2]], dv, a)
         vertical = np.einsum("nk,nk->n", dv, dv) == 0.0
         inside = np.hypot(o[:, 0], o[:, 2]) <= a
-        t1 = np.where(vertical, np.where(inside, -np.inf, np.nan), t1)
-        t2 = np.where(vertical, np.where(inside, np.inf, np.nan), t2)
-        return t1, t2
+        return self.vertical_rays(t1, t2, vertical, inside)
 
     def normal(self, scene, x, z, dx, dz):
         s, _ = self.signed_radius(scene)
