@@ -209,6 +209,7 @@ def _cmd_paper(args: argparse.Namespace) -> int:
     from glshade.study import findings, plots
     from glshade.study import plan as study
     from glshade.study.run import run_study
+    from glshade.study.store import CaseResult
 
     _reuse_freed_memory()
     metric = _metric_settings(args)
@@ -225,7 +226,7 @@ def _cmd_paper(args: argparse.Namespace) -> int:
     drawn: dict = {}
     figure_seconds = 0.0
 
-    def draw(surface: str, rows: list) -> None:  # while the workers measure the next surface
+    def draw(surface: str, rows: list[CaseResult]) -> None:  # while the workers measure the next surface
         nonlocal figure_seconds
         begin = time.perf_counter()
         drawn[surface] = plots.surface_figures(rows, args.out, plan, surface)
@@ -233,7 +234,7 @@ def _cmd_paper(args: argparse.Namespace) -> int:
 
     with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
         result = run_study(plan, args.out, workers=args.workers, progress=not args.no_progress,
-                                 renderer=renderer, on_surface_done=draw)
+                           renderer=renderer, on_surface_done=draw)
     figure_start = time.perf_counter()
     written = plots.write_figures(result.rows, args.out, plan, drawn)
     result.timings.figures = figure_seconds + time.perf_counter() - figure_start

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -30,18 +31,18 @@ MIN_EFFECT = 0.10
 NEAR_BEST = 0.9
 
 RULES = (
-    "1. *Deeper is more visible*: over all (θ, σ²) of a surface, the share of cases where the 5 µm dent is strictly "
-    "more visible than the 3 µm one. **holds**: at least 90 % and never less visible; **partly holds**: at least 60 %.",
-    "2. *Larger σ² is less visible overall* (fixed depth): the mean visibility over θ, per σ². **holds**: it falls "
-    "strictly as σ² grows; **partly holds**: Spearman ρ(σ², mean) ≤ -0.8.",
-    "3. *Gentle dents (σ² 9, 16) gain from a low viewpoint*: per σ², Spearman ρ(θ, visibility) and the relative "
-    f"change from the highest to the lowest θ. **holds**: ρ ≤ -0.8 *and* a gain of at least {MIN_EFFECT:.0%}; "
-    "**partly holds**: ρ ≤ -0.4 and any gain, however small; both σ² must hold for the scope to hold. A ranked trend "
-    "of a few per cent is not what the paper means by \"more visible\".",
-    "4. *Steep dents (σ² 1, 4) lose from a low viewpoint*: the same with the signs turned (ρ ≥ 0.8 and a loss of at "
-    f"least {MIN_EFFECT:.0%}).",
-    "5. *3 and 4 hold on flat, cylindrical and spherical surfaces alike*: **holds** when 3 and 4 hold for every "
-    "surface and depth, **partly holds** when each at least partly holds.",
+    ("1. *Deeper is more visible*: over all (θ, σ²) of a surface, the share of cases where the 5 µm dent is strictly "
+     "more visible than the 3 µm one. **holds**: at least 90 % and never less visible; **partly holds**: at least 60 %."),
+    ("2. *Larger σ² is less visible overall* (fixed depth): the mean visibility over θ, per σ². **holds**: it falls "
+     "strictly as σ² grows; **partly holds**: Spearman ρ(σ², mean) ≤ -0.8."),
+    ("3. *Gentle dents (σ² 9, 16) gain from a low viewpoint*: per σ², Spearman ρ(θ, visibility) and the relative "
+     f"change from the highest to the lowest θ. **holds**: ρ ≤ -0.8 *and* a gain of at least {MIN_EFFECT:.0%}; "
+     "**partly holds**: ρ ≤ -0.4 and any gain, however small; both σ² must hold for the scope to hold. A ranked trend "
+     "of a few per cent is not what the paper means by \"more visible\"."),
+    ("4. *Steep dents (σ² 1, 4) lose from a low viewpoint*: the same with the signs turned (ρ ≥ 0.8 and a loss of at "
+     f"least {MIN_EFFECT:.0%})."),
+    ("5. *3 and 4 hold on flat, cylindrical and spherical surfaces alike*: **holds** when 3 and 4 hold for every "
+     "surface and depth, **partly holds** when each at least partly holds."),
 )
 
 
@@ -150,7 +151,7 @@ def _wider(g: _Grid, metric_name: str) -> list[Verdict]:
         for d in g.dmaxs:
             means = [np.mean([g.value(s, t, v, d) for t in g.thetas if g.has(s, t, v, d)]) for v in g.sigma2s]
             rho = spearman(g.sigma2s, means)
-            strictly = all(a > b for a, b in zip(means, means[1:]))
+            strictly = all(a > b for a, b in pairwise(means))
             verdict = HOLDS if strictly else PARTLY if rho <= -0.8 else NOT
             shown = ", ".join(f"σ² {v:g}: {m:.1f}" for v, m in zip(g.sigma2s, means))
             out.append(Verdict(2, f"{s}, dmax {um(d)}", metric_name, verdict,
@@ -316,8 +317,8 @@ def advice(rows: list[Mapping]) -> list[str]:
 
 def law_summary(rows: list[Mapping]) -> list[str]:
     """Where the closed forms hold and where they break, per surface, in numbers."""
-    lines = ["| surface | cases | deflection: law within 3 % | worst deflection error | visible shift: law within 5 % "
-             "| worst visible error | worst case |", "|---|---:|---:|---:|---:|---:|---|"]
+    lines = [("| surface | cases | deflection: law within 3 % | worst deflection error | visible shift: law within 5 % "
+              "| worst visible error | worst case |"), "|---|---:|---:|---:|---:|---:|---|"]
     for surface in dict.fromkeys(r["surface"] for r in rows):
         pick = [r for r in rows if r["surface"] == surface and math.isfinite(r["visibility_law_px"])]
         if not pick:
@@ -359,9 +360,9 @@ def write_report(rows: list[Mapping], out_dir: Path, plan, figures: list[Path], 
             "",
             "## Run time of this run",
             "",
-            f"trace {timings.trace:.1f} s, shade {timings.shade:.1f} s, contours {timings.contours:.1f} s, "
-            f"continuous numbers {timings.continuous:.1f} s, I/O {timings.io:.1f} s, figures {timings.figures:.1f} s "
-            "(stage sums over worker threads; cases computed in this run only).",
+            (f"trace {timings.trace:.1f} s, shade {timings.shade:.1f} s, contours {timings.contours:.1f} s, "
+             f"continuous numbers {timings.continuous:.1f} s, I/O {timings.io:.1f} s, figures {timings.figures:.1f} s "
+             "(stage sums over worker threads; cases computed in this run only)."),
         ]
     path = Path(out_dir) / "report.md"
     atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
@@ -373,28 +374,28 @@ def _opening(rows: list[Mapping], plan) -> list[str]:
     return [
         "# glshade: the paper's study",
         "",
-        f"{len(rows)} cases: surfaces {', '.join(plan.surfaces)}; θ {', '.join(f'{t:g}' for t in plan.thetas)}°; "
-        f"σ² {', '.join(f'{v:g}' for v in plan.sigma2s)} mm²; dmax {', '.join(um(d) for d in plan.dmaxs)}; "
-        f"{plan.size}×{plan.size} pixels (the paper's field of view); phase step {plan.metric.step_mm:g} mm; "
-        f"threshold {plan.metric.threshold:g}; central {plan.metric.keep_fraction:.0%} of the columns kept. Depths are "
-        "in µm throughout this report and in the figures' titles and file names; `results.csv` keeps `dmax_mm`.",
+        (f"{len(rows)} cases: surfaces {', '.join(plan.surfaces)}; θ {', '.join(f'{t:g}' for t in plan.thetas)}°; "
+         f"σ² {', '.join(f'{v:g}' for v in plan.sigma2s)} mm²; dmax {', '.join(um(d) for d in plan.dmaxs)}; "
+         f"{plan.size}×{plan.size} pixels (the paper's field of view); phase step {plan.metric.step_mm:g} mm; "
+         f"threshold {plan.metric.threshold:g}; central {plan.metric.keep_fraction:.0%} of the columns kept. Depths are "
+         "in µm throughout this report and in the figures' titles and file names; `results.csv` keeps `dmax_mm`."),
         "",
-        "Three numbers per case (SPEC §6, every column in `docs/results.md`): the paper's metric `visibility_px` (whole "
-        "pixels), its continuous limit `visibility_continuous_px` (what the paper's metric tends to with a finer phase "
-        "step and a finer sensor), and `deflection_px` (how far the rays move). Verdicts are given for the first two.",
+        ("Three numbers per case (SPEC §6, every column in `docs/results.md`): the paper's metric `visibility_px` (whole "
+         "pixels), its continuous limit `visibility_continuous_px` (what the paper's metric tends to with a finer phase "
+         "step and a finer sensor), and `deflection_px` (how far the rays move). Verdicts are given for the first two."),
         "",
         "## What to do with it: where to put the camera",
         "",
-        f"For each surface and class of dent: the study's elevations θ at which every dent of the class keeps at "
-        f"least {NEAR_BEST:.0%} of its best visibility (continuous limit), per depth, and the closed form that explains "
-        "it (derived in glshade's `docs/physics.md`):",
+        (f"For each surface and class of dent: the study's elevations θ at which every dent of the class keeps at "
+         f"least {NEAR_BEST:.0%} of its best visibility (continuous limit), per depth, and the closed form that explains "
+         "it (derived in glshade's `docs/physics.md`):"),
         "",
         *advice(rows),
         "",
-        "In short: on flat and cylindrical parts a steep dent is seen best from above the angle at which it folds the "
-        "stripe map, a gentle one from anywhere, and on a strongly curved convex part (the sphere) from as high as "
-        "possible. \"Looking from just above the surface\" never helps by more than a few per cent in this model; it "
-        "hurts steep dents once they fold, and every dent on a convex part.",
+        ("In short: on flat and cylindrical parts a steep dent is seen best from above the angle at which it folds the "
+         "stripe map, a gentle one from anywhere, and on a strongly curved convex part (the sphere) from as high as "
+         "possible. \"Looking from just above the surface\" never helps by more than a few per cent in this model; it "
+         "hurts steep dents once they fold, and every dent on a convex part."),
         "",
     ]
 
@@ -406,8 +407,8 @@ def _findings_sections(verdicts: list[Verdict]) -> list[str]:
     if summary:
         lines += ["## The paper's findings: summary", "", *summary, ""]
     lines += ["## How the verdicts are decided", "", *[f"- {rule}" for rule in RULES], "",
-              "\"Partly holds\" therefore means: the trend is there in rank, or in most cases, but not strong or not "
-              "everywhere enough to call it the paper's effect.", ""]
+              ("\"Partly holds\" therefore means: the trend is there in rank, or in most cases, but not strong or not "
+               "everywhere enough to call it the paper's effect."), ""]
     for number, text in FINDING_TEXT.items():
         mine = [v for v in verdicts if v.finding == number]
         if not mine:
@@ -423,9 +424,9 @@ def _laws_section(rows: list[Mapping]) -> list[str]:
     lines = [
         "## The closed forms against the simulation",
         "",
-        "`deflection_law_px` is SPEC §6's deflection, divided by the convex base's magnification m; "
-        "`visibility_law_px` is the deflection capped by a fold at b sqrt(2 ln(F/m)) (docs/physics.md derives both); "
-        "`fold_ratio` > 1 predicts a fold. `law_vs_simulation.png` plots every case.",
+        ("`deflection_law_px` is SPEC §6's deflection, divided by the convex base's magnification m; "
+         "`visibility_law_px` is the deflection capped by a fold at b sqrt(2 ln(F/m)) (docs/physics.md derives both); "
+         "`fold_ratio` > 1 predicts a fold. `law_vs_simulation.png` plots every case."),
         "",
         *law_summary(rows),
         "",
@@ -449,9 +450,9 @@ def _folds_section(rows: list[Mapping]) -> list[str]:
     if not folded:
         return lines + ["Nowhere.", ""]
     lines += [
-        f"{len(folded)} of {len(rows)} cases fold. There the paper's metric measures what a viewer sees, the band the "
-        "fold leaves the contours, not how far the rays move (`deflection_px`); islands cut off by the fold are counted, "
-        "not measured.",
+        (f"{len(folded)} of {len(rows)} cases fold. There the paper's metric measures what a viewer sees, the band the "
+         "fold leaves the contours, not how far the rays move (`deflection_px`); islands cut off by the fold are counted, "
+         "not measured."),
         "",
         "| surface | θ | σ² | dmax | fold ratio | paper px | limit px | law px | deflection px | islands |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
@@ -472,12 +473,12 @@ def _notes(rows: list[Mapping], plan) -> list[str]:
     lines = [
         "## Notes",
         "",
-        f"- The paper's metric counts whole pixels at {len(plan.metric.phases(2.0))} phases per 2 mm period: it differs "
-        f"from its continuous limit by at most {gap:.2f} px here. Where the limit is below a pixel (the sphere at low "
-        "θ), the paper's metric reads 1 px or 0 px and cannot rank the dents; the limit can.",
-        f"- Pixels where the defect-free stripes span fewer than {plan.metric.min_period_px:g} px per period are left out "
-        f"of the contours (aliasing; see `glshade.metrics.visibility.resolved_mask`); at most {unresolved:.1%} of a case's "
-        "kept pixels were.",
+        (f"- The paper's metric counts whole pixels at {len(plan.metric.phases(2.0))} phases per 2 mm period: it differs "
+         f"from its continuous limit by at most {gap:.2f} px here. Where the limit is below a pixel (the sphere at low "
+         "θ), the paper's metric reads 1 px or 0 px and cannot rank the dents; the limit can."),
+        (f"- Pixels where the defect-free stripes span fewer than {plan.metric.min_period_px:g} px per period are left out "
+         f"of the contours (aliasing; see `glshade.metrics.visibility.resolved_mask`); at most {unresolved:.1%} of a case's "
+         "kept pixels were."),
     ]
     if mostly:
         kinds = ", ".join(sorted({r["surface"] for r in mostly}))

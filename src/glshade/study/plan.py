@@ -1,10 +1,11 @@
-"""What the paper's study sweeps (SPEC §7, Table 1): the grid of cases and what a case is.
+"""What the paper's study sweeps (SPEC §7, Table 1): the grid of cases, what a case is and its key.
 No GL here: plans are made, validated and split anywhere (a Dask client included)."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
+from itertools import pairwise
 
 from glshade.errors import GlshadeError
 from glshade.metrics import visibility as vis
@@ -29,6 +30,12 @@ METRIC_VERSION = 2
 
 #: A case: (surface, θ in degrees, σ² in mm², dmax in mm).
 Case = tuple[str, float, float, float]
+
+
+def case_key(surface: str, theta: float, sigma2: float, dmax: float) -> str:
+    """A case's key: the file stem of its case files (dmax in µm, as the file names of
+    the figures)."""
+    return f"{surface}_theta{theta:g}_sigma2_{sigma2:g}_dmax{dmax * 1000:g}um"
 
 
 def _float_list(name: str, values, lo: float, hi: float, closed_hi: bool = False) -> tuple[float, ...]:
@@ -65,7 +72,7 @@ class StudyPlan:
         if len(set(self.surfaces)) != len(self.surfaces):
             raise GlshadeError("surfaces: must not repeat")
         thetas = _float_list("thetas", self.thetas, 0.0, 90.0)
-        if any(a <= b for a, b in zip(thetas, thetas[1:])):
+        if any(a <= b for a, b in pairwise(thetas)):
             raise GlshadeError(
                 "thetas: must be strictly decreasing, from high to low viewpoints as in the paper "
                 f"(85 … 5), got {', '.join(f'{t:g}' for t in thetas)}"

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from glshade.files import atomic_write_bytes, read_png
+from glshade.study.plan import GRID_THETAS, StudyPlan, case_key
 from glshade.study.store import CaseResult
 
 SURFACE_NAMES = {"flat": "flat plate", "cylinder": "cylinder, R 70 mm", "sphere": "sphere, R 70 mm"}
@@ -54,8 +55,6 @@ def image_grid(rows: list[CaseResult], cases_dir: Path, surface: str, dmax: floa
     """θ across, σ² down, each the defect image at its best phase. False when a case's
     thumbnail is missing (the grid is then not written). The thumbnails are tiled into one
     mosaic (one image to draw, not one axes per case)."""
-    from glshade.study.store import case_key
-
     lookup = {(r.theta_deg, r.sigma2_mm2): r for r in rows if r.surface == surface and r.dmax_mm == dmax}
     tiles = []
     for s2 in sigma2s:
@@ -228,10 +227,8 @@ def figure_names(surface: str, dmax: float) -> tuple[str, str]:
 LAW_FIGURE = "law_vs_simulation.png"
 
 
-def surface_figures(rows: list[CaseResult], out_dir: Path, plan, surface: str) -> list[Path]:
+def surface_figures(rows: list[CaseResult], out_dir: Path, plan: StudyPlan, surface: str) -> list[Path]:
     """The grids and plots of one surface (from its rows); returns the paths written."""
-    from glshade.study.plan import GRID_THETAS
-
     out_dir = Path(out_dir)
     written = []
     grid_thetas = [t for t in GRID_THETAS if t in plan.thetas]

@@ -28,10 +28,16 @@ from glshade.metrics import contours, physics
 from glshade.metrics import visibility as vis
 from glshade.metrics.measurement import emitter_map
 from glshade.scene import Scene
-from glshade.study.plan import GRID_THETAS, OVERLAY_CASES, THUMBNAIL, Case, StudyPlan
+from glshade.study.plan import (
+    GRID_THETAS,
+    OVERLAY_CASES,
+    THUMBNAIL,
+    Case,
+    StudyPlan,
+    case_key,
+)
 from glshade.study.store import (
     CaseResult,
-    case_key,
     load_case,
     prepare_out_dir,
     write_case,

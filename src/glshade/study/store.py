@@ -20,6 +20,7 @@ from typing import Any
 
 from glshade.errors import GlshadeError
 from glshade.files import atomic_write_bytes
+from glshade.study.plan import Case, case_key
 
 
 def _column(unit: str, meaning: str) -> Any:
@@ -75,7 +76,7 @@ class CaseResult(Mapping):
         return cls(**{name: row[name] for name in CSV_COLUMNS})
 
     @property
-    def case(self) -> tuple[str, float, float, float]:
+    def case(self) -> Case:
         """``(surface, θ, σ², dmax)``: the case's place in the plan."""
         return self.surface, self.theta_deg, self.sigma2_mm2, self.dmax_mm
 
@@ -122,11 +123,6 @@ def columns_markdown() -> str:
 
 
 # --------------------------------------------------------------------------- files
-def case_key(surface: str, theta: float, sigma2: float, dmax: float) -> str:
-    """File stem of a case (dmax in µm, as the file names of the figures)."""
-    return f"{surface}_theta{theta:g}_sigma2_{sigma2:g}_dmax{dmax * 1000:g}um"
-
-
 def load_case(path: Path) -> CaseResult | None:
     """A finished case's record, or None (missing, or from an older or interrupted
     writer: recompute)."""

@@ -105,7 +105,7 @@ def _frame_settings() -> list[tuple[str, str, Callable[[Scene], Scene], RootSolv
             settings.append(("root solve", f"tol {tol:g} mm, {steps} steps", lambda s: s,
                              RootSolver(march_steps=steps, tolerance_mm=tol), tol == 1e-7 and steps == 48))
     for n in (1, 2, 4, 8):
-        settings.append(("supersampling", f"{n}x{n}", (lambda n: lambda s: s.updated(render={"supersample": n}))(n), RootSolver(), n == 1))
+        settings.append(("supersampling", f"{n}x{n}", lambda s, n=n: s.updated(render={"supersample": n}), RootSolver(), n == 1))
     return settings
 
 
@@ -153,7 +153,7 @@ def frame_knobs(renderer: Renderer, scenes, repeats: int, log) -> tuple[list[Poi
                     r = renderers[solver] = Renderer(renderer.context, root_solver=solver)
                 s = transform(scene)
                 r.render(s, outputs)  # compile, warm
-                seconds, frame = _median_time(lambda: r.render(s, outputs), repeats)
+                seconds, frame = _median_time(lambda r=r, s=s: r.render(s, outputs), repeats)
                 errors = _frame_errors(knob, frame, ref, ref_ss)
                 agg = worst.setdefault((knob, label), {k: 0.0 for k in errors})
                 for k, v in errors.items():
@@ -166,8 +166,8 @@ def frame_knobs(renderer: Renderer, scenes, repeats: int, log) -> tuple[list[Poi
             r.release()
         converged.release()
     points = [Point(k, l, statistics.median(times[(k, l)]), worst[(k, l)], defaults[(k, l)]) for k, l in worst]
-    lines = [f"converged reference vs NumPy fp64 tracer (16x16 window at the centre of each scene): max uv gap "
-             f"{max(crosscheck):.1e} mm over {len(crosscheck)} scenes"]
+    lines = [(f"converged reference vs NumPy fp64 tracer (16x16 window at the centre of each scene): max uv gap "
+              f"{max(crosscheck):.1e} mm over {len(crosscheck)} scenes")]
     return points, lines
 
 
@@ -187,7 +187,7 @@ def visibility_knobs(renderer: Renderer, repeats: int, log, surfaces=ALL_SURFACE
         paper_err, limit_err, seconds = 0.0, 0.0, []
         for scene in cases:
             s = scene.with_size(size)
-            t, result = _median_time(lambda: measure_scene(renderer, s, settings), max(1, repeats // 2))
+            t, result = _median_time(lambda s=s: measure_scene(renderer, s, settings), max(1, repeats // 2))
             scale = 1024 / size
             paper_err = max(paper_err, abs(result.visibility_px * scale - truth[id(scene)]))
             limit_err = max(limit_err, abs(result.visibility_continuous_px * scale - truth[id(scene)]))
@@ -199,7 +199,7 @@ def visibility_knobs(renderer: Renderer, repeats: int, log, surfaces=ALL_SURFACE
         err, seconds = 0.0, []
         metric = replace(settings, step_mm=step)
         for scene in cases:
-            t, result = _median_time(lambda: measure_scene(renderer, scene, metric), 1)
+            t, result = _median_time(lambda scene=scene, metric=metric: measure_scene(renderer, scene, metric), 1)
             err = max(err, abs(result.visibility_px - result.visibility_continuous_px))
             seconds.append(t)
         points.append(Point("phase step", f"{step:g} mm", statistics.median(seconds), {"visibility": err}, step == 0.25))
@@ -215,7 +215,7 @@ def blinn_phong_monte_carlo(scene: Scene, samples: int, seed: int = 1) -> np.nda
     rng = np.random.default_rng(seed)
     origin, directions = reference.pixel_rays(scene.camera)
     d = directions.reshape(-1, 3)
-    t, points, normals, hit = reference.first_hit(scene, origin, d)
+    _, points, normals, hit = reference.first_hit(scene, origin, d)
     out = np.zeros(len(d))
     n_exp = scene.render.shininess
     for i in np.nonzero(hit)[0]:
@@ -233,7 +233,7 @@ def blinn_phong_monte_carlo(scene: Scene, samples: int, seed: int = 1) -> np.nda
         wo_h = h @ wo
         l = 2 * wo_h[:, None] * h - wo
         weight = 4 * np.clip(wo_h, 0.0, None)
-        u, v, valid = reference.emitter_coordinates(scene, np.repeat(points[i][None], samples, 0), l)
+        _, v, valid = reference.emitter_coordinates(scene, np.repeat(points[i][None], samples, 0), l)
         radiance = np.where(valid, reference.radiance(scene.emitter, np.nan_to_num(v)), 0.0)
         out[i] = float((weight * radiance).sum() / weight.sum()) if weight.sum() > 0 else 0.0
     return out.reshape(directions.shape[:2])
@@ -263,14 +263,14 @@ def blinn_phong_knob(renderer: Renderer, repeats: int, log, surfaces=("flat", "s
     images, seconds = [], []
     for scene in scenes:
         renderer.render(scene)
-        t, image = _median_time(lambda: renderer.render(scene).image, repeats)
+        t, image = _median_time(lambda scene=scene: renderer.render(scene).image, repeats)
         images.append(image)
         seconds.append(t)
     points = [point("closed-form lobe (GPU)", images, seconds, True)]
     for n in (16, 64, 256, 1024):
         images, seconds = [], []
         for scene in scenes:
-            t, image = _median_time(lambda: blinn_phong_monte_carlo(scene, n), 1)
+            t, image = _median_time(lambda scene=scene, n=n: blinn_phong_monte_carlo(scene, n), 1)
             images.append(image)
             seconds.append(t)
         points.append(point(f"Monte-Carlo {n} samples (NumPy)", images, seconds))
@@ -393,8 +393,8 @@ def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=A
     lines = [
         "# Accuracy against run time, and stability",
         "",
-        f"Generated by `glshade accuracy --out {out_dir}` in {time.perf_counter() - started:.0f} s on "
-        f"{gl} ({platform.machine()}, {repeats} repeats per timing). Method: `glshade.validation.accuracy`'s docstring.",
+        (f"Generated by `glshade accuracy --out {out_dir}` in {time.perf_counter() - started:.0f} s on "
+         f"{gl} ({platform.machine()}, {repeats} repeats per timing). Method: `glshade.validation.accuracy`'s docstring."),
         "",
         *_frame_section(frame_points, crosscheck, size, surfaces),
         *_visibility_section(vis_points, surfaces),
@@ -414,11 +414,11 @@ def _frame_section(frame_points, crosscheck, size, surfaces) -> list[str]:
     return [
         "## The converged reference",
         "",
-        f"fp64 shader, root tolerance 1e-14 mm, up to 4096 march steps; 16x16 supersampling for the "
-        f"supersampling knob. {crosscheck[0]}.",
+        (f"fp64 shader, root tolerance 1e-14 mm, up to 4096 march steps; 16x16 supersampling for the "
+         f"supersampling knob. {crosscheck[0]}."),
         "",
-        f"## Per frame: precision, root solve, supersampling ({len(default_scenes(size, surfaces))} paper scenes at {size}²: "
-        f"{', '.join(surfaces)}; θ 85, 45, 15, 5; steep σ² 1 / dmax 5 µm and gentle σ² 16 / dmax 3 µm; worst over the scenes)",
+        (f"## Per frame: precision, root solve, supersampling ({len(default_scenes(size, surfaces))} paper scenes at {size}²: "
+         f"{', '.join(surfaces)}; θ 85, 45, 15, 5; steep σ² 1 / dmax 5 µm and gentle σ² 16 / dmax 3 µm; worst over the scenes)"),
         "",
         *_table(frame_points, [("uv", "uv max (mm)"), ("uv_edge", "uv max incl. silhouette pixels"), ("image", "image max"),
                                ("image_rms", "image RMS"), ("pixel_image", "image max vs 16x16"), ("pixel_image_rms", "image RMS vs 16x16")]),

@@ -58,7 +58,7 @@ def run(
         for precision in ("fp32", "fp64"):
             scene: Scene = base.updated(render={"precision": precision})
             renderer.render(scene, outputs)  # compile + warm up
-            seconds = _median_seconds(lambda: renderer.render(scene, outputs), repeats)
+            seconds = _median_seconds(lambda scene=scene: renderer.render(scene, outputs), repeats)
             timings.append(Timing(f"shader {precision}", seconds, pixels))
     rows = size if reference_rows is None else min(reference_rows, size)
     start = time.perf_counter()
@@ -75,8 +75,8 @@ def report(timings: list[Timing], gl_renderer: str, size: int, theta_deg: float,
     fp32 = timings[0].seconds
     lines = [
         f"Scene: paper flat, theta {theta_deg:g} deg, sigma2 4 mm², dmax 0.005 mm, {size}x{size}, image only.",
-        f"GL renderer: {gl_renderer}; CPU: {platform.processor() or platform.machine()}; "
-        f"median of {repeats} frames after a warm-up.",
+        (f"GL renderer: {gl_renderer}; CPU: {platform.processor() or platform.machine()}; "
+         f"median of {repeats} frames after a warm-up."),
         "",
         "| renderer | ms / frame | Mpixel/s | vs NumPy reference | vs shader fp32 |",
         "|---|---:|---:|---:|---:|",

@@ -153,6 +153,10 @@ def _relative(actual: np.ndarray, expected: np.ndarray, where: np.ndarray) -> fl
     return float((np.abs(actual[where] - expected[where]) / expected[where]).max())
 
 
-def iteration_cap(solver: RootSolver = RootSolver()) -> int:
+#: The renderer's default root solver (what :func:`iteration_cap` bounds unless told).
+_DEFAULT_SOLVER = RootSolver()
+
+
+def iteration_cap(solver: RootSolver = _DEFAULT_SOLVER) -> int:
     """Most evaluations of g per ray: the start, the march, the bracket end, Newton."""
     return 2 + solver.march_steps + solver.newton_iterations

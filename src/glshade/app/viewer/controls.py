@@ -73,7 +73,7 @@ def by_name(name: str) -> Control | Choice | None:
 
 def clamp(control: Control, value: float) -> float:
     value = min(max(float(value), control.lo), control.hi)
-    return int(round(value)) if control.param.value_type == "integer" else value
+    return round(value) if control.param.value_type == "integer" else value
 
 
 def _constrained(scene: Scene, path: str, value: float) -> float:
