@@ -85,8 +85,7 @@ class Registry:
         self._slots = {slot.name: slot for slot in slots}
         self._tables = tables
         self._components: dict[str, dict[str, Component]] = {slot.name: {} for slot in slots}
-        self.version = 0  # bumped by every change
-        self._schema: dict[str | None, tuple[Param, ...]] = {}  # params() by table, for this version
+        self._schema: dict[str | None, tuple[Param, ...]] = {}  # params() (key None) and per table, until the next change
 
     # ------------------------------------------------------------------ changes
     def register(self, component: Component) -> Component:
@@ -110,8 +109,7 @@ class Registry:
         return component
 
     def _changed(self) -> None:
-        self.version += 1
-        self._schema = {}
+        self._schema = {}  # the parameter list is collected again on next use
 
     def unregister(self, slot: str, name: str) -> None:
         del self._components[slot][name]
@@ -141,7 +139,8 @@ class Registry:
         try:
             return self._components[slot][name]
         except KeyError:
-            raise SceneError(self._slots[slot].selector.path, self.allowed_names(slot), name) from None
+            selector = self._slots[slot].selector
+            raise SceneError(selector.path if selector else slot, self.allowed_names(slot), name) from None
 
     def names(self, slot: str) -> tuple[str, ...]:
         return tuple(self._components[slot])
