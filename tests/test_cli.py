@@ -73,7 +73,7 @@ def test_info_reports_renderer_and_fp64():
         (["render", "-o", "no/such/dir/x.png", "--size", "8"], "directory no/such/dir does not exist"),
         (["render", "--set", "camera.zoom=2"], "camera.zoom: must be one of the keys"),
         (["render", "--set", "lens.f=2"], "lens: must be one of the tables"),
-        (["render", "--set", "camera.theta_deg=abc"], "camera.theta_deg: must be a finite number"),
+        (["render", "--set", "camera.theta_deg=abc"], "camera.theta_deg: must be a number in degrees"),
         (["render", "--set", "camera.theta_deg=90"], "camera.theta_deg: must be in (0, 90)"),
         (["render", "--set", "theta=5"], "expected PATH=VALUE"),
         (["render", "--set", "surface.kind=torus"], "surface.kind: must be one of flat, cylinder, sphere"),

@@ -250,7 +250,7 @@ def test_a_toy_surface_plugs_in_without_touching_glshade(renderer, tmp_path):
         from glshade.app.viewer.controls import apply_setting, controls, panel_params
 
         assert "tilt" in controls() and "tilted" in apply_setting(scene, "surface", "tilted").surface.kind
-        assert apply_setting(scene, "tilt", 25.0).surface.tilt_deg == 10.0  # clamped to its slider
+        assert apply_setting(scene, "tilt", 25.0, slider=True).surface.tilt_deg == 10.0  # clamped to its slider
         assert "surface.tilt_deg" in [p.path for p in panel_params(scene)]
         assert "surface.radius" not in [p.path for p in panel_params(scene)]
         assert "`tilt_deg`" in scene_format_markdown() and "`tilted`" in scene_format_markdown()

@@ -98,7 +98,7 @@ def test_resume_after_interruption_gives_the_same_results(tmp_path):
 
 def test_directory_with_other_settings_is_refused(tmp_path):
     run_study(StudyPlan(surfaces=("flat",), thetas=(45.0,), sigma2s=(4.0,), dmaxs=(0.005,), size=64), tmp_path, progress=False)
-    with pytest.raises(GlshadeError, match="other settings"):
+    with pytest.raises(GlshadeError, match="another plan"):
         run_study(StudyPlan(surfaces=("flat",), thetas=(45.0,), sigma2s=(4.0,), dmaxs=(0.005,), size=96), tmp_path, progress=False)
 
 

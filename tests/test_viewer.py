@@ -21,7 +21,7 @@ from glshade.app.viewer import (
     parse_sets,
     readout_lines,
 )
-from glshade.errors import GlshadeError
+from glshade.errors import GlshadeError, SceneError
 from glshade.files import read_png
 from glshade.gpu.renderer import render
 from glshade.metrics.measurement import measure
@@ -34,11 +34,15 @@ SIZE = 96
 # --------------------------------------------------------------------------- model
 def test_controls_clamp_and_validate():
     scene = paper_scene().with_size(SIZE)
-    assert apply_setting(scene, "theta", 95.0).camera.theta_deg == 89.5  # clamped to the slider
-    assert apply_setting(scene, "theta", -3.0).camera.theta_deg == 0.5
-    assert apply_setting(scene, "supersample", 40).render.supersample == 8
+    # a slider drag stays in the slider's range; a typed value is validated as render does
+    assert apply_setting(scene, "theta", 95.0, slider=True).camera.theta_deg == 89.5
+    assert apply_setting(scene, "theta", -3.0, slider=True).camera.theta_deg == 0.5
+    assert apply_setting(scene, "supersample", 40, slider=True).render.supersample == 8
+    assert apply_setting(scene, "theta", 89.7).camera.theta_deg == 89.7  # beyond the slider, within render's range
+    with pytest.raises(SceneError, match=r"camera.theta_deg: must be in \(0, 90\) degrees, got 95"):
+        apply_setting(scene, "theta", 95.0)
     # the covariance stays positive definite whatever the slider says
-    full = apply_setting(apply_setting(scene, "sigma_z2", 1.0), "sigma_xz", 100.0)
+    full = apply_setting(apply_setting(scene, "sigma_z2", 1.0), "sigma_xz", 100.0, slider=True)
     assert full.defect.sigma_xz ** 2 < full.defect.sigma_x2 * full.defect.sigma_z2
     # the radius keeps its sign (concave is a checkbox)
     bowl = apply_setting(apply_setting(scene, "surface", "sphere"), "concave", True)
@@ -51,15 +55,20 @@ def test_model_rejects_what_the_scene_rejects():
     model = ViewerModel(paper_scene().with_size(SIZE))
     before = model.scene
     assert not model.set("surface", "torus")
-    assert model.scene == before
+    assert model.scene == before and model.refused.startswith("refused: surface.kind: must be one of")
+    assert not model.set("theta", 95.0)  # the panel shows why, in render's words
+    assert model.refused == "refused: camera.theta_deg: must be in (0, 90) degrees, got 95.0"
+    assert model.set("theta", 30.0) and model.refused == ""
 
 
 def test_parse_sets():
     scene, extra = parse_sets(["theta=5", "surface=sphere", "view=overlay", "animate=1"], paper_scene())
     assert scene.camera.theta_deg == 5.0 and scene.surface.kind == "sphere"
     assert extra == {"view": "overlay", "animate": "1"}
-    for bad, fragment in (("theta", "expected name=value"), ("theta=abc", "expected a number"),
-                          ("view=movie", "--set view"), ("theta=nan", "finite")):
+    for bad, fragment in (("theta", "expected name=value"), ("theta=abc", "a number in degrees"),
+                          ("view=movie", "--set view"), ("theta=nan", "finite"),
+                          ("theta=120", r"camera.theta_deg: must be in \(0, 90\) degrees"),
+                          ("camera.distance=-1", "camera.distance")):
         with pytest.raises(GlshadeError, match=fragment):
             parse_sets([bad], paper_scene())
 
@@ -291,4 +300,4 @@ def test_bad_scene_file_opens_nothing(tmp_path):
     assert result.stderr.strip() == "glshade: error: camera.theta_deg: must be in (0, 90) degrees, got 120.0"
     result = subprocess.run([sys.executable, "-m", "glshade", "view", "--set", "theta=abc"],
                             capture_output=True, text=True, timeout=60)
-    assert result.returncode == 2 and "--set theta: expected a number" in result.stderr
+    assert result.returncode == 2 and "camera.theta_deg: must be a number in degrees" in result.stderr

@@ -8,6 +8,12 @@ traceback.
 from __future__ import annotations
 
 
+def printable(text: str) -> str:
+    """``text`` with every control character (a line break in a key or file name)
+    escaped, so that an error message stays one line."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 class GlshadeError(Exception):
     """Base class: a problem the user can fix (bad input, missing system library)."""
 
@@ -24,7 +30,7 @@ class SceneError(GlshadeError, ValueError):
         self.allowed = allowed
         self.got = got
         shown = "" if got is None else f", got {got!r}"
-        super().__init__(f"{field}: must be {allowed}{shown}")
+        super().__init__(printable(f"{field}: must be {allowed}{shown}"))
 
 
 class ContextError(GlshadeError, RuntimeError):

@@ -1,8 +1,11 @@
 """``glshade`` command line: a thin layer over the library.
 
-Bad input (a value out of range, an unknown key, a missing system library, an output
-path that cannot be written) prints one line, ``glshade: error: …``, and exits with
-code 2; nothing is written half-way (files are written atomically, after the render).
+Bad input (a malformed file or value, an unknown key, a missing system library or
+display, an output path that cannot be written or is not a regular file) prints one
+line, ``glshade: error: …``, and exits with code 2. Every output path is checked before
+any work starts, and files are written atomically, so nothing is written half-way.
+Values that are accepted but implausible print ``glshade: warning: …`` lines. The scene
+format, its units and ranges: ``docs/scene-format.md``.
 """
 
 from __future__ import annotations
@@ -14,32 +17,44 @@ from pathlib import Path
 
 from glshade import __version__
 from glshade.components.registry import registry
-from glshade.errors import GlshadeError
+from glshade.errors import GlshadeError, ShaderCompileError, printable
+from glshade.files import atomic_write_bytes, check_output
 from glshade.scene import PAPER_SURFACES, Camera, Scene, paper_scene
+from glshade.scene.advice import scene_warnings
 from glshade.scene.params import Param
 
 EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+SCENE_FORMAT = "docs/scene-format.md"
 
 
 class _Parser(argparse.ArgumentParser):
     """argparse that reports a usage error as one line (exit 2), like every other error."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(EXIT_USAGE, f"glshade: error: {message} (see '{self.prog} --help')\n")
+        self.exit(EXIT_USAGE, f"glshade: error: {one_line(message)} (see '{self.prog} --help')\n")
 
 
 def _add_scene_flags(p: argparse.ArgumentParser) -> None:
     """The scene file and the flags that override it (render and measure): a short flag
     for each parameter that declares one, ``--set PATH=VALUE`` for any parameter."""
-    p.add_argument("scene", nargs="?", type=Path, help="scene file (TOML)")
+    p.add_argument("scene", nargs="?", type=_path, help="scene file (TOML)")
     for param in registry().params():
         if param.flag is not None:
             p.add_argument(param.flag, dest=_flag_dest(param), **_flag_options(param))
     p.add_argument("--set", dest="settings", action="append", default=[], metavar="PATH=VALUE",
                    help="set any scene parameter by its dotted path, e.g. --set camera.theta_deg=15 "
                    "(see docs/scene-format.md); applied after the short flags")
-    p.add_argument("--size", type=int, metavar="N", help="N pixels across, same field of view (SPEC §2)")
+    p.add_argument("--size", type=int, metavar="N", help="N pixels across, same field of view")
     p.add_argument("--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)")
+
+
+def _path(text: str) -> Path:
+    """argparse type of a path: an empty one is refused (``Path("")`` would silently be
+    the current directory)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a path, got an empty string")
+    return Path(text)
 
 
 def _flag_dest(param: Param) -> str:
@@ -48,20 +63,58 @@ def _flag_dest(param: Param) -> str:
 
 def _flag_options(param: Param) -> dict[str, object]:
     """argparse options of a parameter's short flag, from its declaration."""
-    unit = f" ({param.unit})" if param.unit else ""
+    unit = f" ({param.unit}, or a value with its unit: 5um)" if param.unit == "mm" else (
+        f" ({param.unit})" if param.unit else "")
     options: dict[str, object] = {"help": f"{param.path}: {param.doc}{unit}"}
     if param.value_type == "choice":
         options["choices"] = registry().choices(param) or param.choices
     elif param.value_type == "integer":
-        options.update(type=int, metavar="N")
+        options.update(type=_param_type(param), metavar="N")
     elif param.value_type == "real":
-        options.update(type=float, metavar=(param.unit or "X").upper().replace("²", "2"))
+        options.update(type=_param_type(param), metavar=(param.unit or "X").upper().replace("²", "2"))
     return options
+
+
+def _param_type(param: Param):
+    """argparse type of a parameter: its text parsed by the declaration (units allowed)."""
+
+    def parse(text: str):
+        try:
+            return param.parse(text)
+        except GlshadeError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parse.__name__ = param.path
+    return parse
+
+
+def _quantity_list(path: str):
+    """argparse type of a comma-separated list of one parameter's values (units allowed)."""
+
+    def parse(text: str) -> list[float]:
+        param = registry().param(path)
+        try:
+            return [param.parse(part) for part in text.split(",") if part.strip()]
+        except GlshadeError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parse.__name__ = path
+    return parse
+
+
+def _length_mm(text: str) -> float:
+    from glshade.units import parse_quantity
+
+    try:
+        return parse_quantity(text, "mm", "length")
+    except GlshadeError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _add_metric_flags(p: argparse.ArgumentParser) -> None:
     """How visibility is measured (paper and measure)."""
-    p.add_argument("--step", type=float, default=0.25, metavar="MM", help="phase step of the metric, mm (default 0.25)")
+    p.add_argument("--step", type=_length_mm, default=0.25, metavar="MM",
+                   help="phase step of the metric, mm or with a unit (default 0.25)")
     p.add_argument("--threshold", type=float, default=0.5, help="binarisation threshold, fraction of the peak (default 0.5)")
     p.add_argument("--keep-fraction", type=float, default=0.5, help="central fraction of the columns kept (default 0.5)")
 
@@ -76,21 +129,24 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "render",
         help="render one image (and its uv map)",
-        description="Render a scene: a TOML scene file (SPEC §8) or, without one, the paper's "
-        "scene (flat, theta 45, sigma2 4 mm², dmax 5 µm, 1024²). Flags override the file.",
+        description=f"Render a scene: a TOML scene file ({SCENE_FORMAT}: every key, unit, default and range) "
+        "or, without one, the paper's scene (flat, theta 45, sigma2 4 mm², dmax 5 µm, 1024²). Flags override "
+        "the file; lengths are in mm unless they carry a unit (--dmax 5um).",
     )
     _add_scene_flags(p)
-    p.add_argument("-o", "--output", type=Path, default=Path("render.png"), help="image PNG (default render.png)")
-    p.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG bit depth (default 8)")
-    p.add_argument("--uv", type=Path, metavar="UV.npy", help="also write the uv map (float32 H×W×2, mm, NaN = no hit)")
-    p.add_argument("--save-scene", type=Path, metavar="SCENE.toml", help="also write the effective scene as TOML")
+    p.add_argument("-o", "--output", type=_path, default=Path("render.png"),
+                   help="image, PNG or TIFF by its extension (default render.png); lossy formats are refused")
+    p.add_argument("--bits", type=int, choices=(8, 16, 32), default=8,
+                   help="bits per pixel: 8 or 16 (integers), 32 (float radiance, TIFF only); default 8")
+    p.add_argument("--uv", type=_path, metavar="UV.npy", help="also write the uv map (float32 H×W×2, mm, NaN = no hit)")
+    p.add_argument("--save-scene", type=_path, metavar="SCENE.toml", help="also write the effective scene as TOML")
     p.set_defaults(run=_cmd_render)
 
 
 def _add_measure(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "measure",
-        help="how visible is a scene's defect (the three numbers of SPEC §6)",
+        help="how visible is a scene's defect (the three numbers of docs/study.md)",
         description="Render a scene with and without its defect and measure the defect's visibility: the "
         "paper's metric (visibility_px), its continuous limit (visibility_continuous_px), how far the rays move "
         "(deflection_px), whether the stripe map folds, its islands and the best phase, beside the closed forms "
@@ -99,7 +155,7 @@ def _add_measure(sub: argparse._SubParsersAction) -> None:
     _add_scene_flags(p)
     _add_metric_flags(p)
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
-    p.add_argument("--overlay", type=Path, metavar="PNG", help="also write the Fig. 9 contour overlay at the best phase")
+    p.add_argument("--overlay", type=_path, metavar="PNG", help="also write the Fig. 9 contour overlay at the best phase")
     p.set_defaults(run=_cmd_measure)
 
 
@@ -115,9 +171,10 @@ def _cmd_measure(args: argparse.Namespace) -> int:
     settings = _metric_settings(args)
     settings.phases(scene.emitter.period)  # a step longer than the period is refused before rendering
     if args.overlay is not None:
-        _check_writable(args.overlay, "--overlay")
+        check_output(args.overlay, "--overlay", (".png",))
+    _warn(scene_warnings(scene))
     start = time.perf_counter()
-    with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
+    with GLContext(device_index=args.device) as context, Renderer(context, progress=True) as renderer:
         result = measure_scene(renderer, scene, settings, overlay=args.overlay)
     seconds = time.perf_counter() - start
     law = physics.laws(scene)
@@ -155,26 +212,25 @@ def _add_info(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=_cmd_info)
 
 
-def _float_csv(text: str) -> list[float]:
-    try:
-        return [float(part) for part in text.split(",") if part.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
-
-
 def _add_paper(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "paper",
         help="run the paper's whole study (the main job)",
         description="Run Table 1 of the paper (9 theta x 4 sigma2 x 2 dmax on flat, cylinder and sphere) "
         "and write results.csv, image grids, visibility plots, the Fig. 9 contour overlay and report.md. "
-        "Rerunning with the same --out resumes: finished cases are skipped.",
+        "Rerunning with the same --out resumes: finished cases are skipped. The directory is locked while a run "
+        "uses it; one that holds a study with another plan is refused unless --overwrite.",
     )
-    p.add_argument("--out", type=Path, default=Path("paper_study"), metavar="DIR", help="output directory (default paper_study)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a study with another plan in --out (its results, figures and report are removed)")
+    p.add_argument("--out", type=_path, default=Path("paper_study"), metavar="DIR", help="output directory (default paper_study)")
     p.add_argument("--surfaces", default="flat,cylinder,sphere", metavar="LIST", help="comma-separated surface kinds")
-    p.add_argument("--thetas", type=_float_csv, metavar="LIST", help="camera elevations, strictly decreasing (default 85,75,…,5)")
-    p.add_argument("--sigma2s", type=_float_csv, metavar="LIST", help="defect variances, mm² (default 1,4,9,16)")
-    p.add_argument("--dmaxs", type=_float_csv, metavar="LIST", help="defect depths, mm (default 0.003,0.005)")
+    p.add_argument("--thetas", type=_quantity_list("camera.theta_deg"), metavar="LIST",
+                   help="camera elevations, degrees, strictly decreasing (default 85,75,…,5)")
+    p.add_argument("--sigma2s", type=_quantity_list("defect.sigma2"), metavar="LIST",
+                   help="defect variances, mm² or with a unit (default 1,4,9,16)")
+    p.add_argument("--dmaxs", type=_quantity_list("defect.dmax"), metavar="LIST",
+                   help="defect depths, mm or with a unit: 0.003,0.005 or 3um,5um (the default)")
     p.add_argument("--size", type=int, default=1024, metavar="N", help="pixels across, the paper's field of view (default 1024)")
     _add_metric_flags(p)
     p.add_argument("--workers", type=int, default=2, metavar="N", help="threads for the metric's analysis (default 2)")
@@ -204,14 +260,9 @@ def _reuse_freed_memory() -> None:
 
 
 def _cmd_paper(args: argparse.Namespace) -> int:
-    from glshade.gpu.context import GLContext
-    from glshade.gpu.renderer import Renderer
-    from glshade.study import findings, plots
     from glshade.study import plan as study
-    from glshade.study.run import run_study
-    from glshade.study.store import CaseResult
+    from glshade.study.store import study_lock
 
-    _reuse_freed_memory()
     metric = _metric_settings(args)
     surfaces = tuple(part.strip() for part in args.surfaces.split(",") if part.strip())
     plan = study.StudyPlan(
@@ -222,6 +273,22 @@ def _cmd_paper(args: argparse.Namespace) -> int:
         size=args.size,
         metric=metric,
     )
+    _warn(tuple(line for sigma2 in plan.sigma2s for dmax in plan.dmaxs
+                for line in scene_warnings(plan.scene(plan.surfaces[0], plan.thetas[0], sigma2, dmax))))
+    with study_lock(args.out):
+        return _run_paper(args, plan)
+
+
+def _run_paper(args: argparse.Namespace, plan) -> int:
+    """The study, its figures and its report, with ``--out`` locked."""
+    from glshade.gpu.context import GLContext
+    from glshade.gpu.renderer import Renderer
+    from glshade.study import findings, plots
+    from glshade.study import plan as study
+    from glshade.study.run import run_study
+    from glshade.study.store import CaseResult
+
+    _reuse_freed_memory()
     start = time.perf_counter()
     drawn: dict = {}
     figure_seconds = 0.0
@@ -234,7 +301,7 @@ def _cmd_paper(args: argparse.Namespace) -> int:
 
     with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
         result = run_study(plan, args.out, workers=args.workers, progress=not args.no_progress,
-                           renderer=renderer, on_surface_done=draw)
+                           renderer=renderer, on_surface_done=draw, overwrite=args.overwrite)
     figure_start = time.perf_counter()
     written = plots.write_figures(result.rows, args.out, plan, drawn)
     result.timings.figures = figure_seconds + time.perf_counter() - figure_start
@@ -256,12 +323,12 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
         "Keys: S screenshot, T save the scene as TOML, R reset to the paper's defaults, O toggle the overlay. "
         "Scripted mode: --frames N [--screenshot out.png] [--set theta=5 ...].",
     )
-    p.add_argument("scene", nargs="?", type=Path, help="scene file (TOML); default: the paper's scene")
+    p.add_argument("scene", nargs="?", type=_path, help="scene file (TOML); default: the paper's scene")
     p.add_argument("--size", type=int, default=512, metavar="N", help="pixels across, same field of view (default 512)")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="a setting, e.g. theta=5, sigma2=9, surface=sphere, view=overlay, animate=1 (repeatable)")
     p.add_argument("--frames", type=int, metavar="N", help="draw N frames, then exit")
-    p.add_argument("--screenshot", type=Path, metavar="PNG", help="with --frames: save the last frame")
+    p.add_argument("--screenshot", type=_path, metavar="PNG", help="with --frames: save the last frame")
     p.add_argument("--benchmark", choices=("phase", "theta"), help="with --frames: animate the phase or drag theta, print fps")
     p.add_argument("--no-panel", action="store_true", help="no control panel (the window shows the image only)")
     p.set_defaults(run=_cmd_view)
@@ -278,7 +345,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
     if (args.screenshot is not None or args.benchmark) and args.frames is None:
         raise GlshadeError("--screenshot and --benchmark need --frames N")
     if args.screenshot is not None:
-        _check_writable(args.screenshot, "--screenshot")
+        check_output(args.screenshot, "--screenshot", (".png",))
+    _warn(scene_warnings(scene))
     options = viewer.ViewerOptions(
         scene=scene,
         view=extra.get("view", "image"),
@@ -309,7 +377,7 @@ def _add_accuracy(sub: argparse._SubParsersAction) -> None:
         "defaults, and the stability table of the extreme cases. 'glshade accuracy --out docs' "
         "regenerates the repository's report (a few minutes).",
     )
-    p.add_argument("--out", type=Path, default=Path("accuracy"), metavar="DIR", help="output directory (default accuracy)")
+    p.add_argument("--out", type=_path, default=Path("accuracy"), metavar="DIR", help="output directory (default accuracy)")
     p.add_argument("--repeats", type=int, default=5, metavar="K", help="timed repeats per setting (default 5)")
     p.add_argument("--size", type=int, default=256, metavar="N", help="pixels across for the per-frame knobs (default 256)")
     p.add_argument("--scenes", default="flat,cylinder,sphere", metavar="LIST",
@@ -323,7 +391,7 @@ def _cmd_accuracy(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise GlshadeError(f"--repeats: must be an integer >= 1, got {args.repeats}")
     if args.out.exists() and not args.out.is_dir():
-        raise GlshadeError(f"--out {args.out}: is a file, expected a directory")
+        raise GlshadeError(f"--out {args.out}: is not a directory")
     Camera().resampled(args.size)
     surfaces = tuple(part.strip() for part in args.scenes.split(",") if part.strip())
     path = accuracy.run(args.out, repeats=args.repeats, size=args.size, surfaces=surfaces,
@@ -393,30 +461,24 @@ def parse_setting(item: str) -> tuple[str, object]:
     return path, registry().param(path).parse(text)
 
 
-def _check_writable(path: Path, flag: str) -> None:
-    """Fail before rendering when an output cannot be written."""
-    parent = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise GlshadeError(f"{flag} {path}: is a directory, expected a file path")
-    if not parent.is_dir():
-        raise GlshadeError(f"{flag} {path}: directory {parent} does not exist")
-
-
 def _cmd_render(args: argparse.Namespace) -> int:
-    from glshade.files import write_npy, write_png
+    from glshade.files import check_image_output, encode_image, write_npy
     from glshade.gpu.context import GLContext
     from glshade.gpu.renderer import Renderer
 
     scene = scene_from_args(args)
-    for path, flag in ((args.output, "-o"), (args.uv, "--uv"), (args.save_scene, "--save-scene")):
-        if path is not None:
-            _check_writable(path, flag)
+    image_path = check_image_output(args.output, "-o", args.bits)
+    if args.uv is not None:
+        check_output(args.uv, "--uv", (".npy",))
+    if args.save_scene is not None:
+        check_output(args.save_scene, "--save-scene", (".toml",))
+    _warn(scene_warnings(scene))
     outputs = ("image", "uv") if args.uv is not None else ("image",)
-    with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
+    with GLContext(device_index=args.device) as context, Renderer(context, progress=True) as renderer:
         start = time.perf_counter()
         frame = renderer.render(scene, outputs)
         seconds = time.perf_counter() - start
-    write_png(args.output, frame.image, bits=args.bits)
+    atomic_write_bytes(args.output, encode_image(frame.image, image_path.suffix, args.bits), "-o")
     if args.uv is not None:
         write_npy(args.uv, frame.uv)
     if args.save_scene is not None:
@@ -427,6 +489,12 @@ def _cmd_render(args: argparse.Namespace) -> int:
         f"{scene.render.precision}, {seconds * 1e3:.0f} ms)"
     )
     return 0
+
+
+def _warn(lines) -> None:
+    """Print each warning once, as one line on stderr."""
+    for line in dict.fromkeys(lines):
+        print(f"glshade: warning: {line}", file=sys.stderr)
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
@@ -454,17 +522,39 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run one command; returns its exit code (0, 2 for any error the user can fix, 130
+    when interrupted). Every such error is one line on stderr, never a traceback."""
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or a usage error already printed as one line
+        return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     try:
         return args.run(args)
     except KeyboardInterrupt:
         hint = " (finished cases are saved: rerun the same command to resume)" if args.command == "paper" else ""
         print(f"glshade: interrupted{hint}", file=sys.stderr)
-        return 130
-    except GlshadeError as exc:
-        message = " ".join(str(exc).split()) if "\n" not in str(exc) else str(exc)
-        print(f"glshade: error: {message}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except ShaderCompileError as exc:  # a composed shader the driver refused: its numbered lines help
+        print(f"glshade: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except GlshadeError as exc:
+        return _error(str(exc))
+    except OSError as exc:  # the file system or the environment refused (disk full, permissions)
+        where = f"{exc.filename}: " if exc.filename else ""
+        return _error(f"{where}{exc.strerror or exc}")
+    except MemoryError:
+        return _error("out of memory; try a smaller --size or set GLSHADE_MEMORY_BUDGET_MB lower")
+
+
+def _error(message: str) -> int:
+    print(f"glshade: error: {one_line(message)}", file=sys.stderr)
+    return EXIT_USAGE
+
+
+def one_line(message: str) -> str:
+    """``message`` on one line: line breaks become spaces, and any other control character
+    (from a file name or an argument) is shown escaped (``\\r``)."""
+    return printable(" ".join(part.strip() for part in message.split("\n") if part.strip()))
 
 
 if __name__ == "__main__":  # pragma: no cover

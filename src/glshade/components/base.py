@@ -84,6 +84,11 @@ class Component:
         """Every uniform its GLSL (for this scene's features) declares, float64 values."""
         return {}
 
+    def warnings(self, scene: Scene) -> tuple[str, ...]:
+        """Lines about accepted values that will probably not give what was meant (each
+        names the field); none by default. Printed by every front end, never fatal."""
+        return ()
+
     def read_file(self, values: dict[str, Any]) -> dict[str, Any]:
         """Its table's keys as a scene file gives them -> the table's fields (shorthands
         expanded); the identity unless the component has a shorthand."""
@@ -201,6 +206,33 @@ class ReflectionComponent(Component):
 
     def shade(self, scene: Scene, p, d, n, v, ok) -> np.ndarray:
         raise NotImplementedError
+
+    def lobe_std_rad(self, scene: Scene) -> float | None:
+        """The angular standard deviation of the reflected direction (rad), or None for
+        a perfect mirror. A lobe wider than the stripes can resolve is warned about."""
+        return None
+
+    def warnings(self, scene: Scene) -> tuple[str, ...]:
+        """A lobe whose footprint on the emitter exceeds half a stripe period washes
+        the stripes out (:mod:`glshade.oracle.footprint`)."""
+        std = self.lobe_std_rad(scene)
+        if std is None:
+            return ()
+        from glshade.oracle.footprint import footprint_mm
+
+        width = footprint_mm(scene, std)
+        period = scene.emitter.period
+        if width is None or width <= 0.5 * period:
+            return ()
+        hint = self.sharpen_hint(scene, width / (0.5 * period))
+        line = (f"render.reflection = {self.name}: the lobe spreads each point over {width:.3g} mm of the emitter, "
+                f"more than half the {period:g} mm stripe period, so the stripes wash out; use {hint} "
+                "(docs/physics.md, 'Glossy lobes and stripes')")
+        return (line,)
+
+    def sharpen_hint(self, scene: Scene, ratio: float) -> str:
+        """What would narrow the lobe ``ratio`` times (for the lobe warning)."""
+        return f"a lobe {ratio:.3g} times narrower"
 
 
 class RenderComponent(Component):

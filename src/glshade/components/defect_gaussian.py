@@ -22,18 +22,22 @@ from glshade.scene.params import Control, Param
 DMAX = Param(
     "defect.dmax", "mm", 0.005, "depth: > 0 a dent, < 0 a bump, 0 none", flag="--dmax",
     control=Control("dmax", -0.05, 0.05, fmt="%.4f mm"),
+    plausible_max=0.1, plausible_why="deeper than the shallow dents glshade simulates",
 )
 SIGMA2 = Param(
     "defect.sigma2", "mm²", 4.0, "isotropic variance: sets sigma_x2 = sigma_z2 = sigma2, sigma_xz = 0",
-    lo=0.0, flag="--sigma2", control=Control("sigma2", 0.05, 100.0, log=True, fmt="%.2f mm2"), stored=False,
+    lo=0.0, flag="--sigma2", control=Control("sigma2", 0.05, 100.0, log=True, fmt="%.2f mm2"), plausible_max=1e4,
+    plausible_why="a dent over 100 mm wide", stored=False,
 )
 SIGMA_X2 = Param(
     "defect.sigma_x2", "mm²", 4.0, "variance along x", lo=0.0,
-    control=Control("sigma_x2", 0.05, 100.0, log=True, fmt="%.2f mm2"),
+    control=Control("sigma_x2", 0.05, 100.0, log=True, fmt="%.2f mm2"), plausible_max=1e4,
+    plausible_why="a dent over 100 mm wide",
 )
 SIGMA_Z2 = Param(
     "defect.sigma_z2", "mm²", 4.0, "variance along z", lo=0.0,
-    control=Control("sigma_z2", 0.05, 100.0, log=True, fmt="%.2f mm2"),
+    control=Control("sigma_z2", 0.05, 100.0, log=True, fmt="%.2f mm2"), plausible_max=1e4,
+    plausible_why="a dent over 100 mm wide",
 )
 SIGMA_XZ = Param(
     "defect.sigma_xz", "mm²", 0.0, "covariance; |sigma_xz| < sqrt(sigma_x2 sigma_z2)",

@@ -22,8 +22,14 @@ from glshade.scene.params import Control, Param
 if TYPE_CHECKING:
     from glshade.scene.model import Scene
 
+#: The default exponent: the lobe (reflected-direction std ``2/√N`` = 0.63 mrad) blurs
+#: the paper's 2 mm stripes seen 256 mm away by ±0.16 mm, keeping 88 % of their contrast.
+DEFAULT_SHININESS = 1e7
+
 SHININESS = Param(
-    "render.shininess", "", 1000.0, "Blinn-Phong exponent N (the lobe's angular std is about 1/sqrt(N))",
+    "render.shininess", "", DEFAULT_SHININESS,
+    "Blinn-Phong exponent N (the reflected direction's angular std is 2/sqrt(N) rad; stripes of period P "
+    "seen L mm away wash out below N = (8 L / P)^2)",
     lo=0.0, flag="--shininess", control=Control("shininess", 100.0, 1e10, log=True, fmt="%.3g"),
 )
 
@@ -65,6 +71,14 @@ class BlinnPhong(ReflectionComponent):
 
     def shade(self, scene, p, d, n, v, ok):
         return _blinn_phong(scene, p, d, n)
+
+    def lobe_std_rad(self, scene):
+        """``(n·h)^N ≈ exp(-N α²/2)``: the half vector's angle has std ``1/√N``, the
+        reflected direction twice that."""
+        return 2.0 / math.sqrt(scene.render.shininess)
+
+    def sharpen_hint(self, scene, ratio):
+        return f"render.shininess >= {scene.render.shininess * ratio**2:.3g}"
 
 
 def _lobe_basis(n_s: np.ndarray, wo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -62,6 +63,30 @@ def _device_index_from_env() -> int:
     return index
 
 
+def egl_devices(count: int, libegl: str | None = None) -> list[str]:
+    """``"index: GL renderer"`` for EGL devices ``0 … count-1`` (a device that gives no
+    context says why)."""
+    names = []
+    for index in range(count):
+        kwargs: dict[str, object] = {"backend": "egl", "device_index": index}
+        if libegl:
+            kwargs["libegl"] = libegl
+        try:
+            ctx = moderngl.create_standalone_context(**kwargs)
+        except Exception as exc:  # glcontext raises bare Exception
+            names.append(f"{index}: no context ({' '.join(str(exc).split())})")
+            continue
+        names.append(f"{index}: {ctx.info.get('GL_RENDERER', '?')}")
+        ctx.release()
+    return names
+
+
+def _missing_device(index: int, count: int, libegl: str | None) -> str:
+    devices = "; ".join(egl_devices(count, libegl))
+    return (f"--device {index}: must be an EGL device index in [0, {count - 1}]; found {count} device"
+            f"{'s' if count > 1 else ''}: {devices}")
+
+
 class GLContext:
     """Owns one standalone EGL context; a context manager. ``release()`` twice is harmless."""
 
@@ -93,6 +118,9 @@ class GLContext:
             self.ctx: moderngl.Context | None = moderngl.create_standalone_context(**kwargs)
         except Exception as exc:  # glcontext raises bare Exception for every failure
             reason = " ".join(str(exc).split()) or type(exc).__name__
+            found = re.search(r"found (\d+) devices?", reason)
+            if found is not None and self.device_index >= int(found.group(1)) > 0:
+                raise ContextError(_missing_device(self.device_index, int(found.group(1)), libegl)) from None
             raise ContextError(
                 f"no OpenGL context through EGL (device {self.device_index}): {reason}; {INSTALL_HINT}"
             ) from None

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from dataclasses import dataclass
 
 import moderngl
@@ -49,6 +50,16 @@ def _target_format(name: str, precision: str) -> tuple[int, str]:
         return (4 if precision == "fp64" else 2), "f4"
     return 1, ("f1" if name == "mask" else "f4")
 DEFAULT_MEMORY_BUDGET_MB = 2048
+#: Most rays one frame may trace (pixels x rays per pixel) unless ``GLSHADE_MAX_RAYS``
+#: says otherwise: 4096² pixels at 16 x 16 rays each (87 s on the 2-core llvmpipe).
+DEFAULT_MAX_RAYS = 1 << 32
+#: A frame of at most this much work (rays, fp64 counted 4 times) is drawn in one call;
+#: a larger one in bands of rows, each aimed at :data:`TILE_SECONDS`, so that Ctrl-C is
+#: honoured between two bands and progress can be shown.
+SINGLE_DRAW_WORK = 1 << 22
+TILE_SECONDS = 0.25
+#: A frame expected to take longer than this shows a progress bar (when enabled).
+PROGRESS_AFTER_SECONDS = 2.0
 
 
 @dataclass(frozen=True)
@@ -90,6 +101,37 @@ def memory_budget_from_env() -> int:
     if not (math.isfinite(value) and value > 0):
         raise SceneError("GLSHADE_MEMORY_BUDGET_MB", "a number of MiB > 0", raw)
     return int(value * (1 << 20))
+
+
+def max_rays_from_env() -> int:
+    """Rays one frame may trace: ``GLSHADE_MAX_RAYS`` or :data:`DEFAULT_MAX_RAYS`."""
+    raw = os.environ.get("GLSHADE_MAX_RAYS")
+    if raw is None:
+        return DEFAULT_MAX_RAYS
+    try:
+        value = float(raw)
+    except ValueError:
+        value = -1.0
+    if not (math.isfinite(value) and value >= 1):
+        raise SceneError("GLSHADE_MAX_RAYS", "a number of rays >= 1", raw)
+    return int(value)
+
+
+def frame_rays(scene: Scene) -> int:
+    """Rays one frame traces: pixels x ``render.supersample``²."""
+    return scene.camera.width * scene.camera.height * scene.render.supersample**2
+
+
+def check_work_budget(scene: Scene, max_rays: int) -> None:
+    """Refuse, before any work, a frame that would trace more than ``max_rays`` rays."""
+    rays = frame_rays(scene)
+    if rays > max_rays:
+        cam, n = scene.camera, scene.render.supersample
+        raise GlshadeError(
+            f"camera.width x camera.height x render.supersample²: {cam.width}x{cam.height} pixels x {n * n} rays "
+            f"= {rays:.3g} rays, more than the work budget of {max_rays:.3g} rays per frame (GLSHADE_MAX_RAYS); "
+            "use a smaller --size or --supersample"
+        )
 
 
 def frame_bytes(width: int, height: int, outputs, precision: str = "fp32") -> int:
@@ -157,7 +199,12 @@ class Renderer:
 
     ``context``: an existing :class:`GLContext` to share (not released by this renderer),
     else one is created and owned. ``memory_budget_bytes``: largest frame accepted
-    (default ``GLSHADE_MEMORY_BUDGET_MB`` or 2 GiB). ``root_solver``: the dent solve.
+    (default ``GLSHADE_MEMORY_BUDGET_MB`` or 2 GiB); ``max_rays``: most rays per frame
+    (default ``GLSHADE_MAX_RAYS`` or 2³²). ``root_solver``: the dent solve.
+    ``progress``: show a progress bar (stderr) for frames that take over 2 s.
+
+    Large frames are drawn in bands of rows of about a quarter of a second each, so a
+    Ctrl-C (KeyboardInterrupt) stops a render within about a second.
 
     Programs are cached by :class:`ShaderFeatures`; render targets by size and outputs.
     """
@@ -167,11 +214,15 @@ class Renderer:
         context: GLContext | None = None,
         *,
         memory_budget_bytes: int | None = None,
+        max_rays: int | None = None,
         root_solver: RootSolver = RootSolver(),
+        progress: bool = False,
     ) -> None:
         self._owns_context = context is None
         self.context = context if context is not None else GLContext()
         self.memory_budget_bytes = memory_budget_from_env() if memory_budget_bytes is None else memory_budget_bytes
+        self.max_rays = max_rays_from_env() if max_rays is None else max_rays
+        self.progress = progress
         self.root_solver = root_solver
         self._programs: dict[ShaderFeatures, tuple[moderngl.Program, moderngl.VertexArray]] = {}
         self._targets: dict[tuple[int, int, tuple[str, ...]], _Targets] = {}
@@ -257,6 +308,7 @@ class Renderer:
         if max(width, height) > self._max_side:
             raise SceneError("camera.width/height", f"at most {self._max_side} pixels (GL_MAX_TEXTURE_SIZE)", max(width, height))
         check_frame_budget(scene, features.outputs, self.memory_budget_bytes)
+        check_work_budget(scene, self.max_rays)
         with self.context.current():
             return self._draw(scene, features, out)
 
@@ -271,7 +323,11 @@ class Renderer:
         targets = self._render_targets(width, height, features.outputs, features.precision)
         targets.fbo.use()
         targets.fbo.viewport = (0, 0, width, height)
-        vao.render(moderngl.TRIANGLES, vertices=3)
+        work = frame_rays(scene) * (4 if features.precision == "fp64" else 1)
+        if work <= SINGLE_DRAW_WORK:
+            vao.render(moderngl.TRIANGLES, vertices=3)
+        else:
+            self._draw_in_bands(vao, width, height, work)
 
         arrays: dict[str, np.ndarray] = {}
         for index, name in enumerate(features.outputs):
@@ -288,6 +344,33 @@ class Renderer:
             arrays[name] = array
         return Frame(**arrays)
 
+    def _draw_in_bands(self, vao: moderngl.VertexArray, width: int, height: int, work: int) -> None:
+        """Draw the frame as bands of rows (scissored), waiting for each, so that Python
+        sees a KeyboardInterrupt between two of them; each band is sized from the last
+        one's time to take about :data:`TILE_SECONDS`."""
+        ctx = self.context.ctx
+        rows = max(1, SINGLE_DRAW_WORK * height // work)
+        done, start, bar = 0, time.perf_counter(), None
+        try:
+            while done < height:
+                band = min(rows, height - done)
+                begin = time.perf_counter()
+                ctx.scissor = (0, done, width, band)
+                vao.render(moderngl.TRIANGLES, vertices=3)
+                ctx.finish()
+                seconds = time.perf_counter() - begin
+                done += band
+                rows = max(1, min(height, int(band * TILE_SECONDS / max(seconds, 1e-4))))
+                elapsed = time.perf_counter() - start
+                if bar is None and self.progress and elapsed * height / done > PROGRESS_AFTER_SECONDS:
+                    bar = _progress_bar(height, done)
+                elif bar is not None:
+                    bar.update(band)
+        finally:
+            ctx.scissor = None
+            if bar is not None:
+                bar.close()
+
     @staticmethod
     def _output_array(name: str, height: int, width: int, precision: str, out: Frame | None) -> np.ndarray:
         shape = (height, width, 2) if name == "uv" else (height, width)
@@ -303,6 +386,13 @@ class Renderer:
         if given.shape != shape or given.dtype != dtype or not given.flags.c_contiguous:
             raise GlshadeError(f"out.{name}: must be a C-contiguous {np.dtype(dtype).name} array of shape {shape}")
         return given
+
+
+def _progress_bar(total_rows: int, done_rows: int):
+    from tqdm import tqdm
+
+    return tqdm(total=total_rows, initial=done_rows, unit="row", desc="glshade render", dynamic_ncols=True,
+                leave=False)
 
 
 def render(scene: Scene, outputs=("image",)) -> Frame:

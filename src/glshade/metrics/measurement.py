@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from glshade.components.registry import registry
+from glshade.errors import GlshadeError
 from glshade.metrics.visibility import Baseline, MetricSettings, Visibility
 from glshade.scene import Scene
 
@@ -79,7 +80,7 @@ def measure_scene(
 
 
 def measure(
-    scene: Scene,
+    scene: Scene | str | os.PathLike[str],
     *,
     renderer: Renderer | None = None,
     settings: MetricSettings | None = None,
@@ -91,8 +92,22 @@ def measure(
     metric), ``visibility_continuous_px`` (its limit), ``deflection_px`` (how far the
     rays move), ``folded``, ``islands``, ``best_phase_mm``. ``overlay``: also write the
     Fig. 9 overlay there (PNG). Creates (and releases) a renderer unless one is given.
+    ``scene`` may also be the path of a scene file. Bad input (a malformed file, a value
+    out of range, an overlay path that is not a writable regular ``.png``) raises a
+    :class:`~glshade.errors.GlshadeError` with one line, before any rendering.
     """
+    from glshade.files import check_output
+
+    if isinstance(scene, (str, os.PathLike)):
+        scene = Scene.load(scene)
+    if not isinstance(scene, Scene):
+        raise GlshadeError(f"scene: must be a glshade Scene or the path of a scene file, got {type(scene).__name__}")
     settings = settings or MetricSettings()
+    if not isinstance(settings, MetricSettings):
+        raise GlshadeError(f"settings: must be a MetricSettings, got {type(settings).__name__}")
+    settings.phases(scene.emitter.period)  # a step longer than the period is refused before rendering
+    if overlay is not None:
+        check_output(overlay, "overlay", (".png",))
     if renderer is not None:
         return measure_scene(renderer, scene, settings, overlay=overlay)
     from glshade.gpu.renderer import Renderer

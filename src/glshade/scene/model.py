@@ -316,16 +316,10 @@ class Scene:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Scene:
-        """Read a TOML scene file (SPEC §8)."""
-        path = Path(path)
-        try:
-            with path.open("rb") as fh:
-                data = tomllib.load(fh)
-        except FileNotFoundError:
-            raise SceneError("scene file", "an existing TOML file", str(path)) from None
-        except tomllib.TOMLDecodeError as exc:
-            raise SceneError(f"scene file {path}", f"valid TOML ({exc})") from None
-        return cls.from_dict(data)
+        """Read a TOML scene file (``docs/scene-format.md``); any problem with the file
+        (missing, a directory, unreadable, not UTF-8 text, not TOML, a wrong value) is a
+        :class:`SceneError` whose one line names the file or the field."""
+        return cls.from_dict(read_toml(Path(path)))
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the scene as TOML, atomically."""
@@ -334,6 +328,53 @@ class Scene:
         from glshade.files import atomic_write_bytes
 
         atomic_write_bytes(Path(path), tomli_w.dumps(self.to_dict()).encode())
+
+
+#: A scene file is a few hundred bytes; anything beyond this is not one.
+MAX_SCENE_FILE_BYTES = 1 << 20
+#: Leading bytes of files often given by mistake.
+_MAGIC = ((b"\x89PNG", "a PNG image"), (b"II*\x00", "a TIFF image"), (b"MM\x00*", "a TIFF image"),
+          (b"\xff\xd8\xff", "a JPEG image"), (b"\x93NUMPY", "a NumPy array"), (b"%PDF", "a PDF document"),
+          (b"PK\x03\x04", "a zip archive"), (b"\x1f\x8b", "a gzip archive"), (b"\xff\xfe", "UTF-16 text"),
+          (b"\xfe\xff", "UTF-16 text"))
+_BOM = b"\xef\xbb\xbf"
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """A scene file's TOML tables. A UTF-8 byte-order mark (which TOML does not allow,
+    and Windows editors write) is skipped; every other problem is a :class:`SceneError`
+    naming the file."""
+    field = f"scene file {path}"
+    try:
+        with path.open("rb") as fh:
+            raw = fh.read(MAX_SCENE_FILE_BYTES + 1)
+    except FileNotFoundError:
+        raise SceneError("scene file", "an existing TOML file", str(path)) from None
+    except IsADirectoryError:
+        raise SceneError(field, "a TOML file, not a directory") from None
+    except OSError as exc:
+        raise SceneError(field, f"a readable TOML file ({exc.strerror or exc})") from None
+    except ValueError:  # a NUL byte in the path
+        raise SceneError("scene file", "a path without NUL bytes", str(path)) from None
+    if len(raw) > MAX_SCENE_FILE_BYTES:
+        raise SceneError(field, f"a TOML scene file of at most {MAX_SCENE_FILE_BYTES >> 20} MiB (this one is larger)")
+    kind = next((name for magic, name in _MAGIC if raw.startswith(magic)), None)
+    if kind is not None:
+        raise SceneError(field, f"a TOML text file (this is {kind})")
+    raw = raw.removeprefix(_BOM)
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise SceneError(field, f"UTF-8 text (byte 0x{raw[exc.start]:02x} on line {line} is not UTF-8; "
+                                "re-save the file as UTF-8)") from None
+    if "\x00" in text:
+        raise SceneError(field, "a TOML text file (it holds NUL bytes: binary data)")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(field, f"valid TOML ({exc})") from None
+    return data
 
 
 def _read_file(table: str, values: dict[str, Any]) -> dict[str, Any]:

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from glshade.errors import SceneError
+from glshade.units import parse_quantity
 
 #: How a value is typed: a real number, an integer, one of some names, a pair of numbers.
 VALUE_TYPES = ("real", "integer", "choice", "pair")
@@ -53,7 +54,9 @@ class Param:
     ``flag``: the short CLI flag (``--theta``); ``control``: the viewer's slider;
     ``allowed_text``: what the error message says it accepts, where the range alone
     does not say it (a signed radius); ``stored``: False for a shorthand that sets other
-    parameters (``defect.sigma2``) and is not a field of its table.
+    parameters (``defect.sigma2``) and is not a field of its table; ``plausible_max``: a
+    magnitude beyond which the value is accepted but warned about (``plausible_why``
+    says why), the usual sign of a value typed in the wrong unit.
     """
 
     path: str
@@ -71,6 +74,8 @@ class Param:
     control: Control | None = None
     allowed_text: str | None = None
     stored: bool = True
+    plausible_max: float | None = None
+    plausible_why: str = ""
 
     def __post_init__(self) -> None:
         if self.value_type not in VALUE_TYPES or self.role not in ROLES or self.path.count(".") != 1:
@@ -118,7 +123,7 @@ class Param:
         if self.value_type == "integer":
             return self._integer(value)
         if self.value_type == "pair":
-            if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+            if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 2:
                 raise SceneError(self.path, self.allowed(), value)
             return (self._real(value[0]), self._real(value[1]))
         return self._real(value)
@@ -152,16 +157,29 @@ class Param:
             raise SceneError(self.path, self.allowed(), value)
         return value
 
+    def implausible(self, value: Any) -> str | None:
+        """A warning line when an accepted ``value`` is beyond what is plausible (a dent
+        50 mm deep: most likely µm meant), else None."""
+        if self.plausible_max is None or not isinstance(value, (int, float)) or abs(value) <= self.plausible_max:
+            return None
+        unit = f" {self.unit}" if self.unit else ""
+        hint = f"; values are in {self.unit}" + (", write 5um for micrometres" if self.unit == "mm" else
+                                                  ", write 4um2 for µm²" if self.unit == "mm²" else "")
+        return (f"{self.path} = {value:g}{unit} is beyond {self.plausible_max:g}{unit} ({self.plausible_why})"
+                f"{hint if self.unit else ''}")
+
     # ------------------------------------------------------------- text
     def parse(self, text: str) -> Any:
-        """A value from command-line text (``--set camera.theta_deg=15``), unchecked."""
+        """A value from command-line text (``--set camera.theta_deg=15``, ``--dmax 5um``),
+        unchecked: a bare number is in the parameter's unit, or it carries its own
+        (:mod:`glshade.units`)."""
         text = text.strip()
         if self.value_type == "choice":
             return text
         if self.value_type == "pair":
             parts = [p for p in text.strip("[]()").replace(",", " ").split() if p]
-            return tuple(_number(self.path, p) for p in parts)
-        number = _number(self.path, text)
+            return tuple(parse_quantity(p, self.unit, self.path) for p in parts)
+        number = parse_quantity(text, self.unit, self.path)
         if self.value_type == "integer" and number.is_integer():
             return int(number)
         return number
@@ -175,13 +193,6 @@ class Param:
         if self.value_type == "pair":
             return f"[{self.default[0]:g}, {self.default[1]:g}]"
         return f"{self.default:g}"
-
-
-def _number(path: str, text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise SceneError(path, "a finite number", text) from None
 
 
 #: A check over several values of one table (after each was checked on its own).

@@ -11,12 +11,47 @@ from glshade.scene.params import Param
 
 _INTRO = """# Scene files and parameters
 
-A scene is a TOML file with the tables below (SPEC §8). Every key is optional: a missing
-key takes the paper's default; an unknown table or key is an error that names it. Every
-parameter can also be set on the command line of `glshade render` and `glshade measure`
-by its dotted path, `--set camera.theta_deg=15` (repeatable, applied after the file and
-the short flags), and the ones with a short flag by that flag (`--theta 15`). Sweeps
-name their axes by the same paths.
+A scene is a UTF-8 TOML file (a byte-order mark is tolerated; at most 1 MiB) with the
+tables below. Every key is optional: a missing key takes the paper's default; an unknown
+table or key is an error that names it. For example, the paper's cylinder seen from 15°
+with a 3 µm deep dent:
+
+```toml
+[camera]
+theta_deg = 15.0
+
+[surface]
+kind = "cylinder"
+radius = 70.0
+
+[defect]
+dmax = 0.003    # mm
+sigma2 = 4.0    # mm²
+```
+
+Every parameter can also be set on the command line of `glshade render`, `glshade
+measure` and `glshade view` by its dotted path, `--set camera.theta_deg=15` (repeatable,
+applied after the file and the short flags), and the ones with a short flag by that flag
+(`--theta 15`). Sweeps name their axes by the same paths.
+
+## Units
+
+In a scene file every value is a bare number in the unit of its row: lengths in mm,
+areas in mm², angles in degrees. On the command line a value may carry its unit instead:
+`--dmax 5um`, `--dmax 0.005mm`, `--set defect.sigma2=4mm2`, `--theta 0.26rad`,
+`--dmaxs 3um,5um`; a bare number is in the row's unit, so `--dmax 5` is a 5 mm dent.
+Lengths take `nm`, `um` (or `µm`), `mm`, `cm`, `m`; areas the same followed by `2`, `^2`
+or `²`; angles `deg`, `rad`, `mrad`.
+
+## Errors and warnings
+
+A value outside its allowed range, a malformed or unreadable file, or an unknown key is
+refused with one line naming the file or field, what was wrong and what is allowed, and
+exit code 2; nothing is written. A value that is allowed but implausible (the *warned
+beyond* of the allowed column: a dent deeper than 0.1 mm, a variance beyond 10⁴ mm², most
+likely typed in the wrong unit) and a reflection lobe too wide for the stripes (see
+`docs/physics.md`, *Glossy lobes and stripes*) print a `glshade: warning:` line, and the
+run goes on.
 
 *Role*: `feature` parameters pick shader code (a change may compile another program, once
 per feature set); `uniform` parameters reach the shader as uniforms (a change never
@@ -26,13 +61,16 @@ use when its table's selector names it (`surface.kind`, `render.reflection`) or 
 slot has only one component. A scene file written by glshade lists the parameters of the
 components in use and any other that differs from its default.
 
-This page is generated from the parameter declarations of the registered components
+This page is generated from the parameter declarations of the registered components, the
+same declarations validation reads its ranges from
 (`python -m glshade.scene.schema_doc > docs/scene-format.md`); a test keeps it current.
 """
 
 
 def _allowed(reg: Registry, param: Param) -> str:
     text = param.allowed(reg.choices(param)).replace("|", "\\|")
+    if param.plausible_max is not None:
+        text += f"; warned beyond \\|{param.plausible_max:g}\\| {param.unit}".rstrip()
     return text + ("; may be unset" if param.default is None else "")
 
 

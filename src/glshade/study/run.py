@@ -40,6 +40,7 @@ from glshade.study.store import (
     CaseResult,
     load_case,
     prepare_out_dir,
+    study_lock,
     write_case,
     write_results_csv,
 )
@@ -104,8 +105,13 @@ def run_study(
     renderer: Renderer | None = None,
     on_case_done: Callable[[CaseResult], None] | None = None,
     on_surface_done: Callable[[str, list[CaseResult]], None] | None = None,
+    overwrite: bool = False,
 ) -> StudyResult:
     """Run (or resume) the study into ``out_dir``; returns every case's record.
+
+    The directory is locked for the run (:func:`store.study_lock`: a second run on it is
+    refused); a directory holding another plan is refused unless ``overwrite``, which
+    removes the old study's files first (:func:`store.prepare_out_dir`).
 
     ``workers``: threads for the analysis (the GL work stays on this thread).
     ``on_case_done(row)`` is called after each case is safely on disk;
@@ -116,7 +122,12 @@ def run_study(
     if workers < 1:
         raise GlshadeError(f"--workers: must be an integer >= 1, got {workers}")
     out_dir = Path(out_dir)
-    prepare_out_dir(out_dir, plan.to_dict())
+    with study_lock(out_dir):
+        prepare_out_dir(out_dir, plan.to_dict(), overwrite)
+        return _run_locked(plan, out_dir, workers, progress, renderer, on_case_done, on_surface_done)
+
+
+def _run_locked(plan, out_dir, workers, progress, renderer, on_case_done, on_surface_done) -> StudyResult:
     done: dict[str, CaseResult] = {}
     pending = []
     for case in plan.cases():

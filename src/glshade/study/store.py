@@ -13,7 +13,11 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
+import socket
+import time
 from collections.abc import Iterator, Mapping
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -163,38 +167,132 @@ def read_results_csv(path: Path) -> list[CaseResult]:
 
 
 # --------------------------------------------------------------------------- output dir
-def prepare_out_dir(out_dir: Path, manifest_data: dict) -> None:
-    """Create (or reuse) the output directory and write its ``study.json``; a directory
-    that holds a study with other settings, or one measured with another version of the
-    metric, is refused rather than mixed."""
+#: The files a study writes at the top of its directory (the case files live in
+#: ``cases/``); ``--overwrite`` removes exactly these, never anything else.
+STUDY_FILES = ("results.csv", "report.md", "grid_*.png", "visibility_*.png", "law_vs_simulation.png",
+               "fig09_contour_overlay*.png")
+LOCK_NAME = ".glshade.lock"
+OWNER_NAME = ".glshade.lock.json"
+
+
+@contextmanager
+def study_lock(out_dir: Path, command: str = "glshade paper") -> Iterator[None]:
+    """Hold the output directory for the whole run: a second run on it (in another
+    process) is refused at once with a line naming the holder (pid, host, start time,
+    command). The lock is an OS file lock (``filelock``): it dies with its process, so a
+    killed run never leaves the directory locked. Re-entrant within a process."""
+    from filelock import FileLock, Timeout
+
     out_dir = Path(out_dir)
+    _make_dir(out_dir)
+    lock = FileLock(out_dir / LOCK_NAME, timeout=0, is_singleton=True)
+    try:
+        lock.acquire()
+    except Timeout:
+        raise GlshadeError(f"--out {out_dir}: in use by {_owner(out_dir)}; wait for it to finish, or choose another "
+                           "--out") from None
+    first = lock.lock_counter == 1
+    try:
+        if first:
+            owner = {"pid": os.getpid(), "host": socket.gethostname(), "command": command,
+                     "since": time.strftime("%Y-%m-%d %H:%M:%S")}
+            atomic_write_bytes(out_dir / OWNER_NAME, json.dumps(owner).encode(), "--out")
+        yield
+    finally:
+        if first:
+            with suppress(OSError):
+                (out_dir / OWNER_NAME).unlink()
+        lock.release()
+
+
+def _owner(out_dir: Path) -> str:
+    try:
+        owner = json.loads((out_dir / OWNER_NAME).read_text())
+        return f"'{owner['command']}' (pid {owner['pid']} on {owner['host']}, since {owner['since']})"
+    except (OSError, ValueError, KeyError, TypeError):
+        return "another glshade run"
+
+
+def _make_dir(out_dir: Path) -> None:
+    if "\0" in str(out_dir):
+        raise GlshadeError(f"--out {str(out_dir)!r}: expected a directory path")
     if out_dir.exists() and not out_dir.is_dir():
         raise GlshadeError(f"--out {out_dir}: is a file, expected a directory")
     try:
         (out_dir / "cases").mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise GlshadeError(f"--out {out_dir}: cannot create it ({exc.strerror})") from None
-    probe = out_dir / ".glshade-write-test"
-    try:
-        probe.write_bytes(b"")
-        probe.unlink()
-    except OSError as exc:
-        raise GlshadeError(f"--out {out_dir}: not writable ({exc.strerror})") from None
+    if not os.access(out_dir, os.W_OK | os.X_OK):
+        raise GlshadeError(f"--out {out_dir}: not writable")
+
+
+def prepare_out_dir(out_dir: Path, manifest_data: dict, overwrite: bool = False) -> list[Path]:
+    """Create (or reuse) the output directory and write its ``study.json``.
+
+    A directory that holds a study with another plan (other surfaces, angles, dents,
+    size or metric) is refused, so a subset rerun can never silently shrink
+    ``results.csv`` or leave stale figures beside a new report; with ``overwrite`` the
+    old study's files (:data:`STUDY_FILES`) are removed, and its case files too unless
+    they were measured with the same size and metric (the new plan reuses them).
+    Returns the files removed."""
+    out_dir = Path(out_dir)
+    _make_dir(out_dir)
+    manifest_data = json.loads(json.dumps(manifest_data))  # as it reads back: lists, not tuples
     manifest = out_dir / "study.json"
-    if manifest.exists():
-        try:
-            stored = json.loads(manifest.read_text())
-        except (OSError, ValueError):
-            stored = None
-        if stored is not None and _comparable(stored) != _comparable(manifest_data):
+    stored = _read_manifest(manifest)
+    removed: list[Path] = []
+    if stored is not None and stored != manifest_data:
+        if not overwrite:
             raise GlshadeError(
-                f"--out {out_dir}: holds a study with other settings or an older metric (see its study.json); "
-                "use another directory or remove it"
+                f"--out {out_dir}: holds a study with another plan ({_difference(stored, manifest_data)}); rerun "
+                "with the same settings to resume it, add --overwrite to replace it, or choose another --out"
             )
-    atomic_write_bytes(manifest, json.dumps(manifest_data, indent=2).encode())
+        removed = _remove_stale(out_dir, keep_cases=_comparable(stored) == _comparable(manifest_data),
+                                cases=_plan_keys(manifest_data))
+    atomic_write_bytes(manifest, json.dumps(manifest_data, indent=2).encode(), "--out")
+    return removed
+
+
+def _read_manifest(manifest: Path) -> dict | None:
+    try:
+        stored = json.loads(manifest.read_text())
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError):
+        return {}  # unreadable: a study of unknown plan
+    return stored if isinstance(stored, dict) else {}
+
+
+def _difference(stored: dict, wanted: dict) -> str:
+    keys = [k for k in sorted(set(stored) | set(wanted)) if stored.get(k) != wanted.get(k)]
+    return "; ".join(f"{k}: {_short(stored.get(k))} there, {_short(wanted.get(k))} asked" for k in keys[:3])
+
+
+def _short(value: object) -> str:
+    if isinstance(value, list):
+        return ",".join(f"{v:g}" if isinstance(v, float) else str(v) for v in value)
+    return "unset" if value is None else str(value)
+
+
+def _plan_keys(plan_dict: dict) -> set[str]:
+    """The case keys of a plan as ``StudyPlan.to_dict`` wrote it."""
+    lists = [plan_dict.get(k) or () for k in ("surfaces", "thetas", "sigma2s", "dmaxs")]
+    return {case_key(s, t, v, d) for s in lists[0] for t in lists[1] for v in lists[2] for d in lists[3]}
+
+
+def _remove_stale(out_dir: Path, keep_cases: bool, cases: set[str]) -> list[Path]:
+    """Remove what ``--overwrite`` replaces: the old study's figures, tables and report,
+    and its case files that the new plan cannot reuse."""
+    doomed = [path for pattern in STUDY_FILES for path in sorted(out_dir.glob(pattern)) if path.is_file()]
+    for path in sorted((out_dir / "cases").glob("*")):
+        reusable = keep_cases and path.stem in cases
+        if path.suffix in (".json", ".png") and path.is_file() and not reusable:
+            doomed.append(path)
+    for path in doomed:
+        path.unlink()
+    return doomed
 
 
 def _comparable(plan_dict: dict) -> dict:
-    """The settings that change results (the case lists may differ: a rerun may add
-    surfaces or angles to the same directory)."""
+    """The settings that change each case's numbers (the case lists may differ)."""
     return {k: plan_dict.get(k) for k in ("size", "metric", "metric_version")}

@@ -87,10 +87,11 @@ def _constrained(scene: Scene, path: str, value: float) -> float:
     return value
 
 
-def apply_setting(scene: Scene, name: str, value) -> Scene:
-    """The scene with one viewer setting changed; numbers are clamped to the control's
-    range and the result validated by the scene model (a SceneError leaves it unchanged
-    for the caller to report)."""
+def apply_setting(scene: Scene, name: str, value, slider: bool = False) -> Scene:
+    """The scene with one viewer setting changed, validated by the scene model exactly
+    as ``render`` validates it (a SceneError names the field and the allowed range).
+    ``slider``: the value comes from dragging a slider, and is kept inside the slider's
+    range and the scene's joint constraints (a positive definite covariance)."""
     if name == "concave":
         radius = abs(scene.surface.radius)
         return scene.with_value("surface.radius", -radius if bool(value) else radius)
@@ -103,15 +104,17 @@ def apply_setting(scene: Scene, name: str, value) -> Scene:
         if value not in control.allowed:
             raise SceneError(path, "one of " + ", ".join(control.allowed), value)
         return scene.with_value(path, value)
-    value = clamp(control, value)
+    if slider:
+        value = _constrained(scene, path, clamp(control, value))
     if control.signed:
         value = math.copysign(value, scene.value(path))
-    return scene.with_value(path, _constrained(scene, path, value))
+    return scene.with_value(path, value)
 
 
 def parse_sets(items: list[str], scene: Scene) -> tuple[Scene, dict[str, str]]:
-    """``--set name=value`` items: scene settings are applied (clamped, validated); the
-    viewer's own (``view``, ``animate``) are returned."""
+    """``--set name=value`` items: scene settings are applied and validated as ``render``
+    validates them (lengths may carry a unit: ``dmax=5um``); the viewer's own (``view``,
+    ``animate``) are returned."""
     extra: dict[str, str] = {}
     for item in items:
         name, sep, raw = item.partition("=")
@@ -128,19 +131,13 @@ def parse_sets(items: list[str], scene: Scene) -> tuple[Scene, dict[str, str]]:
             scene = apply_setting(scene, name, raw.lower() in ("1", "true", "yes"))
         elif isinstance(by_name(name), Choice):
             scene = apply_setting(scene, name, raw)
+        elif by_name(name) is not None:
+            scene = apply_setting(scene, name, by_name(name).param.parse(raw))
+        elif "." in name:  # any parameter by its dotted path, as render's --set
+            scene = scene.with_value(name, registry().param(name).parse(raw))
         else:
-            scene = apply_setting(scene, name, _number(name, raw))
+            apply_setting(scene, name, raw)  # names the unknown setting and lists the known ones
     return scene, extra
-
-
-def _number(name: str, raw: str) -> float:
-    try:
-        number = float(raw)
-    except ValueError:
-        raise GlshadeError(f"--set {name}: expected a number, got {raw!r}") from None
-    if not math.isfinite(number):
-        raise GlshadeError(f"--set {name}: expected a finite number, got {raw!r}")
-    return number
 
 
 def geometry_key(scene: Scene) -> Scene:

@@ -98,6 +98,7 @@ class ViewerModel:
     traced_for: Scene | None = None
     traces: int = 0
     reshades: int = 0
+    refused: str = ""
     _baseline: _Once | None = None
     _pool: ThreadPoolExecutor | None = None
     _case_job: Future | None = None
@@ -105,12 +106,15 @@ class ViewerModel:
     _case_done: bool = False
 
     # ---------------------------------------------------------------- edits
-    def set(self, name: str, value) -> bool:
-        """Apply one control; False (and no change) when the value is rejected."""
+    def set(self, name: str, value, slider: bool = False) -> bool:
+        """Apply one control; False (no change, and ``refused`` says why, in the words of
+        ``render``'s error) when the value is rejected."""
         try:
-            self.scene = apply_setting(self.scene, name, value)
-        except (SceneError, GlshadeError):
+            self.scene = apply_setting(self.scene, name, value, slider)
+        except (SceneError, GlshadeError) as exc:
+            self.refused = f"refused: {exc}"
             return False
+        self.refused = ""
         return True
 
     def reset(self) -> None:

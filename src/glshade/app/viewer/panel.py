@@ -84,7 +84,7 @@ def _slider(model: ViewerModel, name: str, value) -> None:
     else:
         changed, new = imgui.slider_float(name, float(value), float(c.lo), float(c.hi), c.fmt, flags)
     if changed:
-        model.set(name, new)
+        model.set(name, new, slider=True)
 
 
 def _combo(model: ViewerModel, name: str, value) -> None:
@@ -111,3 +111,5 @@ def _view_and_readout(model: ViewerModel, status: dict) -> None:
     imgui.text_wrapped("keys: S screenshot, T save scene, R reset, O overlay")
     if status["message"]:
         imgui.text_wrapped(status["message"])
+    if model.refused:
+        imgui.text_colored(imgui.ImVec4(1.0, 0.45, 0.35, 1.0), model.refused)

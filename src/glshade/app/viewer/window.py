@@ -5,6 +5,7 @@ module needs the ``viewer`` extra."""
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import replace
@@ -222,7 +223,8 @@ def make_app(options: ViewerOptions) -> tuple[type[ViewerWindow], dict]:
     panel_width = PANEL_WIDTH if options.panel else 0
     stats: dict = {"frames": 0, "seconds": 0.0, "traces": 0, "reshades": 0}
     size = (cam.width + panel_width, max(cam.height, 560 if panel_width else 0))
-    attributes = {"options": options, "stats": stats, "window_size": size}
+    attributes = {"options": options, "stats": stats, "window_size": size,
+                  "log_level": logging.WARNING}  # moderngl-window's INFO lines are not the user's business
     return type("ViewerApp", (ViewerWindow,), attributes), stats
 
 

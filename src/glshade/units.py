@@ -1,0 +1,75 @@
+"""Quantities typed on the command line: a number with an optional unit.
+
+Scene files hold bare numbers in the units of ``docs/scene-format.md`` (lengths in mm,
+areas in mm², angles in degrees). On the command line (short flags, ``--set``, the study's
+lists) a value may also carry its unit: ``--dmax 5um``, ``--dmax 0.005mm``,
+``--sigma2 4mm2``, ``--theta 0.5rad``. A bare number is in the parameter's own unit, so
+``--dmax 5`` is still 5 mm.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+from glshade.errors import SceneError
+
+#: Length units, in mm.
+LENGTHS_MM: dict[str, float] = {"nm": 1e-6, "um": 1e-3, "µm": 1e-3, "μm": 1e-3, "mm": 1.0, "cm": 10.0, "m": 1e3}
+#: Angle units, in degrees.
+ANGLES_DEG: dict[str, float] = {"deg": 1.0, "°": 1.0, "rad": 180.0 / math.pi, "mrad": 0.18 / math.pi}
+_AREA_SUFFIXES = ("²", "^2", "2")
+_QUANTITY = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([^\s\d.+-][^\s]*)?\s*$")
+
+
+def units_for(unit: str) -> dict[str, float]:
+    """The suffixes a value of ``unit`` (a parameter's unit: mm, mm², deg, px or "") may
+    carry, with their factor to ``unit``."""
+    if unit == "mm":
+        return dict(LENGTHS_MM)
+    if unit == "mm²":
+        return {name + suffix: factor**2 for name, factor in LENGTHS_MM.items() for suffix in _AREA_SUFFIXES}
+    if unit == "deg":
+        return dict(ANGLES_DEG)
+    if unit == "px":
+        return {"px": 1.0}
+    return {}
+
+
+def examples(unit: str) -> str:
+    """How a value of ``unit`` may be written, for error messages."""
+    return {
+        "mm": "a number in mm, or with a unit: 5um, 0.005mm, 2cm",
+        "mm²": "a number in mm², or with a unit: 4mm2, 4e6um2",
+        "deg": "a number in degrees, or with a unit: 15deg, 0.26rad",
+    }.get(unit, f"a number{f' in {unit}' if unit else ''}")
+
+
+def parse_quantity(text: str, unit: str, field: str) -> float:
+    """``text`` as a number in ``unit``: ``"5um"`` with unit ``mm`` is 0.005. A
+    :class:`SceneError` names ``field`` and says how to write the value. The result is
+    not range-checked (``nan`` and ``inf`` pass through to the parameter's check)."""
+    text = text.strip()
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    match = _QUANTITY.match(text)
+    if match is None:
+        raise SceneError(field, examples(unit), text)
+    number, suffix = float(match.group(1)), match.group(2)
+    factors = units_for(unit)
+    factor = factors.get(suffix) if suffix is not None else 1.0
+    if factor is None:
+        factor = factors.get(suffix.lower())
+    if factor is None:
+        allowed = ", ".join(sorted(set(factors))) if factors else "none (a bare number)"
+        raise SceneError(field, f"{examples(unit)} (units: {allowed})", text)
+    return number * factor
+
+
+def format_length_mm(value_mm: float) -> str:
+    """A length for people: µm below 0.1 mm (``0.005`` -> ``5 µm``), else mm."""
+    if value_mm != 0 and abs(value_mm) < 0.1:
+        return f"{value_mm * 1e3:g} µm"
+    return f"{value_mm:g} mm"
