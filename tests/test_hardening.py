@@ -317,6 +317,7 @@ def test_ctrl_c_stops_a_long_render_within_seconds(tmp_path):
     took = time.monotonic() - sent
     assert process.returncode == 130, err
     assert err.strip().splitlines()[-1] == "glshade: interrupted"
+    assert "glshade render" in err and "row/s" in err  # the progress bar of a frame longer than 2 s
     assert took < 5.0, f"took {took:.1f} s to stop"  # loose: the bands aim at 0.25 s each
     assert not out.exists()
 
@@ -351,3 +352,18 @@ def test_lobe_warning_and_a_default_that_shows_the_stripes(renderer):
     glossy = renderer.render(default).image
     assert np.ptp(grey) < 0.02  # the old default: one flat grey
     assert np.ptp(glossy) > 0.8 * np.ptp(mirror)  # the new one shows the stripes
+
+
+# --------------------------------------------------------------------------- the format, documented
+def test_the_scene_format_is_in_the_repository_and_linked(tmp_path):
+    page = (ROOT / "docs" / "scene-format.md").read_text()
+    assert "(docs/scene-format.md)" in (ROOT / "README.md").read_text()
+    assert "SPEC" not in page
+    parser = build_parser()
+    render_help = parser._subparsers._group_actions[0].choices["render"].format_help()
+    assert "docs/scene-format.md" in " ".join(render_help.split())
+    example = re.search(r"```toml\n(.*?)```", page, re.S).group(1)
+    path = tmp_path / "example.toml"
+    path.write_text(example)
+    scene = Scene.load(path)
+    assert (scene.surface.kind, scene.camera.theta_deg, scene.defect.dmax) == ("cylinder", 15.0, 0.003)
