@@ -124,7 +124,7 @@ def test_there_are_forty_kinds_of_bad_input():
 @pytest.mark.parametrize("index", range(len(BAD_INPUTS)), ids=[" ".join(c[0])[:60] for c in BAD_INPUTS])
 def test_bad_input_is_one_line_and_exit_2(bad_input_results, index):
     results, _, _ = bad_input_results
-    args, fragment, _ = BAD_INPUTS[index]
+    _, fragment, _ = BAD_INPUTS[index]
     result = results[index]
     lines = result.stderr.strip().splitlines()
     assert result.returncode == 2, result.stderr

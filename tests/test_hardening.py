@@ -277,10 +277,10 @@ def test_units_on_the_command_line_and_the_implausible_warning(tmp_path, capsys)
     assert main(["render", "--size", "16", "--dmax", "50", "--sigma2", "2e5", "-o", str(tmp_path / "b.png")]) == 0
     warnings = capsys.readouterr().err.strip().splitlines()
     assert warnings == [
-        "glshade: warning: defect.dmax = 50 mm is beyond 0.1 mm (deeper than the shallow dents glshade simulates); "
-        "values are in mm, write 5um for micrometres",
-        "glshade: warning: defect.sigma2 = 200000 mm² is beyond 10000 mm² (a dent over 100 mm wide); values are in "
-        "mm², write 4um2 for µm²",
+        ("glshade: warning: defect.dmax = 50 mm is beyond 0.1 mm (deeper than the shallow dents glshade simulates); "
+         "values are in mm, write 5um for micrometres"),
+        ("glshade: warning: defect.sigma2 = 200000 mm² is beyond 10000 mm² (a dent over 100 mm wide); values are in "
+         "mm², write 4um2 for µm²"),
     ]
 
 
@@ -362,8 +362,25 @@ def test_the_scene_format_is_in_the_repository_and_linked(tmp_path):
     parser = build_parser()
     render_help = parser._subparsers._group_actions[0].choices["render"].format_help()
     assert "docs/scene-format.md" in " ".join(render_help.split())
-    example = re.search(r"```toml\n(.*?)```", page, re.S).group(1)
+    example = re.search(r"```toml\n(.*?)```", page, re.DOTALL).group(1)
     path = tmp_path / "example.toml"
     path.write_text(example)
     scene = Scene.load(path)
     assert (scene.surface.kind, scene.camera.theta_deg, scene.defect.dmax) == ("cylinder", 15.0, 0.003)
+
+
+def test_measure_refuses_bad_input_before_rendering(tmp_path):
+    import glshade
+
+    bad = tmp_path / "bad.toml"
+    bad.write_bytes(b"[defect]\ndmax = 0.005\n# \xff\n")
+    for scene, fragment in ((tmp_path / "missing.toml", "scene file: must be an existing TOML file"),
+                            (bad, "must be UTF-8 text (byte 0xff on line 3"),
+                            (42, "scene: must be a glshade Scene or the path of a scene file, got int")):
+        with pytest.raises(GlshadeError, match=re.escape(fragment)) as info:
+            glshade.measure(scene)
+        assert _one_line(info.value)
+    os.mkfifo(tmp_path / "fifo.png")
+    for overlay, fragment in (("o.jpg", "lossy"), (tmp_path / "fifo.png", "is a FIFO")):
+        with pytest.raises(GlshadeError, match=fragment):
+            glshade.measure(paper_scene().with_size(32), overlay=overlay, renderer=object())  # never reaches it

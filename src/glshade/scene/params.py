@@ -163,10 +163,9 @@ class Param:
         if self.plausible_max is None or not isinstance(value, (int, float)) or abs(value) <= self.plausible_max:
             return None
         unit = f" {self.unit}" if self.unit else ""
-        hint = f"; values are in {self.unit}" + (", write 5um for micrometres" if self.unit == "mm" else
-                                                  ", write 4um2 for µm²" if self.unit == "mm²" else "")
-        return (f"{self.path} = {value:g}{unit} is beyond {self.plausible_max:g}{unit} ({self.plausible_why})"
-                f"{hint if self.unit else ''}")
+        example = {"mm": ", write 5um for micrometres", "mm²": ", write 4um2 for µm²"}.get(self.unit, "")
+        note = f"; values are in {self.unit}{example}" if self.unit else ""
+        return f"{self.path} = {value:g}{unit} is beyond {self.plausible_max:g}{unit} ({self.plausible_why}){note}"
 
     # ------------------------------------------------------------- text
     def parse(self, text: str) -> Any:

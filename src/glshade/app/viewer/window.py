@@ -19,6 +19,7 @@ from moderngl_window.integrations.imgui_bundle import ModernglWindowRenderer
 
 from glshade.app.viewer.model import ViewerModel, ViewerOptions
 from glshade.app.viewer.panel import PANEL_WIDTH, draw_panel
+from glshade.errors import GlshadeError
 from glshade.files import write_png
 from glshade.gpu.compose import render_template
 from glshade.gpu.context import GLContext
@@ -148,17 +149,26 @@ class ViewerWindow(mglw.WindowConfig):
         if action != self.wnd.keys.ACTION_PRESS or (self.gui is not None and imgui.get_io().want_capture_keyboard):
             return
         keys, out_dir = self.wnd.keys, self.options.out_dir
-        if key == keys.S:
-            shot = self.screenshot(out_dir / f"glshade_view_{self.stats['frames']}.png")
-            self.status["message"] = f"wrote {shot}"
-        elif key == keys.T:
-            path = out_dir / "glshade_view.toml"
-            self.model.scene.save(path)
-            self.status["message"] = f"wrote {path}"
+        if key in (keys.S, keys.T):
+            self._save(key == keys.S, out_dir)
         elif key == keys.R:
             self.model.reset()
         elif key == keys.O:
             self.model.view = "image" if self.model.view == "overlay" else "overlay"
+
+    def _save(self, screenshot: bool, out_dir: Path) -> None:
+        """S and T: a screenshot or the scene; a refusal (an unwritable directory, a
+        special file in the way) is shown in the panel, the window stays open."""
+        try:
+            if screenshot:
+                path = self.screenshot(out_dir / f"glshade_view_{self.stats['frames']}.png")
+            else:
+                path = out_dir / "glshade_view.toml"
+                self.model.scene.save(path)
+        except GlshadeError as exc:
+            self.status["message"] = f"not saved: {exc}"
+            return
+        self.status["message"] = f"wrote {path}"
 
     def on_mouse_position_event(self, x, y, dx, dy):
         if self.gui is not None:
