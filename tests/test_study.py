@@ -133,7 +133,7 @@ def test_bad_input_is_one_line_exit_2(tmp_path, args, fragment):
 def test_output_path_that_is_a_file(tmp_path):
     target = tmp_path / "taken"
     target.write_text("keep me")
-    for out, fragment in ((target, "is a file"), (target / "sub", "cannot create it")):
+    for out, fragment in ((target, "is not a directory"), (target / "sub", "cannot create it")):
         result = subprocess.run(
             [sys.executable, "-m", "glshade", "paper", "--out", str(out), "--size", "32", "--no-progress"],
             capture_output=True, text=True, timeout=120,

@@ -263,6 +263,8 @@ def _cmd_paper(args: argparse.Namespace) -> int:
     from glshade.study import plan as study
     from glshade.study.store import study_lock
 
+    if args.workers < 1:
+        raise GlshadeError(f"--workers: must be an integer >= 1, got {args.workers}")
     metric = _metric_settings(args)
     surfaces = tuple(part.strip() for part in args.surfaces.split(",") if part.strip())
     plan = study.StudyPlan(

@@ -95,7 +95,18 @@ class MetricSettings:
         if self.step_mm > period_mm:
             raise GlshadeError(f"step: must be at most one stripe period ({period_mm:g} mm), got {self.step_mm:g} mm")
         count = max(1, math.ceil(period_mm / self.step_mm - 1e-9))
+        if count > MAX_PHASES:
+            raise GlshadeError(
+                f"step: must give at most {MAX_PHASES} phases per stripe period (a step of at least "
+                f"{period_mm / MAX_PHASES:g} mm for the {period_mm:g} mm period), got {self.step_mm:g} mm "
+                f"= {count} phases"
+            )
         return np.arange(count) * self.step_mm
+
+
+#: Most phases one sweep may take (each is a shading and a contour comparison): the
+#: paper's sweep is 8 (2 mm period, 0.25 mm step), the finest in the benchmarks 160 (10 mm period, step 1/160 of it).
+MAX_PHASES = 2000
 
 
 def kept_columns(width: int, keep_fraction: float) -> slice:

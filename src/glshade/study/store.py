@@ -217,7 +217,7 @@ def _make_dir(out_dir: Path) -> None:
     if "\0" in str(out_dir):
         raise GlshadeError(f"--out {str(out_dir)!r}: expected a directory path")
     if out_dir.exists() and not out_dir.is_dir():
-        raise GlshadeError(f"--out {out_dir}: is a file, expected a directory")
+        raise GlshadeError(f"--out {out_dir}: is not a directory")
     try:
         (out_dir / "cases").mkdir(parents=True, exist_ok=True)
     except OSError as exc:
