@@ -114,6 +114,10 @@ def _other_value(param):
         return param.default + 1
     if param.value_type == "pair":
         return (param.default[0] * 0.5, param.default[1] * 0.75)
+    if param.value_type == "text":
+        return param.default + " + 0.0001*x"
+    if param.value_type == "table":
+        return (*param.default, ("spare", 0.5))
     if param.default is None:
         return 0.625
     if param.nonzero:
@@ -124,6 +128,8 @@ def _other_value(param):
 
 
 def _as_text(value) -> str:
+    if isinstance(value, tuple) and value and isinstance(value[0], tuple):  # a table of named numbers
+        return ",".join(f"{name}={number!r}" for name, number in value)
     return ",".join(f"{v!r}" for v in value) if isinstance(value, tuple) else str(value)
 
 

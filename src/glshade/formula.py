@@ -149,11 +149,25 @@ class Formula:
         x, z = self.symbols[:2]
         return sympy.diff(self.tree, x), sympy.diff(self.tree, z)
 
-    def glsl(self) -> tuple[str, str, str]:
+    def glsl(self, precision: str = "fp32") -> tuple[str, str, str]:
         """GLSL expressions of ``f``, ``f_x``, ``f_z`` in the variables ``x``, ``z`` and the
-        parameters ``p_<name>`` (uniforms of the program)."""
-        printer = _glsl_printer()
+        parameters ``p_<name>`` (uniforms of the program). ``precision`` fp64 writes
+        double literals and refuses what GLSL has no double version of (``exp``,
+        ``log``, ``sin``, ``cos``, ``tan``, a non-integer power other than a square root)."""
+        printer = _glsl_printer(precision)
         return tuple(printer.doprint(e) for e in (self.tree, *self.derivatives))
+
+    @cached_property
+    def hessian(self) -> tuple[Callable, Callable, Callable]:
+        """NumPy functions ``(f_xx, f_xz, f_zz)`` of ``(x, z)``: the curvature bounds of
+        the first-hit search."""
+        import sympy
+
+        x, z = self.symbols[:2]
+        fx, fz = self.derivatives
+        values = [value for _, value in self.parameters]
+        return tuple(_bound(sympy.lambdify(self.symbols, e, modules=[{"Heaviside": _heaviside}, "numpy"]), values)
+                     for e in (sympy.diff(fx, x), sympy.diff(fx, z), sympy.diff(fz, z)))
 
     @cached_property
     def numpy(self) -> tuple[Callable, Callable, Callable]:
@@ -309,29 +323,51 @@ class _Builder:
         return self.functions[node.func.id](*args)
 
 
-def _glsl_printer():
+#: What GLSL 4.5 offers only in single precision.
+_FLOAT_ONLY = ("exp", "log", "sin", "cos", "tan")
+
+
+def _glsl_printer(precision: str = "fp32"):
     """SymPy's GLSL printer, with integer powers written as products (GLSL's ``pow`` is
-    undefined for a negative base), Heaviside as ``step`` and numbers at full precision."""
+    undefined for a negative base), Heaviside as ``step`` and numbers at full precision
+    (``LF`` double literals for fp64)."""
     from sympy.printing.glsl import GLSLPrinter
+
+    suffix = "LF" if precision == "fp64" else ""
 
     class Printer(GLSLPrinter):
         def _print_Pow(self, expr):
             base, exponent = expr.as_base_exp()
             if exponent.is_Integer and 1 <= abs(int(exponent)) <= 64:
                 product = "*".join([f"({self._print(base)})"] * abs(int(exponent)))
-                return f"({product})" if exponent > 0 else f"(1.0/({product}))"
+                return f"({product})" if exponent > 0 else f"(1.0{suffix}/({product}))"
+            if exponent.is_Rational and exponent.q == 2 and abs(exponent.p) <= 63:  # sqrt(b)^p, exact in fp64
+                product = "*".join([f"sqrt({self._print(base)})"] * abs(int(exponent.p)))
+                return f"({product})" if exponent > 0 else f"(1.0{suffix}/({product}))"
+            if suffix:
+                raise _no_double("a non-integer power")
             return super()._print_Pow(expr)
 
+        def _print_Function(self, expr):
+            if suffix and type(expr).__name__ in _FLOAT_ONLY:
+                raise _no_double(type(expr).__name__)
+            return super()._print_Function(expr)
+
         def _print_Heaviside(self, expr):
-            return f"step(0.0, {self._print(expr.args[0])})"
+            return f"step(0.0{suffix}, {self._print(expr.args[0])})"
 
         def _print_Float(self, expr):
-            return repr(float(expr))
+            return repr(float(expr)) + suffix
 
         def _print_Integer(self, expr):
-            return f"{int(expr)}.0"
+            return f"{int(expr)}.0{suffix}"
 
         def _print_Rational(self, expr):
-            return f"({expr.p}.0/{expr.q}.0)"
+            return f"({expr.p}.0{suffix}/{expr.q}.0{suffix})"
 
     return Printer({"use_operators": True})
+
+
+def _no_double(what: str) -> SceneError:
+    return SceneError("render.precision", f"fp32 for this formula: GLSL has no double-precision version of {what} "
+                      "(fp64 formulas may use + - * /, integer powers, sqrt, abs, min and max)")

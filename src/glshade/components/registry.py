@@ -54,6 +54,7 @@ BUILTINS: tuple[tuple[str, str], ...] = (
     ("glshade.components.surface_flat", "Flat"),
     ("glshade.components.surface_cylinder", "Cylinder"),
     ("glshade.components.surface_sphere", "Sphere"),
+    ("glshade.components.surface_formula", "Formula"),
     ("glshade.components.defect_gaussian", "Gaussian"),
     ("glshade.components.emitter_stripes", "Stripes"),
     ("glshade.components.reflection_mirror", "Mirror"),

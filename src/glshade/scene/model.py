@@ -403,7 +403,8 @@ def _file_values(scene: Scene, table: str, everything: bool = False) -> dict[str
         in_use = reg.choices(param) is not None or any(owner in active for owner in reg.owners(param))
         if value is None or not (everything or in_use or value != param.default):
             continue
-        values[param.key] = list(value) if param.value_type == "pair" else value
+        values[param.key] = (list(value) if param.value_type == "pair" else dict(value) if param.value_type == "table"
+                             else value)
     for component in _table_components(table):
         values = component.write_file(values)
     return values

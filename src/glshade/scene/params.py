@@ -23,8 +23,11 @@ import numpy as np
 from glshade.errors import SceneError
 from glshade.units import parse_quantity
 
-#: How a value is typed: a real number, an integer, one of some names, a pair of numbers.
-VALUE_TYPES = ("real", "integer", "choice", "pair")
+#: How a value is typed: a real number, an integer, one of some names, a pair of numbers,
+#: a text (a formula), a table of named numbers.
+VALUE_TYPES = ("real", "integer", "choice", "pair", "text", "table")
+#: The longest text value accepted.
+MAX_TEXT = 2000
 ROLES = ("feature", "uniform")
 
 
@@ -99,6 +102,10 @@ class Param:
             return "one of " + ", ".join(choices if choices is not None else self.choices)
         if self.value_type == "pair":
             return f"two numbers [u, v] > 0 ({self.unit})"
+        if self.value_type == "text":
+            return f"a text of at most {MAX_TEXT} characters"
+        if self.value_type == "table":
+            return "a table of name = number"
         if self.value_type == "integer":
             return f"an integer in [{self.lo:g}, {self.hi:g}]"
         if self.nonzero:
@@ -122,6 +129,13 @@ class Param:
             return value
         if self.value_type == "integer":
             return self._integer(value)
+        if self.value_type == "text":
+            if not isinstance(value, str) or not value.strip() or len(value) > MAX_TEXT:
+                raise SceneError(self.path, self.allowed(), value if isinstance(value, str) and len(value) < 80 else
+                                 type(value).__name__)
+            return value
+        if self.value_type == "table":
+            return self._table(value)
         if self.value_type == "pair":
             if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 2:
                 raise SceneError(self.path, self.allowed(), value)
@@ -145,6 +159,23 @@ class Param:
         if below or above:
             raise SceneError(self.path, self.allowed(), value)
         return value
+
+    def _table(self, value: Any) -> tuple[tuple[str, float], ...]:
+        """``{name: number}`` (or its items) -> a tuple of ``(name, float)`` pairs, in
+        order (hashable, so a scene stays a value)."""
+        items = value.items() if isinstance(value, dict) else value
+        try:
+            pairs = [(name, number) for name, number in items]
+        except (TypeError, ValueError):
+            raise SceneError(self.path, self.allowed(), value) from None
+        out = []
+        for name, number in pairs:
+            if not isinstance(name, str):
+                raise SceneError(self.path, self.allowed(), value)
+            if isinstance(number, bool) or not isinstance(number, (int, float)) or not math.isfinite(number):
+                raise SceneError(f"{self.path}.{name}", "a finite number", number)
+            out.append((name, float(number)))
+        return tuple(out)
 
     def _integer(self, value: Any) -> int:
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
@@ -173,8 +204,11 @@ class Param:
         unchecked: a bare number is in the parameter's unit, or it carries its own
         (:mod:`glshade.units`)."""
         text = text.strip()
-        if self.value_type == "choice":
+        if self.value_type in ("choice", "text"):
             return text
+        if self.value_type == "table":
+            return tuple((name.strip(), parse_quantity(number, "", f"{self.path}.{name.strip()}"))
+                         for name, _, number in (part.partition("=") for part in text.split(",") if part.strip()))
         if self.value_type == "pair":
             parts = [p for p in text.strip("[]()").replace(",", " ").split() if p]
             return tuple(parse_quantity(p, self.unit, self.path) for p in parts)
@@ -187,8 +221,10 @@ class Param:
         """The default as a scene file would spell it."""
         if self.default is None:
             return "unset"
-        if self.value_type == "choice":
+        if self.value_type in ("choice", "text"):
             return f'"{self.default}"'
+        if self.value_type == "table":
+            return "{ " + ", ".join(f"{k} = {v:g}" for k, v in self.default) + " }" if self.default else "{}"
         if self.value_type == "pair":
             return f"[{self.default[0]:g}, {self.default[1]:g}]"
         return f"{self.default:g}"
