@@ -12,10 +12,13 @@ Adding a component adds its cases here without new test code.
 
 from __future__ import annotations
 
+import functools
 import math
+import os
 import re
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import cv2
@@ -48,12 +51,34 @@ def _slot(component):
     return next(slot for slot in registry().slots() if slot.name == component.slot)
 
 
+@functools.cache
+def sample_map(name: str = "map") -> str:
+    """A smooth test height map (a gentle bowl with waves, 0.5 mm spacing, ±30 × ±50 mm)
+    as .npy, for the parameters that need a file (one per process)."""
+    x = np.arange(-30.0, 30.0 + 1e-9, 0.5)
+    z = np.arange(-50.0, 50.0 + 1e-9, 0.5)
+    xx, zz = np.meshgrid(x, z)
+    heights = -(xx**2 + zz**2) / 4000.0 + 0.002 * np.sin(xx / 3.0) * np.cos(zz / 4.0)
+    path = Path(tempfile.gettempdir()) / f"glshade-test-{name}-{os.getpid()}.npy"
+    np.save(path, heights if name == "map" else heights[::-1])
+    return str(path)
+
+
+#: Values for parameters that have no usable default (a height map's file and spacing).
+NEEDS_VALUE = {"surface.file": sample_map, "surface.spacing": lambda: (0.5, 0.5)}
+
+
 def scenes_for(component, size: int = 12) -> dict[str, Scene]:
     """Scenes in which ``component`` fills its slot, one per variant."""
     base = paper_scene("flat", theta_deg=30.0).with_size(size)
     selector = _slot(component).selector
+    needed = {p.table: {} for p in component.params}
+    for param in component.params:
+        if param.path in NEEDS_VALUE:
+            needed[param.table][param.key] = NEEDS_VALUE[param.path]()
     if selector is not None:
-        base = base.with_value(selector.path, component.name)
+        needed.setdefault(selector.table, {})[selector.key] = component.name
+    base = base.updated(**{table: values for table, values in needed.items() if values})
     return {name: variant(base) for name, variant in VARIANTS.items()}
 
 
@@ -113,7 +138,9 @@ def _other_value(param):
     if param.value_type == "integer":
         return param.default + 1
     if param.value_type == "pair":
-        return (param.default[0] * 0.5, param.default[1] * 0.75)
+        return (0.5, 0.75) if param.default is None else (param.default[0] * 0.5, param.default[1] * 0.75)
+    if param.value_type == "path":
+        return sample_map("flipped")
     if param.value_type == "text":
         return param.default + " + 0.0001*x"
     if param.value_type == "table":

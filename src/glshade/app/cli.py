@@ -444,10 +444,12 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
         value = getattr(args, _flag_dest(param), None) if param.flag is not None else None
         if value is not None:
             tables.setdefault(param.table, {})[param.key] = value
+    for item in args.settings:  # later settings win; all are applied at once, so values that
+        path, value = parse_setting(item)  # only make sense together (a kind and its file) can be given
+        table, _, key = path.partition(".")
+        tables.setdefault(table, {}).pop(key, None)
+        tables[table][key] = value
     scene = scene.updated(**tables)
-    for item in args.settings:
-        path, value = parse_setting(item)
-        scene = scene.with_value(path, value)
     if args.size is not None:
         scene = scene.with_size(args.size)
     return scene

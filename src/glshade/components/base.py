@@ -84,6 +84,12 @@ class Component:
         """Every uniform its GLSL (for this scene's features) declares, float64 values."""
         return {}
 
+    def textures(self, scene: Scene) -> dict[str, np.ndarray]:
+        """Sampler uniform name (``t_…``) -> a float32 array (rows, columns[, channels])
+        its GLSL reads with ``texelFetch`` (row = texel y, column = texel x); none by default. The renderer
+        uploads each array once (keyed by the array object) and binds it."""
+        return {}
+
     def warnings(self, scene: Scene) -> tuple[str, ...]:
         """Lines about accepted values that will probably not give what was meant (each
         names the field); none by default. Printed by every front end, never fatal."""

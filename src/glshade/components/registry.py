@@ -55,6 +55,7 @@ BUILTINS: tuple[tuple[str, str], ...] = (
     ("glshade.components.surface_cylinder", "Cylinder"),
     ("glshade.components.surface_sphere", "Sphere"),
     ("glshade.components.surface_formula", "Formula"),
+    ("glshade.components.surface_heightmap", "HeightMap"),
     ("glshade.components.defect_gaussian", "Gaussian"),
     ("glshade.components.emitter_stripes", "Stripes"),
     ("glshade.components.reflection_mirror", "Mirror"),

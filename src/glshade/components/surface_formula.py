@@ -41,6 +41,12 @@ BOUND_SAFETY = 1.5
 MARCH_STEPS = 256
 
 
+def march_uniforms(scene, frame) -> dict[str, object]:
+    """The uniforms of ``freeform_march.glsl`` (shared by every free-form surface)."""
+    return {"u_freeform_steps": max(MARCH_STEPS, 4 * frame.solver.march_steps),
+            "u_freeform_tol": frame.solver.tolerance_for(scene.render.precision)}
+
+
 def check_formula(values: dict) -> None:
     """A formula surface's expression and parameters parse (the error names the token)."""
     if values.get("kind") != "formula":
@@ -72,15 +78,13 @@ class Formula(SurfaceComponent):
                 "formula_parameters": tuple(name for name, _ in formula.parameters)}
 
     def glsl(self, variables):
-        return ("surface_formula.glsl",)
+        return ("freeform_march.glsl", "surface_formula.glsl")
 
     def uniforms(self, scene, frame):
         lo, hi, curvature = bounds(scene)
         values = {f"p_{name}": value for name, value in formula_of(scene).parameters}
         return {**values, "u_formula_origin": tuple(float(v) for v in frame.origin), "u_formula_lo": lo,
-                "u_formula_hi": hi, "u_formula_curvature": curvature,
-                "u_formula_steps": max(MARCH_STEPS, 4 * frame.solver.march_steps),
-                "u_formula_tol": frame.solver.tolerance_for(scene.render.precision)}
+                "u_formula_hi": hi, "u_formula_curvature": curvature, **march_uniforms(scene, frame)}
 
     def second_derivatives(self, scene):
         fxx, _, fzz = (float(h(0.0, 0.0)) for h in formula_of(scene).hessian)

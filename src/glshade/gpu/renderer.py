@@ -175,6 +175,14 @@ def scene_uniforms(
     return values
 
 
+def scene_textures(scene: Scene) -> dict[str, np.ndarray]:
+    """Every texture the active components give their GLSL (sampler name -> 2-D array)."""
+    textures: dict[str, np.ndarray] = {}
+    for component in registry().active(scene):
+        textures.update(component.textures(scene))
+    return textures
+
+
 class _Targets:
     """Render targets of one size and output set, reused across frames."""
 
@@ -227,6 +235,7 @@ class Renderer:
         self._programs: dict[ShaderFeatures, tuple[moderngl.Program, moderngl.VertexArray]] = {}
         self._targets: dict[tuple[int, int, tuple[str, ...]], _Targets] = {}
         self._uniform_names: dict[ShaderFeatures, tuple[str, ...]] = {}
+        self._textures: dict[int, tuple[np.ndarray, moderngl.Texture]] = {}
         self._max_side = self.context.info().max_texture_size
         self._fp64 = self.context.info().fp64
 
@@ -239,6 +248,9 @@ class Renderer:
                     program.release()
                 for targets in self._targets.values():
                     targets.release()
+                for _, texture in self._textures.values():
+                    texture.release()
+        self._textures.clear()
         self._programs.clear()
         self._uniform_names.clear()
         self._targets.clear()
@@ -316,6 +328,10 @@ class Renderer:
         width, height = scene.camera.width, scene.camera.height
         program, vao = self._program(features)
         uniforms = scene_uniforms(scene, self.root_solver, features)
+        textures = scene_textures(scene)
+        for unit, (name, array) in enumerate(textures.items()):
+            self._texture(array).use(location=unit)
+            uniforms[name] = unit
         for name in self._active_uniforms(program, features):
             if name not in uniforms:
                 raise GlshadeError(f"uniform {name} of {features.selected()} is provided by no active component")
@@ -343,6 +359,22 @@ class Renderer:
                 targets.fbo.read_into(host, viewport=viewport, components=components, attachment=index, dtype=dtype)
             arrays[name] = array
         return Frame(**arrays)
+
+    def _texture(self, array: np.ndarray) -> moderngl.Texture:
+        """The texture holding ``array`` (float32; (rows, cols) or (rows, cols, channels)), uploaded once per array
+        object; a few are kept, the oldest released."""
+        cached = self._textures.get(id(array))
+        if cached is not None and cached[0] is array:
+            return cached[1]
+        if len(self._textures) >= 4:
+            self._textures.pop(next(iter(self._textures)))[1].release()
+        data = np.ascontiguousarray(array, dtype=np.float32)
+        rows, cols = data.shape[:2]
+        channels = data.shape[2] if data.ndim == 3 else 1
+        texture = self.context.ctx.texture((cols, rows), channels, data=data.tobytes(), dtype="f4")
+        texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self._textures[id(array)] = (array, texture)
+        return texture
 
     def _draw_in_bands(self, vao: moderngl.VertexArray, width: int, height: int, work: int) -> None:
         """Draw the frame as bands of rows (scissored), waiting for each, so that Python

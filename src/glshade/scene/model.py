@@ -300,9 +300,10 @@ class Scene:
         return {table: _file_values(self, table) for table in TABLE_CLASSES}
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> Scene:
+    def from_dict(cls, data: dict[str, Any], base: Path | None = None) -> Scene:
         """Build from the SPEC §8 layout; missing keys take the paper's defaults, unknown
-        tables or keys are an error."""
+        tables or keys are an error. ``base``: the directory relative file paths (a height
+        map's ``surface.file``) are read from."""
         if not isinstance(data, dict):
             raise SceneError("scene", "a table of tables (" + ", ".join(TABLE_CLASSES) + ")", data)
         parts: dict[str, Any] = {}
@@ -311,7 +312,7 @@ class Scene:
                 raise SceneError(table, "one of the tables " + ", ".join(TABLE_CLASSES) + " (unknown table)")
             if not isinstance(values, dict):
                 raise SceneError(table, "a table of keys", values)
-            parts[table] = TABLE_CLASSES[table](**_read_file(table, dict(values)))
+            parts[table] = TABLE_CLASSES[table](**_read_file(table, _resolve_paths(table, dict(values), base)))
         return cls(**parts)
 
     @classmethod
@@ -319,7 +320,7 @@ class Scene:
         """Read a TOML scene file (``docs/scene-format.md``); any problem with the file
         (missing, a directory, unreadable, not UTF-8 text, not TOML, a wrong value) is a
         :class:`SceneError` whose one line names the file or the field."""
-        return cls.from_dict(read_toml(Path(path)))
+        return cls.from_dict(read_toml(Path(path)), base=Path(path).parent)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the scene as TOML, atomically."""
@@ -327,7 +328,8 @@ class Scene:
 
         from glshade.files import atomic_write_bytes
 
-        atomic_write_bytes(Path(path), tomli_w.dumps(self.to_dict()).encode())
+        data = _relative_paths(self.to_dict(), Path(path).parent)
+        atomic_write_bytes(Path(path), tomli_w.dumps(data).encode())
 
 
 #: A scene file is a few hundred bytes; anything beyond this is not one.
@@ -374,6 +376,31 @@ def read_toml(path: Path) -> dict[str, Any]:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(field, f"valid TOML ({exc})") from None
+    return data
+
+
+def _resolve_paths(table: str, values: dict[str, Any], base: Path | None) -> dict[str, Any]:
+    """File paths of a scene file, relative to its directory -> as the process reads them."""
+    if base is None:
+        return values
+    for key, value in values.items():
+        param = registry().table_params(table)
+        declared = next((p for p in param if p.key == key), None)
+        if declared is not None and declared.value_type == "path" and isinstance(value, str) and value.strip():
+            values[key] = str(base / value) if not os.path.isabs(value) else value
+    return values
+
+
+def _relative_paths(data: dict[str, dict[str, Any]], base: Path) -> dict[str, dict[str, Any]]:
+    """File paths written relative to the scene file's directory where they lie under it."""
+    for table, values in data.items():
+        for param in registry().table_params(table):
+            value = values.get(param.key)
+            if param.value_type == "path" and isinstance(value, str):
+                try:
+                    values[param.key] = str(Path(os.path.abspath(value)).relative_to(os.path.abspath(base)))
+                except ValueError:
+                    values[param.key] = os.path.abspath(value)
     return data
 
 

@@ -14,6 +14,7 @@ declarations (see :mod:`glshade.components.registry` for the list of them).
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -25,7 +26,7 @@ from glshade.units import parse_quantity
 
 #: How a value is typed: a real number, an integer, one of some names, a pair of numbers,
 #: a text (a formula), a table of named numbers.
-VALUE_TYPES = ("real", "integer", "choice", "pair", "text", "table")
+VALUE_TYPES = ("real", "integer", "choice", "pair", "text", "table", "path")
 #: The longest text value accepted.
 MAX_TEXT = 2000
 ROLES = ("feature", "uniform")
@@ -104,6 +105,8 @@ class Param:
             return f"two numbers [u, v] > 0 ({self.unit})"
         if self.value_type == "text":
             return f"a text of at most {MAX_TEXT} characters"
+        if self.value_type == "path":
+            return "a file path (relative to the scene file)"
         if self.value_type == "table":
             return "a table of name = number"
         if self.value_type == "integer":
@@ -129,6 +132,12 @@ class Param:
             return value
         if self.value_type == "integer":
             return self._integer(value)
+        if self.value_type == "path":
+            if isinstance(value, os.PathLike):
+                value = os.fspath(value)
+            if not isinstance(value, str) or not value.strip() or "\0" in value or len(value) > 4096:
+                raise SceneError(self.path, self.allowed(), value if isinstance(value, str) else type(value).__name__)
+            return value
         if self.value_type == "text":
             if not isinstance(value, str) or not value.strip() or len(value) > MAX_TEXT:
                 raise SceneError(self.path, self.allowed(), value if isinstance(value, str) and len(value) < 80 else
@@ -204,7 +213,7 @@ class Param:
         unchecked: a bare number is in the parameter's unit, or it carries its own
         (:mod:`glshade.units`)."""
         text = text.strip()
-        if self.value_type in ("choice", "text"):
+        if self.value_type in ("choice", "text", "path"):
             return text
         if self.value_type == "table":
             return tuple((name.strip(), parse_quantity(number, "", f"{self.path}.{name.strip()}"))
@@ -221,7 +230,7 @@ class Param:
         """The default as a scene file would spell it."""
         if self.default is None:
             return "unset"
-        if self.value_type in ("choice", "text"):
+        if self.value_type in ("choice", "text", "path"):
             return f'"{self.default}"'
         if self.value_type == "table":
             return "{ " + ", ".join(f"{k} = {v:g}" for k, v in self.default) + " }" if self.default else "{}"

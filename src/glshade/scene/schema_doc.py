@@ -53,6 +53,41 @@ likely typed in the wrong unit) and a reflection lobe too wide for the stripes (
 `docs/physics.md`, *Glossy lobes and stripes*) print a `glshade: warning:` line, and the
 run goes on.
 
+## Free-form surfaces (paper eq. 3)
+
+Besides the paper's plane, cylinder and sphere, `surface.kind` may be a formula or a
+height map; the Gaussian defect adds on top of either, as on the analytic ones.
+
+**Formulas** (`kind = "formula"`): `expression` is `f(x, z)` in mm of `x` and `z` in mm
+and the names of `parameters`, e.g. `expression = "0.0005*x^2 - 0.0002*z^2 + a*sin(z/b)"`
+with `parameters = { a = 0.002, b = 5.0 }`. The grammar: numbers, `x`, `z`, the declared
+parameters, `+ - * /`, `**` or `^` (power), unary `-`, parentheses, and `sqrt exp log sin
+cos tan abs min max` (at most 2000 characters). Anything else is refused with the
+offending token and its column. The text is parsed by Python's `ast` and rebuilt node by
+node in SymPy, which differentiates it exactly and prints the GLSL; no user text reaches
+the shader compiler or Python's evaluator. `fp64` formulas may use only what GLSL has in
+double precision (`+ - * /`, integer and half-integer powers, `sqrt abs min max`).
+
+**Height maps** (`kind = "heightmap"`): `file` (relative to the scene file) holds
+`heights[row, column]`, rows along +z and columns along +x: a `.npy` array, an `.x3p`
+(ISO 25178-72; spacing and units from the file), a float `.tif`/`.tiff` or a 16-bit
+greyscale `.png`. `spacing = [dx, dz]` mm (required unless the file carries it),
+`origin = [x, z]` of sample [0, 0] (default: the map centred on the origin), `scale` mm of
+height per stored unit, `outside = "curtain"` (no surface beyond the map: those rays are
+black) or `"flat"` (the plane y = 0). Between samples the surface is the bicubic
+Catmull-Rom spline: it passes through every sample and its slopes are continuous.
+
+**The first hit** on a free-form surface is a march along the ray that cannot pass the
+first crossing: its steps are bounded by a bound `K` on the surface's curvature along the
+ray, inside the slab `lo <= y - D <= hi` that holds the surface. For a height map `lo`,
+`hi` and `K` are rigorous bounds of the spline (from the samples' range and their second
+and mixed differences). For a formula they come from `f` and its exact Hessian sampled on a
+129 × 129 grid over the region the camera sees (with a 1.5× margin on `K`): a formula with
+features finer than that grid, or curvature far larger outside it, can break them. Where
+the bound fails, or where a ray skims the surface for longer than the march's 256 steps,
+the pixel is reported as a miss (black, outside the mask), never as a wrong hit. Where a
+formula is undefined (`sqrt` of a negative number) there is no surface.
+
 *Role*: `feature` parameters pick shader code (a change may compile another program, once
 per feature set); `uniform` parameters reach the shader as uniforms (a change never
 recompiles; the defect's `dmax = 0` and an isotropic covariance also select simpler code,
