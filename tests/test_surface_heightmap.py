@@ -56,7 +56,9 @@ def test_curvature_bound_holds():
     _, _, bound = map_bounds(heights, spacing)
     u, v = np.meshgrid(np.linspace(0, 11, 200), np.linspace(0, 11, 200))
     h = 1e-4
-    f = lambda du, dv: catmull_rom(heights, u + du, v + dv)[0]  # noqa: E731
+    def f(du, dv):
+        return catmull_rom(heights, u + du, v + dv)[0]
+
     fxx = (f(h, 0) - 2 * f(0, 0) + f(-h, 0)) / (h * spacing[0]) ** 2
     fzz = (f(0, h) - 2 * f(0, 0) + f(0, -h)) / (h * spacing[1]) ** 2
     fxz = (f(h, h) - f(h, -h) - f(-h, h) + f(-h, -h)) / (4 * h * h * spacing[0] * spacing[1])
@@ -81,9 +83,10 @@ def test_sampled_paper_surfaces_converge_to_the_analytic_ones(renderer, tmp_path
     assert errors[0] / errors[1] > 3.0 and errors[1] / errors[2] > 3.0, errors
 
 
-def test_a_sampled_sphere_is_as_visible(renderer, tmp_path):
-    sphere = paper_scene("sphere", theta_deg=45.0, sigma2=1.0, dmax=0.005).with_size(512)
-    file = _sample(tmp_path / "sphere.npy", sphere, 0.25, 25.0, 40.0)
+@pytest.mark.parametrize("kind", ["sphere", "cylinder"])
+def test_a_sampled_paper_surface_is_as_visible(renderer, tmp_path, kind):
+    sphere = paper_scene(kind, theta_deg=45.0, sigma2=1.0, dmax=0.005).with_size(512)
+    file = _sample(tmp_path / f"{kind}.npy", sphere, 0.25, 25.0, 40.0)
     a, b = measure_scene(renderer, sphere), measure_scene(renderer, _map_scene(sphere, file, 0.25))
     assert a.visibility_px == b.visibility_px > 0
     assert b.deflection_px == pytest.approx(a.deflection_px, abs=0.01)

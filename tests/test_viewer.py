@@ -301,3 +301,15 @@ def test_bad_scene_file_opens_nothing(tmp_path):
     result = subprocess.run([sys.executable, "-m", "glshade", "view", "--set", "theta=abc"],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and "camera.theta_deg: must be a number in degrees" in result.stderr
+
+
+def test_formulas_and_files_are_text_fields(tmp_path):
+    from glshade.app.viewer.controls import panel_params
+
+    model = ViewerModel(paper_scene().with_size(SIZE).with_value("surface.kind", "formula"))
+    assert "surface.expression" in {p.path for p in panel_params(model.scene)}
+    assert model.set_value("surface.expression", "0.001*x^2")
+    assert model.scene.surface.expression == "0.001*x^2"
+    assert not model.set_value("surface.expression", "x; y")
+    assert model.refused.startswith("refused: surface.expression: ';' at column 2 is not allowed")
+    assert model.scene.surface.expression == "0.001*x^2"

@@ -57,7 +57,7 @@ __all__ = [
     "ShaderCompileError",
     "Surface",
     "Visibility",
+    "__version__",
     "measure",
     "paper_scene",
-    "__version__",
 ]

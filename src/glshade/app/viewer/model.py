@@ -117,6 +117,17 @@ class ViewerModel:
         self.refused = ""
         return True
 
+    def set_value(self, path: str, value) -> bool:
+        """Set any parameter by its dotted path (a formula, a file path), validated as
+        ``render`` validates it; False and ``refused`` on a refusal."""
+        try:
+            self.scene = self.scene.with_value(path, value)
+        except GlshadeError as exc:
+            self.refused = f"refused: {exc}"
+            return False
+        self.refused = ""
+        return True
+
     def reset(self) -> None:
         cam = self.scene.camera
         kind = self.scene.surface.kind

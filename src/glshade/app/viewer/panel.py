@@ -42,6 +42,8 @@ def _parameter(model: ViewerModel, param: Param) -> None:
         return  # drawn with the isotropic shorthand
     if param.path == _SHORTHAND:
         _covariance(model)
+    elif param.value_type in ("text", "path"):
+        _text_field(model, param)
     elif param.value_type == "choice":
         _combo(model, param.flag.lstrip("-") if param.flag else param.key, scene.value(param.path))
     elif param.path == "emitter.phase":
@@ -59,6 +61,14 @@ def _parameter(model: ViewerModel, param: Param) -> None:
             model.set("concave", negative)
     else:
         _slider(model, param.control.name, scene.value(param.path))
+
+
+def _text_field(model: ViewerModel, param: Param) -> None:
+    """A formula or a file path: edited in place, applied on Enter (refusals are shown)."""
+    value = model.scene.value(param.path) or ""
+    changed, text = imgui.input_text(param.key, str(value), imgui.InputTextFlags_.enter_returns_true)
+    if changed and text != value:
+        model.set_value(param.path, text)
 
 
 def _covariance(model: ViewerModel) -> None:
