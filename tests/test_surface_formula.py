@@ -89,3 +89,21 @@ def test_bad_formulas_on_the_command_line(tmp_path, args, fragment):
     lines = result.stderr.strip().splitlines()
     assert result.returncode == 2 and len(lines) == 1 and fragment in lines[0], result.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_study_runs_on_free_form_scene_files(tmp_path):
+    from pathlib import Path
+
+    from glshade.app.cli import main
+    from glshade.study.store import read_results_csv
+
+    root = Path(__file__).resolve().parents[1] / "examples"
+    saddle, panel = str(root / "saddle.toml"), str(root / "panel.toml")
+    out = tmp_path / "study"
+    assert main(["paper", "--surfaces", f"flat,{saddle},{panel}", "--thetas", "45,15", "--sigma2s", "4",
+                 "--dmaxs", "5um", "--size", "96", "--out", str(out), "--no-progress"]) == 0
+    rows = read_results_csv(out / "results.csv")
+    assert [r.surface for r in rows].count(saddle) == 2 and [r.surface for r in rows].count(panel) == 2
+    assert {"grid_saddle_dmax5um.png", "visibility_panel_dmax5um.png"} <= {p.name for p in out.iterdir()}
+    assert "saddle.toml" in (out / "report.md").read_text()
+    assert main(["paper", "--surfaces", f"{saddle},{tmp_path / 'x' / 'saddle.toml'}", "--out", str(tmp_path / "b")]) == 2

@@ -224,7 +224,8 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace a study with another plan in --out (its results, figures and report are removed)")
     p.add_argument("--out", type=_path, default=Path("paper_study"), metavar="DIR", help="output directory (default paper_study)")
-    p.add_argument("--surfaces", default="flat,cylinder,sphere", metavar="LIST", help="comma-separated surface kinds")
+    p.add_argument("--surfaces", default="flat,cylinder,sphere", metavar="LIST",
+                   help="comma-separated surface kinds, or scene files (.toml) of free-form surfaces")
     p.add_argument("--thetas", type=_quantity_list("camera.theta_deg"), metavar="LIST",
                    help="camera elevations, degrees, strictly decreasing (default 85,75,…,5)")
     p.add_argument("--sigma2s", type=_quantity_list("defect.sigma2"), metavar="LIST",

@@ -19,7 +19,7 @@ import numpy as np
 
 from glshade.files import atomic_write_bytes
 from glshade.metrics import physics
-from glshade.scene import paper_scene
+from glshade.study.plan import case_scene
 
 HOLDS, PARTLY, NOT = "holds", "partly holds", "does not hold"
 METRICS = {"visibility_px": "paper metric", "visibility_continuous_px": "continuous limit"}
@@ -254,7 +254,7 @@ def best_thetas(rows: list[Mapping], surface: str, sigma2s, dmax: float, key: st
 def _magnifies(surface: str) -> bool:
     """The paper's ``surface`` is convex along the plane of incidence at the gaze point:
     it magnifies the stripes by m (docs/physics.md), which decides its advice."""
-    return physics.base_curvatures(paper_scene(surface))[0] < 0.0
+    return physics.base_curvatures(case_scene(surface))[0] < 0.0
 
 
 def _why(rows: list[Mapping], surface: str, sigma2s, dmaxs) -> str:
@@ -263,8 +263,8 @@ def _why(rows: list[Mapping], surface: str, sigma2s, dmaxs) -> str:
     table = _table(rows)
     low = min(r["theta_deg"] for r in rows)
     if _magnifies(surface):
-        m_high = physics.laws(paper_scene(surface, max(r["theta_deg"] for r in rows))).magnification
-        m_low = physics.laws(paper_scene(surface, low)).magnification
+        m_high = physics.laws(case_scene(surface, max(r["theta_deg"] for r in rows))).magnification
+        m_low = physics.laws(case_scene(surface, low)).magnification
         return (
             f"The convex {surface} magnifies the stripes by m = 1 + 2 Dc De / (R sin θ (Dc + De)), from "
             f"{m_high:.1f} at the highest view to {m_low:.0f} at θ {low:g}°, and every displacement in pixels shrinks "
@@ -274,7 +274,7 @@ def _why(rows: list[Mapping], surface: str, sigma2s, dmaxs) -> str:
     onsets = []
     for s2 in sigma2s:
         for d in dmaxs:
-            onset = physics.fold_onset_theta_deg(paper_scene(surface, 45.0, s2, d))
+            onset = physics.fold_onset_theta_deg(case_scene(surface, 45.0, s2, d))
             if onset > 0:
                 onsets.append(f"σ² {s2:g}, {um(d)}: " + ("every θ" if onset >= 90 else f"θ < {onset:.1f}°"))
     worst = [table[k] for k in ((surface, low, s2, d) for s2 in sigma2s for d in dmaxs) if k in table]
@@ -289,7 +289,7 @@ def _why(rows: list[Mapping], surface: str, sigma2s, dmaxs) -> str:
             text += (f": at θ {low:g}° the σ² {worst['sigma2_mm2']:g}, {um(worst['dmax_mm'])} dent moves the rays by "
                      f"{worst['deflection_px']:.1f} px and its contours by {worst['visibility_continuous_px']:.1f} px")
         text += "."
-        if physics.base_curvatures(paper_scene(surface))[1] != 0:
+        if physics.base_curvatures(case_scene(surface))[1] != 0:
             text += (" The cylinder's curvature across the plane of incidence lifts the fold's saddles and with them "
                      "the cap (docs/physics.md §3): a dent that folds keeps more of its shift at low views than on the "
                      "flat plate.")

@@ -3,9 +3,11 @@ No GL here: plans are made, validated and split anywhere (a Dask client included
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import asdict, dataclass, field
 from itertools import pairwise
+from pathlib import Path
 
 from glshade.errors import GlshadeError
 from glshade.metrics import visibility as vis
@@ -35,7 +37,34 @@ Case = tuple[str, float, float, float]
 def case_key(surface: str, theta: float, sigma2: float, dmax: float) -> str:
     """A case's key: the file stem of its case files (dmax in µm, as the file names of
     the figures)."""
-    return f"{surface}_theta{theta:g}_sigma2_{sigma2:g}_dmax{dmax * 1000:g}um"
+    return f"{surface_label(surface)}_theta{theta:g}_sigma2_{sigma2:g}_dmax{dmax * 1000:g}um"
+
+
+def is_scene_file(surface: str) -> bool:
+    """A study's surface is one of the paper's kinds or a scene file (a free-form
+    surface: a height map or a formula, paper eq. 3)."""
+    return surface.lower().endswith(".toml")
+
+
+def surface_label(surface: str) -> str:
+    """The name a surface's files and figures carry: its kind, or its scene file's stem."""
+    return Path(surface).stem if is_scene_file(surface) else surface
+
+
+def case_scene(surface: str, theta: float = 45.0, sigma2: float = 4.0, dmax: float = 0.005) -> Scene:
+    """The scene of one case: the paper's for its surfaces; for a scene file, the file's
+    scene (its surface, camera and emitter) with θ, σ² and dmax of the case."""
+    if is_scene_file(surface):
+        path = Path(surface)
+        stamp = path.stat().st_mtime_ns if path.is_file() else 0
+        base = _scene_file(str(path.resolve()), stamp)
+        return base.updated(camera={"theta_deg": theta}, defect={"sigma2": sigma2, "dmax": dmax})
+    return paper_scene(surface, theta, sigma2, dmax)
+
+
+@functools.lru_cache(maxsize=16)
+def _scene_file(path: str, stamp: int) -> Scene:
+    return Scene.load(path)
 
 
 def _float_list(name: str, values, lo: float, hi: float, closed_hi: bool = False) -> tuple[float, ...]:
@@ -67,10 +96,13 @@ class StudyPlan:
         if not self.surfaces:
             raise GlshadeError("surfaces: must list at least one of " + ", ".join(PAPER_SURFACES))
         for s in self.surfaces:
-            if s not in PAPER_SURFACES:
-                raise GlshadeError(f"surfaces: unknown surface {s!r}; allowed: {', '.join(PAPER_SURFACES)}")
-        if len(set(self.surfaces)) != len(self.surfaces):
-            raise GlshadeError("surfaces: must not repeat")
+            if s not in PAPER_SURFACES and not is_scene_file(s):
+                raise GlshadeError(f"surfaces: unknown surface {s!r}; allowed: {', '.join(PAPER_SURFACES)} or a "
+                                   "scene file (.toml) of a free-form surface")
+            if is_scene_file(s):
+                case_scene(s)  # the file loads: its errors name it
+        if len({surface_label(s) for s in self.surfaces}) != len(self.surfaces):
+            raise GlshadeError("surfaces: must not repeat (scene files by their names)")
         thetas = _float_list("thetas", self.thetas, 0.0, 90.0)
         if any(a <= b for a, b in pairwise(thetas)):
             raise GlshadeError(
@@ -85,7 +117,7 @@ class StudyPlan:
             self.metric.phases(self.scene(surface, self.thetas[0], self.sigma2s[0], self.dmaxs[0]).emitter.period)
 
     def scene(self, surface: str, theta: float, sigma2: float, dmax: float) -> Scene:
-        return paper_scene(surface, theta, sigma2, dmax).with_size(self.size)
+        return case_scene(surface, theta, sigma2, dmax).with_size(self.size)
 
     def cases(self) -> list[Case]:
         return [(s, t, v, d) for s in self.surfaces for t in self.thetas for v in self.sigma2s for d in self.dmaxs]

@@ -17,10 +17,22 @@ from pathlib import Path
 import numpy as np
 
 from glshade.files import atomic_write_bytes, read_png
-from glshade.study.plan import GRID_THETAS, StudyPlan, case_key
+from glshade.study.plan import GRID_THETAS, StudyPlan, case_key, surface_label
 from glshade.study.store import CaseResult
 
 SURFACE_NAMES = {"flat": "flat plate", "cylinder": "cylinder, R 70 mm", "sphere": "sphere, R 70 mm"}
+
+
+def surface_name(surface: str) -> str:
+    """A surface as figure titles name it: the paper's by name, a free-form one by its
+    scene file and what the surface is."""
+    if surface in SURFACE_NAMES:
+        return SURFACE_NAMES[surface]
+    from glshade.components.registry import registry
+    from glshade.study.plan import case_scene
+
+    scene = case_scene(surface)
+    return f"{surface_label(surface)}: {registry().active(scene).surface.describe(scene)}"
 SURFACE_COLOURS = {"flat": "tab:blue", "cylinder": "tab:orange", "sphere": "tab:green"}
 #: The Fig. 9 colours (RGB 0-1) and what they mean.
 OVERLAY_LEGEND = (
@@ -88,7 +100,7 @@ def image_grid(rows: list[CaseResult], cases_dir: Path, surface: str, dmax: floa
             fold = ", folds" if r.folded else ""
             ax.text(j * cell + side / 2, i * cell + side + gap * 0.1, f"{r['visibility_px']:g} px (limit "
                     f"{r['visibility_continuous_px']:.1f}){fold}", ha="center", va="top", fontsize=7.5)
-    fig.suptitle(f"{SURFACE_NAMES[surface]}, dmax = {_um(dmax)}: image with the dent at its best phase", fontsize=11)
+    fig.suptitle(f"{surface_name(surface)}, dmax = {_um(dmax)}: image with the dent at its best phase", fontsize=11)
     fig.text(0.5, 0.01, "Below each image: the paper's visibility (px, whole pixels) and its continuous limit (px); "
              "'folds': the stripe map folds.", ha="center", fontsize=8)
     _save(fig, path)
@@ -131,7 +143,7 @@ def visibility_plot(rows: list[CaseResult], surface: str, dmax: float, path: Pat
              Line2D([], [], color="k", marker="o", ls="none", markerfacecolor="none", markersize=11, label="stripe map folds")]
     handles, labels = axes[0].get_legend_handles_labels()
     axes[0].legend(handles + extra, labels + [h.get_label() for h in extra], fontsize=8)
-    fig.suptitle(f"{SURFACE_NAMES[surface]}, dmax = {_um(dmax)}: visibility against the camera's elevation", fontsize=11)
+    fig.suptitle(f"{surface_name(surface)}, dmax = {_um(dmax)}: visibility against the camera's elevation", fontsize=11)
     fig.tight_layout()
     _save(fig, path)
 
@@ -151,7 +163,7 @@ def law_plot(rows: list[CaseResult], path: Path) -> None:
                         and math.isfinite(r[law]) and r[law] > 0 and r[sim] > 0]
                 if pick:
                     ax.scatter([r[law] for r in pick], [r[sim] for r in pick], c=colour, marker=marker, s=22,
-                               label=f"{SURFACE_NAMES[surface]}{', folds' if folded else ''}")
+                               label=f"{surface_name(surface)}{', folds' if folded else ''}")
         ax.set_xscale("log")
         ax.set_yscale("log")
         lo, hi = ax.get_xlim()
@@ -220,7 +232,7 @@ def overlay_figure(rgb: np.ndarray, result, column_start: int, title: str, path:
 
 def figure_names(surface: str, dmax: float) -> tuple[str, str]:
     """File names of the grid and the plot of one (surface, depth); depth in µm."""
-    tag = f"{surface}_dmax{dmax * 1000:g}um"
+    tag = f"{surface_label(surface)}_dmax{dmax * 1000:g}um"
     return f"grid_{tag}.png", f"visibility_{tag}.png"
 
 

@@ -37,7 +37,8 @@ class CaseResult(Mapping):
     timings. The fields are the columns of ``results.csv`` (in order, with their units
     and meanings: :data:`COLUMNS`); the record also reads as a mapping of them."""
 
-    surface: str = _column("", "base surface: flat, cylinder (R 70 mm, axis in the plane of incidence) or sphere (R 70 mm)")
+    surface: str = _column("", "base surface: flat, cylinder (R 70 mm, axis in the plane of incidence), sphere (R 70 mm), "
+                                "or the scene file of a free-form surface")
     theta_deg: float = _column("deg", "camera elevation θ above the surface (90 = straight down)")
     sigma2_mm2: float = _column("mm²", "variance σ² of the Gaussian dent (isotropic)")
     dmax_mm: float = _column("mm", "depth of the dent (0.003 mm = 3 µm)")
