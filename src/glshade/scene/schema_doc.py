@@ -86,7 +86,8 @@ and mixed differences). For a formula they come from `f` and its exact Hessian s
 features finer than that grid, or curvature far larger outside it, can break them. Where
 the bound fails, or where a ray skims the surface for longer than the march's 256 steps,
 the pixel is reported as a miss (black, outside the mask), never as a wrong hit. Where a
-formula is undefined (`sqrt` of a negative number) there is no surface.
+formula is undefined (`sqrt` of a negative number) there is no surface, and a ray that
+reaches such a region ends there as a miss.
 
 *Role*: `feature` parameters pick shader code (a change may compile another program, once
 per feature set); `uniform` parameters reach the shader as uniforms (a change never
