@@ -1,6 +1,11 @@
-"""Reading height maps: every format's layout and units, the cache, and every refusal."""
+"""Reading height maps: every format's layout and units, the scale, the cache, and every
+refusal (one line, naming ``surface.file``, the file and the problem)."""
 
 from __future__ import annotations
+
+import hashlib
+import zipfile
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -10,93 +15,197 @@ import x3pio
 
 from glshade import heightmap_io
 from glshade.errors import SceneError
-from glshade.heightmap_io import cached_height_map, read_height_map
+from glshade.heightmap_io import (
+    HeightMap,
+    cached_height_map,
+    load_height_map,
+    read_height_map,
+)
 
-MAP = np.arange(30, dtype=np.float64).reshape(5, 6) * 0.001  # 5 rows (z) x 6 columns (x)
+# 5 rows (along z) x 6 columns (along x), every sample different: an orientation check.
+MAP = np.arange(30, dtype=np.float64).reshape(5, 6) * 0.001
 
 
 def test_npy_in_any_real_dtype(tmp_path):
-    for dtype in (np.float64, np.float32, np.int16):
+    for dtype in (np.float64, np.float32, np.int16, np.uint8):
         np.save(tmp_path / "m.npy", (MAP * 1000).astype(dtype))
         got = read_height_map(tmp_path / "m.npy", scale=0.001)
-        assert got.heights.dtype == np.float64 and got.spacing_mm is None
+        assert isinstance(got, HeightMap) and got.source == str(tmp_path / "m.npy")
+        assert got.heights.dtype == np.float64 and got.heights.shape == (5, 6) and got.spacing_mm is None
         assert got.heights == pytest.approx(MAP, abs=1e-9)
 
 
-def test_x3p_carries_metres_and_its_grid(tmp_path):
+def test_the_scale_is_mm_per_stored_unit(tmp_path):
+    np.save(tmp_path / "m.npy", MAP.astype(np.float32))
+    assert read_height_map(tmp_path / "m.npy").heights == pytest.approx(MAP, abs=1e-7)
+    assert read_height_map(tmp_path / "m.npy", scale=-2.5).heights == pytest.approx(-2.5 * MAP, abs=1e-6)
+
+
+def test_x3p_is_metres_with_x_along_columns_and_y_along_rows(tmp_path):
     x3pio.write(tmp_path / "m.x3p", MAP * 1e-3, x_scale=20e-6, y_scale=30e-6)  # metres
+    # The file itself: SizeX counts the 6 columns, SizeY the 5 rows, x varies fastest.
+    xml = zipfile.ZipFile(tmp_path / "m.x3p").read("main.xml").decode()
+    assert "<SizeX>6</SizeX>" in xml and "<SizeY>5</SizeY>" in xml
     got = read_height_map(tmp_path / "m.x3p", scale=123.0)  # the scale does not apply: the file has units
-    assert got.heights.shape == (5, 6)  # x3p SizeX = 6 columns along x, SizeY = 5 rows along z
-    assert got.heights == pytest.approx(MAP, rel=1e-12)
-    assert got.spacing_mm == pytest.approx((0.02, 0.03))
+    assert got.heights.shape == (5, 6)
+    assert got.heights == pytest.approx(MAP, rel=1e-12)  # [row, column] = [y index, x index]
+    assert got.heights[0, 1] == pytest.approx(0.001) and got.heights[1, 0] == pytest.approx(0.006)
+    assert got.spacing_mm == pytest.approx((0.02, 0.03))  # (x between columns, z between rows)
 
 
 def test_float_tiff_and_16_bit_png(tmp_path):
     tifffile.imwrite(tmp_path / "m.tif", MAP.astype(np.float32))
-    assert read_height_map(tmp_path / "m.tif").heights == pytest.approx(MAP, abs=1e-7)
+    got = read_height_map(tmp_path / "m.tif")
+    assert got.heights.dtype == np.float64 and got.spacing_mm is None
+    assert got.heights == pytest.approx(MAP, abs=1e-7)
+    tifffile.imwrite(tmp_path / "m.TIFF", (MAP * 1e4).astype(np.uint16))  # any case
+    assert read_height_map(tmp_path / "m.TIFF", scale=1e-4).heights == pytest.approx(MAP, abs=1e-9)
     cv2.imwrite(str(tmp_path / "m.png"), (MAP * 1e4).astype(np.uint16))
-    assert read_height_map(tmp_path / "m.png", scale=1e-4).heights == pytest.approx(MAP, abs=1e-9)
+    got = read_height_map(tmp_path / "m.png", scale=1e-4)
+    assert got.heights == pytest.approx(MAP, abs=1e-9) and got.spacing_mm is None
+
+
+def test_maps_are_read_only_and_compared_by_identity(tmp_path):
+    np.save(tmp_path / "m.npy", MAP)
+    a, b = read_height_map(tmp_path / "m.npy"), read_height_map(tmp_path / "m.npy")
+    assert a != b and len({a, b, a}) == 2  # identity: hashable, never compares the arrays
+    with pytest.raises(ValueError):
+        a.heights[0, 0] = 1.0
+    assert "heights" not in repr(a)
 
 
 def test_a_changed_file_is_read_again(tmp_path):
     path = tmp_path / "m.npy"
     np.save(path, MAP)
+    load_height_map.cache_clear()
     first = cached_height_map(path)
-    assert cached_height_map(path) is first
-    np.save(path, MAP * 2 + np.zeros((5, 6)))
-    assert cached_height_map(path).heights == pytest.approx(MAP * 2)
+    assert cached_height_map(path) is first and cached_height_map(str(path)) is first
+    assert cached_height_map(path, scale=2.0) is not first
+    np.save(path, np.vstack([MAP, MAP]))  # another size, so another key whatever the clock
+    again = cached_height_map(path)
+    assert again is not first and again.heights.shape == (10, 6)
+    assert load_height_map.cache_info().hits == 2
 
 
-def _bad(tmp_path, name, writer):
-    path = tmp_path / name
-    writer(path)
-    return path
+def test_a_missing_file_is_not_cached(tmp_path):
+    with pytest.raises(SceneError, match="an existing height map file"):
+        cached_height_map(tmp_path / "later.npy")
+    np.save(tmp_path / "later.npy", MAP)
+    assert cached_height_map(tmp_path / "later.npy").heights.shape == (5, 6)
 
 
-@pytest.mark.parametrize("name, writer, fragment", [
+def _nan_at(row, col):
+    bad = MAP.copy()
+    bad[row, col] = np.nan
+    bad[4, 5] = np.inf
+    return bad
+
+
+def _x3p_with_x_increment(path, increment):
+    """An x3p whose x increment x3pio would not write (checksum made to match)."""
+    x3pio.write(path.with_suffix(".tmp"), MAP * 1e-3, x_scale=20e-6, y_scale=30e-6)
+    src = zipfile.ZipFile(path.with_suffix(".tmp"))
+    xml = src.read("main.xml").decode().replace("<Increment>2e-05</Increment>", f"<Increment>{increment}</Increment>")
+    with zipfile.ZipFile(path, "w") as out:
+        out.writestr("main.xml", xml)
+        out.writestr("md5checksum.hex", hashlib.md5(xml.encode()).hexdigest() + " *main.xml\n")
+        for name in src.namelist():
+            if name.startswith("bindata/"):
+                out.writestr(name, src.read(name))
+
+
+REFUSALS = [
     ("missing.npy", None, "an existing height map file"),
-    ("m.csv", lambda p: p.write_text("1,2"), "a height map file (.npy, .x3p"),
+    ("m.csv", lambda p: p.write_text("1,2"), "a height map file (.npy, .x3p, .tif, .tiff, .png)"),
+    ("noext", lambda p: p.write_text("1,2"), "a height map file (.npy"),
     ("dir.npy", lambda p: p.mkdir(), "not a directory"),
-    ("corrupt.npy", lambda p: p.write_bytes(b"\x93NUMPY garbage"), "a readable height map (corrupt.npy"),
-    ("corrupt.x3p", lambda p: p.write_bytes(b"PK\x03\x04 not a zip"), "a readable height map (corrupt.x3p"),
-    ("complex.npy", lambda p: np.save(p, MAP.astype(complex)), "real numbers"),
-    ("bool.npy", lambda p: np.save(p, MAP > 0.01), "real numbers"),
-    ("cube.npy", lambda p: np.save(p, np.zeros((4, 4, 4))), "a 2-D map"),
-    ("small.npy", lambda p: np.save(p, np.zeros((3, 8))), "at least 4 x 4 samples (small.npy has 3 x 8)"),
-    ("nan.npy", lambda p: np.save(p, np.where(np.arange(30).reshape(5, 6) == 8, np.nan, MAP)),
-     "1 NaN or Inf samples, the first at row 1, column 2"),
-    ("inf.tif", lambda p: tifffile.imwrite(p, np.full((5, 5), np.inf, np.float32)), "25 NaN or Inf"),
-    ("rgb.png", lambda p: cv2.imwrite(str(p), np.zeros((5, 5, 3), np.uint8)), "a 16-bit greyscale PNG"),
-    ("eight.png", lambda p: cv2.imwrite(str(p), np.zeros((5, 5), np.uint8)), "a 16-bit greyscale PNG"),
-    ("int.tif", lambda p: tifffile.imwrite(p, np.zeros((5, 5), np.int16)), "a float or unsigned integer TIFF"),
-])
+    ("corrupt.npy", lambda p: p.write_bytes(b"\x93NUMPY garbage"), "a readable height map (corrupt.npy: "),
+    ("empty.npy", lambda p: p.write_bytes(b""), "a readable height map (empty.npy: "),
+    ("short.npy", lambda p: p.write_bytes(_npy_bytes(np.zeros((50, 50)))[:200]), "a readable height map (short.npy"),
+    ("corrupt.x3p", lambda p: p.write_bytes(b"PK\x03\x04 not a zip"), "a readable height map (corrupt.x3p: "),
+    ("corrupt.tif", lambda p: p.write_bytes(b"II*\x00garbage"), "a readable height map (corrupt.tif: "),
+    ("corrupt.png", lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n garbage"), "a readable PNG (corrupt.png"),
+    ("complex.npy", lambda p: np.save(p, MAP.astype(complex)), "real integers or floats (complex.npy holds complex128)"),
+    ("bool.npy", lambda p: np.save(p, MAP > 0.01), "real integers or floats (bool.npy holds bool)"),
+    ("object.npy", lambda p: np.save(p, MAP.astype(object), allow_pickle=True), "(object.npy holds object)"),
+    ("struct.npy", lambda p: np.save(p, np.zeros((5, 5), [("a", "f8"), ("b", "f8")])), "real integers or floats"),
+    ("cube.npy", lambda p: np.save(p, np.zeros((4, 4, 4))), "a 2-D map, rows x columns (cube.npy has shape (4, 4, 4))"),
+    ("line.npy", lambda p: np.save(p, np.zeros(16)), "a 2-D map"),
+    ("small.npy", lambda p: np.save(p, np.zeros((3, 8))), "at least 4 x 4 samples (small.npy has 3 rows x 8 columns)"),
+    ("nan.npy", lambda p: np.save(p, _nan_at(1, 2)), "(nan.npy has 2 NaN or Inf samples, the first at row 1, column 2)"),
+    ("inf.tif", lambda p: tifffile.imwrite(p, np.full((5, 5), -np.inf, np.float32)), "25 NaN or Inf samples"),
+    ("hole.x3p", lambda p: x3pio.write(p, _nan_at(3, 0) * 1e-3, x_scale=1e-5, y_scale=1e-5),
+     "x3p marks unmeasured points so: fill them first), the first at row 3, column 0"),
+    ("rgb.png", lambda p: cv2.imwrite(str(p), np.zeros((5, 5, 3), np.uint16)), "(rgb.png is 16-bit with 3 channels)"),
+    ("eight.png", lambda p: cv2.imwrite(str(p), np.zeros((5, 5), np.uint8)), "(eight.png is 8-bit greyscale)"),
+    ("int.tif", lambda p: tifffile.imwrite(p, np.zeros((5, 5), np.int16)), "unsigned integers (int.tif holds int16)"),
+    ("half.tif", lambda p: tifffile.imwrite(p, np.zeros((5, 5), np.float16)), "(half.tif holds float16)"),
+    ("rgb.tif", lambda p: tifffile.imwrite(p, np.zeros((5, 5, 3), np.uint8)), "a 2-D map"),
+    ("profile.x3p", lambda p: x3pio.write(p, np.zeros(10), x_scale=1e-5), "(profile.x3p holds a profile)"),
+    ("cloud.x3p", lambda p: x3pio.write_points(p, np.random.default_rng(1).uniform(0, 1e-3, (20, 3))),
+     "(cloud.x3p holds a pointcloud)"),
+    ("irregular.x3p", lambda p: x3pio.Surface.from_points(_irregular_points()).save(p),
+     "(irregular.x3p is a non-regular grid"),
+    ("backwards.x3p", lambda p: _x3p_with_x_increment(p, "-2e-05"),
+     "positive spacings (backwards.x3p has x increment -2e-05 m, y increment 3e-05 m)"),
+    ("zero.x3p", lambda p: _x3p_with_x_increment(p, "0.0"), "a readable height map (zero.x3p: "),
+    ("line\nbreak.npy", lambda p: np.save(p, np.zeros((2, 8))), "line\\nbreak.npy has 2 rows"),
+]
+
+
+def _npy_bytes(array):
+    import io
+
+    buf = io.BytesIO()
+    np.save(buf, array)
+    return buf.getvalue()
+
+
+def _irregular_points():
+    x, y = np.meshgrid(np.arange(6) * 1e-5, np.arange(5) * 1e-5)
+    x = x + np.random.default_rng(2).uniform(0, 3e-6, x.shape)  # jittered: not a regular grid
+    return np.stack([x, y, np.zeros_like(x)], axis=-1)
+
+
+@pytest.mark.parametrize(("name", "writer", "fragment"), REFUSALS, ids=[r[0] for r in REFUSALS])
 def test_refusals_are_one_line_naming_the_file(tmp_path, name, writer, fragment):
-    path = tmp_path / name if writer is None else _bad(tmp_path, name, writer)
+    path = tmp_path / name
+    if writer is not None:
+        writer(path)
     with pytest.raises(SceneError) as info:
         read_height_map(path)
     message = str(info.value)
-    assert message.startswith("surface.file: must be") and "\n" not in message
+    assert info.value.field == "surface.file"
+    assert message.startswith("surface.file: must be ") and "\n" not in message
     assert fragment in message, message
-
-
-def test_a_non_regular_x3p_grid_is_refused(tmp_path):
-    points = np.column_stack([np.random.default_rng(1).uniform(0, 1e-3, (20, 2)), np.zeros(20)])
-    x3pio.write_points(tmp_path / "cloud.x3p", points)
-    with pytest.raises(SceneError, match="regular grid"):
-        read_height_map(tmp_path / "cloud.x3p")
+    assert name.replace("\n", "\\n") in message, message
 
 
 def test_the_largest_side(tmp_path, monkeypatch):
-    monkeypatch.setattr(heightmap_io, "MAX_SIDE", 5)
     np.save(tmp_path / "m.npy", np.zeros((5, 6)))
-    with pytest.raises(SceneError, match="at most 5 samples a side"):
+    monkeypatch.setattr(heightmap_io, "MAX_SIDE", 6)
+    assert read_height_map(tmp_path / "m.npy").heights.shape == (5, 6)
+    monkeypatch.setattr(heightmap_io, "MAX_SIDE", 5)
+    with pytest.raises(SceneError, match=r"at most 5 samples a side \(m.npy has 5 rows x 6 columns\)"):
         read_height_map(tmp_path / "m.npy")
+    x3pio.write(tmp_path / "m.x3p", np.zeros((6, 5)), x_scale=1e-5, y_scale=1e-5)
+    with pytest.raises(SceneError, match=r"at most 5 samples a side \(m.x3p has 6 rows x 5 columns\)"):
+        read_height_map(tmp_path / "m.x3p")
+
+
+def test_a_scale_that_overflows_or_is_not_finite(tmp_path):
+    np.save(tmp_path / "m.npy", MAP + 10.0)
+    with pytest.raises(SceneError, match="m.npy times scale 1e.308 overflows"):
+        read_height_map(tmp_path / "m.npy", scale=1e308)
+    with pytest.raises(SceneError, match="surface.scale: must be a finite number"):
+        read_height_map(tmp_path / "m.npy", scale=float("nan"))
 
 
 def test_the_example_panel_reads():
-    from pathlib import Path
-
     panel = read_height_map(Path(__file__).resolve().parents[1] / "examples" / "panel.x3p")
-    assert panel.heights.shape == (640, 640) and panel.spacing_mm == pytest.approx((0.1, 0.1))
-    peel = panel.heights - panel.heights.mean()
-    assert 1e-4 < np.abs(peel).max() < 2.0
+    rows, cols = panel.heights.shape
+    assert rows == cols and panel.spacing_mm == pytest.approx((0.1, 0.1))
+    # Convex: the centre is the highest region, the corners the lowest.
+    assert panel.heights[rows // 2, cols // 2] > panel.heights[0, 0] + 0.1
+    # Curvature about 1/2500 along x (columns) and 1/1800 along z (rows): the z edge is lower.
+    assert panel.heights[0, cols // 2] < panel.heights[rows // 2, 0]

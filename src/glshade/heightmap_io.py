@@ -1,23 +1,41 @@
 """Reading height maps: measured topographies and sampled CAD patches (SPEC §8.1).
 
-A height map is ``heights[row, column]`` in mm, rows along +z and columns along +x
-(``docs/scene-format.md``, *Height maps*). Formats, by extension:
+Layout
+    A height map is ``heights[row, column]``, float64, in mm: rows run along +z and columns
+    along +x (``docs/scene-format.md``, *Height maps*). ``spacing_mm`` is ``(along x, along
+    z)``, i.e. (between columns, between rows), when the file carries it.
 
-- ``.npy``: any real integer or float array (``allow_pickle=False``), times ``scale``;
-- ``.x3p`` (ISO 25178-72, read with ``x3pio``): heights and the grid spacing in metres
-  (converted to mm; ``scale`` does not apply); its x axis is our x (columns), its y axis
-  our z (rows); only regular grids;
-- ``.tif``/``.tiff`` (``tifffile``): a 2-D float or unsigned integer image, times ``scale``;
-- ``.png``: 16-bit greyscale only (OpenCV), times ``scale``.
+Formats, chosen by the extension (any case):
 
-Every problem is a :class:`SceneError` of one line naming ``surface.file``. Maps are
-cached by path, modification time and size: an edited file is read again.
+- ``.npy``: any real integer or float array (``allow_pickle=False``), times ``scale`` mm per
+  stored unit; bool, complex, object and structured arrays are refused. No spacing.
+- ``.x3p`` (ISO 25178-72, read with ``x3pio``): heights and increments are stored in metres
+  and converted to mm, so ``scale`` does not apply. The x3p x axis is our x (columns) and
+  its y axis our z (rows): x3pio gives ``layer.z`` shaped ``(SizeY, SizeX)``, x varying
+  fastest as the standard stores it, so no transpose is needed. Only the first layer of a
+  surface on a regular grid (incremental x and y axes) with positive increments is
+  accepted; unmeasured points (NaN) are refused like any other NaN.
+- ``.tif``/``.tiff`` (``tifffile``): a 2-D greyscale image of 32- or 64-bit floats or
+  unsigned integers, times ``scale``. No spacing.
+- ``.png`` (OpenCV): 16-bit greyscale only, times ``scale``. No spacing.
+
+Every map needs at least :data:`MIN_SIDE` and at most :data:`MAX_SIDE` samples along each
+side, and finite values. Every problem is a :class:`~glshade.errors.SceneError` of one
+line for ``surface.file`` that names the file and what is wrong.
+
+:func:`cached_height_map` keeps the last few maps, keyed by path, modification time and
+size, so an edited file is read again; the arrays it hands out are read-only because they
+are shared.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 import os
+import struct
+import tokenize
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,38 +45,36 @@ from glshade.errors import SceneError
 
 FIELD = "surface.file"
 SUFFIXES = (".npy", ".x3p", ".tif", ".tiff", ".png")
+#: The fewest samples along a side (the bicubic spline needs a 4 x 4 block).
 MIN_SIDE = 4
-#: The largest side accepted (the renderer's texture limit on most GPUs).
+#: The most samples along a side (the renderer's texture limit on most GPUs).
 MAX_SIDE = 16384
+
+# What the readers raise on a damaged file besides their own error classes (found by
+# feeding them truncated and bit-flipped files): numpy's header parser lets TokenError
+# through, tifffile ZeroDivisionError, struct.error and zlib.error, and a damaged header
+# can ask for an impossible allocation.
+_DAMAGED = (OSError, ValueError, TypeError, KeyError, IndexError, EOFError, RuntimeError, ArithmeticError,
+            MemoryError, struct.error, zlib.error, tokenize.TokenError)
 
 
 @dataclass(frozen=True, eq=False)
 class HeightMap:
-    """``heights`` (float64, mm, (rows, columns)); ``spacing_mm``: (along x, along z) when
-    the file carries it; ``source``: the path read."""
+    """A height map as read from ``source``.
+
+    ``heights``: float64, (rows, columns), mm, rows along +z and columns along +x.
+    ``spacing_mm``: (along x, along z) in mm when the file carries it (.x3p), else ``None``.
+    ``source``: the path as given. Equality and hashing are by identity (``eq=False``): two
+    reads of one file are two maps, and the array is never compared.
+    """
 
     heights: np.ndarray = field(repr=False)
     spacing_mm: tuple[float, float] | None
     source: str
 
 
-def cached_height_map(path: str | os.PathLike[str], scale: float = 1.0) -> HeightMap:
-    """:func:`read_height_map`, read again only when the file changed."""
-    try:
-        st = os.stat(path)
-        key = (st.st_mtime_ns, st.st_size)
-    except OSError:
-        key = (0, 0)
-    return _cached(os.fspath(path), key, float(scale))
-
-
-@functools.lru_cache(maxsize=8)
-def _cached(path: str, key: tuple[int, int], scale: float) -> HeightMap:
-    return read_height_map(path, scale)
-
-
 def read_height_map(path: str | os.PathLike[str], scale: float = 1.0) -> HeightMap:
-    """The height map in ``path`` (see the module docstring)."""
+    """The height map in ``path``; ``scale``: mm of height per stored unit (not for .x3p)."""
     path = Path(path)
     name = path.name
     suffix = path.suffix.lower()
@@ -73,37 +89,97 @@ def read_height_map(path: str | os.PathLike[str], scale: float = 1.0) -> HeightM
         heights, spacing = reader(path)
     except SceneError:
         raise
-    except (OSError, ValueError, KeyError, TypeError, RuntimeError, EOFError) as exc:
-        raise SceneError(FIELD, f"a readable height map ({name}: {' '.join(str(exc).split())[:120]})") from None
-    except Exception as exc:  # the readers' own errors (x3pio, tifffile) have no common base
-        raise SceneError(FIELD, f"a readable height map ({name}: {type(exc).__name__}: "
-                                f"{' '.join(str(exc).split())[:120]})") from None
-    heights = _checked(np.asarray(heights), name)
+    except _DAMAGED + _library_errors(suffix) as exc:
+        detail = " ".join(str(exc).split())[:120] or "no detail"
+        raise SceneError(FIELD, f"a readable height map ({name}: {type(exc).__name__}: {detail})") from None
+    heights = _checked(np.asarray(heights), name, suffix)
     if suffix != ".x3p":
-        heights = heights * scale
+        heights = _scaled(heights, scale, name)
+    heights.flags.writeable = False
     return HeightMap(heights, spacing, str(path))
 
 
-def _checked(heights: np.ndarray, name: str) -> np.ndarray:
-    if heights.dtype.kind not in "iuf" or heights.dtype.names is not None:
-        raise SceneError(FIELD, f"a map of real numbers ({name} holds {heights.dtype})")
-    if heights.ndim != 2:
-        raise SceneError(FIELD, f"a 2-D map ({name} has shape {heights.shape})")
-    rows, cols = heights.shape
+@functools.lru_cache(maxsize=8)
+def load_height_map(path_str: str, mtime_ns: int, size: int, scale: float) -> HeightMap:
+    """:func:`read_height_map`, cached on the path and the file's modification time and size
+    (which only serve as the key)."""
+    return read_height_map(path_str, scale)
+
+
+def cached_height_map(path: str | os.PathLike[str], scale: float = 1.0) -> HeightMap:
+    """:func:`read_height_map`, read again only when the file changed."""
+    path_str = os.fspath(path)
+    try:
+        st = os.stat(path_str)
+    except OSError:
+        return read_height_map(path_str, scale)  # names the problem; nothing to cache
+    return load_height_map(path_str, st.st_mtime_ns, st.st_size, float(scale))
+
+
+def _library_errors(suffix: str) -> tuple[type[BaseException], ...]:
+    if suffix == ".x3p":
+        import x3pio
+
+        return (x3pio.X3pError,)
+    if suffix in (".tif", ".tiff"):
+        import tifffile
+
+        return (tifffile.TiffFileError,)
+    if suffix == ".png":
+        import cv2
+
+        return (cv2.error,)
+    return ()
+
+
+def _check_kind(dtype: np.dtype, name: str) -> None:
+    if dtype.kind not in "iuf" or dtype.names is not None or dtype.subdtype is not None:
+        raise SceneError(FIELD, f"a map of real integers or floats ({name} holds {dtype})")
+
+
+def _check_shape(shape: tuple[int, ...], name: str) -> None:
+    if len(shape) != 2:
+        raise SceneError(FIELD, f"a 2-D map, rows x columns ({name} has shape {tuple(shape)})")
+    rows, cols = shape
     if min(rows, cols) < MIN_SIDE:
-        raise SceneError(FIELD, f"a map of at least {MIN_SIDE} x {MIN_SIDE} samples ({name} has {rows} x {cols})")
+        raise SceneError(FIELD, f"a map of at least {MIN_SIDE} x {MIN_SIDE} samples ({name} has {rows} rows x "
+                                f"{cols} columns)")
     if max(rows, cols) > MAX_SIDE:
-        raise SceneError(FIELD, f"a map of at most {MAX_SIDE} samples a side ({name} has {rows} x {cols})")
-    heights = heights.astype(np.float64)
+        raise SceneError(FIELD, f"a map of at most {MAX_SIDE} samples a side ({name} has {rows} rows x "
+                                f"{cols} columns)")
+
+
+def _checked(heights: np.ndarray, name: str, suffix: str) -> np.ndarray:
+    _check_kind(heights.dtype, name)
+    _check_shape(heights.shape, name)
+    heights = np.array(heights, dtype=np.float64)  # a copy: never a view of a reader's buffer
     bad = ~np.isfinite(heights)
     if bad.any():
-        row, col = np.argwhere(bad)[0]
-        raise SceneError(FIELD, f"a map of finite heights ({name} has {int(bad.sum())} NaN or Inf samples, the first "
-                                f"at row {row}, column {col})")
+        row, col = (int(i) for i in np.argwhere(bad)[0])
+        hint = " (x3p marks unmeasured points so: fill them first)" if suffix == ".x3p" else ""
+        raise SceneError(FIELD, f"a height map with finite values ({name} has {int(bad.sum())} NaN or Inf "
+                                f"samples{hint}, the first at row {row}, column {col})")
+    return heights
+
+
+def _scaled(heights: np.ndarray, scale: float, name: str) -> np.ndarray:
+    if not math.isfinite(scale):
+        raise SceneError("surface.scale", "a finite number (mm per stored unit)", scale)
+    with np.errstate(over="ignore"):
+        heights = heights * scale
+    if not np.isfinite(heights).all():
+        raise SceneError(FIELD, f"a height map that stays finite in mm ({name} times scale {scale:g} overflows)")
     return heights
 
 
 def _npy(path: Path):
+    fmt = np.lib.format
+    with open(path, "rb") as f:  # the header first: refuse before loading anything
+        version = fmt.read_magic(f)
+        read_header = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+        shape, _, dtype = read_header(f)
+    _check_kind(dtype, path.name)
+    _check_shape(shape, path.name)
     return np.load(path, allow_pickle=False), None
 
 
@@ -111,26 +187,35 @@ def _x3p(path: Path):
     import x3pio
 
     x3p = x3pio.read(path)
-    if not x3p.layers:
-        raise SceneError(FIELD, f"an x3p file with a surface layer ({path.name} has none)")
-    layer = x3p.layers[0]
+    if not isinstance(x3p, x3pio.Surface):
+        kind = type(x3p).__name__.lower()
+        raise SceneError(FIELD, f"an x3p surface on a regular grid ({path.name} holds a {kind})")
     header = x3p.header
-    if type(x3p).__name__ != "Surface" or not layer.is_regular_grid:
-        raise SceneError(FIELD, f"an x3p surface on a regular grid ({path.name} is a {type(x3p).__name__.lower()} "
-                                "or a non-regular grid)")
+    if header.x.axis_type is not x3pio.AxisType.INCREMENTAL or header.y.axis_type is not x3pio.AxisType.INCREMENTAL:
+        raise SceneError(FIELD, f"an x3p surface on a regular grid ({path.name} is a non-regular grid: its x or y "
+                                "axis is absolute)")
+    if not x3p.layers:
+        raise SceneError(FIELD, f"an x3p surface with a layer of heights ({path.name} has none)")
     dx, dy = float(header.x.increment), float(header.y.increment)
     if not (dx > 0 and dy > 0):
-        raise SceneError(FIELD, f"an x3p file with positive increments ({path.name}: {dx:g}, {dy:g} m)")
-    return np.asarray(layer.z, dtype=np.float64) * 1e3, (dx * 1e3, dy * 1e3)
+        raise SceneError(FIELD, f"an x3p grid with positive spacings ({path.name} has x increment {dx:g} m, "
+                                f"y increment {dy:g} m)")
+    z = np.asarray(x3p.layers[0].z)  # (SizeY rows along our z, SizeX columns along our x), metres
+    _check_shape(z.shape, path.name)
+    return z * 1e3, (dx * 1e3, dy * 1e3)
 
 
 def _tiff(path: Path):
     import tifffile
 
-    image = tifffile.imread(path)
-    if image.dtype.kind not in "uf":
-        raise SceneError(FIELD, f"a float or unsigned integer TIFF ({path.name} holds {image.dtype})")
-    return image, None
+    with tifffile.TiffFile(path) as tif:  # the shape and type first: refuse before decoding
+        series = tif.series[0]
+        dtype = np.dtype(series.dtype)
+        if not (dtype.kind == "u" or dtype in (np.float32, np.float64)):
+            raise SceneError(FIELD, f"a TIFF of 32- or 64-bit floats or unsigned integers ({path.name} holds "
+                                    f"{dtype})")
+        _check_shape(tuple(series.shape), path.name)
+        return tif.asarray(), None
 
 
 def _png(path: Path):
@@ -138,8 +223,9 @@ def _png(path: Path):
 
     image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if image is None:
-        raise SceneError(FIELD, f"a readable PNG ({path.name})")
-    if image.dtype != np.uint16 or image.ndim != 2:
-        raise SceneError(FIELD, f"a 16-bit greyscale PNG ({path.name} is {image.dtype.itemsize * 8}-bit with "
-                                f"{1 if image.ndim == 2 else image.shape[2]} channels)")
+        raise SceneError(FIELD, f"a readable PNG ({path.name} could not be decoded)")
+    channels = 1 if image.ndim == 2 else image.shape[2]
+    if image.dtype != np.uint16 or channels != 1:
+        kind = "greyscale" if channels == 1 else f"with {channels} channels"
+        raise SceneError(FIELD, f"a 16-bit greyscale PNG ({path.name} is {image.dtype.itemsize * 8}-bit {kind})")
     return image, None
