@@ -165,22 +165,22 @@ class Formula:
 
         x, z = self.symbols[:2]
         fx, fz = self.derivatives
+        return self._numpy_of(sympy.diff(fx, x), sympy.diff(fx, z), sympy.diff(fz, z))
+
+    def _numpy_of(self, *expressions) -> tuple[Callable, ...]:
+        """NumPy functions of ``(x, z)`` for SymPy ``expressions`` of this formula's
+        symbols, the parameters bound (``lambdify`` prints the rebuilt tree, not user text)."""
+        import sympy
+
         values = [value for _, value in self.parameters]
-        return tuple(_bound(sympy.lambdify(self.symbols, e, modules=[{"Heaviside": _heaviside}, "numpy"]), values)
-                     for e in (sympy.diff(fx, x), sympy.diff(fx, z), sympy.diff(fz, z)))
+        modules = [{"Heaviside": _heaviside}, "numpy"]
+        return tuple(_bound(sympy.lambdify(self.symbols, e, modules=modules), values) for e in expressions)
 
     @cached_property
     def numpy(self) -> tuple[Callable, Callable, Callable]:
         """NumPy functions ``(f, f_x, f_z)`` of ``(x, z)`` (float64 arrays), with the
         parameters bound: the oracle's evaluation of the same tree."""
-        import sympy
-
-        values = [value for _, value in self.parameters]
-        functions = []
-        for expression in (self.tree, *self.derivatives):
-            compiled = sympy.lambdify(self.symbols, expression, modules=[{"Heaviside": _heaviside}, "numpy"])
-            functions.append(_bound(compiled, values))
-        return tuple(functions)
+        return self._numpy_of(self.tree, *self.derivatives)
 
 
 def _bound(compiled, values):

@@ -75,45 +75,40 @@ def _flag_options(param: Param) -> dict[str, object]:
     return options
 
 
-def _param_type(param: Param):
-    """argparse type of a parameter: its text parsed by the declaration (units allowed)."""
+def _argument_type(name: str, parse):
+    """An argparse type from a glshade parser: its GlshadeError becomes argparse's usage
+    error (one line, exit 2); ``name`` is what argparse calls the type."""
 
-    def parse(text: str):
+    def parsed(text: str):
         try:
-            return param.parse(text)
+            return parse(text)
         except GlshadeError as exc:
             raise argparse.ArgumentTypeError(str(exc)) from None
 
-    parse.__name__ = param.path
-    return parse
+    parsed.__name__ = name
+    return parsed
+
+
+def _param_type(param: Param):
+    """argparse type of a parameter: its text parsed by the declaration (units allowed)."""
+    return _argument_type(param.path, param.parse)
 
 
 def _quantity_list(path: str):
     """argparse type of a comma-separated list of one parameter's values (units allowed)."""
-
-    def parse(text: str) -> list[float]:
-        param = registry().param(path)
-        try:
-            return [param.parse(part) for part in text.split(",") if part.strip()]
-        except GlshadeError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
-
-    parse.__name__ = path
-    return parse
+    return _argument_type(path, lambda text: [registry().param(path).parse(part) for part in text.split(",")
+                                              if part.strip()])
 
 
 def _length_mm(text: str) -> float:
     from glshade.units import parse_quantity
 
-    try:
-        return parse_quantity(text, "mm", "length")
-    except GlshadeError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+    return parse_quantity(text, "mm", "length")
 
 
 def _add_metric_flags(p: argparse.ArgumentParser) -> None:
     """How visibility is measured (paper and measure)."""
-    p.add_argument("--step", type=_length_mm, default=0.25, metavar="MM",
+    p.add_argument("--step", type=_argument_type("length", _length_mm), default=0.25, metavar="MM",
                    help="phase step of the metric, mm or with a unit (default 0.25)")
     p.add_argument("--threshold", type=float, default=0.5, help="binarisation threshold, fraction of the peak (default 0.5)")
     p.add_argument("--keep-fraction", type=float, default=0.5, help="central fraction of the columns kept (default 0.5)")
@@ -262,10 +257,10 @@ def _reuse_freed_memory() -> None:
 
 def _cmd_paper(args: argparse.Namespace) -> int:
     from glshade.study import plan as study
+    from glshade.study.run import check_workers
     from glshade.study.store import study_lock
 
-    if args.workers < 1:
-        raise GlshadeError(f"--workers: must be an integer >= 1, got {args.workers}")
+    check_workers(args.workers)  # before --out is touched
     metric = _metric_settings(args)
     surfaces = tuple(part.strip() for part in args.surfaces.split(",") if part.strip())
     plan = study.StudyPlan(
@@ -448,8 +443,7 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
     for item in args.settings:  # later settings win; all are applied at once, so values that
         path, value = parse_setting(item)  # only make sense together (a kind and its file) can be given
         table, _, key = path.partition(".")
-        tables.setdefault(table, {}).pop(key, None)
-        tables[table][key] = value
+        tables.setdefault(table, {})[key] = value
     scene = scene.updated(**tables)
     if args.size is not None:
         scene = scene.with_size(args.size)

@@ -22,7 +22,7 @@ import numpy as np
 from glshade.components.base import SurfaceComponent
 from glshade.errors import SceneError
 from glshade.formula import Formula as ParsedFormula
-from glshade.formula import check_parameter_name, parse_formula
+from glshade.formula import parse_formula
 from glshade.scene.params import Param
 
 EXPRESSION = Param(
@@ -49,11 +49,8 @@ def march_uniforms(scene, frame) -> dict[str, object]:
 
 def check_formula(values: dict) -> None:
     """A formula surface's expression and parameters parse (the error names the token)."""
-    if values.get("kind") != "formula":
-        return
-    for name, _ in values.get("parameters") or ():
-        check_parameter_name(name, "surface.parameters")
-    parsed(values["expression"], values.get("parameters") or ())
+    if values.get("kind") == "formula":
+        parsed(values["expression"], values.get("parameters") or ())
 
 
 @functools.lru_cache(maxsize=64)
@@ -120,12 +117,16 @@ def bounds(scene) -> tuple[float, float, float]:
 def _seen_box(scene) -> tuple[float, float, float, float]:
     """``(x0, x1, z0, z1)`` (mm): where the image's border rays meet the plane y = 0, and
     the defect's centre, with a margin of 25 % and 2 mm."""
+    return _box(scene.camera, scene.defect.x0, scene.defect.z0)
+
+
+@functools.lru_cache(maxsize=64)
+def _box(cam, x0: float, z0: float) -> tuple[float, float, float, float]:
     from glshade.oracle.tracer import pixel_rays
 
-    cam = scene.camera
     edge_rows = np.unique(np.linspace(0, cam.height - 1, 9).round().astype(int))
     edge_cols = np.unique(np.linspace(0, cam.width - 1, 9).round().astype(int))
-    points = [np.array([scene.defect.x0, scene.defect.z0])]
+    points = [np.array([x0, z0])]
     for rows, cols in ((edge_rows, [0, cam.width - 1]), ([0, cam.height - 1], edge_cols)):
         for r in rows:
             for c in cols:

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -83,21 +82,14 @@ def grid_of(scene) -> Grid:
 def _grid(file, scale, spacing, origin, outside) -> Grid:
     from glshade.heightmap_io import cached_height_map
 
-    stat = _stat(file)
-    return _build(str(file), stat, float(scale), spacing, origin, outside or "curtain", cached_height_map)
-
-
-def _stat(file) -> tuple[int, int]:
-    try:
-        st = os.stat(file)
-    except OSError:
-        return (0, 0)  # the reader names the problem
-    return (st.st_mtime_ns, st.st_size)
+    height_map = cached_height_map(file, float(scale))  # the same object while the file is unchanged
+    return _build(height_map, spacing, origin, outside or "curtain")
 
 
 @functools.lru_cache(maxsize=8)
-def _build(file: str, stat, scale: float, spacing, origin, outside: str, reader) -> Grid:
-    height_map = reader(file, scale)
+def _build(height_map, spacing, origin, outside: str) -> Grid:
+    """The render-ready grid of a map (cached per map object: maps compare by identity)."""
+    file = height_map.source
     heights = np.asarray(height_map.heights, dtype=np.float64)
     if height_map.spacing_mm is not None and spacing is None:
         spacing = height_map.spacing_mm

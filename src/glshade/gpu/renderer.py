@@ -89,32 +89,32 @@ class RootSolver:
         return 1e-7 if precision == "fp32" else 1e-13
 
 
-def memory_budget_from_env() -> int:
-    """Bytes allowed for one frame's buffers: ``GLSHADE_MEMORY_BUDGET_MB`` or 2048 MiB."""
-    raw = os.environ.get("GLSHADE_MEMORY_BUDGET_MB")
+def _number_from_env(name: str, allowed: str, positive_only: bool, lowest: float = 0.0) -> float | None:
+    """The number in environment variable ``name`` (None when unset); a SceneError naming
+    the variable when it is not one above ``lowest`` (or at least it, unless
+    ``positive_only``)."""
+    raw = os.environ.get(name)
     if raw is None:
-        return DEFAULT_MEMORY_BUDGET_MB << 20
+        return None
     try:
         value = float(raw)
     except ValueError:
-        value = -1.0
-    if not (math.isfinite(value) and value > 0):
-        raise SceneError("GLSHADE_MEMORY_BUDGET_MB", "a number of MiB > 0", raw)
-    return int(value * (1 << 20))
+        value = math.nan
+    if not (math.isfinite(value) and (value > lowest if positive_only else value >= lowest)):
+        raise SceneError(name, allowed, raw)
+    return value
+
+
+def memory_budget_from_env() -> int:
+    """Bytes allowed for one frame's buffers: ``GLSHADE_MEMORY_BUDGET_MB`` or 2048 MiB."""
+    mib = _number_from_env("GLSHADE_MEMORY_BUDGET_MB", "a number of MiB > 0", positive_only=True)
+    return DEFAULT_MEMORY_BUDGET_MB << 20 if mib is None else int(mib * (1 << 20))
 
 
 def max_rays_from_env() -> int:
     """Rays one frame may trace: ``GLSHADE_MAX_RAYS`` or :data:`DEFAULT_MAX_RAYS`."""
-    raw = os.environ.get("GLSHADE_MAX_RAYS")
-    if raw is None:
-        return DEFAULT_MAX_RAYS
-    try:
-        value = float(raw)
-    except ValueError:
-        value = -1.0
-    if not (math.isfinite(value) and value >= 1):
-        raise SceneError("GLSHADE_MAX_RAYS", "a number of rays >= 1", raw)
-    return int(value)
+    rays = _number_from_env("GLSHADE_MAX_RAYS", "a number of rays >= 1", positive_only=False, lowest=1.0)
+    return DEFAULT_MAX_RAYS if rays is None else int(rays)
 
 
 def frame_rays(scene: Scene) -> int:

@@ -119,12 +119,17 @@ def run_study(
     run is, with all of that surface's rows (the CLI draws its figures there, on this
     thread, while the workers measure the next surface).
     """
-    if workers < 1:
-        raise GlshadeError(f"--workers: must be an integer >= 1, got {workers}")
+    check_workers(workers)
     out_dir = Path(out_dir)
     with study_lock(out_dir):
         prepare_out_dir(out_dir, plan.to_dict(), overwrite)
         return _run_locked(plan, out_dir, workers, progress, renderer, on_case_done, on_surface_done)
+
+
+def check_workers(workers: int) -> None:
+    """The analysis threads of a run: at least one."""
+    if workers < 1:
+        raise GlshadeError(f"--workers: must be an integer >= 1, got {workers}")
 
 
 def _run_locked(plan, out_dir, workers, progress, renderer, on_case_done, on_surface_done) -> StudyResult:
