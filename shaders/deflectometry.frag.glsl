@@ -31,11 +31,11 @@ layout(location = {{ loop.index0 }}) out float out_iterations; // evaluations of
 float hit_distance;                          // of the last trace(): camera to hit, mm (-1: none)
 {$ endif $}
 
-// Trace the ray through sensor position (col, row) (pixel units, row 0 at the top).
-bool trace(real col, real row, out float radiance, out real2 uv) {
+// Trace ray k of sensor position (col, row) (pixel units, row 0 at the top).
+bool trace(real col, real row, int k, out float radiance, out real2 uv) {
     radiance = 0.0;
     uv = real2(0.0);
-    Ray ray = camera_ray(col, row);
+    Ray ray = camera_ray(col, row, k);
     real3 d = ray.d;
     real3 p;
     real depth;
@@ -52,7 +52,10 @@ bool trace(real col, real row, out float radiance, out real2 uv) {
     real dist;
     if (!emitter_hit(p, r, uv, dist)) return false;
 {$ if "image" in outputs $}
-    radiance = shade(d, n, r, uv, dist);
+    radiance = shade(p, d, n, r, uv, dist);
+{$ if fresnel $}
+    radiance *= fresnel(float(-dot(d, n)));
+{$ endif $}
 {$ endif $}
     return true;
 }
@@ -75,38 +78,47 @@ void main() {
     g_evaluations = 0;                       // the most any sample needed
     int most_evaluations = 0;
 {$ endif $}
-{$ if supersample $}
-    // n x n sub-pixel rays; radiance averages all, uv the ones that reach the emitter.
+{$ if supersample or aperture $}
+    // n x n sub-pixel positions, each with the camera's rays (a lens: its aperture
+    // samples); radiance averages all, uv the ones that reach the emitter.
     int hits = 0;
-    real step = 1.0 / real(u_supersample);
-    for (int a = 0; a < u_supersample; ++a) {
-        for (int b = 0; b < u_supersample; ++b) {
-            float sample_radiance;
-            real2 sample_uv;
-{$ if "iterations" in outputs $}
-            g_evaluations = 0;
+{$ if supersample $}
+    int side = u_supersample;
+{$ else $}
+    const int side = 1;
 {$ endif $}
-            if (trace(col + (real(b) + 0.5) * step, row + (real(a) + 0.5) * step, sample_radiance, sample_uv)) {
-                radiance += sample_radiance;
-                uv += sample_uv;
-                hits += 1;
-            }
+    real step = 1.0 / real(side);
+    int rays = camera_samples();
+    for (int a = 0; a < side; ++a) {
+        for (int b = 0; b < side; ++b) {
+            for (int k = 0; k < rays; ++k) {
+                float sample_radiance;
+                real2 sample_uv;
+{$ if "iterations" in outputs $}
+                g_evaluations = 0;
+{$ endif $}
+                if (trace(col + (real(b) + 0.5) * step, row + (real(a) + 0.5) * step, k, sample_radiance, sample_uv)) {
+                    radiance += sample_radiance;
+                    uv += sample_uv;
+                    hits += 1;
+                }
 {$ if "distance" in outputs $}
-            if (hit_distance >= 0.0) {
-                distance_sum += hit_distance;
-                surface_hits += 1;
-            }
+                if (hit_distance >= 0.0) {
+                    distance_sum += hit_distance;
+                    surface_hits += 1;
+                }
 {$ endif $}
 {$ if "iterations" in outputs $}
-            most_evaluations = max(most_evaluations, g_evaluations);
+                most_evaluations = max(most_evaluations, g_evaluations);
 {$ endif $}
+            }
         }
     }
-    radiance /= float(u_supersample * u_supersample);
+    radiance /= float(side * side * rays);
     reached = hits > 0;
     if (reached) uv /= real(hits);
 {$ else $}
-    reached = trace(col + 0.5, row + 0.5, radiance, uv);
+    reached = trace(col + 0.5, row + 0.5, 0, radiance, uv);
 {$ if "distance" in outputs $}
     if (hit_distance >= 0.0) {
         distance_sum = hit_distance;

@@ -9,7 +9,7 @@
 // the emitter's edges are not seen by the lobe.
 uniform real u_shininess;     // Blinn-Phong exponent N
 
-float shade(real3 d, real3 n, real3 r, real2 uv, real dist) {
+float blinn_phong(real3 d, real3 n, real3 r, real2 uv, real dist) {
     real cos_i = -dot(d, n);
     real3 b = cross(n, r);
     real len_b = length(b);
@@ -25,4 +25,13 @@ float shade(real3 d, real3 n, real3 r, real2 uv, real dist) {
     real spread2 = 4.0 * (j_a * j_a + cos_i * cos_i * j_b * j_b) / u_shininess;
     real width = sqrt(u_stripe_sigma * u_stripe_sigma + spread2);
     return float(u_stripe_sigma / width) * stripes(uv.y, width);
+}
+
+float shade(real3 p, real3 d, real3 n, real3 r, real2 uv, real dist) {
+{$ if coherence $}
+    float c = coherent_fraction(d, n);     // eq. (1): the coherent part is the mirror's
+    return c * stripes(uv.y, u_stripe_sigma) + (1.0 - c) * blinn_phong(d, n, r, uv, dist);
+{$ else $}
+    return blinn_phong(d, n, r, uv, dist);
+{$ endif $}
 }

@@ -42,7 +42,8 @@ def test_accuracy_command_reduced(tmp_path):
     )
     assert result.returncode == 0, result.stderr[-2000:]
     text = (out / "accuracy.md").read_text()
-    for heading in ("## The converged reference", "## Per frame", "## Per case", "## Blinn-Phong", "## Defaults, and why",
+    for heading in ("## The converged reference", "## Per frame", "## Per case", "## Blinn-Phong", "## Microfacet lobes",
+                    "## Defaults, and why",
                     "## Stability on stiff and extreme cases", "## Documented limits"):
         assert heading in text, heading
     assert "**fp32** (default)" in text and "on the Pareto front" in text

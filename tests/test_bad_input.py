@@ -47,6 +47,15 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     (["render", "--set", "emitter.half_size=1"], "emitter.half_size: must be two numbers", {}),
     (["render", "--size", "8192", "--supersample", "16"], "= 1.72e+10 rays, more than the work budget", {}),
     (["render", "--no-such-flag"], "unrecognized arguments: --no-such-flag", {}),
+    # optics and sensor (issue 12)
+    (["render", "--f-number", "-2"], "camera.f_number: must be a finite number >= 0 (0: pinhole), got -2.0", {}),
+    (["render", "--roughness", "-0.01"], "render.roughness: must be a finite number >= 0, got -0.01", {}),
+    (["render", "--wavelength", "0"], "render.wavelength_um: must be a finite number > 0, got 0.0", {}),
+    (["render", "--height-rms", "-0.1"], "render.height_rms_um: must be a finite number >= 0, got -0.1", {}),
+    (["render", "--distortion=-20,0,0,0,0"], "camera.distortion: must be coefficients whose map does not fold", {}),
+    (["render", "--distortion", "0.1,0.2"], "camera.distortion: must be a list of 5 finite numbers", {}),
+    (["render", "--bit-depth", "13"], "sensor.bit_depth: must be one of 8, 10, 12, 16, got 13", {}),
+    (["render", "--aperture-samples", "0"], "camera.aperture_samples: must be an integer in [1, 1024]", {}),
     (["frobnicate"], "invalid choice: 'frobnicate'", {}),
     # outputs
     (["render", "-o", "out.jpg"], "-o out.jpg: .jpg is a lossy format", {}),

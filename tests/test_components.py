@@ -136,9 +136,11 @@ def _other_value(param):
     if param.value_type == "choice":
         return next(c for c in choices if c != param.default)
     if param.value_type == "integer":
-        return param.default + 1
+        return param.default + 4 if param.path == "sensor.bit_depth" else param.default + 1
     if param.value_type == "pair":
         return (0.5, 0.75) if param.default is None else (param.default[0] * 0.5, param.default[1] * 0.75)
+    if param.value_type == "vector":
+        return tuple(0.01 * (k + 1) * (-1) ** k for k in range(param.size))
     if param.value_type == "path":
         return sample_map("flipped")
     if param.value_type == "text":

@@ -325,7 +325,7 @@ def test_ctrl_c_stops_a_long_render_within_seconds(tmp_path):
 def test_work_budget_refuses_up_front(renderer):
     scene = paper_scene().with_size(64).updated(render={"supersample": 4})
     small = renderer_module.Renderer(renderer.context, max_rays=64 * 64 * 16 - 1)
-    with pytest.raises(GlshadeError, match=r"64x64 pixels x 16 rays = 6.55e\+04 rays, more than the work budget"):
+    with pytest.raises(GlshadeError, match=r"64x64 pixels x 16 rays \(x 1 aperture and lobe samples\) = 6.55e\+04 rays, more than the work budget"):
         small.render(scene)
     small.release()
 

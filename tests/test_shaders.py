@@ -128,9 +128,10 @@ def test_only_requested_outputs_are_declared(outputs):
 
 def test_features_come_from_scene_values():
     f = ShaderFeatures.from_scene(paper_scene("cylinder", 5.0, 9.0, -0.002), ("uv", "image"))
-    assert f.selected() == {"render": "sampling", "camera": "pinhole", "surface": "cylinder", "defect": "gaussian",
-                            "emitter": "stripes", "reflection": "mirror"}
-    assert dict(f.variables) == {"cylinder_axis": "z", "defect": "isotropic", "precision": "fp32", "supersample": False}
+    assert f.selected() == {"render": "sampling", "camera": "camera", "surface": "cylinder", "defect": "gaussian",
+                            "emitter": "stripes", "reflection": "mirror", "fresnel": "none", "sensor": "sensor"}
+    assert dict(f.variables) == {"cylinder_axis": "z", "defect": "isotropic", "precision": "fp32", "supersample": False,
+                                "aperture": False, "distortion": False, "coherence": False, "fresnel": False}
     assert f.outputs == ("image", "uv")
     # theta, phase, sigma2, dmax (non-zero) are uniforms: same features
     g = ShaderFeatures.from_scene(paper_scene("cylinder", 45.0, 4.0, 0.005, phase=0.5), ("image", "uv"))

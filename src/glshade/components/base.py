@@ -95,9 +95,33 @@ class Component:
         names the field); none by default. Printed by every front end, never fatal."""
         return ()
 
-    def read_file(self, values: dict[str, Any]) -> dict[str, Any]:
+    def image_from_v(self, scene: Scene) -> bool:
+        """True when, as far as this component goes, a pixel's value is the stripe
+        radiance at its one mirror ray's ``v``: the metric may then shade every phase from
+        the uv map instead of rendering images (a lens, a lobe, Fresnel or a sensor say no)."""
+        return True
+
+    def keeps_emitter_scale(self, scene: Scene) -> bool:
+        """True when this component leaves the stripes' peak at the emitter's radiance 1,
+        so the metric's threshold is a fraction of the emitter peak (SPEC §6); False when
+        it scales or mixes the radiance (Fresnel, a microfacet lobe, eq. (1)), and the
+        threshold is then taken between the defect-free image's dark and bright levels."""
+        return True
+
+    def work_factor(self, scene: Scene) -> int:
+        """Rays this component traces per pixel sample (the work budget counts them)."""
+        return 1
+
+    def develop(self, scene: Scene, image: np.ndarray, exposure: int = 0) -> np.ndarray:
+        """What the sensor makes of a rendered radiance image (float32, in place or new);
+        the identity but for the sensor. ``exposure`` numbers independent exposures of
+        the same scene (their noise differs)."""
+        return image
+
+    def read_file(self, values: dict[str, Any], current: dict[str, Any] | None = None) -> dict[str, Any]:
         """Its table's keys as a scene file gives them -> the table's fields (shorthands
-        expanded); the identity unless the component has a shorthand."""
+        expanded); the identity unless the component has a shorthand. ``current``: the
+        table's values the keys change (None when a scene file gives the whole table)."""
         return values
 
     def write_file(self, values: dict[str, Any]) -> dict[str, Any]:
@@ -179,12 +203,27 @@ class DefectComponent(Component):
 
 
 class CameraComponent(Component):
-    """How pixels become rays. Oracle: ``pixel_rays``."""
+    """How pixels become rays. Oracle: ``pixel_rays`` (one chief ray per pixel sample)
+    and ``sample_rays`` (every ray the shader traces, each with its own origin)."""
 
     slot = "camera"
 
     def pixel_rays(self, scene: Scene, rows, cols, supersample: int) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
+
+    def samples(self, scene: Scene) -> int:
+        """Rays per pixel sample (a lens's aperture samples); 1 for a pinhole."""
+        return 1
+
+    def work_factor(self, scene: Scene) -> int:
+        return self.samples(scene)
+
+    def sample_rays(self, scene: Scene, rows, cols, supersample: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(origins, directions)``, (h, w, S, 3) each: every ray of each pixel."""
+        origin, d = self.pixel_rays(scene, rows, cols, supersample)
+        h, w = d.shape[:2]
+        d = d.reshape(h, w, supersample * supersample, 3)
+        return np.broadcast_to(origin, d.shape), d
 
 
 class EmitterComponent(Component):
@@ -209,6 +248,9 @@ class ReflectionComponent(Component):
     #: The pixel is the emitter's radiance at the mirror ray's ``v``: a picture can be
     #: shaded from the uv map alone (the metric's fast path, the viewer's re-shading).
     shades_from_v: ClassVar[bool] = False
+
+    def image_from_v(self, scene: Scene) -> bool:
+        return self.shades_from_v
 
     def shade(self, scene: Scene, p, d, n, v, ok) -> np.ndarray:
         raise NotImplementedError
@@ -245,3 +287,6 @@ class RenderComponent(Component):
     """How a frame is computed (precision, rays per pixel): the program's preamble."""
 
     slot = "render"
+
+    def image_from_v(self, scene: Scene) -> bool:
+        return scene.render.supersample == 1

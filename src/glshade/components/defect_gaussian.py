@@ -68,7 +68,7 @@ class Gaussian(DefectComponent):
     checks = (check_positive_definite,)
 
     # ------------------------------------------------------------------ files
-    def read_file(self, values: dict) -> dict:
+    def read_file(self, values: dict, current: dict | None = None) -> dict:
         """``sigma2`` (isotropic) becomes the three covariance keys."""
         if "sigma2" not in values:
             return values

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from glshade.components import finish
 from glshade.components.base import ReflectionComponent
 from glshade.components.emitter_stripes import stripe_radiance
 from glshade.errors import SceneError
@@ -61,16 +62,32 @@ MIN_SHININESS = 50.0
 class BlinnPhong(ReflectionComponent):
     name = "blinn-phong"
     doc = "a Blinn-Phong lobe of exponent N around the mirror direction"
-    params = (SHININESS,)
+    params = (SHININESS, *finish.COHERENCE_PARAMS)
+
+    def features(self, scene):
+        return {"coherence": finish.coherence_on(scene)}
 
     def glsl(self, variables):
-        return ("reflect_blinn_phong.glsl",) if "image" in variables["outputs"] else ()
+        if "image" not in variables["outputs"]:
+            return ()
+        return ("reflect_coherence.glsl", "reflect_blinn_phong.glsl") if variables["coherence"] else (
+            "reflect_blinn_phong.glsl",)
 
     def uniforms(self, scene, frame):
-        return {"u_shininess": scene.render.shininess} if "image" in frame.variables["outputs"] else {}
+        if "image" not in frame.variables["outputs"]:
+            return {}
+        extra = finish.coherence_uniforms(scene) if frame.variables["coherence"] else {}
+        return {"u_shininess": scene.render.shininess, **extra}
+
+    def keeps_emitter_scale(self, scene):
+        return not finish.coherence_on(scene)
 
     def shade(self, scene, p, d, n, v, ok):
-        return _blinn_phong(scene, p, d, n)
+        lobe = _blinn_phong(scene, p, d, n)
+        if not finish.coherence_on(scene):
+            return lobe
+        mirror = np.where(ok, stripe_radiance(scene.emitter, np.where(ok, v, 0.0)), 0.0)
+        return finish.mix_coherent(scene, mirror, lobe, d, n)
 
     def lobe_std_rad(self, scene):
         """``(n·h)^N ≈ exp(-N α²/2)``: the half vector's angle has std ``1/√N``, the

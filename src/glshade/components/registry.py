@@ -26,11 +26,15 @@ if TYPE_CHECKING:
     from glshade.scene.model import Scene
 
 #: The scene's tables, in the order scene files list them.
-TABLES: tuple[str, ...] = ("camera", "emitter", "surface", "defect", "render")
+TABLES: tuple[str, ...] = ("camera", "emitter", "surface", "defect", "render", "sensor")
 
 SURFACE_KIND = Param(
     "surface.kind", "", "flat", "the base surface: which surface component", value_type="choice",
     role="feature", flag="--surface",
+)
+FRESNEL = Param(
+    "render.fresnel", "", "none", "the Fresnel reflectance: which Fresnel component", value_type="choice",
+    role="feature", flag="--fresnel",
 )
 REFLECTION = Param(
     "render.reflection", "", "mirror", "the reflection model: which reflection component", value_type="choice",
@@ -45,12 +49,14 @@ SLOTS: tuple[Slot, ...] = (
     Slot("defect", "defect", None, False, "the defect D(x, z) on the surface, and the hit it needs"),
     Slot("emitter", "emitter", None, False, "the light source the rays land on"),
     Slot("reflection", "render", REFLECTION, False, "how the surface reflects"),
+    Slot("fresnel", "render", FRESNEL, False, "how much it reflects, by the angle of incidence"),
+    Slot("sensor", "sensor", None, False, "what the camera's sensor makes of the radiance (noise, quantisation)"),
 )
 
 #: The built-in components: module, class.
 BUILTINS: tuple[tuple[str, str], ...] = (
     ("glshade.components.render", "Sampling"),
-    ("glshade.components.camera_pinhole", "Pinhole"),
+    ("glshade.components.camera_model", "CameraModel"),
     ("glshade.components.surface_flat", "Flat"),
     ("glshade.components.surface_cylinder", "Cylinder"),
     ("glshade.components.surface_sphere", "Sphere"),
@@ -60,6 +66,12 @@ BUILTINS: tuple[tuple[str, str], ...] = (
     ("glshade.components.emitter_stripes", "Stripes"),
     ("glshade.components.reflection_mirror", "Mirror"),
     ("glshade.components.reflection_blinn_phong", "BlinnPhong"),
+    ("glshade.components.reflection_microfacet", "Beckmann"),
+    ("glshade.components.reflection_microfacet", "GGX"),
+    ("glshade.components.fresnel", "NoFresnel"),
+    ("glshade.components.fresnel", "Dielectric"),
+    ("glshade.components.fresnel", "Conductor"),
+    ("glshade.components.sensor", "Sensor"),
 )
 
 

@@ -118,8 +118,12 @@ def max_rays_from_env() -> int:
 
 
 def frame_rays(scene: Scene) -> int:
-    """Rays one frame traces: pixels x ``render.supersample``²."""
-    return scene.camera.width * scene.camera.height * scene.render.supersample**2
+    """Rays one frame traces: pixels x ``render.supersample``² x what the components
+    multiply each by (a lens's aperture samples, a lobe's samples)."""
+    rays = scene.camera.width * scene.camera.height * scene.render.supersample**2
+    for component in registry().active(scene):
+        rays *= component.work_factor(scene)
+    return rays
 
 
 def check_work_budget(scene: Scene, max_rays: int) -> None:
@@ -129,8 +133,9 @@ def check_work_budget(scene: Scene, max_rays: int) -> None:
         cam, n = scene.camera, scene.render.supersample
         raise GlshadeError(
             f"camera.width x camera.height x render.supersample²: {cam.width}x{cam.height} pixels x {n * n} rays "
-            f"= {rays:.3g} rays, more than the work budget of {max_rays:.3g} rays per frame (GLSHADE_MAX_RAYS); "
-            "use a smaller --size or --supersample"
+            f"(x {rays // (cam.width * cam.height * n * n)} aperture and lobe samples) = {rays:.3g} rays, more than "
+            f"the work budget of {max_rays:.3g} rays per frame (GLSHADE_MAX_RAYS); use a smaller --size, "
+            "--supersample, --aperture-samples or --lobe-samples"
         )
 
 
@@ -308,11 +313,12 @@ class Renderer:
         return targets
 
     # ---------------------------------------------------------------- render
-    def render(self, scene: Scene, outputs=("image",), *, out: Frame | None = None) -> Frame:
+    def render(self, scene: Scene, outputs=("image",), *, out: Frame | None = None, exposure: int = 0) -> Frame:
         """Render ``scene``; ``outputs`` is a subset of image, uv, mask.
 
         ``out``: a frame whose arrays (float32 image, float32 uv, bool mask of the right
-        shape) are filled in place instead of allocating new ones.
+        shape) are filled in place instead of allocating new ones. With a sensor the image
+        is what it records (``exposure``: which of several independent exposures).
         """
         features = ShaderFeatures.from_scene(scene, outputs)
         cam = scene.camera
@@ -322,7 +328,14 @@ class Renderer:
         check_frame_budget(scene, features.outputs, self.memory_budget_bytes)
         check_work_budget(scene, self.max_rays)
         with self.context.current():
-            return self._draw(scene, features, out)
+            frame = self._draw(scene, features, out)
+        if frame.image is not None:
+            image = frame.image
+            for component in registry().active(scene):
+                image = component.develop(scene, image, exposure)
+            if image is not frame.image:
+                frame.image[...] = image
+        return frame
 
     def _draw(self, scene: Scene, features: ShaderFeatures, out: Frame | None) -> Frame:
         width, height = scene.camera.width, scene.camera.height

@@ -13,6 +13,7 @@ binarised, while the continuous numbers keep following the rays (the uv maps).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -35,21 +36,31 @@ def emitter_map(renderer: Renderer, scene: Scene) -> np.ndarray:
 
 
 def shades_from_map(scene: Scene) -> bool:
-    """True when the picture is a function of the emitter map: a reflection model whose
-    pixel is the stripe radiance at its mirror ray's ``v`` (the mirror), one ray per pixel."""
-    return registry().active(scene).reflection.shades_from_v and scene.render.supersample == 1
+    """True when the picture is a function of the emitter map: every active component
+    says so (a mirror, one ray per pixel through a pinhole, no Fresnel, no sensor)."""
+    return all(component.image_from_v(scene) for component in registry().active(scene))
 
 
-def phase_images(renderer: Renderer, scene: Scene) -> Callable[[float], np.ndarray]:
-    """``phase -> rendered radiance image`` of a scene, for shading that needs images."""
-    return lambda phase: renderer.render(scene.with_phase(phase), ("image",)).image
+def phase_images(renderer: Renderer, scene: Scene, exposure: int = 0) -> Callable[[float], np.ndarray]:
+    """``phase -> rendered radiance image`` of a scene, for shading that needs images
+    (with a sensor: what it records in exposure number ``exposure``)."""
+    return lambda phase: renderer.render(scene.with_phase(phase), ("image",), exposure=exposure).image
+
+
+def levels_from_image(scene: Scene, settings: MetricSettings) -> bool:
+    """True when the binarisation level is taken from the defect-free image's range
+    (``settings.level_from``; ``auto``: when a component scales the radiance)."""
+    if settings.level_from != "auto":
+        return settings.level_from == "image"
+    return not all(component.keeps_emitter_scale(scene) for component in registry().active(scene))
 
 
 def baseline_for(renderer: Renderer, scene: Scene, settings: MetricSettings = MetricSettings()) -> Baseline:
     """The defect-free analysis of a scene's geometry (its defect is ignored)."""
     normal = scene.without_defect()
     images = None if shades_from_map(scene) else phase_images(renderer, normal)
-    return Baseline(emitter_map(renderer, normal), scene.emitter, settings, images)
+    return Baseline(emitter_map(renderer, normal), scene.emitter, settings, images,
+                    image_levels=levels_from_image(scene, settings))
 
 
 def measure_scene(
@@ -70,6 +81,10 @@ def measure_scene(
     images = None if shades_from_map(scene) else phase_images(renderer, scene)
     v1 = emitter_map(renderer, scene)
     result = baseline.measure(v1, images)
+    if scene.sensor.on:
+        again = phase_images(renderer, scene.without_defect(), exposure=1)
+        floor = baseline.paper(baseline.v0, again)[0].visibility_px
+        result = dataclasses.replace(result, noise_floor_px=floor)
     if overlay is not None:
         from glshade.metrics.contours import overlay_rgb
         from glshade.study.plots import overlay_figure

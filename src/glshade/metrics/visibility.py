@@ -61,7 +61,11 @@ class MetricSettings:
     (pixels); ``min_period_px``: pixels where the defect-free stripe period spans fewer
     pixels than this are left out of the contours (0 keeps every pixel);
     ``limit_upsample`` and ``limit_phases``: rows per pixel row and phases per period of
-    the continuous limit's search inside a fold.
+    the continuous limit's search inside a fold; ``level_from``: what ``threshold`` is a
+    fraction of: ``emitter`` (its peak radiance, 1: SPEC §6), ``image`` (the defect-free
+    image's range: ``dark + threshold (bright - dark)``, its 1st and 99th percentiles over
+    the kept pixels at the first phase, as a camera's exposure would be set), ``auto``
+    (``image`` when a component scales the radiance: Fresnel, a microfacet lobe, eq. (1)).
     """
 
     threshold: float = 0.5
@@ -72,8 +76,11 @@ class MetricSettings:
     min_period_px: float = 4.0
     limit_upsample: int = 2
     limit_phases: int = 32
+    level_from: str = "auto"
 
     def __post_init__(self) -> None:
+        if self.level_from not in LEVEL_SOURCES:
+            raise GlshadeError(f"level_from: must be one of {', '.join(LEVEL_SOURCES)}, got {self.level_from!r}")
         if not (math.isfinite(self.threshold) and 0.0 < self.threshold < 1.0):
             raise GlshadeError(f"threshold: must be in (0, 1) of the emitter peak, got {self.threshold}")
         if not (math.isfinite(self.keep_fraction) and 0.0 < self.keep_fraction <= 1.0):
@@ -103,6 +110,11 @@ class MetricSettings:
             )
         return np.arange(count) * self.step_mm
 
+
+#: What a binarisation threshold may be a fraction of (:class:`MetricSettings`).
+LEVEL_SOURCES = ("auto", "emitter", "image")
+#: Percentiles of the defect-free image taken as its dark and bright levels.
+LEVEL_PERCENTILES = (1.0, 99.0)
 
 #: Most phases one sweep may take (each is a shading and a contour comparison): the
 #: paper's sweep is 8 (2 mm period, 0.25 mm step), the finest in the benchmarks 160 (10 mm period, step 1/160 of it).
@@ -186,13 +198,25 @@ def binarize_v(v: np.ndarray, emitter: Emitter, phase_mm: float, half_width_mm: 
         return np.abs(w) < half_width_mm / emitter.period
 
 
-def binarize(image: np.ndarray, settings: MetricSettings) -> np.ndarray:
-    """Binarise a radiance image: ``> threshold`` of the peak (1), or Otsu's level."""
+def binarize(image: np.ndarray, settings: MetricSettings, level: float | None = None) -> np.ndarray:
+    """Binarise a radiance image: ``> threshold`` of the peak (1), ``> level`` when given,
+    or Otsu's level."""
     if settings.otsu:
         pixels = np.clip(np.nan_to_num(image) * 255.0 + 0.5, 0, 255).astype(np.uint8)
         _, binary = cv2.threshold(pixels, 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
         return binary > 0
-    return np.nan_to_num(image) > settings.threshold
+    return np.nan_to_num(image) > (settings.threshold if level is None else level)
+
+
+def image_level(image: np.ndarray, valid: np.ndarray, threshold: float) -> float:
+    """``dark + threshold (bright - dark)`` of an image's pixels where ``valid``: its
+    :data:`LEVEL_PERCENTILES` (the stripes' troughs and crests, robust to noise)."""
+    values = np.asarray(image, np.float64)[valid]
+    values = values[np.isfinite(values)]
+    if not values.size:
+        return threshold
+    dark, bright = np.percentile(values, LEVEL_PERCENTILES)
+    return float(dark + threshold * (bright - dark))
 
 
 # --------------------------------------------------------------------------- the sweep
@@ -292,7 +316,9 @@ class Visibility:
     registration; ``unpaired_contours``: contour-bearing stripes left without a partner at
     the best phase; ``unresolved_fraction``: the share of kept pixels left out because
     they do not resolve the stripes; ``shift``: where the paper's distance was measured;
-    ``displacement_px``: the deflection's map; ``limit``: the continuous limit's details.
+    ``displacement_px``: the deflection's map; ``limit``: the continuous limit's details;
+    ``noise_floor_px``: with a sensor, the paper's metric between two exposures of the
+    defect-free scene (the contour jitter the noise alone makes; None without a sensor).
     """
 
     visibility_px: float
@@ -309,6 +335,7 @@ class Visibility:
     displacement_px: np.ndarray = field(repr=False)
     limit: Limit = field(repr=False)
     seconds: StageSeconds = field(default_factory=StageSeconds, repr=False)
+    noise_floor_px: float | None = None
 
     def summary(self) -> dict:
         """The numbers as plain JSON-able values (``glshade measure --json``)."""
@@ -322,6 +349,7 @@ class Visibility:
             "offset_px": list(self.offset_px),
             "unpaired_contours": self.unpaired_contours,
             "unresolved_fraction": round(self.unresolved_fraction, 5),
+            **({"noise_floor_px": self.noise_floor_px} if self.noise_floor_px is not None else {}),
         }
 
 
@@ -340,6 +368,7 @@ class Baseline:
         emitter: Emitter,
         settings: MetricSettings = MetricSettings(),
         normal_images: Callable[[float], np.ndarray] | None = None,
+        image_levels: bool = False,
     ) -> None:
         self.v0 = np.asarray(v0)
         self.emitter = emitter
@@ -363,6 +392,11 @@ class Baseline:
         seen = np.isfinite(self.v0[:, self.columns])
         self.unresolved_fraction = float((seen & ~self.valid).sum() / seen.sum()) if seen.any() else 0.0
         self._v0_cut = self.v0[:, self.columns]
+        #: The binarisation level of rendered images (None: ``settings.threshold``).
+        self.level: float | None = None
+        if image_levels and normal_images is not None:
+            first = np.asarray(normal_images(float(self.phases[0])))[:, self.columns]
+            self.level = image_level(first, self.valid, settings.threshold)
         self._stripes: dict[float, ct.StripeMap] = {}
         self._locks = {float(phase): threading.Lock() for phase in self.phases}  # one analysis per phase
         self._lock = threading.Lock()  # for phases outside the sweep (the viewer's)
@@ -372,7 +406,7 @@ class Baseline:
         """The cut binary image at a phase, from an emitter map ``v`` (or the image
         ``images(phase)``), with the unresolved pixels black."""
         if images is not None:
-            binary = binarize(images(phase_mm), self.settings)[:, self.columns]
+            binary = binarize(images(phase_mm), self.settings, self.level)[:, self.columns]
         else:
             binary = binarize_v(v[:, self.columns], self.emitter, phase_mm, self.half_width_mm)
         return binary & self.valid

@@ -335,18 +335,18 @@ def _reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
 
 
 
-def _shade(scene: Scene, origin: np.ndarray, d: np.ndarray, want_image: bool):
-    """Per-ray ``(value, u, v, reaches_emitter)`` for unit directions ``d`` (N, 3)."""
+def _shade(scene: Scene, origins: np.ndarray, d: np.ndarray, want_image: bool):
+    """Per-ray ``(value, u, v, reaches_emitter)`` for rays from ``origins`` along unit
+    directions ``d`` (N, 3 each)."""
     parts = registry().active(scene)
     n = len(d)
     value = np.zeros(n)
     u = np.full(n, np.nan)
     v = np.full(n, np.nan)
     ok = np.zeros(n, dtype=bool)
-    o = np.broadcast_to(origin, (min(n, _CHUNK_RAYS), 3))
     for s in range(0, n, _CHUNK_RAYS):
         dd = d[s : s + _CHUNK_RAYS]
-        oo = o[: len(dd)]
+        oo = np.ascontiguousarray(origins[s : s + _CHUNK_RAYS])
         t, hit = _first_hit_rays(scene, oo, dd)
         if not hit.any():
             continue
@@ -357,7 +357,8 @@ def _shade(scene: Scene, origin: np.ndarray, d: np.ndarray, want_image: bool):
         uu, vv, okk = parts.emitter.coordinates(scene, p, _reflect(dh, n_s))
         u[idx], v[idx], ok[idx] = uu, vv, okk
         if want_image:
-            value[idx] = parts.reflection.shade(scene, p, dh, n_s, vv, okk)
+            shaded = parts.reflection.shade(scene, p, dh, n_s, vv, okk)
+            value[idx] = shaded * parts.fresnel.reflectance(scene, -np.einsum("nk,nk->n", dh, n_s))
     return value, u, v, ok
 
 
@@ -375,17 +376,17 @@ def trace(
     ignored (always float64). With Blinn-Phong, ``uv``/``mask`` are the mirror ray's."""
     wanted = normalize_outputs(outputs if isinstance(outputs, str) else tuple(outputs))
     n = scene.render.supersample
-    origin, dirs = registry().active(scene).camera.pixel_rays(scene, rows, cols, n)
-    h, w = dirs.shape[:2]
-    flat = dirs.reshape(-1, 3)
-    value, u, v, ok = _shade(scene, origin, flat, "image" in wanted)
-    samples = n * n
+    origins, dirs = registry().active(scene).camera.sample_rays(scene, rows, cols, n)
+    h, w, samples = dirs.shape[:3]
+    value, u, v, ok = _shade(scene, origins.reshape(-1, 3), dirs.reshape(-1, 3), "image" in wanted)
     value = value.reshape(h, w, samples)
     ok = ok.reshape(h, w, samples)
     count = ok.sum(axis=2)
     image = uv = mask = None
     if "image" in wanted:
         image = value.mean(axis=2)
+        for component in registry().active(scene):
+            image = component.develop(scene, image)
     if "uv" in wanted:
         uv_s = np.stack([u, v], axis=-1).reshape(h, w, samples, 2)
         total = np.where(ok[..., None], uv_s, 0.0).sum(axis=2)

@@ -31,6 +31,9 @@ import numpy as np
 from glshade.components.registry import registry
 from glshade.errors import SceneError
 
+#: The tables SPEC §8 lists for the paper's model: written even when empty (a table
+#: that switches something on by its presence, ``[sensor]``, is written only when on).
+PAPER_TABLES: tuple[str, ...] = ("camera", "emitter", "surface", "defect", "render")
 #: The paper's three surfaces (its study runs over them).
 PAPER_SURFACES: tuple[str, ...] = ("flat", "cylinder", "sphere")
 #: Stripe periods the paper uses where they are not the Emitter default (2 mm), mm.
@@ -197,12 +200,24 @@ class RenderSettings(Table):
     table = "render"
 
 
+class Sensor(Table):
+    """The camera's sensor (SPEC §8.2 ``[sensor]``): off (``full_well_e`` unset, the
+    noiseless float radiance) unless a scene file has the table or a key of it is set."""
+
+    table = "sensor"
+
+    @property
+    def on(self) -> bool:
+        return self.full_well_e is not None
+
+
 TABLE_CLASSES: dict[str, type[Table]] = {
     "camera": Camera,
     "emitter": Emitter,
     "surface": Surface,
     "defect": Defect,
     "render": RenderSettings,
+    "sensor": Sensor,
 }
 
 
@@ -226,6 +241,7 @@ class Scene:
     surface: Surface = field(default_factory=Surface)
     defect: Defect = field(default_factory=Defect)
     render: RenderSettings = field(default_factory=RenderSettings)
+    sensor: Sensor = field(default_factory=Sensor)
 
     # ----------------------------------------------------------------- geometry
     def emitter_frame(self) -> EmitterFrame:
@@ -288,7 +304,7 @@ class Scene:
             if table not in TABLE_CLASSES:
                 raise SceneError(table, "one of the tables " + ", ".join(TABLE_CLASSES))
             values = getattr(self, table).values()
-            values.update(_read_file(table, dict(changes)))
+            values.update(_read_file(table, dict(changes), current=values))
             parts[table] = TABLE_CLASSES[table](**values)
         return replace(self, **parts)
 
@@ -297,7 +313,8 @@ class Scene:
         """The TOML layout of SPEC §8: per table, the parameters of the components in use
         (and any other that differs from its default); unset values are left out and an
         isotropic defect is written as ``sigma2``."""
-        return {table: _file_values(self, table) for table in TABLE_CLASSES}
+        tables = {table: _file_values(self, table) for table in TABLE_CLASSES}
+        return {table: values for table, values in tables.items() if values or table in PAPER_TABLES}
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], base: Path | None = None) -> Scene:
@@ -404,12 +421,12 @@ def _relative_paths(data: dict[str, dict[str, Any]], base: Path) -> dict[str, di
     return data
 
 
-def _read_file(table: str, values: dict[str, Any]) -> dict[str, Any]:
+def _read_file(table: str, values: dict[str, Any], current: dict[str, Any] | None = None) -> dict[str, Any]:
     """Scene-file keys of one table -> its fields: the components' shorthands expanded,
-    every key checked to be declared."""
+    every key checked to be declared. ``current``: the values being changed, if any."""
     reg = registry()
     for component in _table_components(table):
-        values = component.read_file(values)
+        values = component.read_file(values, current)
     declared = [p.key for p in reg.table_params(table)]
     stored = {p.key for p in reg.table_params(table) if p.stored}
     for key in values:
@@ -430,7 +447,7 @@ def _file_values(scene: Scene, table: str, everything: bool = False) -> dict[str
         in_use = reg.choices(param) is not None or any(owner in active for owner in reg.owners(param))
         if value is None or not (everything or in_use or value != param.default):
             continue
-        values[param.key] = (list(value) if param.value_type == "pair" else dict(value) if param.value_type == "table"
+        values[param.key] = (list(value) if param.value_type in ("pair", "vector") else dict(value) if param.value_type == "table"
                              else value)
     for component in _table_components(table):
         values = component.write_file(values)

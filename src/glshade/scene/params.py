@@ -25,8 +25,8 @@ from glshade.errors import SceneError
 from glshade.units import parse_quantity
 
 #: How a value is typed: a real number, an integer, one of some names, a pair of numbers,
-#: a text (a formula), a table of named numbers.
-VALUE_TYPES = ("real", "integer", "choice", "pair", "text", "table", "path")
+#: a fixed-length list of numbers (``size`` of them), a text (a formula), a table of named numbers.
+VALUE_TYPES = ("real", "integer", "choice", "pair", "vector", "text", "table", "path")
 #: The longest text value accepted.
 MAX_TEXT = 2000
 ROLES = ("feature", "uniform")
@@ -80,6 +80,7 @@ class Param:
     stored: bool = True
     plausible_max: float | None = None
     plausible_why: str = ""
+    size: int = 0
 
     def __post_init__(self) -> None:
         if self.value_type not in VALUE_TYPES or self.role not in ROLES or self.path.count(".") != 1:
@@ -103,6 +104,8 @@ class Param:
             return "one of " + ", ".join(choices if choices is not None else self.choices)
         if self.value_type == "pair":
             return f"two numbers [u, v] > 0 ({self.unit})"
+        if self.value_type == "vector":
+            return f"a list of {self.size} finite numbers"
         if self.value_type == "text":
             return f"a text of at most {MAX_TEXT} characters"
         if self.value_type == "path":
@@ -149,6 +152,10 @@ class Param:
             if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 2:
                 raise SceneError(self.path, self.allowed(), value)
             return (self._real(value[0]), self._real(value[1]))
+        if self.value_type == "vector":
+            if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != self.size:
+                raise SceneError(self.path, self.allowed(), list(value) if isinstance(value, tuple) else value)
+            return tuple(self._finite(number) for number in value)
         return self._real(value)
 
     def _finite(self, value: Any) -> float:
@@ -218,7 +225,7 @@ class Param:
         if self.value_type == "table":
             return tuple((name.strip(), parse_quantity(number, "", f"{self.path}.{name.strip()}"))
                          for name, _, number in (part.partition("=") for part in text.split(",") if part.strip()))
-        if self.value_type == "pair":
+        if self.value_type in ("pair", "vector"):
             parts = [p for p in text.strip("[]()").replace(",", " ").split() if p]
             return tuple(parse_quantity(p, self.unit, self.path) for p in parts)
         number = parse_quantity(text, self.unit, self.path)
@@ -234,8 +241,8 @@ class Param:
             return f'"{self.default}"'
         if self.value_type == "table":
             return "{ " + ", ".join(f"{k} = {v:g}" for k, v in self.default) + " }" if self.default else "{}"
-        if self.value_type == "pair":
-            return f"[{self.default[0]:g}, {self.default[1]:g}]"
+        if self.value_type in ("pair", "vector"):
+            return "[" + ", ".join(f"{number:g}" for number in self.default) + "]"
         return f"{self.default:g}"
 
 

@@ -352,6 +352,9 @@ def write_report(rows: list[Mapping], out_dir: Path, plan, figures: list[Path], 
     lines = _opening(rows, plan) + _findings_sections(verdicts)
     lines += _laws_section(rows)
     lines += _folds_section(rows)
+    from glshade.study.optics import report_section
+
+    lines += report_section(Path(out_dir))
     lines += _notes(rows, plan)
     lines += ["## Figures", ""]
     lines += [f"![{path.stem}]({path.name})" for path in figures]

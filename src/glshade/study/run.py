@@ -26,7 +26,7 @@ from glshade.files import encode_png
 from glshade.gpu.renderer import Renderer
 from glshade.metrics import contours, physics
 from glshade.metrics import visibility as vis
-from glshade.metrics.measurement import emitter_map
+from glshade.metrics.measurement import baseline_for, emitter_map, measure_scene, phase_images, shades_from_map
 from glshade.scene import Scene
 from glshade.study.plan import (
     GRID_THETAS,
@@ -187,6 +187,9 @@ def _run_cases(plan: StudyPlan, cases: list[Case], renderer: Renderer, pool: Thr
 
     for group in plan.geometries(cases):
         normal_scene = plan.scene(*group[0]).without_defect()
+        if not shades_from_map(normal_scene):
+            _run_rendered(plan, group, renderer, timings, out_dir, finished)
+            continue
         start = time.perf_counter()
         baseline = vis.Baseline(emitter_map(renderer, normal_scene), normal_scene.emitter, plan.metric)
         timings.trace += time.perf_counter() - start
@@ -199,6 +202,34 @@ def _run_cases(plan: StudyPlan, cases: list[Case], renderer: Renderer, pool: Thr
             waiting.append(pool.submit(_analyse_case, case, scene, baseline, v1, trace_s))
             drain(keep=_AHEAD)
     drain(keep=0)
+
+
+def _run_rendered(plan: StudyPlan, group: list[Case], renderer: Renderer, timings: Timings, out_dir: Path,
+                  finished: Callable[[CaseResult], None]) -> None:
+    """The cases of one geometry whose pictures are not a function of the uv map (a
+    lens, a lobe, Fresnel, a sensor): every phase rendered, all on this (the GL) thread."""
+    first = plan.scene(*group[0])
+    start = time.perf_counter()
+    baseline = baseline_for(renderer, first, plan.metric)
+    timings.trace += time.perf_counter() - start
+    for case in group:
+        scene = plan.scene(*case)
+        start = time.perf_counter()
+        result = measure_scene(renderer, scene, plan.metric, baseline)
+        seconds = time.perf_counter() - start
+        trace_s = max(0.0, seconds - result.seconds.shade - result.seconds.contours - result.seconds.continuous)
+        row = case_result(case, scene, result, trace_s)
+        thumbnail = overlay = None
+        images = phase_images(renderer, scene)
+        if case[1] in GRID_THETAS:
+            image = images(result.best_phase_mm)
+            thumbnail = encode_png(cv2.resize(image, (THUMBNAIL, THUMBNAIL), interpolation=cv2.INTER_AREA), bits=8)
+        if case in OVERLAY_CASES:
+            normal, defect = baseline.stripes_at(emitter_map(renderer, scene), result.best_phase_mm, result.offset_px,
+                                                 images)
+            overlay = (contours.overlay_rgb(normal, defect), result, baseline.columns.start, scene.title())
+        _write(row, thumbnail, overlay, timings, out_dir)
+        finished(row)
 
 
 def _write(row: CaseResult, thumbnail: bytes | None, overlay, timings: Timings, out_dir: Path) -> None:

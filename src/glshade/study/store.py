@@ -240,7 +240,7 @@ def prepare_out_dir(out_dir: Path, manifest_data: dict, overwrite: bool = False)
     _make_dir(out_dir)
     manifest_data = json.loads(json.dumps(manifest_data))  # as it reads back: lists, not tuples
     manifest = out_dir / "study.json"
-    stored = _read_manifest(manifest)
+    stored = _with_metric_defaults(_read_manifest(manifest))
     removed: list[Path] = []
     if stored is not None and stored != manifest_data:
         if not overwrite:
@@ -252,6 +252,17 @@ def prepare_out_dir(out_dir: Path, manifest_data: dict, overwrite: bool = False)
                                 cases=_plan_keys(manifest_data))
     atomic_write_bytes(manifest, json.dumps(manifest_data, indent=2).encode(), "--out")
     return removed
+
+
+def _with_metric_defaults(stored: dict | None) -> dict | None:
+    """A manifest written before a metric setting existed meant its default: fill it in."""
+    if not stored or not isinstance(stored.get("metric"), dict):
+        return stored
+    from dataclasses import asdict
+
+    from glshade.metrics.visibility import MetricSettings
+
+    return {**stored, "metric": {**asdict(MetricSettings()), **stored["metric"]}}
 
 
 def _read_manifest(manifest: Path) -> dict | None:

@@ -14,7 +14,7 @@ from glshade.scene.params import Param
 
 PANEL_WIDTH = 360
 #: The panel lists the tables in this order (the surface first: it changes the most).
-PANEL_TABLES = ("surface", "camera", "defect", "emitter", "render")
+PANEL_TABLES = ("surface", "camera", "defect", "emitter", "render", "sensor")
 #: Parameters drawn by a dedicated widget rather than a plain slider.
 _SHORTHAND = "defect.sigma2"
 _COVARIANCE = ("defect.sigma_x2", "defect.sigma_z2", "defect.sigma_xz")

@@ -1,0 +1,91 @@
+"""The surface finish shared by every reflection model: the paper's eq. (1).
+
+Beckmann and Spizzichino's roughness parameter ``g = (2π σ_h (cos θi + cos θr) / λ)²``
+(``σ_h``: the rms height of the finish, ``λ``: the wavelength) sets the *coherent*
+(specular) fraction of the reflected light, ``exp(-g)``. In the mirror direction
+``θr = θi``, so ``g = (4π σ_h cos θi / λ)²``: it falls as the view grazes, and a finish
+that scatters most light when seen from above is nearly a mirror seen from the side. The
+paper prints ``4π`` in front of ``(cos θi + cos θr)``; Beckmann's own form (and every
+text since) has ``2π``, which this module uses (the paper's factor amounts to a doubled
+``σ_h``; ``docs/physics.md``).
+
+The coherent part is the mirror reflection of the stripes. The incoherent remainder
+``1 - exp(-g)`` goes where the reflection model puts scattered light: into its lobe
+(Blinn-Phong, Beckmann, GGX), or, for the mirror, which has none, into a Lambertian
+(diffuse) reflection of the emitter: ``(1/π) ∫ L cos θ dω`` over the part of the
+emitter above the tangent plane, with the stripes' mean radiance ``σ √(2π) / P`` (the
+diffuse kernel spans hundreds of mm of emitter: the stripes average out).
+
+GLSL: ``reflect_coherence.glsl`` (and ``reflect_lambert.glsl`` for the mirror).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from glshade.scene.params import Control, Param
+
+HEIGHT_RMS = Param(
+    "render.height_rms_um", "µm", 0.0,
+    "paper eq. (1): rms height sigma_h of the finish; the coherent (mirror) fraction is exp(-(4 pi sigma_h cos(i) "
+    "/ lambda)^2), the rest is scattered into the model's lobe (the mirror's: Lambertian). 0: off",
+    lo=0.0, closed=True, role="feature", flag="--height-rms", control=Control("height rms", 0.0, 0.2, fmt="%.3f um"),
+    plausible_max=5.0, plausible_why="a finish this rough reflects no coherent light at any angle",
+)
+WAVELENGTH = Param(
+    "render.wavelength_um", "µm", 0.55, "paper eq. (1): wavelength lambda of the light", lo=0.0,
+    flag="--wavelength", plausible_max=20.0, plausible_why="beyond the thermal infrared",
+)
+COHERENCE_PARAMS = (HEIGHT_RMS, WAVELENGTH)
+
+
+def coherence_on(scene) -> bool:
+    return scene.render.height_rms_um > 0.0
+
+
+def coherence_uniforms(scene) -> dict[str, object]:
+    """``u_coherence``: ``4π σ_h / λ`` (dimensionless)."""
+    return {"u_coherence": 4.0 * math.pi * scene.render.height_rms_um / scene.render.wavelength_um}
+
+
+def coherent_fraction(scene, cos_i: np.ndarray) -> np.ndarray:
+    """``exp(-g)`` in the mirror direction, ``g = (4π σ_h cos θi / λ)²`` (float64)."""
+    k = 4.0 * math.pi * scene.render.height_rms_um / scene.render.wavelength_um
+    return np.exp(-((k * np.asarray(cos_i)) ** 2))
+
+
+def mean_radiance(emitter) -> float:
+    """The stripes' radiance averaged over a period: ``σ √(2π) / P``."""
+    return emitter.sigma_mm * math.sqrt(2.0 * math.pi) / emitter.period
+
+
+def lambert(scene, p: np.ndarray, n: np.ndarray, points: int = 96) -> np.ndarray:
+    """Lambertian radiance at hits ``p`` (N, 3) with unit normals ``n``: the emitter's
+    mean radiance times ``(1/π) ∫ cos θs cos θe / r² dA`` over the emitter, the part
+    below the tangent plane left out; by Gauss–Legendre quadrature on the rectangle
+    (``points``² nodes; the clipping kink limits it to ~1e-5), independently of the
+    shader's closed polygon formula."""
+    frame = scene.emitter_frame()
+    hu, hv = scene.emitter.half_size
+    x, w = np.polynomial.legendre.leggauss(points)
+    uu, vv = np.meshgrid(x * hu, x * hv, indexing="ij")
+    weights = np.outer(w, w).ravel() * hu * hv
+    q = frame.centre + uu.ravel()[:, None] * frame.e_u + vv.ravel()[:, None] * frame.e_v  # (M, 3)
+    out = np.empty(len(p))
+    for i in range(len(p)):
+        r = q - p[i]
+        dist2 = np.einsum("mk,mk->m", r, r)
+        cos_s = np.maximum(r @ n[i], 0.0) / np.sqrt(dist2)
+        cos_e = np.maximum(-(r @ frame.normal), 0.0) / np.sqrt(dist2)
+        out[i] = np.sum(weights * cos_s * cos_e / dist2) / math.pi
+    return out * mean_radiance(scene.emitter)
+
+
+def mix_coherent(scene, mirror_value, lobe_value, d, n):
+    """``exp(-g) mirror + (1 - exp(-g)) lobe`` when eq. (1) is on, else the lobe value."""
+    if not coherence_on(scene):
+        return lobe_value
+    c = coherent_fraction(scene, -np.einsum("nk,nk->n", d, n))
+    return c * mirror_value + (1.0 - c) * lobe_value
