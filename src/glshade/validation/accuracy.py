@@ -593,7 +593,7 @@ def _microfacet_section(lobe_points, size) -> list[str]:
         f"is {verdict}: it costs one evaluation per ray and is more accurate than a thousand lattice samples,",
         "because the lobes that leave stripes to measure are narrow enough for `v` to be linear across them.",
         "",
-        *_table(lobe_points, [("image", "image max")]),
+        *_table(timed, [("image", "image max")]),
         "",
         "![microfacet error against time](figures/accuracy_microfacet.png)",
         "",
