@@ -14,21 +14,11 @@ bands (the renderer's Ctrl-C granularity), which the timing includes.
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
+
+from freeform_render import _median_ms  # this directory's timing rule (warm-up, median)
 
 from glshade.gpu.renderer import Renderer, frame_rays
 from glshade.scene import Scene, paper_scene
-
-
-def _median_s(renderer: Renderer, scene: Scene, repeats: int) -> float:
-    renderer.render(scene)
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        renderer.render(scene)
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
 
 
 def cases(size: int) -> list[tuple[str, Scene]]:
@@ -58,7 +48,7 @@ def main() -> None:
         print("| case | ms / frame | rays / frame | Mrays / s |")
         print("|---|---|---|---|")
         for label, scene in cases(args.size):
-            seconds = _median_s(renderer, scene, args.repeats)
+            seconds = _median_ms(renderer, scene, args.repeats) / 1e3
             rays = frame_rays(scene)
             print(f"| {label} | {seconds * 1e3:.0f} | {rays:.3g} | {rays / seconds / 1e6:.1f} |", flush=True)
 

@@ -408,7 +408,7 @@ def _add_finding3(sub: argparse._SubParsersAction) -> None:
         description="Measure visibility against theta for the paper's gentle and steep 5 um dents on the flat "
         "plate with the ideal mirror and with each realistic effect alone and combined; write "
         "OUT/finding3.csv, finding3.png and finding3.md ('glshade paper --out OUT' then quotes the verdicts). "
-        "About 20 minutes at the default size on 2 CPU cores.",
+        "About 12 minutes at the default size on 2 CPU cores.",
     )
     p.add_argument("--out", type=_path, default=Path("paper_study"), metavar="DIR",
                    help="output directory (default paper_study)")

@@ -75,10 +75,9 @@ DISTORTION = Param(
 )
 
 
-def sensor_half_extent(values: dict) -> tuple[float, float]:
+def sensor_half_extent(width: int, height: int, pitch: float, focal: float) -> tuple[float, float]:
     """Half the sensor's width and height in normalised coordinates (sensor mm / focal)."""
-    return (values["width"] * values["pitch"] / (2.0 * values["focal"]),
-            values["height"] * values["pitch"] / (2.0 * values["focal"]))
+    return width * pitch / (2.0 * focal), height * pitch / (2.0 * focal)
 
 
 def distort(coeffs, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -91,16 +90,16 @@ def distort(coeffs, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def distortion_jacobian(coeffs, x: np.ndarray, y: np.ndarray):
-    """``(dxd/dx, dxd/dy, dyd/dx, dyd/dy)`` of :func:`distort`."""
+    """``(dxd/dx, dxd/dy = dyd/dx, dyd/dy)`` of :func:`distort` (the model's Jacobian is
+    symmetric)."""
     k1, k2, p1, p2, k3 = coeffs
     r2 = x * x + y * y
     radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
     dradial = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)  # d radial / d r2
     a = radial + 2.0 * x * x * dradial + 2.0 * p1 * y + 6.0 * p2 * x
     b = 2.0 * x * y * dradial + 2.0 * p1 * x + 2.0 * p2 * y
-    c = 2.0 * x * y * dradial + 2.0 * p1 * x + 2.0 * p2 * y
     d = radial + 2.0 * y * y * dradial + 6.0 * p1 * y + 2.0 * p2 * x
-    return a, b, c, d
+    return a, b, d
 
 
 def undistort(coeffs, xd: np.ndarray, yd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -109,11 +108,11 @@ def undistort(coeffs, xd: np.ndarray, yd: np.ndarray) -> tuple[np.ndarray, np.nd
     x, y = np.array(xd, np.float64), np.array(yd, np.float64)
     for _ in range(UNDISTORT_ITERATIONS):
         fx, fy = distort(coeffs, x, y)
-        a, b, c, d = distortion_jacobian(coeffs, x, y)
+        a, b, d = distortion_jacobian(coeffs, x, y)
         ex, ey = fx - xd, fy - yd
-        det = a * d - b * c
+        det = a * d - b * b
         x = x - (d * ex - b * ey) / det
-        y = y - (a * ey - c * ex) / det
+        y = y - (a * ey - b * ex) / det
     return x, y
 
 
@@ -134,13 +133,13 @@ def distortion_fold(coeffs, half_x: float, half_y: float, angles: int = 90, step
     x = r[:, None] * np.cos(phi)[None, :]
     y = r[:, None] * np.sin(phi)[None, :]
     xd, yd = distort(coeffs, x, y)
-    a, b, c, d = distortion_jacobian(coeffs, x, y)
+    a, b, d = distortion_jacobian(coeffs, x, y)
     inside = np.hypot(xd, yd) <= corner
     # the stretch of each ray before it first leaves the circle
     before_exit = np.cumprod(inside, axis=0).astype(bool)
     if before_exit[-1].any():
         return float(limit)
-    bad = before_exit & (a * d - b * c <= 0.0)
+    bad = before_exit & (a * d - b * b <= 0.0)
     if bad.any():
         return float(r[np.argmax(bad.any(axis=1))])
     return None
@@ -148,8 +147,7 @@ def distortion_fold(coeffs, half_x: float, half_y: float, angles: int = 90, step
 
 def check_distortion(values: dict) -> None:
     coeffs = values["distortion"]
-    half = sensor_half_extent({"width": values["width"], "height": values["height"], "pitch": values["pixel_pitch"],
-                               "focal": values["focal"]})
+    half = sensor_half_extent(values["width"], values["height"], values["pixel_pitch"], values["focal"])
     where = distortion_fold(coeffs, *half)
     if where is not None:
         angle = math.degrees(math.atan(where))
@@ -244,11 +242,11 @@ class CameraModel(CameraComponent):
         """Every ray of every pixel: ``(origins, directions)`` of shape (h, w, S, 3) with
         ``S = supersample² x aperture samples`` (sub-pixel sample major)."""
         camera = scene.camera
+        if camera.f_number == 0.0:
+            return super().sample_rays(scene, rows, cols, supersample)
         origin, chief = self.pixel_rays(scene, rows, cols, supersample)
         h, w = chief.shape[:2]
         chief = chief.reshape(h, w, supersample * supersample, 3)
-        if camera.f_number == 0.0:
-            return np.broadcast_to(origin, chief.shape), chief
         forward, right, up = camera.basis()
         disc = aperture_points(camera.aperture_samples) * aperture_radius(camera)  # (K, 2) mm
         lens = origin + disc[:, :1] * right + disc[:, 1:] * up  # (K, 3)

@@ -50,6 +50,24 @@ def coherence_uniforms(scene) -> dict[str, object]:
     return {"u_coherence": 4.0 * math.pi * scene.render.height_rms_um / scene.render.wavelength_um}
 
 
+def features(scene) -> dict[str, bool]:
+    """The template variable every reflection component declares: ``coherence``."""
+    return {"coherence": coherence_on(scene)}
+
+
+def glsl(variables, *model_files: str) -> tuple[str, ...]:
+    """A reflection model's files, after ``reflect_coherence.glsl`` when eq. (1) is on;
+    none without an image output."""
+    if "image" not in variables["outputs"]:
+        return ()
+    return ("reflect_coherence.glsl", *model_files) if variables["coherence"] else model_files
+
+
+def uniforms(scene, variables) -> dict[str, object]:
+    """eq. (1)'s uniform where the program has it."""
+    return coherence_uniforms(scene) if "image" in variables["outputs"] and variables["coherence"] else {}
+
+
 def coherent_fraction(scene, cos_i: np.ndarray) -> np.ndarray:
     """``exp(-g)`` in the mirror direction, ``g = (4π σ_h cos θi / λ)²`` (float64)."""
     k = 4.0 * math.pi * scene.render.height_rms_um / scene.render.wavelength_um

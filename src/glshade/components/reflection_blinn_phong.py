@@ -65,19 +65,15 @@ class BlinnPhong(ReflectionComponent):
     params = (SHININESS, *finish.COHERENCE_PARAMS)
 
     def features(self, scene):
-        return {"coherence": finish.coherence_on(scene)}
+        return finish.features(scene)
 
     def glsl(self, variables):
-        if "image" not in variables["outputs"]:
-            return ()
-        return ("reflect_coherence.glsl", "reflect_blinn_phong.glsl") if variables["coherence"] else (
-            "reflect_blinn_phong.glsl",)
+        return finish.glsl(variables, "reflect_blinn_phong.glsl")
 
     def uniforms(self, scene, frame):
         if "image" not in frame.variables["outputs"]:
             return {}
-        extra = finish.coherence_uniforms(scene) if frame.variables["coherence"] else {}
-        return {"u_shininess": scene.render.shininess, **extra}
+        return {"u_shininess": scene.render.shininess, **finish.uniforms(scene, frame.variables)}
 
     def keeps_emitter_scale(self, scene):
         return not finish.coherence_on(scene)

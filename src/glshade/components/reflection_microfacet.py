@@ -93,22 +93,17 @@ class Microfacet(ReflectionComponent):
     oracle_samples = 1 << 14
 
     def features(self, scene):
-        return {"coherence": finish.coherence_on(scene), "lobe": self.name, "lobe_method": scene.render.lobe_method}
+        return {**finish.features(scene), "lobe": self.name, "lobe_method": scene.render.lobe_method}
 
     def glsl(self, variables):
-        if "image" not in variables["outputs"]:
-            return ()
-        return ("reflect_coherence.glsl", "reflect_microfacet.glsl") if variables["coherence"] else (
-            "reflect_microfacet.glsl",)
+        return finish.glsl(variables, "reflect_microfacet.glsl")
 
     def uniforms(self, scene, frame):
         if "image" not in frame.variables["outputs"]:
             return {}
-        values = {"u_alpha": scene.render.roughness}
+        values = {"u_alpha": scene.render.roughness, **finish.uniforms(scene, frame.variables)}
         if frame.variables["lobe_method"] != "closed":
             values["u_lobe_samples"] = scene.render.lobe_samples
-        if frame.variables["coherence"]:
-            values.update(finish.coherence_uniforms(scene))
         return values
 
     def keeps_emitter_scale(self, scene):
@@ -128,9 +123,10 @@ class Microfacet(ReflectionComponent):
     # ---------------------------------------------------------------- oracle
     def shade(self, scene, p, d, n, v, ok, samples: int | None = None, seed: int = 0):
         """Monte-Carlo estimate (``samples`` per pixel, fixed ``seed``) of the lobe
-        integral: ``l`` sampled with density ``pdf(l) = P22 / ((n·h)⁴ ... )`` written as
-        ``D(h) (n·h) / (4 (wo·h))``, weight ``f cos θl / pdf(l)`` with
-        ``f = D G2 / (4 cos θo cos θl)``."""
+        integral: slopes drawn from ``P22``, so ``l`` has the density
+        ``pdf(l) = D(h) (n·h) / (4 (wo·h))`` with ``D = P22 / (n·h)⁴``; each sample weighs
+        ``f cos θl / pdf(l)``, ``f = D G2 / (4 cos θo cos θl)``. With eq. (1) on, the
+        coherent fraction is the mirror's."""
         mirror = np.where(ok, stripe_radiance(scene.emitter, np.where(ok, v, 0.0)), 0.0)
         alpha = scene.render.roughness
         if alpha == 0.0:

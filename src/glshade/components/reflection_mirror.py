@@ -23,19 +23,15 @@ class Mirror(ReflectionComponent):
     shades_from_v = True
 
     def features(self, scene):
-        return {"coherence": finish.coherence_on(scene)}
+        return finish.features(scene)
 
     def glsl(self, variables):
-        if "image" not in variables["outputs"]:
-            return ()
-        if variables["coherence"]:
-            return ("reflect_coherence.glsl", "reflect_lambert.glsl", "reflect_mirror.glsl")
-        return ("reflect_mirror.glsl",)
+        lambert = ("reflect_lambert.glsl",) if variables["coherence"] else ()
+        return finish.glsl(variables, *lambert, "reflect_mirror.glsl")
 
     def uniforms(self, scene, frame):
-        if "image" not in frame.variables["outputs"] or not frame.variables["coherence"]:
-            return {}
-        return {**finish.coherence_uniforms(scene), "u_em_mean": finish.mean_radiance(scene.emitter)}
+        values = finish.uniforms(scene, frame.variables)
+        return {**values, "u_em_mean": finish.mean_radiance(scene.emitter)} if values else {}
 
     def image_from_v(self, scene):
         return not finish.coherence_on(scene)
