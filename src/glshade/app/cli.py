@@ -19,6 +19,7 @@ from glshade import __version__
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, ShaderCompileError, printable
 from glshade.files import atomic_write_bytes, check_output
+from glshade.process import reuse_freed_memory
 from glshade.scene import PAPER_SURFACES, Camera, Scene, paper_scene
 from glshade.scene.advice import scene_warnings
 from glshade.scene.params import Param
@@ -238,26 +239,6 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=_cmd_paper)
 
 
-def _reuse_freed_memory() -> None:
-    """Ask glibc's allocator to keep freed memory for reuse instead of returning every
-    large block to the kernel. The study allocates and frees megabytes of temporaries
-    per phase; returned, each comes back as fresh pages that fault in again. Keeping them
-    makes the full study about 15 % faster on the 2-core machine (docs/BENCHMARKS.md).
-    Process-wide, so only the ``paper`` command does it; a no-op where libc has no
-    ``mallopt``."""
-    import ctypes
-    import ctypes.util
-
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):
-        return
-    m_trim_threshold, m_mmap_threshold = -1, -3
-    mallopt(m_mmap_threshold, 256 << 20)  # blocks up to 256 MiB come from the heap...
-    mallopt(m_trim_threshold, 1 << 30)  # ...and up to 1 GiB of freed heap is kept for reuse
-
-
 def _cmd_paper(args: argparse.Namespace) -> int:
     from glshade.study import plan as study
     from glshade.study.run import check_workers
@@ -289,7 +270,7 @@ def _run_paper(args: argparse.Namespace, plan) -> int:
     from glshade.study.run import run_study
     from glshade.study.store import CaseResult
 
-    _reuse_freed_memory()
+    reuse_freed_memory()
     start = time.perf_counter()
     drawn: dict = {}
     figure_seconds = 0.0
@@ -458,6 +439,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_accuracy(sub)
     _add_finding3(sub)
     _add_bench(sub)
+    from glshade.app.cli_sweep import add_optimize, add_sweep
+
+    add_sweep(sub)
+    add_optimize(sub)
     return parser
 
 
@@ -564,7 +549,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.run(args)
     except KeyboardInterrupt:
-        hint = " (finished cases are saved: rerun the same command to resume)" if args.command == "paper" else ""
+        resumable = args.command in ("paper", "sweep")
+        hint = " (finished cases are saved: rerun the same command to resume)" if resumable else ""
         print(f"glshade: interrupted{hint}", file=sys.stderr)
         return EXIT_INTERRUPTED
     except ShaderCompileError as exc:  # a composed shader the driver refused: its numbered lines help

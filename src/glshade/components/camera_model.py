@@ -46,6 +46,12 @@ THETA = Param(
     "camera.theta_deg", "deg", 45.0, "elevation of the line of sight above the surface",
     lo=0.0, hi=90.0, flag="--theta", control=Control("theta", 0.5, 89.5, fmt="%.1f deg"),
 )
+AZIMUTH = Param(
+    "camera.azimuth_deg", "deg", 0.0,
+    "azimuth of the rig (camera and emitter together) about the surface normal at the origin, +y: 0 puts the "
+    "camera on +z (as in the paper), 90 on +x; turns the plane of incidence over the surface, its dent and a cylinder's axis",
+    lo=-360.0, hi=360.0, closed=True, flag="--azimuth", control=Control("azimuth", -180.0, 180.0, fmt="%.1f deg"),
+)
 DISTANCE = Param("camera.distance", "mm", 175.6, "origin (the gaze point) to the principal point", lo=0.0)
 FOCAL = Param("camera.focal", "mm", 25.0, "focal length", lo=0.0)
 PITCH = Param("camera.pixel_pitch", "mm", 0.005, "sensor pixel pitch", lo=0.0)
@@ -162,7 +168,7 @@ def check_distortion(values: dict) -> None:
 class CameraModel(CameraComponent):
     name = "camera"
     doc = "a pinhole or a thin lens at the principal point, looking at the origin, with OpenCV distortion"
-    params = (THETA, DISTANCE, FOCAL, PITCH, WIDTH, HEIGHT, F_NUMBER, FOCUS, APERTURE_SAMPLES, DISTORTION)
+    params = (THETA, AZIMUTH, DISTANCE, FOCAL, PITCH, WIDTH, HEIGHT, F_NUMBER, FOCUS, APERTURE_SAMPLES, DISTORTION)
     checks = (check_distortion,)
 
     def features(self, scene):

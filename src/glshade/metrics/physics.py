@@ -58,10 +58,25 @@ class Laws:
 
 def base_curvatures(scene: Scene) -> tuple[float, float]:
     """Second derivatives of the base height at the gaze point (1/mm): along the plane of
-    incidence (tangential, ``z``) and across it (sagittal, ``x``). Convex is negative:
-    a sphere has ``(-1/R, -1/R)``, a cylinder with axis z ``(0, -1/R)``, with axis x
-    ``(-1/R, 0)``; R < 0 (concave) flips the signs."""
-    return registry().active(scene).surface.second_derivatives(scene)
+    incidence (tangential, ``z`` at azimuth 0) and across it (sagittal, ``x``). Convex is
+    negative: a sphere has ``(-1/R, -1/R)``, a cylinder with axis z ``(0, -1/R)``, with
+    axis x ``(-1/R, 0)``; R < 0 (concave) flips the signs. A turned rig
+    (``camera.azimuth_deg`` φ) sees ``f_zz cos² φ + f_xx sin² φ`` along its plane (the
+    surfaces' mixed derivative at the gaze point is 0 for the analytic kinds; a free-form
+    surface's is neglected here)."""
+    f_zz, f_xx = registry().active(scene).surface.second_derivatives(scene)
+    c2, s2 = math.cos(scene.camera.azimuth_rad) ** 2, math.sin(scene.camera.azimuth_rad) ** 2
+    return f_zz * c2 + f_xx * s2, f_xx * c2 + f_zz * s2
+
+
+def rig_inverse_covariance(scene: Scene) -> tuple[float, float]:
+    """``(Σ⁻¹)`` of the defect across and along the rig's plane of incidence (1/mm²):
+    ``(x, z)`` at azimuth 0, turned by ``camera.azimuth_deg``."""
+    a, b, c = scene.defect.inverse_covariance()
+    sin_p, cos_p = math.sin(scene.camera.azimuth_rad), math.cos(scene.camera.azimuth_rad)
+    along = a * sin_p * sin_p + 2.0 * b * sin_p * cos_p + c * cos_p * cos_p
+    across = a * cos_p * cos_p - 2.0 * b * sin_p * cos_p + c * sin_p * sin_p
+    return across, along
 
 
 def laws(scene: Scene) -> Laws:
@@ -73,7 +88,7 @@ def laws(scene: Scene) -> Laws:
     lever = 2.0 * dc * de / ((dc + de) * sin_t)  # mm: curvature -> fold ratio
     tangential, sagittal = base_curvatures(scene)
     m = 1.0 - lever * tangential
-    inv_xx, _, inv_zz = defect.inverse_covariance()
+    inv_xx, inv_zz = rig_inverse_covariance(scene)
     sigma_z = 1.0 / math.sqrt(inv_zz)
     b = sigma_z * sin_t / (dc * delta)
     depth = abs(defect.dmax)

@@ -96,6 +96,14 @@ def _rebuild_table(table: str, values: dict[str, Any]) -> Table:
     return TABLE_CLASSES[table](**values)
 
 
+def rig_rotation(azimuth_rad: float) -> np.ndarray:
+    """Rotation about +y by ``azimuth_rad`` (+z towards +x), float64 3x3."""
+    c, s = math.cos(azimuth_rad), math.sin(azimuth_rad)
+    if azimuth_rad == 0.0:
+        return np.eye(3)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
 class Camera(Table):
     """Where the camera is and what its sensor is (SPEC §2): ``theta_deg``,
     ``distance`` (mm, origin to principal point), ``focal`` (mm), ``pixel_pitch`` (mm),
@@ -107,16 +115,27 @@ class Camera(Table):
     def theta_rad(self) -> float:
         return math.radians(self.theta_deg)
 
+    @property
+    def azimuth_rad(self) -> float:
+        return math.radians(self.azimuth_deg)
+
+    def rig_rotation(self) -> np.ndarray:
+        """3x3 rotation of the rig (camera and emitter) about +y by ``azimuth_deg``: +z
+        turns towards +x (float64). The identity at azimuth 0, SPEC's frame."""
+        return rig_rotation(self.azimuth_rad)
+
     def position(self) -> np.ndarray:
-        """Principal point ``C = distance (0, sin θ, cos θ)`` in mm (float64)."""
+        """Principal point ``C = distance R (0, sin θ, cos θ)`` in mm (float64), ``R`` the
+        rig's rotation (:meth:`rig_rotation`)."""
         th = self.theta_rad
-        return self.distance * np.array([0.0, math.sin(th), math.cos(th)])
+        return self.rig_rotation() @ (self.distance * np.array([0.0, math.sin(th), math.cos(th)]))
 
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Unit vectors ``(forward, right, up)`` of the camera, float64."""
         th = self.theta_rad
-        forward = -np.array([0.0, math.sin(th), math.cos(th)])
-        up = np.array([0.0, math.cos(th), -math.sin(th)])
+        turn = self.rig_rotation()
+        forward = turn @ -np.array([0.0, math.sin(th), math.cos(th)])
+        up = turn @ np.array([0.0, math.cos(th), -math.sin(th)])
         right = np.cross(forward, up)
         return forward, right, up
 
@@ -245,14 +264,16 @@ class Scene:
 
     # ----------------------------------------------------------------- geometry
     def emitter_frame(self) -> EmitterFrame:
-        """``E = distance (0, sin θ, -cos θ)``, ``n_E = -E/|E|``, ``e_u = x``, ``e_v`` (SPEC §3)."""
+        """``E = distance (0, sin θ, -cos θ)``, ``n_E = -E/|E|``, ``e_u = x``, ``e_v`` (SPEC §3),
+        all turned with the camera by the rig's azimuth (:meth:`Camera.rig_rotation`)."""
         th = self.camera.theta_rad
-        direction = np.array([0.0, math.sin(th), -math.cos(th)])
+        turn = self.camera.rig_rotation()
+        direction = turn @ np.array([0.0, math.sin(th), -math.cos(th)])
         return EmitterFrame(
             centre=self.emitter.distance * direction,
             normal=-direction,
-            e_u=np.array([1.0, 0.0, 0.0]),
-            e_v=np.array([0.0, math.cos(th), math.sin(th)]),
+            e_u=turn @ np.array([1.0, 0.0, 0.0]),
+            e_v=turn @ np.array([0.0, math.cos(th), math.sin(th)]),
         )
 
     def title(self) -> str:
@@ -359,24 +380,24 @@ _MAGIC = ((b"\x89PNG", "a PNG image"), (b"II*\x00", "a TIFF image"), (b"MM\x00*"
 _BOM = b"\xef\xbb\xbf"
 
 
-def read_toml(path: Path) -> dict[str, Any]:
-    """A scene file's TOML tables. A UTF-8 byte-order mark (which TOML does not allow,
-    and Windows editors write) is skipped; every other problem is a :class:`SceneError`
-    naming the file."""
-    field = f"scene file {path}"
+def read_toml(path: Path, what: str = "scene file") -> dict[str, Any]:
+    """A scene file's (or another ``what``'s) TOML tables. A UTF-8 byte-order mark (which
+    TOML does not allow, and Windows editors write) is skipped; every other problem is a
+    :class:`SceneError` naming the file."""
+    field = f"{what} {path}"
     try:
         with path.open("rb") as fh:
             raw = fh.read(MAX_SCENE_FILE_BYTES + 1)
     except FileNotFoundError:
-        raise SceneError("scene file", "an existing TOML file", str(path)) from None
+        raise SceneError(what, "an existing TOML file", str(path)) from None
     except IsADirectoryError:
         raise SceneError(field, "a TOML file, not a directory") from None
     except OSError as exc:
         raise SceneError(field, f"a readable TOML file ({exc.strerror or exc})") from None
     except ValueError:  # a NUL byte in the path
-        raise SceneError("scene file", "a path without NUL bytes", str(path)) from None
+        raise SceneError(what, "a path without NUL bytes", str(path)) from None
     if len(raw) > MAX_SCENE_FILE_BYTES:
-        raise SceneError(field, f"a TOML scene file of at most {MAX_SCENE_FILE_BYTES >> 20} MiB (this one is larger)")
+        raise SceneError(field, f"a TOML file of at most {MAX_SCENE_FILE_BYTES >> 20} MiB (this one is larger)")
     kind = next((name for magic, name in _MAGIC if raw.startswith(magic)), None)
     if kind is not None:
         raise SceneError(field, f"a TOML text file (this is {kind})")

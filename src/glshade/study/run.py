@@ -4,29 +4,27 @@ Every case is measured by the one metric pipeline (:class:`glshade.metrics.visib
 for every (surface, θ) the defect-free scene is traced once and its analysis is shared by
 the 8 (σ², dmax) cases of that geometry, which changes no number (a case is a pure
 function of its scene and the metric settings; ``tests/test_study.py`` checks the rows
-against :func:`glshade.measure`). The GL work stays on the calling thread; the analysis
-runs in ``workers`` threads. What is swept is :mod:`glshade.study.plan`; what is written,
+against :func:`glshade.measure`). The cases run through the sweep engine
+(:mod:`glshade.sweep.engine`, the machinery of ``glshade sweep``): the GL work stays on
+the calling thread; the analysis runs in ``workers`` threads. What is swept is :mod:`glshade.study.plan`; what is written,
 and resumed from, :mod:`glshade.study.store`.
 """
 
 from __future__ import annotations
 
 import time
-from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
-import numpy as np
 
 from glshade.errors import GlshadeError
 from glshade.files import encode_png
 from glshade.gpu.renderer import Renderer
 from glshade.metrics import contours, physics
 from glshade.metrics import visibility as vis
-from glshade.metrics.measurement import baseline_for, emitter_map, measure_scene, phase_images, shades_from_map
 from glshade.scene import Scene
 from glshade.study.plan import (
     GRID_THETAS,
@@ -44,10 +42,7 @@ from glshade.study.store import (
     write_case,
     write_results_csv,
 )
-
-#: Cases traced ahead of the analysis: the GL thread keeps tracing while the workers
-#: measure, and at most this many emitter maps wait in memory (4 MiB each at 1024²).
-_AHEAD = 16
+from glshade.sweep.engine import CaseView, measure_many
 
 
 @dataclass
@@ -172,64 +167,28 @@ def _progress_bar(total: int, initial: int, enabled: bool):
 
 def _run_cases(plan: StudyPlan, cases: list[Case], renderer: Renderer, pool: ThreadPoolExecutor, timings: Timings,
                out_dir: Path, finished: Callable[[CaseResult], None]) -> None:
-    """Trace every pending case on this (the GL) thread, measure it in the pool, and
-    write each result as soon as it is done, in order. The defect-free trace and analysis
-    of a (surface, θ) is made once and shared by its cases (:class:`vis.Baseline` labels
-    the normal stripes of a phase the first time a worker needs them)."""
-    waiting: deque = deque()
-
-    def drain(keep: int) -> None:
-        """Write what is done at the head of the queue; wait while more than ``keep`` wait."""
-        while len(waiting) > keep or (waiting and waiting[0].done()):
-            row, thumbnail, overlay = waiting.popleft().result()
-            _write(row, thumbnail, overlay, timings, out_dir)
-            finished(row)
-
-    for group in plan.geometries(cases):
-        normal_scene = plan.scene(*group[0]).without_defect()
-        if not shades_from_map(normal_scene):
-            _run_rendered(plan, group, renderer, timings, out_dir, finished)
-            continue
-        start = time.perf_counter()
-        baseline = vis.Baseline(emitter_map(renderer, normal_scene), normal_scene.emitter, plan.metric)
-        timings.trace += time.perf_counter() - start
-        for case in group:
-            scene = plan.scene(*case)
-            start = time.perf_counter()
-            v1 = emitter_map(renderer, scene)
-            trace_s = time.perf_counter() - start
-            timings.trace += trace_s
-            waiting.append(pool.submit(_analyse_case, case, scene, baseline, v1, trace_s))
-            drain(keep=_AHEAD)
-    drain(keep=0)
-
-
-def _run_rendered(plan: StudyPlan, group: list[Case], renderer: Renderer, timings: Timings, out_dir: Path,
-                  finished: Callable[[CaseResult], None]) -> None:
-    """The cases of one geometry whose pictures are not a function of the uv map (a
-    lens, a lobe, Fresnel, a sensor): every phase rendered, all on this (the GL) thread."""
-    first = plan.scene(*group[0])
-    start = time.perf_counter()
-    baseline = baseline_for(renderer, first, plan.metric)
-    timings.trace += time.perf_counter() - start
-    for case in group:
-        scene = plan.scene(*case)
-        start = time.perf_counter()
-        result = measure_scene(renderer, scene, plan.metric, baseline)
-        seconds = time.perf_counter() - start
-        trace_s = max(0.0, seconds - result.seconds.shade - result.seconds.contours - result.seconds.continuous)
-        row = case_result(case, scene, result, trace_s)
-        thumbnail = overlay = None
-        images = phase_images(renderer, scene)
-        if case[1] in GRID_THETAS:
-            image = images(result.best_phase_mm)
-            thumbnail = encode_png(cv2.resize(image, (THUMBNAIL, THUMBNAIL), interpolation=cv2.INTER_AREA), bits=8)
-        if case in OVERLAY_CASES:
-            normal, defect = baseline.stripes_at(emitter_map(renderer, scene), result.best_phase_mm, result.offset_px,
-                                                 images)
-            overlay = (contours.overlay_rgb(normal, defect), result, baseline.columns.start, scene.title())
-        _write(row, thumbnail, overlay, timings, out_dir)
+    """Measure every pending case with the sweep engine (:func:`glshade.sweep.engine.measure_many`:
+    one defect-free analysis per (surface, θ), tracing on this thread while the pool
+    measures) and write each result as soon as it is done."""
+    items = [(case, plan.scene(*case)) for case in cases]
+    for measured in measure_many(renderer, items, plan.metric, pool=pool, extra=_figures):
+        row = case_result(measured.token, measured.scene, measured.result, measured.trace_s)
+        timings.trace += measured.trace_s
+        _write(row, *measured.extra, timings, out_dir)
         finished(row)
+
+
+def _figures(case: Case, scene: Scene, result: vis.Visibility, view: CaseView):
+    """A case's thumbnail (θ of the figure grids) and Fig. 9 overlay (its cases), made
+    where the case is measured."""
+    thumbnail = overlay = None
+    if case[1] in GRID_THETAS:
+        image = view.best_image(scene, result)
+        thumbnail = encode_png(cv2.resize(image, (THUMBNAIL, THUMBNAIL), interpolation=cv2.INTER_AREA), bits=8)
+    if case in OVERLAY_CASES:
+        normal, defect = view.baseline.stripes_at(view.v1, result.best_phase_mm, result.offset_px, view.images)
+        overlay = (contours.overlay_rgb(normal, defect), result, view.baseline.columns.start, scene.title())
+    return thumbnail, overlay
 
 
 def _write(row: CaseResult, thumbnail: bytes | None, overlay, timings: Timings, out_dir: Path) -> None:
@@ -263,18 +222,3 @@ def case_result(case: Case, scene: Scene, result: vis.Visibility, trace_s: float
         trace_s=round(trace_s, 4), shade_s=round(result.seconds.shade, 4),
         contours_s=round(result.seconds.contours, 4), continuous_s=round(result.seconds.continuous, 4),
     )
-
-
-def _analyse_case(case: Case, scene: Scene, baseline: vis.Baseline, v1: np.ndarray, trace_s: float):
-    """Everything after the trace, for one case (runs in a worker thread)."""
-    result = baseline.measure(v1)
-    row = case_result(case, scene, result, trace_s)
-    thumbnail = None
-    if case[1] in GRID_THETAS:
-        image = vis.stripe_radiance(v1, scene.emitter, result.best_phase_mm)
-        thumbnail = encode_png(cv2.resize(image, (THUMBNAIL, THUMBNAIL), interpolation=cv2.INTER_AREA), bits=8)
-    overlay = None
-    if case in OVERLAY_CASES:
-        normal, defect = baseline.stripes_at(v1, result.best_phase_mm, result.offset_px)
-        overlay = (contours.overlay_rgb(normal, defect), result, baseline.columns.start, scene.title())
-    return row, thumbnail, overlay

@@ -1,0 +1,370 @@
+"""Where should the camera be? The viewpoint that maximises a dent's visibility, or the
+worst-case visibility over a family of dents (``glshade optimize``, SPEC §8.3).
+
+1. **Coarse grid** over the ``--over`` keys (their bounds), every point measured for every
+   member of the family, on the sweep machinery (in-process or on Dask: the grid is one
+   batch of cases).
+2. **Bounded refinement** from the best grid point with SciPy's Nelder–Mead inside the
+   grid cell around it (± one grid step per key, clipped to the bounds), initial simplex
+   half a step wide, at most ``refine_evaluations`` points.
+
+The objective at a point is the worst case over the family (the minimum of the members'
+visibilities). The paper's metric is piecewise constant (whole pixels): a gradient
+method would see zero slope almost everywhere. Nelder–Mead only ranks points, so it works
+on plateaus, and ties are broken by the continuous visibility, which every case computes
+anyway: the score is ``visibility_px + TIE · visibility_continuous_px`` (``TIE = 1e-3``
+keeps the order of whole pixels for any continuous value under 1000 px). The refinement
+never returns worse than the grid: the optimum is the best point evaluated.
+**Flatness**: the near-optimal set is every evaluated point within ``tolerance`` of the
+optimum (paper metric: 0, the points of the optimum's whole-pixel plateau; continuous: 5 %);
+per key, the range of those points tells how far the camera may move without losing more
+than that.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from glshade.components.registry import registry
+from glshade.errors import GlshadeError, SceneError
+from glshade.metrics.visibility import MetricSettings
+from glshade.scene import Scene
+from glshade.sweep.spec import SweepCase, case_id
+
+METRICS = ("paper", "continuous")
+#: Tie-break weight of the continuous visibility in the paper metric's score.
+TIE = 1e-3
+#: Bounds of keys an engineer sweeps most, when ``--over`` gives none (the paper's θ range).
+DEFAULT_BOUNDS = {"camera.theta_deg": (5.0, 85.0), "camera.azimuth_deg": (0.0, 180.0)}
+#: Grid points per key by the number of keys (``--grid`` overrides).
+GRID_POINTS = {1: 9, 2: 7}
+GRID_POINTS_MANY = 5
+MAX_GRID_POINTS = 10_000
+
+
+@dataclass(frozen=True)
+class Dimension:
+    """One key the optimiser moves, within ``[lo, hi]`` (in the key's unit)."""
+
+    key: str
+    lo: float
+    hi: float
+
+
+@dataclass(frozen=True)
+class OptimizeResult:
+    """The optimum (a value per key), its objective (``visibility_px``: the chosen
+    metric, worst case over the family), the near-optimal ranges, and every evaluated
+    point (``points``: (n, k) array, ``values``: (n,) objective; the first ``grid_count``
+    are the coarse grid)."""
+
+    dimensions: tuple[Dimension, ...]
+    optimum: dict[str, float]
+    visibility_px: float
+    metric: str
+    tolerance_px: float
+    near_optimal: dict[str, tuple[float, float]]
+    points: np.ndarray
+    values: np.ndarray
+    grid_shape: tuple[int, ...]
+    grid_count: int
+    cases: int = 0
+    members: list[dict[str, float]] = field(default_factory=list)
+    member_values: np.ndarray | None = None  # (n, members): each member's visibility
+
+    def near_text(self) -> str:
+        """What the near-optimal set is, in words."""
+        if self.tolerance_px == 0.0:
+            return "on the optimum's whole-pixel plateau"
+        return f"within {self.tolerance_px:g} px of the optimum"
+
+    @property
+    def evaluations(self) -> int:
+        return len(self.values)
+
+    def summary(self) -> dict:
+        """``glshade optimize --json``."""
+        return {
+            "optimum": self.optimum,
+            "visibility_px": round(self.visibility_px, 4),
+            "metric": self.metric,
+            "evaluations": self.evaluations,
+            "grid_evaluations": self.grid_count,
+            "cases": self.cases,
+            "family_members": len(self.members) or 1,
+            "near_optimal": {key: list(span) for key, span in self.near_optimal.items()},
+            "tolerance_px": self.tolerance_px,
+        }
+
+
+# --------------------------------------------------------------------------- parsing
+def parse_over(text: str) -> tuple[Dimension, ...]:
+    """``KEY[=LO..HI][,KEY[=LO..HI]]``: the keys to move and their bounds."""
+    dims = []
+    for item in _items(text, "--over"):
+        key, _, span = item.partition("=")
+        key = key.strip()
+        _numeric_param(key, "--over")
+        if span:
+            lo, hi = _span(span, f"--over {key}")
+        elif key in DEFAULT_BOUNDS:
+            lo, hi = DEFAULT_BOUNDS[key]
+        else:
+            raise GlshadeError(f"--over {key}: give its bounds, e.g. {key}=LO..HI")
+        dims.append(Dimension(key, lo, hi))
+    if len({d.key for d in dims}) != len(dims):
+        raise GlshadeError("--over: a key is listed twice")
+    return tuple(dims)
+
+
+def parse_family(text: str | None, points: int = 3) -> list[dict[str, float]]:
+    """``KEY=LO..HI`` (``points`` values, ends included) or ``KEY=V1|V2|...``, comma
+    separated: the family's members are every combination ([{}] without a family)."""
+    if not text:
+        return [{}]
+    axes: list[tuple[str, list[float]]] = []
+    for item in _items(text, "--family"):
+        key, sep, span = item.partition("=")
+        key = key.strip()
+        if not sep:
+            raise GlshadeError(f"--family {item!r}: expected KEY=LO..HI or KEY=V1|V2")
+        _numeric_param(key, "--family")
+        if "|" in span:
+            values = [_float(v, f"--family {key}") for v in span.split("|")]
+        else:
+            lo, hi = _span(span, f"--family {key}", allow_equal=True)
+            values = [lo] if lo == hi else list(np.linspace(lo, hi, points))
+        axes.append((key, values))
+    if len({k for k, _ in axes}) != len(axes):
+        raise GlshadeError("--family: a key is listed twice")
+    return [dict(zip([k for k, _ in axes], combo, strict=True)) for combo in itertools.product(*(v for _, v in axes))]
+
+
+def _items(text: str, flag: str) -> list[str]:
+    items = [item.strip() for item in text.split(",") if item.strip()]
+    if not items:
+        raise GlshadeError(f"{flag}: expected at least one dotted key")
+    return items
+
+
+def _numeric_param(key: str, flag: str) -> None:
+    try:
+        param = registry().param(key)
+    except SceneError as exc:
+        raise GlshadeError(f"{flag}: {exc}") from None
+    if param.value_type not in ("real", "integer"):
+        raise GlshadeError(f"{flag} {key}: not a number ({param.value_type}); sweep it with glshade sweep instead")
+
+
+def _span(text: str, where: str, allow_equal: bool = False) -> tuple[float, float]:
+    lo_text, sep, hi_text = text.partition("..")
+    if not sep:
+        raise GlshadeError(f"{where}: expected a range LO..HI, got {text!r}")
+    lo, hi = _float(lo_text, where), _float(hi_text, where)
+    if not (lo < hi or (allow_equal and lo == hi)):
+        raise GlshadeError(f"{where}: an empty or inverted range {lo:g}..{hi:g}; LO must be below HI")
+    return lo, hi
+
+
+def _float(text: str, where: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise GlshadeError(f"{where}: expected a number, got {text.strip()!r}") from None
+    if not math.isfinite(value):
+        raise GlshadeError(f"{where}: expected a finite number, got {text.strip()!r}")
+    return value
+
+
+# --------------------------------------------------------------------------- the search
+def grid_axes(dimensions: Sequence[Dimension], points: int | None = None) -> list[np.ndarray]:
+    n = points or GRID_POINTS.get(len(dimensions), GRID_POINTS_MANY)
+    if n < 2:
+        raise GlshadeError(f"--grid: at least 2 points per key, got {n}")
+    if n ** len(dimensions) > MAX_GRID_POINTS:
+        raise GlshadeError(f"--grid: {n}^{len(dimensions)} points is more than {MAX_GRID_POINTS}; use fewer")
+    return [np.linspace(d.lo, d.hi, n) for d in dimensions]
+
+
+#: ``objective(points (n, k)) -> (scores (n,), values (n,), member values (n, m))``.
+Objective = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+def search(objective: Objective, dimensions: Sequence[Dimension], *, grid_points: int | None = None,
+           refine_evaluations: int = 30, tolerance_px: float | None = None, metric: str = "continuous",
+           members: list[dict[str, float]] | None = None) -> OptimizeResult:
+    """Maximise ``objective`` over the box of ``dimensions``: coarse grid, then bounded
+    Nelder–Mead in the best grid cell (module doc). ``objective`` is called with a batch of
+    points (the whole grid at once, so it may distribute it)."""
+    from scipy.optimize import minimize
+
+    axes = grid_axes(dimensions, grid_points)
+    grid = np.array(list(itertools.product(*axes)), dtype=np.float64)
+    scores, values, member_values = objective(grid)
+    points, all_scores = [grid], [scores]
+    all_values, all_members = [values], [member_values]
+    best = grid[int(np.argmax(scores))]
+    steps = np.array([a[1] - a[0] for a in axes])
+    lows, highs = np.array([d.lo for d in dimensions]), np.array([d.hi for d in dimensions])
+    cell_lo, cell_hi = np.maximum(best - steps, lows), np.minimum(best + steps, highs)
+    seen: dict[tuple, float] = {}
+
+    def negative(x: np.ndarray) -> float:
+        x = np.clip(x, cell_lo, cell_hi)
+        key = tuple(np.round(x, 9))
+        if key not in seen:
+            s, v, m = objective(x[None, :])
+            points.append(x[None, :])
+            all_scores.append(s)
+            all_values.append(v)
+            all_members.append(m)
+            seen[key] = float(s[0])
+        return -seen[key]
+
+    if refine_evaluations > 0:
+        simplex = np.vstack([best] + [np.clip(best + 0.5 * steps * e, cell_lo, cell_hi)
+                                      for e in np.eye(len(dimensions))])
+        seen[tuple(np.round(best, 9))] = float(np.max(scores))
+        minimize(negative, best, method="Nelder-Mead", bounds=list(zip(cell_lo, cell_hi, strict=True)),
+                 options={"initial_simplex": simplex, "maxfev": refine_evaluations, "xatol": 1e-3 * steps.min(),
+                          "fatol": 1e-4})
+    points_all = np.vstack(points)
+    scores_all, values_all = np.concatenate(all_scores), np.concatenate(all_values)
+    winner = int(np.argmax(scores_all))
+    tolerance = tolerance_px if tolerance_px is not None else (0.0 if metric == "paper" else
+                                                               0.05 * max(values_all[winner], 1e-9))
+    near = points_all[values_all >= values_all[winner] - tolerance]
+    return OptimizeResult(
+        dimensions=tuple(dimensions),
+        optimum={d.key: round(float(points_all[winner, i]), 4) for i, d in enumerate(dimensions)},
+        visibility_px=float(values_all[winner]), metric=metric, tolerance_px=round(float(tolerance), 4),
+        near_optimal={d.key: (round(float(near[:, i].min()), 4), round(float(near[:, i].max()), 4))
+                      for i, d in enumerate(dimensions)},
+        points=points_all, values=values_all, grid_shape=tuple(len(a) for a in axes), grid_count=len(grid),
+        members=members or [], member_values=np.vstack(all_members),
+    )
+
+
+# --------------------------------------------------------------------------- scenes
+class SceneObjective:
+    """The worst-case visibility over a family, measured by an executor (in-process or
+    Dask: :func:`glshade.sweep.run.open_executor`); every case measured once (by id)."""
+
+    def __init__(self, base: Scene, dimensions: Sequence[Dimension], family: list[dict[str, float]],
+                 settings: MetricSettings, metric: str, executor) -> None:
+        if metric not in METRICS:
+            raise GlshadeError(f"--metric: must be one of {', '.join(METRICS)}, got {metric!r}")
+        self.base, self.dimensions, self.family = base, tuple(dimensions), family
+        self.settings, self.metric, self.executor = settings, metric, executor
+        self.outputs: dict[str, dict] = {}
+        for point in (tuple(d.lo for d in dimensions), tuple(d.hi for d in dimensions)):
+            for member in family:  # every corner and member is a valid scene before any work
+                settings.phases(self.scene(point, member).emitter.period)
+
+    def scene(self, point: Sequence[float], member: dict[str, float]) -> Scene:
+        tables: dict[str, dict[str, float]] = {}
+        for key, value in [*zip((d.key for d in self.dimensions), point, strict=True), *member.items()]:
+            table, _, name = key.partition(".")
+            tables.setdefault(table, {})[name] = float(value)
+        try:
+            return self.base.updated(**tables)
+        except SceneError as exc:
+            raise GlshadeError(str(exc)) from None
+
+    def __call__(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        grid = [[self.scene(p, m) for m in self.family] for p in points]
+        ids = [[case_id(s, self.settings) for s in row] for row in grid]
+        todo = {i: SweepCase(i, (), s) for row_ids, row in zip(ids, grid, strict=True)
+                for i, s in zip(row_ids, row, strict=True) if i not in self.outputs}
+        for token, outputs, _, _ in self.executor.rows(list(todo.values()), self.settings, False):
+            self.outputs[token] = outputs
+        paper = np.array([[self.outputs[i]["visibility_px"] for i in row] for row in ids], dtype=np.float64)
+        continuous = np.array([[self.outputs[i]["visibility_continuous_px"] for i in row] for row in ids])
+        chosen = paper if self.metric == "paper" else continuous
+        score = paper + TIE * continuous if self.metric == "paper" else continuous
+        return score.min(axis=1), chosen.min(axis=1), chosen
+
+    @property
+    def cases(self) -> int:
+        return len(self.outputs)
+
+
+def optimize_scene(base: Scene, dimensions: Sequence[Dimension], family: list[dict[str, float]], *,
+                   metric: str = "paper", settings: MetricSettings | None = None, executor,
+                   grid_points: int | None = None, refine_evaluations: int = 30) -> OptimizeResult:
+    """The viewpoint search on a real scene (module doc)."""
+    settings = settings or MetricSettings()
+    objective = SceneObjective(base, dimensions, family, settings, metric, executor)
+    result = search(objective, dimensions, grid_points=grid_points, refine_evaluations=refine_evaluations,
+                    metric=metric, members=family if family != [{}] else [])
+    return _with_cases(result, objective.cases)
+
+
+def _with_cases(result: OptimizeResult, cases: int) -> OptimizeResult:
+    from dataclasses import replace
+
+    return replace(result, cases=cases)
+
+
+# --------------------------------------------------------------------------- figure
+def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> None:
+    """The objective over the coarse grid: a curve (one key; each family member faint),
+    a map (two keys), or a curve per key through the best grid point (more)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from glshade.files import atomic_write_bytes
+
+    dims, n = result.dimensions, result.grid_count
+    grid, values = result.points[:n], result.values[:n]
+    label = "worst-case " if result.members else ""
+    ylabel = f"{label}visibility ({result.metric}), px"
+    if len(dims) == 2:
+        fig, ax = plt.subplots(figsize=(6.4, 5.0))
+        shape = result.grid_shape
+        mesh = ax.pcolormesh(grid[:, 1].reshape(shape), grid[:, 0].reshape(shape), values.reshape(shape),
+                             shading="nearest", cmap="viridis")
+        fig.colorbar(mesh, ax=ax, label=ylabel)
+        ax.plot(result.points[n:, 1], result.points[n:, 0], ".", color="white", ms=3, label="refinement")
+        ax.plot(result.optimum[dims[1].key], result.optimum[dims[0].key], "*", color="red", ms=14, label="optimum")
+        ax.set_xlabel(dims[1].key)
+        ax.set_ylabel(dims[0].key)
+        ax.legend(loc="best", fontsize=8)
+    else:
+        fig, axes = plt.subplots(1, len(dims), figsize=(6.4 * min(len(dims), 3), 4.4), squeeze=False)
+        best = grid[int(np.argmax(values))]
+        for i, (ax, dim) in enumerate(zip(axes[0], dims, strict=True)):
+            on_line = np.all(np.isclose(np.delete(grid, i, axis=1), np.delete(best, i)), axis=1)
+            order = np.argsort(grid[on_line, i])
+            x = grid[on_line, i][order]
+            if result.member_values is not None and len(result.members) > 1:
+                for j, member in enumerate(result.members):
+                    ax.plot(x, result.member_values[:n][on_line][order, j], color="0.75", lw=0.8,
+                            label="family members" if j == 0 else None)
+            ax.plot(x, values[on_line][order], "o-", color="C0", label=f"{label}visibility")
+            if len(dims) == 1:
+                ax.plot(result.points[n:, 0], result.values[n:], "x", color="C1", label="refinement")
+            ax.axvspan(*result.near_optimal[dim.key], color="C2", alpha=0.15, label=result.near_text())
+            ax.axvline(result.optimum[dim.key], color="C3", lw=1.0, label="optimum")
+            ax.set_xlabel(dim.key)
+            ax.set_ylabel(ylabel)
+            ax.grid(alpha=0.3)
+        axes[0][0].legend(loc="best", fontsize=8)
+    where = ", ".join(f"{key} = {value:g}" for key, value in result.optimum.items())
+    fig.suptitle(title or f"optimum {where}\n{label}{result.metric} visibility {result.visibility_px:.3g} px",
+                 fontsize=10)
+    fig.tight_layout()
+    import io
+
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=110)
+    plt.close(fig)
+    atomic_write_bytes(Path(path), buffer.getvalue(), "--plot")

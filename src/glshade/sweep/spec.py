@@ -1,0 +1,322 @@
+"""A sweep file (SPEC §8.3): a base scene, a grid over dotted scene keys, the metric's
+settings and what to write. No GL here: a sweep is planned, validated and split anywhere.
+
+```toml
+base = "scene.toml"            # optional (relative to this file); default: the paper's scene
+size = 256                     # optional: pixels across, the base camera's field of view
+[grid]                         # axes in this order; the cases are their product
+"camera.theta_deg" = [85, 65, 45, 25, 5]
+"defect.sigma2" = { start = 1.0, stop = 16.0, num = 4 }      # inclusive, start < stop
+"camera.azimuth_deg" = { start = 0.0, stop = 90.0, step = 30.0 }
+surface = [ { label = "flat", "surface.kind" = "flat" },        # a linked axis: each entry
+            { label = "sphere", "surface.kind" = "sphere", "emitter.period" = 10.0 } ]  # sets several keys
+[metric]                       # optional: MetricSettings (step_mm, threshold, ...)
+step_mm = 0.25
+[output]
+images = false                 # best-phase image of every case (PNG)
+```
+
+``size`` may also be an axis of the grid. A case is identified by :func:`case_id`, the
+hash of its full scene and metric settings: a changed base scene or setting makes other
+cases, and a case already measured is never measured again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from glshade.components.registry import registry
+from glshade.errors import GlshadeError, SceneError
+from glshade.metrics.visibility import MetricSettings
+from glshade.scene import Scene, paper_scene
+from glshade.scene.model import read_toml
+from glshade.study.plan import METRIC_VERSION
+
+#: A grid of more cases than this needs ``--yes`` (about an hour of llvmpipe at 256 px).
+MAX_CASES_UNCONFIRMED = 5000
+#: A grid of more cases than this is refused (the plan itself would not fit in memory).
+MAX_CASES = 1_000_000
+SIZE_KEY = "size"
+_TOP_KEYS = ("base", "size", "grid", "metric", "output")
+_OUTPUT_KEYS = ("images",)
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One axis of the grid: its name (a dotted key, ``size``, or a linked axis's name),
+    its entries (each a map of dotted keys to values) and their labels."""
+
+    name: str
+    entries: tuple[tuple[tuple[str, Any], ...], ...]
+    labels: tuple[Any, ...]
+
+    @property
+    def keys(self) -> tuple[str, ...]:
+        """The dotted keys this axis sets (in first appearance order)."""
+        return tuple(dict.fromkeys(key for entry in self.entries for key, _ in entry))
+
+    @property
+    def linked(self) -> bool:
+        return self.keys != (self.name,)
+
+
+@dataclass(frozen=True)
+class SweepCase:
+    """One case: its id, its place in the grid (an index per axis) and its scene."""
+
+    case_id: str
+    index: tuple[int, ...]
+    scene: Scene
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A validated sweep: ``base`` scene, ``axes``, ``size`` (None: the base's), metric
+    ``settings``, ``images`` (write the best-phase image of each case)."""
+
+    base: Scene = field(default_factory=paper_scene)
+    axes: tuple[Axis, ...] = ()
+    size: int | None = None
+    settings: MetricSettings = field(default_factory=MetricSettings)
+    images: bool = False
+    source: str = "<sweep>"
+
+    @property
+    def count(self) -> int:
+        return math.prod(len(axis.entries) for axis in self.axes)
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """The swept columns of the table: linked axes' names, then every swept key."""
+        names = [axis.name for axis in self.axes if axis.linked]
+        return tuple(dict.fromkeys([*names, *(key for axis in self.axes for key in axis.keys)]))
+
+    def scene(self, index: tuple[int, ...]) -> Scene:
+        """The scene at one point of the grid: the base with every axis's entry applied
+        (all at once, so keys that only make sense together can be swept together)."""
+        tables: dict[str, dict[str, Any]] = {}
+        size = self.size
+        for axis, i in zip(self.axes, index, strict=True):
+            for key, value in axis.entries[i]:
+                if key == SIZE_KEY:
+                    size = value
+                else:
+                    table, _, name = key.partition(".")
+                    tables.setdefault(table, {})[name] = value
+        scene = self.base.updated(**tables) if tables else self.base
+        return scene.with_size(size) if size is not None else scene
+
+    def cases(self) -> list[SweepCase]:
+        """Every case of the grid, first axis outermost."""
+        ranges = [range(len(axis.entries)) for axis in self.axes]
+        cases = []
+        for index in itertools.product(*ranges):
+            scene = self.scene(index)
+            cases.append(SweepCase(case_id(scene, self.settings), index, scene))
+        return cases
+
+    def swept_values(self, case: SweepCase) -> dict[str, Any]:
+        """The row's swept columns: each linked axis's label, then each swept key's value
+        in the case's scene."""
+        values: dict[str, Any] = {}
+        for axis, i in zip(self.axes, case.index, strict=True):
+            if axis.linked:
+                values[axis.name] = axis.labels[i]
+        for key in self.columns:
+            if key not in values:
+                values[key] = _column_value(case.scene, key)
+        return values
+
+    def manifest(self) -> dict:
+        """What ties an output directory to this sweep: the glshade and metric versions,
+        the base scene and size, the metric settings (a grid may grow between runs)."""
+        from glshade import __version__
+
+        return json.loads(json.dumps({
+            "glshade_version": __version__,
+            "metric_version": METRIC_VERSION,
+            "base_scene": self.base.to_dict(),
+            "size": self.size,
+            "metric": asdict(self.settings),
+        }, default=str))
+
+
+def _column_value(scene: Scene, key: str) -> Any:
+    if key == SIZE_KEY:
+        return scene.camera.width
+    value = scene.value(key)
+    return list(value) if isinstance(value, tuple) else value
+
+
+def case_id(scene: Scene, settings: MetricSettings) -> str:
+    """The case's identity: sha256 of its full scene (SPEC §8 layout), the metric's
+    settings and version; 16 hex digits."""
+    text = json.dumps({"scene": scene.to_dict(), "metric": asdict(settings), "metric_version": METRIC_VERSION},
+                      sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+# --------------------------------------------------------------------------- reading
+def load_spec(path: str | Path, size: int | None = None) -> SweepSpec:
+    """Read and validate a sweep file; ``size`` overrides its ``size``. Any problem is a
+    :class:`GlshadeError` whose one line names the file and the field."""
+    path = Path(path)
+    data = read_toml(path, "sweep file")
+    return spec_from_dict(data, path.parent, source=str(path), size=size)
+
+
+def spec_from_dict(data: dict, directory: Path = Path("."), source: str = "<sweep>",
+                   size: int | None = None) -> SweepSpec:
+    unknown = sorted(set(data) - set(_TOP_KEYS))
+    if unknown:
+        raise GlshadeError(f"{source}: unknown key {unknown[0]!r}; a sweep file has {', '.join(_TOP_KEYS)}")
+    base = _base_scene(data.get("base"), directory, source)
+    size = _size(size if size is not None else data.get("size"), f"{source}: size")
+    grid = data.get("grid", {})
+    if not isinstance(grid, dict) or not grid:
+        raise GlshadeError(f"{source}: [grid] must hold at least one axis, e.g. \"camera.theta_deg\" = [85, 45, 5]")
+    axes = tuple(_axis(name, value, base, source) for name, value in grid.items())
+    settings = _settings(data.get("metric", {}), source)
+    output = data.get("output", {})
+    if not isinstance(output, dict) or set(output) - set(_OUTPUT_KEYS):
+        raise GlshadeError(f"{source}: [output] may only hold {', '.join(_OUTPUT_KEYS)}")
+    images = output.get("images", False)
+    if not isinstance(images, bool):
+        raise GlshadeError(f"{source}: output.images must be true or false, got {images!r}")
+    spec = SweepSpec(base, axes, size, settings, images, source)
+    if spec.count > MAX_CASES:
+        raise GlshadeError(f"{source}: the grid has {spec.count} cases; at most {MAX_CASES} are allowed")
+    _check_keys_apart(axes, source)
+    for axis in axes:  # every value applies to the base (the others at their first entry)
+        for i in range(len(axis.entries)):
+            index = tuple(i if other is axis else 0 for other in axes)
+            try:
+                scene = spec.scene(index)
+            except SceneError as exc:
+                raise GlshadeError(f"{source}: grid.{axis.name}: {exc}") from None
+            settings.phases(scene.emitter.period)
+    return spec
+
+
+def _base_scene(base, directory: Path, source: str) -> Scene:
+    if base is None:
+        return paper_scene()
+    if not isinstance(base, str) or not base.strip():
+        raise GlshadeError(f"{source}: base must be the path of a scene file, got {base!r}")
+    return Scene.load(directory / base)
+
+
+def _size(value, where: str) -> int | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise GlshadeError(f"{where}: must be an integer number of pixels, got {value!r}")
+    return registry().param("camera.width").check(value)
+
+
+def _settings(table, source: str) -> MetricSettings:
+    names = [f.name for f in fields(MetricSettings)]
+    if not isinstance(table, dict):
+        raise GlshadeError(f"{source}: [metric] must be a table of {', '.join(names)}")
+    unknown = sorted(set(table) - set(names))
+    if unknown:
+        raise GlshadeError(f"{source}: metric.{unknown[0]}: unknown setting; allowed: {', '.join(names)}")
+    try:
+        return MetricSettings(**table)
+    except GlshadeError as exc:
+        raise GlshadeError(f"{source}: metric.{exc}") from None
+    except TypeError as exc:
+        raise GlshadeError(f"{source}: [metric]: {exc}") from None
+
+
+def _axis(name: str, value, base: Scene, source: str) -> Axis:
+    where = f"{source}: grid.{name}"
+    if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+        entries, labels = [], []
+        for i, entry in enumerate(value):
+            entry = dict(entry)
+            label = entry.pop("label", i)
+            if not entry:
+                raise GlshadeError(f"{where}[{i}]: a linked entry must set at least one dotted key")
+            entries.append(tuple((key, _value(key, v, f"{where}[{i}].{key}")) for key, v in entry.items()))
+            labels.append(str(label))
+        if len(set(map(str, labels))) != len(labels):
+            raise GlshadeError(f"{where}: the entries' labels must differ")
+        return Axis(name, tuple(entries), tuple(labels))
+    values = _values(value, where)
+    values = tuple(_value(name, v, where) for v in values)
+    if len({json.dumps(v, default=str) for v in values}) != len(values):
+        raise GlshadeError(f"{where}: values must not repeat")
+    return Axis(name, tuple(((name, v),) for v in values), values)
+
+
+def _values(value, where: str) -> list:
+    """A list, or a range ``{start, stop, num}`` / ``{start, stop, step}`` (inclusive)."""
+    if isinstance(value, list):
+        if not value:
+            raise GlshadeError(f"{where}: an empty list sweeps nothing; give at least one value")
+        return value
+    if isinstance(value, dict):
+        keys = set(value)
+        if keys not in ({"start", "stop", "num"}, {"start", "stop", "step"}):
+            raise GlshadeError(f"{where}: a range is {{start, stop, num}} or {{start, stop, step}}, got "
+                               f"{{{', '.join(sorted(keys))}}}")
+        start, stop = (_number(value[k], f"{where}.{k}") for k in ("start", "stop"))
+        if "num" in value:
+            num = value["num"]
+            if isinstance(num, bool) or not isinstance(num, int) or num < 1:
+                raise GlshadeError(f"{where}.num: must be an integer >= 1, got {num!r}")
+        else:
+            step = _number(value["step"], f"{where}.step")
+            if step <= 0:
+                raise GlshadeError(f"{where}.step: must be > 0, got {step:g}")
+            num = math.floor((stop - start) / step + 1e-9) + 1
+        if not (start < stop or (start == stop and num == 1)):
+            raise GlshadeError(f"{where}: an inverted or empty range (start {start:g}, stop {stop:g}); "
+                               "start must be below stop (list the values to sweep downwards)")
+        if num > MAX_CASES:
+            raise GlshadeError(f"{where}.num: at most {MAX_CASES}, got {num}")
+        if "step" in value:
+            return [start + k * step for k in range(num)]
+        return [start] if num == 1 else [start + (stop - start) * k / (num - 1) for k in range(num)]
+    return [value]
+
+
+def _number(value, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise GlshadeError(f"{where}: must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _value(key: str, value, where: str):
+    """A grid value parsed and checked by its parameter's declaration (an unknown key is
+    an error naming it)."""
+    if key == SIZE_KEY:
+        return _size(value, where)
+    if "." not in key:
+        raise GlshadeError(f"{where}: unknown key {key!r}; expected a dotted scene key such as camera.theta_deg, "
+                           "'size', or a list of tables (a linked axis)")
+    try:
+        param = registry().param(key)
+        if isinstance(value, str) and param.value_type not in ("choice", "text", "path"):
+            value = param.parse(value)
+        if param.value_type in ("real", "integer", "choice", "pair", "vector"):
+            return param.check(value, registry().choices(param))
+        return value
+    except SceneError as exc:
+        raise GlshadeError(f"{where}: {exc}") from None
+
+
+def _check_keys_apart(axes: tuple[Axis, ...], source: str) -> None:
+    seen: dict[str, str] = {}
+    for axis in axes:
+        for key in axis.keys:
+            if key in seen:
+                raise GlshadeError(f"{source}: {key} is set by two axes ({seen[key]} and {axis.name})")
+            seen[key] = axis.name

@@ -1,0 +1,231 @@
+"""What a sweep writes and reads back (SPEC §8.3): one JSON file per finished case, keyed by
+its id; ``results.parquet`` (one row per case of the grid: every swept key, every output)
+and ``results.csv`` beside it; ``images/<id>.png`` on request; ``sweep.json``, the
+manifest that ties the directory to one base scene, size, metric and glshade version.
+
+A case file is written atomically once its case is done (the mark a rerun looks for), so
+a killed run loses only the cases in flight and a rerun computes each missing case once.
+The tables are rebuilt from the case files at the end of every run. No GL here.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from glshade.errors import GlshadeError
+from glshade.files import atomic_write_bytes
+from glshade.metrics import physics
+from glshade.metrics.visibility import Visibility
+from glshade.scene import Scene
+from glshade.sweep.spec import SweepCase, SweepSpec
+
+
+@dataclass(frozen=True)
+class Output:
+    """One output column of the table: its name, unit and meaning (docs/sweeps.md)."""
+
+    name: str
+    unit: str
+    meaning: str
+
+
+OUTPUTS = (
+    Output("visibility_px", "px", "the paper's metric (SPEC §6): largest shift of corresponding contours, whole pixels"),
+    Output("visibility_continuous_px", "px", "its limit for a vanishing phase step and pixel size (sub-pixel)"),
+    Output("deflection_px", "px", "largest displacement of the emitter map in the kept columns"),
+    Output("folded", "", "the dent's stripe map folds (rows reverse order along a kept column)"),
+    Output("islands", "count", "stripe pieces the dent cuts off (never measured)"),
+    Output("best_phase_mm", "mm", "stripe phase at which visibility_px was reached"),
+    Output("unpaired_contours", "count", "stripes that found no partner at the best phase"),
+    Output("unresolved_fraction", "fraction", "share of kept pixels left out (fewer than 4 px per stripe period)"),
+    Output("offset_dx_px", "px", "registration offset, columns (0 for rendered pairs)"),
+    Output("offset_dy_px", "px", "registration offset, rows (0 for rendered pairs)"),
+    Output("noise_floor_px", "px", "the metric between two noisy defect-free exposures (sensor on; else empty)"),
+    Output("fold_ratio", "", "closed form: the map folds where it exceeds 1 (docs/physics.md)"),
+    Output("deflection_law_px", "px", "closed form of deflection_px"),
+    Output("visibility_law_px", "px", "closed form of visibility_continuous_px (fold cap included)"),
+)
+OUTPUT_NAMES = tuple(o.name for o in OUTPUTS)
+MANIFEST = "sweep.json"
+PARQUET = "results.parquet"
+CSV = "results.csv"
+#: What ``--overwrite`` removes: exactly these, never anything else.
+SWEEP_FILES = (PARQUET, CSV)
+
+
+def case_outputs(scene: Scene, result: Visibility) -> dict[str, Any]:
+    """A case's outputs, plain JSON values (the same wherever the case ran)."""
+    summary = result.summary()
+    law = physics.laws(scene)
+    outputs = {name: summary[name] for name in OUTPUT_NAMES[:8]}
+    outputs.update(offset_dx_px=int(result.offset_px[0]), offset_dy_px=int(result.offset_px[1]),
+                   noise_floor_px=summary.get("noise_floor_px"), fold_ratio=_finite(law.fold_ratio, 5),
+                   deflection_law_px=_finite(law.deflection_px, 4), visibility_law_px=_finite(law.visibility_px, 4))
+    return outputs
+
+
+def _finite(value: float, digits: int) -> float | None:
+    return round(value, digits) if math.isfinite(value) else None
+
+
+# --------------------------------------------------------------------------- case files
+def case_path(out_dir: Path, case_id: str) -> Path:
+    return Path(out_dir) / "cases" / f"{case_id}.json"
+
+
+def write_case(out_dir: Path, case_id: str, outputs: Mapping[str, Any], seconds: Mapping[str, float],
+               image_png: bytes | None = None) -> None:
+    """A finished case on disk: its image first, its JSON last (the "done" mark)."""
+    if image_png is not None:
+        atomic_write_bytes(Path(out_dir) / "images" / f"{case_id}.png", image_png, "--out")
+    record = {"case_id": case_id, "outputs": dict(outputs), "seconds": dict(seconds)}
+    atomic_write_bytes(case_path(out_dir, case_id), json.dumps(record, indent=1).encode(), "--out")
+
+
+def load_case(out_dir: Path, case_id: str) -> dict | None:
+    """A finished case's record, or None (missing, unreadable or incomplete: recompute)."""
+    try:
+        record = json.loads(case_path(out_dir, case_id).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict) or record.get("case_id") != case_id:
+        return None
+    outputs = record.get("outputs")
+    if not isinstance(outputs, dict) or set(outputs) != set(OUTPUT_NAMES):
+        return None
+    return record
+
+
+# --------------------------------------------------------------------------- directory
+def prepare(out_dir: Path, spec: SweepSpec, overwrite: bool = False) -> None:
+    """Tie ``out_dir`` to ``spec`` (write its manifest), or refuse: a directory holding a
+    sweep of another base scene, size, metric or glshade version is never mixed into and
+    never overwritten unless ``overwrite`` (which removes that sweep's files first)."""
+    out_dir = Path(out_dir)
+    wanted = spec.manifest()
+    stored = _stored_manifest(out_dir)
+    if stored is not None and stored != wanted:
+        if not overwrite:
+            raise GlshadeError(f"--out {out_dir}: holds a sweep of {_difference(stored, wanted)}; rerun the same sweep "
+                               "to resume it, add --overwrite to replace it, or choose another --out")
+        _remove(out_dir)
+    (out_dir / "cases").mkdir(parents=True, exist_ok=True)
+    if spec.images:
+        (out_dir / "images").mkdir(exist_ok=True)
+    atomic_write_bytes(out_dir / MANIFEST, json.dumps(wanted, indent=2).encode(), "--out")
+
+
+def _stored_manifest(out_dir: Path) -> dict | None:
+    """The directory's manifest; a results table without one speaks for itself (its
+    Parquet metadata); a directory of other files is no sweep (None)."""
+    try:
+        stored = json.loads((out_dir / MANIFEST).read_text())
+        return stored if isinstance(stored, dict) else {}
+    except FileNotFoundError:
+        pass
+    except (OSError, ValueError):
+        return {}
+    if (out_dir / PARQUET).exists():
+        return table_manifest(out_dir / PARQUET)
+    return None
+
+
+def table_manifest(path: Path) -> dict:
+    """The manifest a results table was written with ({} when it has none)."""
+    import pyarrow.parquet as pq
+
+    try:
+        metadata = pq.read_schema(path).metadata or {}
+        return json.loads(metadata.get(b"glshade", b"{}"))
+    except (OSError, ValueError):
+        return {}
+
+
+def _difference(stored: dict, wanted: dict) -> str:
+    names = {"glshade_version": "another glshade version", "metric_version": "another metric version",
+             "base_scene": "another base scene", "size": "another size", "metric": "other metric settings"}
+    differing = [key for key in names if stored.get(key) != wanted.get(key)]
+    if not differing:
+        return "unknown origin (no readable manifest)"
+    first = differing[0]
+    detail = ""
+    if first in ("glshade_version", "size", "metric_version"):
+        detail = f" ({stored.get(first)} there, {wanted.get(first)} here)"
+    return ", ".join(names[key] for key in differing) + detail
+
+
+def _remove(out_dir: Path) -> None:
+    doomed = [out_dir / name for name in (*SWEEP_FILES, MANIFEST)]
+    doomed += sorted((out_dir / "cases").glob("*.json")) + sorted((out_dir / "images").glob("*.png"))
+    for path in doomed:
+        if path.is_file():
+            path.unlink()
+
+
+# --------------------------------------------------------------------------- tables
+def table_rows(spec: SweepSpec, cases: list[SweepCase], records: Mapping[str, dict]) -> list[dict[str, Any]]:
+    """One row per case of the grid that has a record: its id, swept columns, outputs."""
+    rows = []
+    for case in cases:
+        record = records.get(case.case_id)
+        if record is not None:
+            rows.append({"case_id": case.case_id, **spec.swept_values(case), **record["outputs"]})
+    return rows
+
+
+def write_tables(out_dir: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> None:
+    """``results.parquet`` (the manifest in its metadata) and ``results.csv``, atomically."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    columns = ["case_id", *spec.columns, *OUTPUT_NAMES]
+    table = pa.Table.from_pylist([{name: _cell(row.get(name)) for name in columns} for row in rows],
+                                 schema=_schema(columns, rows))
+    table = table.replace_schema_metadata({b"glshade": json.dumps(spec.manifest()).encode()})
+    buffer = io.BytesIO()
+    pq.write_table(table, buffer)
+    atomic_write_bytes(Path(out_dir) / PARQUET, buffer.getvalue(), "--out")
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=columns, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({name: _csv_cell(row.get(name)) for name in columns})
+    atomic_write_bytes(Path(out_dir) / CSV, text.getvalue().encode(), "--out")
+
+
+def _cell(value: Any) -> Any:
+    return list(value) if isinstance(value, tuple) else value
+
+
+def _csv_cell(value: Any) -> Any:
+    if isinstance(value, (list, tuple, dict)):
+        return json.dumps(list(value) if isinstance(value, tuple) else value)
+    return "" if value is None else value
+
+
+def _schema(columns: list[str], rows: list[dict[str, Any]]):
+    """Column types from the values (a column of only empty cells is a float column)."""
+    import pyarrow as pa
+
+    types = []
+    for name in columns:
+        values = [_cell(row.get(name)) for row in rows if row.get(name) is not None]
+        kind = pa.array(values).type if values else pa.float64()
+        if pa.types.is_integer(kind) and any(isinstance(v, float) for v in values):
+            kind = pa.float64()
+        types.append(pa.field(name, kind))
+    return pa.schema(types)
+
+
+def read_table(out_dir: Path) -> list[dict[str, Any]]:
+    """``results.parquet`` back as a list of rows."""
+    import pyarrow.parquet as pq
+
+    return pq.read_table(Path(out_dir) / PARQUET).to_pylist()
