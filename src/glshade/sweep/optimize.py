@@ -275,7 +275,7 @@ class SceneObjective:
         try:
             return self.base.updated(**tables)
         except SceneError as exc:
-            raise GlshadeError(str(exc)) from None
+            raise GlshadeError(f"--over/--family: a bound gives no valid scene: {exc}") from None
 
     def __call__(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         grid = [[self.scene(p, m) for m in self.family] for p in points]
