@@ -70,6 +70,16 @@ def test_ranges_lists_and_linked_axes():
     assert row["surface"] == "sphere" and row["emitter.period"] == 10.0 and row["camera.azimuth_deg"] == 0.0
 
 
+def test_the_issues_rig_azimuth_spelling_is_the_cameras_key():
+    spec = spec_from_dict({"grid": {"rig.azimuth_deg": [0.0, 45.0]}})
+    assert spec.columns == ("camera.azimuth_deg",)
+    assert spec.cases()[1].scene.camera.azimuth_deg == 45.0
+    (dim,) = opt.parse_over("rig.azimuth_deg=0..90")
+    assert dim.key == "camera.azimuth_deg" and dim.name == "rig.azimuth_deg"
+    flat = opt.search(lambda p: (-(p[:, 0] - 30.0) ** 2,) * 2 + ((-(p[:, 0] - 30.0) ** 2)[:, None],), (dim,))
+    assert set(flat.optimum) == {"rig.azimuth_deg"}
+
+
 def test_case_ids_follow_the_full_scene_and_metric():
     a, b = small_spec().cases(), small_spec().cases()
     assert [c.case_id for c in a] == [c.case_id for c in b]

@@ -35,7 +35,7 @@ from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
 from glshade.metrics.visibility import MetricSettings
 from glshade.scene import Scene
-from glshade.sweep.spec import SweepCase, case_id
+from glshade.sweep.spec import SweepCase, canonical_key, case_id
 
 METRICS = ("paper", "continuous")
 #: Tie-break weight of the continuous visibility in the paper metric's score.
@@ -55,6 +55,11 @@ class Dimension:
     key: str
     lo: float
     hi: float
+    label: str | None = None  # the spelling the user gave (``rig.azimuth_deg``), if not ``key``
+
+    @property
+    def name(self) -> str:
+        return self.label or self.key
 
 
 @dataclass(frozen=True)
@@ -108,8 +113,8 @@ def parse_over(text: str) -> tuple[Dimension, ...]:
     """``KEY[=LO..HI][,KEY[=LO..HI]]``: the keys to move and their bounds."""
     dims = []
     for item in _items(text, "--over"):
-        key, _, span = item.partition("=")
-        key = key.strip()
+        given, _, span = item.partition("=")
+        key = canonical_key(given)
         _numeric_param(key, "--over")
         if span:
             lo, hi = _span(span, f"--over {key}")
@@ -117,8 +122,8 @@ def parse_over(text: str) -> tuple[Dimension, ...]:
             lo, hi = DEFAULT_BOUNDS[key]
         else:
             raise GlshadeError(f"--over {key}: give its bounds, e.g. {key}=LO..HI")
-        dims.append(Dimension(key, lo, hi))
-    if len({d.key for d in dims}) != len(dims):
+        dims.append(Dimension(key, lo, hi, given.strip() if given.strip() != key else None))
+    if len({d.key for d in dims}) != len(dims):  # two spellings of one key count as one
         raise GlshadeError("--over: a key is listed twice")
     return tuple(dims)
 
@@ -131,7 +136,7 @@ def parse_family(text: str | None, points: int = 3) -> list[dict[str, float]]:
     axes: list[tuple[str, list[float]]] = []
     for item in _items(text, "--family"):
         key, sep, span = item.partition("=")
-        key = key.strip()
+        key = canonical_key(key)
         if not sep:
             raise GlshadeError(f"--family {item!r}: expected KEY=LO..HI or KEY=V1|V2")
         _numeric_param(key, "--family")
@@ -242,9 +247,9 @@ def search(objective: Objective, dimensions: Sequence[Dimension], *, grid_points
     near = points_all[values_all >= values_all[winner] - tolerance]
     return OptimizeResult(
         dimensions=tuple(dimensions),
-        optimum={d.key: round(float(points_all[winner, i]), 4) for i, d in enumerate(dimensions)},
+        optimum={d.name: round(float(points_all[winner, i]), 4) for i, d in enumerate(dimensions)},
         visibility_px=float(values_all[winner]), metric=metric, tolerance_px=round(float(tolerance), 4),
-        near_optimal={d.key: (round(float(near[:, i].min()), 4), round(float(near[:, i].max()), 4))
+        near_optimal={d.name: (round(float(near[:, i].min()), 4), round(float(near[:, i].max()), 4))
                       for i, d in enumerate(dimensions)},
         points=points_all, values=values_all, grid_shape=tuple(len(a) for a in axes), grid_count=len(grid),
         members=members or [], member_values=np.vstack(all_members),
@@ -334,9 +339,9 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
                              shading="nearest", cmap="viridis")
         fig.colorbar(mesh, ax=ax, label=ylabel)
         ax.plot(result.points[n:, 1], result.points[n:, 0], ".", color="white", ms=3, label="refinement")
-        ax.plot(result.optimum[dims[1].key], result.optimum[dims[0].key], "*", color="red", ms=14, label="optimum")
-        ax.set_xlabel(dims[1].key)
-        ax.set_ylabel(dims[0].key)
+        ax.plot(result.optimum[dims[1].name], result.optimum[dims[0].name], "*", color="red", ms=14, label="optimum")
+        ax.set_xlabel(dims[1].name)
+        ax.set_ylabel(dims[0].name)
         ax.legend(loc="best", fontsize=8)
     else:
         fig, axes = plt.subplots(1, len(dims), figsize=(6.4 * min(len(dims), 3), 4.4), squeeze=False)
@@ -352,9 +357,9 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
             ax.plot(x, values[on_line][order], "o-", color="C0", label=f"{label}visibility")
             if len(dims) == 1:
                 ax.plot(result.points[n:, 0], result.values[n:], "x", color="C1", label="refinement")
-            ax.axvspan(*result.near_optimal[dim.key], color="C2", alpha=0.15, label=result.near_text())
-            ax.axvline(result.optimum[dim.key], color="C3", lw=1.0, label="optimum")
-            ax.set_xlabel(dim.key)
+            ax.axvspan(*result.near_optimal[dim.name], color="C2", alpha=0.15, label=result.near_text())
+            ax.axvline(result.optimum[dim.name], color="C3", lw=1.0, label="optimum")
+            ax.set_xlabel(dim.name)
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
         axes[0][0].legend(loc="best", fontsize=8)

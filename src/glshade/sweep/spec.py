@@ -43,6 +43,14 @@ MAX_CASES_UNCONFIRMED = 5000
 #: A grid of more cases than this is refused (the plan itself would not fit in memory).
 MAX_CASES = 1_000_000
 SIZE_KEY = "size"
+#: Other spellings of keys: the issue's ``rig.azimuth_deg`` is ``camera.azimuth_deg``
+#: (the emitter follows the camera's keys; docs/sweeps.md).
+KEY_ALIASES = {"rig.azimuth_deg": "camera.azimuth_deg"}
+
+
+def canonical_key(key: str) -> str:
+    """A key as the scene spells it (an alias replaced)."""
+    return KEY_ALIASES.get(key.strip(), key.strip())
 _TOP_KEYS = ("base", "size", "grid", "metric", "output")
 _OUTPUT_KEYS = ("images",)
 
@@ -237,6 +245,7 @@ def _settings(table, source: str) -> MetricSettings:
 
 def _axis(name: str, value, base: Scene, source: str) -> Axis:
     where = f"{source}: grid.{name}"
+    name = canonical_key(name)
     if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
         entries, labels = [], []
         for i, entry in enumerate(value):
@@ -244,7 +253,8 @@ def _axis(name: str, value, base: Scene, source: str) -> Axis:
             label = entry.pop("label", i)
             if not entry:
                 raise GlshadeError(f"{where}[{i}]: a linked entry must set at least one dotted key")
-            entries.append(tuple((key, _value(key, v, f"{where}[{i}].{key}")) for key, v in entry.items()))
+            entries.append(tuple((canonical_key(key), _value(canonical_key(key), v, f"{where}[{i}].{key}"))
+                                 for key, v in entry.items()))
             labels.append(str(label))
         if len(set(map(str, labels))) != len(labels):
             raise GlshadeError(f"{where}: the entries' labels must differ")
