@@ -142,6 +142,12 @@ def test_the_table_holds_every_case_and_matches_measure(local_table, renderer):
     assert again.computed == 0 and again.skipped == 8 and again.rows == rows
 
 
+def test_the_docs_list_every_output_column():
+    page = (EXAMPLES.parent / "docs" / "sweeps.md").read_text()
+    missing = [name for name in store.OUTPUT_NAMES if f"`{name}`" not in page]
+    assert not missing, f"docs/sweeps.md does not describe {missing}"
+
+
 def test_a_grown_grid_reuses_the_measured_cases(local_table, renderer, tmp_path):
     out, _result = local_table
     bigger = spec_from_dict({**SMALL, "grid": {**SMALL["grid"], "camera.theta_deg": [45, 30, 15]}})

@@ -68,12 +68,11 @@ def add_sweep(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from glshade.sweep.run import check_size, run_sweep
+    from glshade.sweep.run import run_sweep
     from glshade.sweep.spec import load_spec
 
     spec = load_spec(args.file, size=args.size)
     distribution = _distribution(args)
-    check_size(spec, args.yes)
     out = args.out if args.out is not None else Path(f"sweep_{args.file.stem}")
     _warn(line for case in spec.cases()[:1] for line in scene_warnings(case.scene))
     reuse_freed_memory()

@@ -69,17 +69,20 @@ def measure_scene(
     settings: MetricSettings = MetricSettings(),
     baseline: Baseline | None = None,
     overlay: str | os.PathLike[str] | None = None,
+    v1: np.ndarray | None = None,
 ) -> Visibility:
     """The three numbers of a scene's defect (SPEC §6) on an existing renderer.
 
     ``baseline``: the defect-free analysis of the same geometry and settings, when the
     caller already has it (:func:`baseline_for`). ``overlay``: also write the Fig. 9
-    contour overlay at the best phase to this PNG path.
+    contour overlay at the best phase to this PNG path. ``v1``: the scene's emitter map,
+    when the caller has traced it already (:func:`emitter_map`).
     """
     if baseline is None:
         baseline = baseline_for(renderer, scene, settings)
     images = None if shades_from_map(scene) else phase_images(renderer, scene)
-    v1 = emitter_map(renderer, scene)
+    if v1 is None:
+        v1 = emitter_map(renderer, scene)
     result = baseline.measure(v1, images)
     if scene.sensor.on:
         again = phase_images(renderer, scene.without_defect(), exposure=1)

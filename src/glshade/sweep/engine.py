@@ -144,11 +144,10 @@ def _rendered(renderer, group, settings, extra) -> Iterator[Measured]:
     baseline = baseline_for(renderer, group[0][1], settings)
     for token, scene in group:
         start = time.perf_counter()
-        result = measure_scene(renderer, scene, settings, baseline)
-        seconds = time.perf_counter() - start
-        spent = result.seconds.shade + result.seconds.contours + result.seconds.continuous
+        v1 = emitter_map(renderer, scene)
+        trace_s = time.perf_counter() - start
+        result = measure_scene(renderer, scene, settings, baseline, v1=v1)
         made = None
         if extra is not None:
-            view = CaseView(baseline, emitter_map(renderer, scene), phase_images(renderer, scene))
-            made = extra(token, scene, result, view)
-        yield Measured(token, scene, result, max(0.0, seconds - spent), made)
+            made = extra(token, scene, result, CaseView(baseline, v1, phase_images(renderer, scene)))
+        yield Measured(token, scene, result, trace_s, made)

@@ -26,7 +26,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +35,7 @@ from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
 from glshade.metrics.visibility import MetricSettings
 from glshade.scene import Scene
-from glshade.sweep.spec import SweepCase, canonical_key, case_id
+from glshade.sweep.spec import SweepCase, canonical_key, case_id, with_values
 
 METRICS = ("paper", "continuous")
 #: Tie-break weight of the continuous visibility in the paper metric's score.
@@ -273,12 +273,9 @@ class SceneObjective:
                 settings.phases(self.scene(point, member).emitter.period)
 
     def scene(self, point: Sequence[float], member: dict[str, float]) -> Scene:
-        tables: dict[str, dict[str, float]] = {}
-        for key, value in [*zip((d.key for d in self.dimensions), point, strict=True), *member.items()]:
-            table, _, name = key.partition(".")
-            tables.setdefault(table, {})[name] = float(value)
+        pairs = [*zip((d.key for d in self.dimensions), point, strict=True), *member.items()]
         try:
-            return self.base.updated(**tables)
+            return with_values(self.base, [(key, float(value)) for key, value in pairs])
         except SceneError as exc:
             raise GlshadeError(f"--over/--family: a bound gives no valid scene: {exc}") from None
 
@@ -308,13 +305,7 @@ def optimize_scene(base: Scene, dimensions: Sequence[Dimension], family: list[di
     objective = SceneObjective(base, dimensions, family, settings, metric, executor)
     result = search(objective, dimensions, grid_points=grid_points, refine_evaluations=refine_evaluations,
                     metric=metric, members=family if family != [{}] else [])
-    return _with_cases(result, objective.cases)
-
-
-def _with_cases(result: OptimizeResult, cases: int) -> OptimizeResult:
-    from dataclasses import replace
-
-    return replace(result, cases=cases)
+    return replace(result, cases=objective.cases)
 
 
 # --------------------------------------------------------------------------- figure

@@ -12,7 +12,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Self
 
@@ -60,7 +60,6 @@ class SweepResult:
     skipped: int
     seconds: float
     out_dir: Path
-    case_seconds: dict[str, float] = field(default_factory=dict)
 
 
 def check_size(spec: SweepSpec, yes: bool) -> None:
@@ -109,9 +108,7 @@ def run_sweep(
                 bar.close()
         rows = store.table_rows(spec, cases, done)
         store.write_tables(out_dir, spec, rows)
-        seconds = {key: sum(record.get("seconds", {}).values()) for key, record in done.items()}
-        return SweepResult(rows, len(pending), len(records) - len(pending), time.perf_counter() - start, out_dir,
-                           seconds)
+        return SweepResult(rows, len(pending), len(records) - len(pending), time.perf_counter() - start, out_dir)
 
 
 def _rows(spec: SweepSpec, pending: list[SweepCase], distribution: Distribution, renderer) -> Iterator[Row]:

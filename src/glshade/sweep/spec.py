@@ -27,6 +27,7 @@ import hashlib
 import itertools
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -108,16 +109,9 @@ class SweepSpec:
     def scene(self, index: tuple[int, ...]) -> Scene:
         """The scene at one point of the grid: the base with every axis's entry applied
         (all at once, so keys that only make sense together can be swept together)."""
-        tables: dict[str, dict[str, Any]] = {}
-        size = self.size
-        for axis, i in zip(self.axes, index, strict=True):
-            for key, value in axis.entries[i]:
-                if key == SIZE_KEY:
-                    size = value
-                else:
-                    table, _, name = key.partition(".")
-                    tables.setdefault(table, {})[name] = value
-        scene = self.base.updated(**tables) if tables else self.base
+        pairs = [pair for axis, i in zip(self.axes, index, strict=True) for pair in axis.entries[i]]
+        size = next((value for key, value in reversed(pairs) if key == SIZE_KEY), self.size)
+        scene = with_values(self.base, [(key, value) for key, value in pairs if key != SIZE_KEY])
         return scene.with_size(size) if size is not None else scene
 
     def cases(self) -> list[SweepCase]:
@@ -155,6 +149,16 @@ class SweepSpec:
         }, default=str))
 
 
+def with_values(base: Scene, pairs: Iterable[tuple[str, Any]]) -> Scene:
+    """``base`` with dotted keys set, all at once (keys that only make sense together,
+    a kind and its file, can be set together)."""
+    tables: dict[str, dict[str, Any]] = {}
+    for key, value in pairs:
+        table, _, name = key.partition(".")
+        tables.setdefault(table, {})[name] = value
+    return base.updated(**tables) if tables else base
+
+
 def _column_value(scene: Scene, key: str) -> Any:
     if key == SIZE_KEY:
         return scene.camera.width
@@ -189,7 +193,7 @@ def spec_from_dict(data: dict, directory: Path = Path("."), source: str = "<swee
     grid = data.get("grid", {})
     if not isinstance(grid, dict) or not grid:
         raise GlshadeError(f"{source}: [grid] must hold at least one axis, e.g. \"camera.theta_deg\" = [85, 45, 5]")
-    axes = tuple(_axis(name, value, base, source) for name, value in grid.items())
+    axes = tuple(_axis(name, value, source) for name, value in grid.items())
     settings = _settings(data.get("metric", {}), source)
     output = data.get("output", {})
     if not isinstance(output, dict) or set(output) - set(_OUTPUT_KEYS):
@@ -243,7 +247,7 @@ def _settings(table, source: str) -> MetricSettings:
         raise GlshadeError(f"{source}: [metric]: {exc}") from None
 
 
-def _axis(name: str, value, base: Scene, source: str) -> Axis:
+def _axis(name: str, value, source: str) -> Axis:
     where = f"{source}: grid.{name}"
     name = canonical_key(name)
     if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
