@@ -29,7 +29,9 @@ def main() -> None:
         for i in range(300):
             renderer.render(small.with_phase(i * 0.001))
         overhead = (time.perf_counter() - start) / 300
-    print(f"512² uv frame: median {statistics.median(times) * 1e3:.2f} ms; 16² frame: mean {overhead * 1e6:.0f} µs")
+    print(
+        f"512² uv frame: median {statistics.median(times) * 1e3:.2f} ms; 16² frame: mean {overhead * 1e6:.0f} µs"
+    )
 
 
 if __name__ == "__main__":

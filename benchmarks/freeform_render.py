@@ -45,12 +45,30 @@ def scenes(directory: Path) -> list[tuple[str, Scene]]:
         path = directory / f"sphere_{samples}.npy"
         np.save(path, registry().active(sphere).surface.height(sphere, xx, zz))
         spacing = float(axis[1] - axis[0])
-        out.append((f"sphere as a {samples}² height map ({spacing:.3f} mm)",
-                    sphere.updated(surface={"kind": "heightmap", "file": str(path), "spacing": (spacing, spacing)})))
-    out.append(("example panel (640² x3p)", Scene.load(ROOT / "examples" / "panel.toml").with_size(1024)
-                .updated(camera={"theta_deg": 45.0})))
-    out.append(("saddle formula", Scene.load(ROOT / "examples" / "saddle.toml").with_size(1024)
-                .updated(camera={"theta_deg": 45.0})))
+        out.append(
+            (
+                f"sphere as a {samples}² height map ({spacing:.3f} mm)",
+                sphere.updated(
+                    surface={"kind": "heightmap", "file": str(path), "spacing": (spacing, spacing)}
+                ),
+            )
+        )
+    out.append(
+        (
+            "example panel (640² x3p)",
+            Scene.load(ROOT / "examples" / "panel.toml")
+            .with_size(1024)
+            .updated(camera={"theta_deg": 45.0}),
+        )
+    )
+    out.append(
+        (
+            "saddle formula",
+            Scene.load(ROOT / "examples" / "saddle.toml")
+            .with_size(1024)
+            .updated(camera={"theta_deg": 45.0}),
+        )
+    )
     return out
 
 

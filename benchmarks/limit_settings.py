@@ -21,10 +21,21 @@ from glshade.metrics.visibility import Baseline
 from glshade.scene import paper_scene
 
 CASES = (  # folded cases of Table 1, flat and cylinder, steep to gentle
-    ("flat", 5.0, 1.0, 0.005), ("flat", 15.0, 1.0, 0.005), ("flat", 5.0, 4.0, 0.005), ("flat", 25.0, 1.0, 0.005),
-    ("flat", 35.0, 1.0, 0.003), ("flat", 5.0, 9.0, 0.005), ("cylinder", 5.0, 1.0, 0.005), ("cylinder", 5.0, 4.0, 0.005),
+    ("flat", 5.0, 1.0, 0.005),
+    ("flat", 15.0, 1.0, 0.005),
+    ("flat", 5.0, 4.0, 0.005),
+    ("flat", 25.0, 1.0, 0.005),
+    ("flat", 35.0, 1.0, 0.003),
+    ("flat", 5.0, 9.0, 0.005),
+    ("cylinder", 5.0, 1.0, 0.005),
+    ("cylinder", 5.0, 4.0, 0.005),
 )
-SETTINGS = ((2, 32), (4, 32), (4, 64), (8, 64))  # (samples per row, phases per period); the first is shipped
+SETTINGS = (
+    (2, 32),
+    (4, 32),
+    (4, 64),
+    (8, 64),
+)  # (samples per row, phases per period); the first is shipped
 REFERENCE = (8, 512)
 
 
@@ -33,7 +44,9 @@ def limit(baseline: Baseline, v1: np.ndarray, upsample: int, phases: int) -> tup
     moved = baseline.moved(v1)
     valid = np.isfinite(baseline.v0) & np.isfinite(v1)
     levels = StripeLevels(baseline.emitter.period, baseline.half_width_mm)
-    value = visibility_limit(baseline.v0, v1, valid, baseline.columns, levels, moved, upsample, phases).visibility_px
+    value = visibility_limit(
+        baseline.v0, v1, valid, baseline.columns, levels, moved, upsample, phases
+    ).visibility_px
     return value, time.perf_counter() - start
 
 
@@ -52,10 +65,18 @@ def main() -> None:
     print("|---|---:|" + "---:|" * len(SETTINGS))
     for (surface, theta, sigma2, dmax), truth, found in rows:
         cells = " | ".join(f"{v - truth:+.4f} ({t:.2f} s)" for v, t in found)
-        print(f"| {surface} θ {theta:g}° σ² {sigma2:g} {dmax * 1000:g} µm | {truth:.4f} | {cells} |")
-    worst = [max(abs(found[i][0] - truth) for _, truth, found in rows) for i in range(len(SETTINGS))]
-    print("\nlargest difference from the reference: "
-          + ", ".join(f"{u} rows/{p} phases {w:.4f} px" for (u, p), w in zip(SETTINGS, worst, strict=True)))
+        print(
+            f"| {surface} θ {theta:g}° σ² {sigma2:g} {dmax * 1000:g} µm | {truth:.4f} | {cells} |"
+        )
+    worst = [
+        max(abs(found[i][0] - truth) for _, truth, found in rows) for i in range(len(SETTINGS))
+    ]
+    print(
+        "\nlargest difference from the reference: "
+        + ", ".join(
+            f"{u} rows/{p} phases {w:.4f} px" for (u, p), w in zip(SETTINGS, worst, strict=True)
+        )
+    )
 
 
 if __name__ == "__main__":

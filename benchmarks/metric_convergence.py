@@ -65,7 +65,9 @@ def table(results: dict, sizes: list[int]) -> list[str]:
             "",
             f"Closed forms: deflection {law.deflection_px:.2f} px, visible {law.visibility_px:.2f} px.",
             "",
-            "| size | " + " | ".join(f"paper, step {s:g} mm" for s in steps) + " | continuous limit | deflection |",
+            "| size | "
+            + " | ".join(f"paper, step {s:g} mm" for s in steps)
+            + " | continuous limit | deflection |",
             "|---:|" + "---:|" * (len(steps) + 2),
         ]
         for size in sizes:
@@ -74,8 +76,12 @@ def table(results: dict, sizes: list[int]) -> list[str]:
             lines.append(f"| {size}² | {cells} | {r['limit']:.3f} | {r['deflection']:.3f} |")
         finest = by_size[sizes[-1]]
         gap = abs(finest["paper"][steps[-1]] - finest["limit"])
-        lines += ["", f"At {sizes[-1]}² and the finest step the paper's metric is {gap:.2f} px from the limit "
-                      f"(one pixel of that sensor is {1024 / sizes[-1]:.2f} px here).", ""]
+        lines += [
+            "",
+            f"At {sizes[-1]}² and the finest step the paper's metric is {gap:.2f} px from the limit "
+            f"(one pixel of that sensor is {1024 / sizes[-1]:.2f} px here).",
+            "",
+        ]
     return lines
 
 

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 
 from freeform_render import _median_ms  # this directory's timing rule (warm-up, median)
-
 from glshade.gpu.renderer import Renderer, frame_rays
 from glshade.scene import Scene, paper_scene
 
@@ -25,15 +24,32 @@ def cases(size: int) -> list[tuple[str, Scene]]:
     base = paper_scene("flat", 45.0, 4.0, 0.005).with_size(size)
     out = [("pinhole, mirror", base)]
     for k in (4, 16, 64):
-        out.append((f"thin lens f/8, {k} aperture samples", base.updated(camera={"f_number": 8.0, "aperture_samples": k})))
+        out.append(
+            (
+                f"thin lens f/8, {k} aperture samples",
+                base.updated(camera={"f_number": 8.0, "aperture_samples": k}),
+            )
+        )
     rough = base.updated(render={"reflection": "beckmann", "roughness": 0.002})
     out.append(("Beckmann, closed form", rough))
     for method in ("lattice", "sampling"):
         for k in (16, 64, 256):
-            out.append((f"Beckmann, {method} {k} samples", rough.updated(render={"lobe_method": method, "lobe_samples": k})))
+            out.append(
+                (
+                    f"Beckmann, {method} {k} samples",
+                    rough.updated(render={"lobe_method": method, "lobe_samples": k}),
+                )
+            )
     out.append(("GGX, closed form", rough.updated(render={"reflection": "ggx"})))
-    out.append(("mirror + eq. (1) (Lambertian remainder)", base.updated(render={"height_rms_um": 0.05})))
-    out.append(("mirror + Fresnel (conductor)", base.updated(render={"fresnel": "conductor", "ior": 2.9, "extinction": 3.0})))
+    out.append(
+        ("mirror + eq. (1) (Lambertian remainder)", base.updated(render={"height_rms_um": 0.05}))
+    )
+    out.append(
+        (
+            "mirror + Fresnel (conductor)",
+            base.updated(render={"fresnel": "conductor", "ior": 2.9, "extinction": 3.0}),
+        )
+    )
     out.append(("mirror + sensor (12 bit)", base.updated(sensor={})))
     return out
 
@@ -50,7 +66,10 @@ def main() -> None:
         for label, scene in cases(args.size):
             seconds = _median_ms(renderer, scene, args.repeats) / 1e3
             rays = frame_rays(scene)
-            print(f"| {label} | {seconds * 1e3:.0f} | {rays:.3g} | {rays / seconds / 1e6:.1f} |", flush=True)
+            print(
+                f"| {label} | {seconds * 1e3:.0f} | {rays:.3g} | {rays / seconds / 1e6:.1f} |",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -56,22 +56,46 @@ def main() -> None:
     with Renderer() as renderer:
         for surface in ("flat", "cylinder", "sphere"):
             for precision in ("fp32", "fp64"):
-                agg = {"uv": 0.0, "inner": 0.0, "image": 0.0, "mismatch": 0, "compared": 0, "n": 0, "at": ""}
+                agg = {
+                    "uv": 0.0,
+                    "inner": 0.0,
+                    "image": 0.0,
+                    "mismatch": 0,
+                    "compared": 0,
+                    "n": 0,
+                    "at": "",
+                }
                 for theta in THETAS:
                     for sigma2 in SIGMA2S:
                         for dmax in DMAXS:
-                            scene = paper_scene(surface, theta, sigma2, dmax).updated(render={"precision": precision})
+                            scene = paper_scene(surface, theta, sigma2, dmax).updated(
+                                render={"precision": precision}
+                            )
                             cases = []
                             frame = renderer.render(scene, outputs)
                             win = slice(480, 544)
-                            cases.append(errors(frame, reference.trace(scene, outputs, rows=win, cols=win), win, win))
+                            cases.append(
+                                errors(
+                                    frame,
+                                    reference.trace(scene, outputs, rows=win, cols=win),
+                                    win,
+                                    win,
+                                )
+                            )
                             coarse = scene.with_size(128)
                             frame = renderer.render(coarse, outputs)
                             band, full = slice(32, 96), slice(0, 128)
-                            cases.append(errors(frame, reference.trace(coarse, outputs, rows=band), band, full))
+                            cases.append(
+                                errors(
+                                    frame, reference.trace(coarse, outputs, rows=band), band, full
+                                )
+                            )
                             for uv, inner, image, mismatch, compared in cases:
                                 if uv > agg["uv"]:
-                                    agg["uv"], agg["at"] = uv, f"theta {theta:g}, sigma2 {sigma2:g}, dmax {dmax:g}"
+                                    agg["uv"], agg["at"] = (
+                                        uv,
+                                        f"theta {theta:g}, sigma2 {sigma2:g}, dmax {dmax:g}",
+                                    )
                                 agg["inner"] = max(agg["inner"], inner)
                                 agg["image"] = max(agg["image"], image)
                                 agg["mismatch"] += mismatch
@@ -89,7 +113,9 @@ def main() -> None:
             f"| {surface} | {precision} | {a['uv']:.2e} | {a['at']} | {a['uv'] / NOMINAL_MM_PER_PX:.4f} | {a['inner']:.2e} "
             f"| {a['image']:.1e} | {a['mismatch']} / {a['compared']} |"
         )
-    print(f"\n{a['n'] // 2} scenes per row, two comparisons each; {time.time() - start:.0f} s in all.")
+    print(
+        f"\n{a['n'] // 2} scenes per row, two comparisons each; {time.time() - start:.0f} s in all."
+    )
 
 
 if __name__ == "__main__":

@@ -20,7 +20,9 @@ SUBSET_THETAS = (85.0, 45.0, 5.0)
 CASES_PER_SURFACE = 9 * 4 * 2
 
 
-def naive_case(renderer: Renderer, surface: str, theta: float, settings: vis.MetricSettings) -> float:
+def naive_case(
+    renderer: Renderer, surface: str, theta: float, settings: vis.MetricSettings
+) -> float:
     scene = paper_scene(surface, theta, 4.0, 0.005)
     start = time.perf_counter()
     vis.image_visibility(
@@ -43,8 +45,10 @@ def main() -> None:
             seconds = [naive_case(renderer, surface, t, settings) for t in SUBSET_THETAS]
             per_case = sum(seconds) / len(seconds)
             total += per_case * CASES_PER_SURFACE
-            print(f"{surface}: {per_case:.2f} s per case (measured at θ {', '.join(f'{t:g}' for t in SUBSET_THETAS)}), "
-                  f"x {CASES_PER_SURFACE} cases = {per_case * CASES_PER_SURFACE:.0f} s")
+            print(
+                f"{surface}: {per_case:.2f} s per case (measured at θ {', '.join(f'{t:g}' for t in SUBSET_THETAS)}), "
+                f"x {CASES_PER_SURFACE} cases = {per_case * CASES_PER_SURFACE:.0f} s"
+            )
     print(f"naive loop, extrapolated to the 216 cases: {total:.0f} s")
 
 

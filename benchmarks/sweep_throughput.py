@@ -68,23 +68,36 @@ def main() -> None:
     here_s, here_out = timed_run(spec, Distribution(threads=2))
     stages = stage_seconds(here_out)
     print(f"  in-process (2 threads): {here_s:.1f} s, {spec.count / here_s:.2f} cases/s")
-    print("  per case: " + ", ".join(f"{k} {v / spec.count * 1e3:.0f} ms" for k, v in sorted(stages.items())))
+    print(
+        "  per case: "
+        + ", ".join(f"{k} {v / spec.count * 1e3:.0f} ms" for k, v in sorted(stages.items()))
+    )
     dask_s, _ = timed_run(spec, Distribution(workers=args.workers, batch=8))
-    print(f"  {args.workers} Dask workers: {dask_s:.1f} s, {spec.count / dask_s:.2f} cases/s "
-          f"(cluster start {cluster_start_seconds(args.workers):.1f} s of it)")
+    print(
+        f"  {args.workers} Dask workers: {dask_s:.1f} s, {spec.count / dask_s:.2f} cases/s "
+        f"(cluster start {cluster_start_seconds(args.workers):.1f} s of it)"
+    )
 
-    for axis, grid in (("θ 5°…85°: every case its own geometry", {"camera.theta_deg": {"start": 5.0, "stop": 85.0,
-                                                                                         "num": 256}}),
-                       ("dmax 1…10 µm: one geometry", {"defect.dmax": {"start": 0.001, "stop": 0.01, "num": 256}})):
+    for axis, grid in (
+        (
+            "θ 5°…85°: every case its own geometry",
+            {"camera.theta_deg": {"start": 5.0, "stop": 85.0, "num": 256}},
+        ),
+        ("dmax 1…10 µm: one geometry", {"defect.dmax": {"start": 0.001, "stop": 0.01, "num": 256}}),
+    ):
         tiny = spec_from_dict({"size": 32, "grid": grid})
         cases = tiny.cases()
         local = per_case_seconds(LocalExecutor(threads=1), cases, tiny)
-        line = [f"tiny cases (32², 256 of {axis}), warm executors: in-process {local * 1e3:.1f} ms/case"]
+        line = [
+            f"tiny cases (32², 256 of {axis}), warm executors: in-process {local * 1e3:.1f} ms/case"
+        ]
         for batch in (1, 16):
             with DaskExecutor(Distribution(workers=1, batch=batch)) as executor:
                 dask = per_case_seconds(executor, cases, tiny)
-            line.append(f"one Dask worker, at most {batch} case(s) per task: {dask * 1e3:.1f} ms/case "
-                        f"({(dask - local) * 1e3:+.1f} ms/case)")
+            line.append(
+                f"one Dask worker, at most {batch} case(s) per task: {dask * 1e3:.1f} ms/case "
+                f"({(dask - local) * 1e3:+.1f} ms/case)"
+            )
         print("\n  ".join(line))
 
 

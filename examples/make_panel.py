@@ -80,8 +80,12 @@ def panel(size: int, spacing_mm: float) -> np.ndarray:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path(__file__).with_name("panel.x3p"),
-                        help="the .x3p to write; the scene file goes next to it, with .toml")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path(__file__).with_name("panel.x3p"),
+        help="the .x3p to write; the scene file goes next to it, with .toml",
+    )
     parser.add_argument("--size", type=int, default=640, help="samples along each side")
     parser.add_argument("--spacing", type=float, default=0.1, help="sample spacing, mm")
     args = parser.parse_args()
@@ -91,8 +95,10 @@ def main() -> None:
     step_m = args.spacing * 1e-3
     x3pio.write(args.out, heights_m, x_scale=step_m, y_scale=step_m, z_type=x3pio.DataType.FLOAT32)
     scene = args.out.with_suffix(".toml")
-    scene.write_text(SCENE.format(theta=THETA_DEG, file=args.out.name, dmax=DENT_MM, sigma2=DENT_SIGMA2_MM2),
-                     encoding="utf-8")
+    scene.write_text(
+        SCENE.format(theta=THETA_DEG, file=args.out.name, dmax=DENT_MM, sigma2=DENT_SIGMA2_MM2),
+        encoding="utf-8",
+    )
     print(f"wrote {args.out} ({args.size}x{args.size}, {args.spacing:g} mm) and {scene}")
 
 

@@ -27,38 +27,78 @@ def test_pareto_front_ignores_noise_and_keeps_tradeoffs():
 
 
 def test_monte_carlo_converges_to_the_quadrature():
-    scene = paper_scene("flat", 45.0, 4.0, 0.005).with_size(6).updated(
-        render={"reflection": "blinn-phong", "shininess": 1e5})
+    scene = (
+        paper_scene("flat", 45.0, 4.0, 0.005)
+        .with_size(6)
+        .updated(render={"reflection": "blinn-phong", "shininess": 1e5})
+    )
     truth = reference.trace(scene, ("image", "mask"))
-    errors = [np.abs(accuracy.blinn_phong_monte_carlo(scene, n) - truth.image)[truth.mask].max() for n in (16, 1024)]
+    errors = [
+        np.abs(accuracy.blinn_phong_monte_carlo(scene, n) - truth.image)[truth.mask].max()
+        for n in (16, 1024)
+    ]
     assert errors[1] < errors[0] and errors[1] < 0.05
 
 
 def test_accuracy_command_reduced(tmp_path):
     out = tmp_path / "acc"
     result = subprocess.run(
-        [sys.executable, "-m", "glshade", "accuracy", "--out", str(out), "--repeats", "1", "--size", "48", "--scenes", "flat"],
-        capture_output=True, text=True, timeout=600,
+        [
+            sys.executable,
+            "-m",
+            "glshade",
+            "accuracy",
+            "--out",
+            str(out),
+            "--repeats",
+            "1",
+            "--size",
+            "48",
+            "--scenes",
+            "flat",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
     )
     assert result.returncode == 0, result.stderr[-2000:]
     text = (out / "accuracy.md").read_text()
-    for heading in ("## The converged reference", "## Per frame", "## Per case", "## Blinn-Phong", "## Microfacet lobes",
-                    "## Defaults, and why",
-                    "## Stability on stiff and extreme cases", "## Documented limits"):
+    for heading in (
+        "## The converged reference",
+        "## Per frame",
+        "## Per case",
+        "## Blinn-Phong",
+        "## Microfacet lobes",
+        "## Defaults, and why",
+        "## Stability on stiff and extreme cases",
+        "## Documented limits",
+    ):
         assert heading in text, heading
     assert "**fp32** (default)" in text and "on the Pareto front" in text
-    for name in ("accuracy_uv.png", "accuracy_image.png", "accuracy_supersampling.png", "accuracy_visibility.png"):
+    for name in (
+        "accuracy_uv.png",
+        "accuracy_image.png",
+        "accuracy_supersampling.png",
+        "accuracy_visibility.png",
+    ):
         assert (out / "figures" / name).stat().st_size > 1000
     # the converged reference agrees with the NumPy oracle
     gap = float(text.split("max uv gap ")[1].split(" mm")[0])
     assert gap < 1e-9
 
 
-@pytest.mark.parametrize("args, fragment", [
-    (["--scenes", "torus"], "--scenes: must list surface kinds"),
-    (["--repeats", "0"], "--repeats: must be an integer >= 1"),
-])
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--scenes", "torus"], "--scenes: must list surface kinds"),
+        (["--repeats", "0"], "--repeats: must be an integer >= 1"),
+    ],
+)
 def test_accuracy_bad_input(tmp_path, args, fragment):
-    result = subprocess.run([sys.executable, "-m", "glshade", "accuracy", "--out", str(tmp_path / "a"), *args],
-                            capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-m", "glshade", "accuracy", "--out", str(tmp_path / "a"), *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert result.returncode == 2 and fragment in result.stderr, result.stderr

@@ -18,8 +18,16 @@ import pytest
 #: (arguments, fragment the one error line must contain, extra environment).
 BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     # scene files
-    (["render", "latin1.toml"], "scene file latin1.toml: must be UTF-8 text (byte 0xe9 on line 2", {}),
-    (["render", "image.png"], "scene file image.png: must be a TOML text file (this is a PNG image)", {}),
+    (
+        ["render", "latin1.toml"],
+        "scene file latin1.toml: must be UTF-8 text (byte 0xe9 on line 2",
+        {},
+    ),
+    (
+        ["render", "image.png"],
+        "scene file image.png: must be a TOML text file (this is a PNG image)",
+        {},
+    ),
     (["render", "adir"], "scene file adir: must be a TOML file, not a directory", {}),
     (["render", "missing.toml"], "scene file: must be an existing TOML file", {}),
     (["render", "broken.toml"], "scene file broken.toml: must be valid TOML", {}),
@@ -45,27 +53,71 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     (["render", "--set", "camera.zoom=2"], "camera.zoom: must be one of the keys", {}),
     (["render", "--set", "theta=5"], "expected PATH=VALUE", {}),
     (["render", "--set", "emitter.half_size=1"], "emitter.half_size: must be two numbers", {}),
-    (["render", "--size", "8192", "--supersample", "16"], "= 1.72e+10 rays, more than the work budget", {}),
+    (
+        ["render", "--size", "8192", "--supersample", "16"],
+        "= 1.72e+10 rays, more than the work budget",
+        {},
+    ),
     (["render", "--no-such-flag"], "unrecognized arguments: --no-such-flag", {}),
     # optics and sensor (issue 12)
-    (["render", "--f-number", "-2"], "camera.f_number: must be a finite number >= 0 (0: pinhole), got -2.0", {}),
-    (["render", "--roughness", "-0.01"], "render.roughness: must be a finite number >= 0, got -0.01", {}),
-    (["render", "--wavelength", "0"], "render.wavelength_um: must be a finite number > 0, got 0.0", {}),
-    (["render", "--height-rms", "-0.1"], "render.height_rms_um: must be a finite number >= 0, got -0.1", {}),
-    (["render", "--distortion=-20,0,0,0,0"], "camera.distortion: must be coefficients whose map does not fold", {}),
-    (["render", "--distortion", "0.1,0.2"], "camera.distortion: must be a list of 5 finite numbers", {}),
+    (
+        ["render", "--f-number", "-2"],
+        "camera.f_number: must be a finite number >= 0 (0: pinhole), got -2.0",
+        {},
+    ),
+    (
+        ["render", "--roughness", "-0.01"],
+        "render.roughness: must be a finite number >= 0, got -0.01",
+        {},
+    ),
+    (
+        ["render", "--wavelength", "0"],
+        "render.wavelength_um: must be a finite number > 0, got 0.0",
+        {},
+    ),
+    (
+        ["render", "--height-rms", "-0.1"],
+        "render.height_rms_um: must be a finite number >= 0, got -0.1",
+        {},
+    ),
+    (
+        ["render", "--distortion=-20,0,0,0,0"],
+        "camera.distortion: must be coefficients whose map does not fold",
+        {},
+    ),
+    (
+        ["render", "--distortion", "0.1,0.2"],
+        "camera.distortion: must be a list of 5 finite numbers",
+        {},
+    ),
     (["render", "--bit-depth", "13"], "sensor.bit_depth: must be one of 8, 10, 12, 16, got 13", {}),
-    (["render", "--aperture-samples", "0"], "camera.aperture_samples: must be an integer in [1, 1024]", {}),
+    (
+        ["render", "--aperture-samples", "0"],
+        "camera.aperture_samples: must be an integer in [1, 1024]",
+        {},
+    ),
     (["frobnicate"], "invalid choice: 'frobnicate'", {}),
     # outputs
     (["render", "-o", "out.jpg"], "-o out.jpg: .jpg is a lossy format", {}),
-    (["render", "-o", "out.bmp"], "-o out.bmp: the extension .bmp is not supported; use one of .png, .tif", {}),
+    (
+        ["render", "-o", "out.bmp"],
+        "-o out.bmp: the extension .bmp is not supported; use one of .png, .tif",
+        {},
+    ),
     (["render", "-o", "adir"], "-o adir: is a directory; glshade only writes regular files", {}),
     (["render", "-o", "fifo.png"], "-o fifo.png: is a FIFO; glshade only writes regular files", {}),
     (["render", "-o", "no/such/dir/x.png"], "directory no/such/dir does not exist", {}),
-    (["render", "--uv", "uv.txt"], "--uv uv.txt: the extension .txt is not supported; use one of .npy", {}),
+    (
+        ["render", "--uv", "uv.txt"],
+        "--uv uv.txt: the extension .txt is not supported; use one of .npy",
+        {},
+    ),
     (["render", "--save-scene", "scene.json"], "--save-scene scene.json: the extension .json", {}),
-    (["render", "--save-scene", "fifo.toml", "--size", "8"], "--save-scene fifo.toml: is a FIFO", {}),
+    (
+        ["render", "--save-scene", "fifo.toml", "--size", "8"],
+        "--save-scene fifo.toml: is a FIFO",
+        {},
+    ),
     (["render", "--bits", "32", "-o", "x.png"], "--bits 32 (float radiance) needs a .tif", {}),
     (["measure", "--overlay", "o.jpg"], "--overlay o.jpg: .jpg is a lossy format", {}),
     (["measure", "--step", "5"], "step", {}),
@@ -73,20 +125,40 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     (["paper", "--out", "fifo.png"], "--out fifo.png: is not a directory", {}),
     (["paper", "--out", ""], "argument --out: expected a path, got an empty string", {}),
     (["paper", "--workers", "0", "--out", "p"], "--workers: must be an integer >= 1, got 0", {}),
-    (["paper", "--step", "0.0001", "--out", "p"], "step: must give at most 2000 phases per stripe period", {}),
+    (
+        ["paper", "--step", "0.0001", "--out", "p"],
+        "step: must give at most 2000 phases per stripe period",
+        {},
+    ),
     (["measure", "--step", "0.3um"], "got 0.0003 mm = 6667 phases", {}),
     (["paper", "--thetas", "95", "--out", "p"], "thetas", {}),
     (["paper", "--dmaxs", "3xx"], "defect.dmax: must be a number in mm, or with a unit", {}),
     (["view", "--set", "theta=120"], "camera.theta_deg: must be in (0, 90) degrees, got 120.0", {}),
     (["view", "--screenshot", "fifo.png", "--frames", "1"], "--screenshot fifo.png: is a FIFO", {}),
-    (["view", "--frames", "1"], "the viewer needs a display and none is set", {"DISPLAY": "", "WAYLAND_DISPLAY": ""}),
+    (
+        ["view", "--frames", "1"],
+        "the viewer needs a display and none is set",
+        {"DISPLAY": "", "WAYLAND_DISPLAY": ""},
+    ),
     (["accuracy", "--repeats", "0"], "--repeats: must be an integer >= 1", {}),
     # environment
     (["render", "--device", "5"], "--device 5: must be an EGL device index in [0,", {}),
     (["info"], "GLSHADE_EGL_DEVICE: must be an integer >= 0", {"GLSHADE_EGL_DEVICE": "gpu"}),
-    (["render", "--size", "8"], "GLSHADE_MAX_RAYS: must be a number of rays >= 1", {"GLSHADE_MAX_RAYS": "-1"}),
-    (["render", "--size", "64"], "more than the work budget of 1e+03 rays", {"GLSHADE_MAX_RAYS": "1000"}),
-    (["render", "--size", "8"], "GLSHADE_MEMORY_BUDGET_MB: must be a number of MiB > 0", {"GLSHADE_MEMORY_BUDGET_MB": "x"}),
+    (
+        ["render", "--size", "8"],
+        "GLSHADE_MAX_RAYS: must be a number of rays >= 1",
+        {"GLSHADE_MAX_RAYS": "-1"},
+    ),
+    (
+        ["render", "--size", "64"],
+        "more than the work budget of 1e+03 rays",
+        {"GLSHADE_MAX_RAYS": "1000"},
+    ),
+    (
+        ["render", "--size", "8"],
+        "GLSHADE_MEMORY_BUDGET_MB: must be a number of MiB > 0",
+        {"GLSHADE_MEMORY_BUDGET_MB": "x"},
+    ),
 ]
 
 
@@ -115,8 +187,14 @@ def _listing(root: Path) -> dict[str, int]:
 def _run(args: list[str], cwd: Path, env: dict[str, str]) -> subprocess.CompletedProcess:
     environment = {k: v for k, v in os.environ.items() if k not in env}
     environment.update({k: v for k, v in env.items() if v})
-    return subprocess.run([sys.executable, "-m", "glshade", *args], capture_output=True, text=True, cwd=cwd,
-                          env=environment, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "glshade", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env=environment,
+        timeout=120,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -135,7 +213,9 @@ def test_there_are_forty_kinds_of_bad_input():
     assert len({" ".join(args) + str(env) for args, _, env in BAD_INPUTS}) == len(BAD_INPUTS)
 
 
-@pytest.mark.parametrize("index", range(len(BAD_INPUTS)), ids=[" ".join(c[0])[:60] for c in BAD_INPUTS])
+@pytest.mark.parametrize(
+    "index", range(len(BAD_INPUTS)), ids=[" ".join(c[0])[:60] for c in BAD_INPUTS]
+)
 def test_bad_input_is_one_line_and_exit_2(bad_input_results, index):
     results, _, _ = bad_input_results
     _, fragment, _ = BAD_INPUTS[index]

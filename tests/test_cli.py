@@ -27,10 +27,29 @@ def run_cli(*args, env=None):
 
 def test_render_writes_image_uv_and_scene(tmp_path, capsys):
     out, uv, saved = tmp_path / "img.png", tmp_path / "uv.npy", tmp_path / "scene.toml"
-    code = main([
-        "render", "--surface", "sphere", "--theta", "30", "--sigma2", "9", "--dmax", "0.003",
-        "--size", "64", "-o", str(out), "--uv", str(uv), "--save-scene", str(saved), "--bits", "16",
-    ])
+    code = main(
+        [
+            "render",
+            "--surface",
+            "sphere",
+            "--theta",
+            "30",
+            "--sigma2",
+            "9",
+            "--dmax",
+            "0.003",
+            "--size",
+            "64",
+            "-o",
+            str(out),
+            "--uv",
+            str(uv),
+            "--save-scene",
+            str(saved),
+            "--bits",
+            "16",
+        ]
+    )
     assert code == 0
     assert "wrote" in capsys.readouterr().out
     scene = Scene.load(saved)
@@ -48,8 +67,23 @@ def test_scene_file_with_flag_overrides(tmp_path):
     path = tmp_path / "s.toml"
     paper_scene("cylinder", 20.0).with_size(32).updated(surface={"radius": -40.0}).save(path)
     saved = tmp_path / "effective.toml"
-    assert main(["render", str(path), "--theta", "60", "--phase", "0.5", "-o", str(tmp_path / "a.png"),
-                 "--save-scene", str(saved)]) == 0
+    assert (
+        main(
+            [
+                "render",
+                str(path),
+                "--theta",
+                "60",
+                "--phase",
+                "0.5",
+                "-o",
+                str(tmp_path / "a.png"),
+                "--save-scene",
+                str(saved),
+            ]
+        )
+        == 0
+    )
     s = Scene.load(saved)
     assert s.camera.theta_deg == 60.0 and s.emitter.phase == 0.5
     assert s.surface.kind == "cylinder" and s.surface.radius == -40.0 and s.camera.width == 32
@@ -70,18 +104,31 @@ def test_info_reports_renderer_and_fp64():
         (["render", "--sigma2", "-1"], "defect.sigma_x2: must be a finite number > 0"),
         (["render", "--surface", "torus"], "invalid choice: 'torus'"),
         (["render", "missing.toml"], "scene file: must be an existing TOML file"),
-        (["render", "-o", "no/such/dir/x.png", "--size", "8"], "directory no/such/dir does not exist"),
+        (
+            ["render", "-o", "no/such/dir/x.png", "--size", "8"],
+            "directory no/such/dir does not exist",
+        ),
         (["render", "--set", "camera.zoom=2"], "camera.zoom: must be one of the keys"),
         (["render", "--set", "lens.f=2"], "lens: must be one of the tables"),
-        (["render", "--set", "camera.theta_deg=abc"], "camera.theta_deg: must be a number in degrees"),
+        (
+            ["render", "--set", "camera.theta_deg=abc"],
+            "camera.theta_deg: must be a number in degrees",
+        ),
         (["render", "--set", "camera.theta_deg=90"], "camera.theta_deg: must be in (0, 90)"),
         (["render", "--set", "theta=5"], "expected PATH=VALUE"),
-        (["render", "--set", "surface.kind=torus"], "surface.kind: must be one of flat, cylinder, sphere"),
+        (
+            ["render", "--set", "surface.kind=torus"],
+            "surface.kind: must be one of flat, cylinder, sphere",
+        ),
     ],
 )
 def test_bad_input_is_one_line_exit_2(tmp_path, args, fragment):
     result = subprocess.run(
-        [sys.executable, "-m", "glshade", *args], capture_output=True, text=True, cwd=tmp_path, timeout=120
+        [sys.executable, "-m", "glshade", *args],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
     )
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
@@ -93,11 +140,27 @@ def test_bad_input_is_one_line_exit_2(tmp_path, args, fragment):
 
 def test_set_any_parameter_by_its_path(tmp_path):
     saved = tmp_path / "scene.toml"
-    code = main([
-        "render", "--theta", "30", "--set", "camera.theta_deg=20", "--set", "emitter.half_size=100,80",
-        "--set", "defect.sigma_xz=0.5", "--set", "render.supersample=2", "--size", "16",
-        "-o", str(tmp_path / "x.png"), "--save-scene", str(saved),
-    ])
+    code = main(
+        [
+            "render",
+            "--theta",
+            "30",
+            "--set",
+            "camera.theta_deg=20",
+            "--set",
+            "emitter.half_size=100,80",
+            "--set",
+            "defect.sigma_xz=0.5",
+            "--set",
+            "render.supersample=2",
+            "--size",
+            "16",
+            "-o",
+            str(tmp_path / "x.png"),
+            "--save-scene",
+            str(saved),
+        ]
+    )
     assert code == 0
     scene = Scene.load(saved)
     assert scene.camera.theta_deg == 20.0  # --set comes after the short flags
@@ -124,7 +187,10 @@ def test_missing_egl_names_the_debian_packages():
 def test_memory_budget_from_environment(tmp_path):
     result = run_cli("render", "-o", str(tmp_path / "x.png"), env={"GLSHADE_MEMORY_BUDGET_MB": "1"})
     assert result.returncode == 2
-    assert "camera.width x camera.height" in result.stderr and "memory budget of 1 MiB" in result.stderr
+    assert (
+        "camera.width x camera.height" in result.stderr
+        and "memory budget of 1 MiB" in result.stderr
+    )
     assert not (tmp_path / "x.png").exists()
 
 

@@ -24,6 +24,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from tests.plugins.surface_tilted import Tilted
 
 from glshade.app import cli
 from glshade.components.base import UniformFrame
@@ -34,14 +35,15 @@ from glshade.gpu.renderer import RootSolver, scene_uniforms
 from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
 from glshade.scene.schema_doc import scene_format_markdown
-from tests.plugins.surface_tilted import Tilted
 
 OUTPUT_SETS = [("image",), ("uv", "mask"), OUTPUTS]
 UV_TOL = {"fp32": 5e-4, "fp64": 1e-6}
 VARIANTS = {
     "paper": lambda s: s,
     "no-defect": lambda s: s.without_defect(),
-    "full-covariance": lambda s: s.updated(defect={"sigma_x2": 4.0, "sigma_z2": 1.0, "sigma_xz": 0.5}),
+    "full-covariance": lambda s: s.updated(
+        defect={"sigma_x2": 4.0, "sigma_z2": 1.0, "sigma_xz": 0.5}
+    ),
     "fp64-supersampled": lambda s: s.updated(render={"precision": "fp64", "supersample": 2}),
     "axis-x-concave": lambda s: s.updated(surface={"axis": "x", "radius": -60.0}),
 }
@@ -95,12 +97,20 @@ def check_uniforms(renderer, component) -> None:
         for outputs in OUTPUT_SETS:
             features = ShaderFeatures.from_scene(scene, outputs)
             program = renderer.program(features)
-            active = {name for name in program if hasattr(program[name], "value") and name.startswith("u_")}
+            active = {
+                name
+                for name in program
+                if hasattr(program[name], "value") and name.startswith("u_")
+            }
             provided = scene_uniforms(scene, RootSolver(), features)
-            assert active <= set(provided), f"{features.selected()}: not provided {active - set(provided)}"
+            assert active <= set(provided), (
+                f"{features.selected()}: not provided {active - set(provided)}"
+            )
             frame = UniformFrame(scene.local_origin(), features.template_variables(), RootSolver())
             own = set(component.uniforms(scene, frame))
-            assert own <= active, f"{component!r} provides uniforms its GLSL does not use: {own - active}"
+            assert own <= active, (
+                f"{component!r} provides uniforms its GLSL does not use: {own - active}"
+            )
 
 
 def _random_scene(component, rng, precision: str) -> Scene:
@@ -109,7 +119,12 @@ def _random_scene(component, rng, precision: str) -> Scene:
     return scene.updated(
         camera={"theta_deg": rng.uniform(10.0, 80.0)},
         emitter={"phase": rng.uniform(0.0, 2.0)},
-        defect={"dmax": dmax, "sigma2": rng.uniform(1.0, 9.0), "x0": rng.uniform(-1, 1), "z0": rng.uniform(-1, 1)},
+        defect={
+            "dmax": dmax,
+            "sigma2": rng.uniform(1.0, 9.0),
+            "x0": rng.uniform(-1, 1),
+            "z0": rng.uniform(-1, 1),
+        },
         render={"precision": precision},
     )
 
@@ -127,7 +142,10 @@ def check_oracle(renderer, component, precision: str, seed: int = 7) -> None:
         error = np.abs(shader.uv - oracle.uv).max(axis=-1)[inner].max()
         assert error <= UV_TOL[precision], f"{scene.title()}: uv error {error:.3g} mm"
         if registry().active(scene).reflection.shades_from_v:
-            assert np.abs(shader.image - oracle.image)[inner].max() <= {"fp32": 2e-3, "fp64": 1e-5}[precision]
+            assert (
+                np.abs(shader.image - oracle.image)[inner].max()
+                <= {"fp32": 2e-3, "fp64": 1e-5}[precision]
+            )
 
 
 def _other_value(param):
@@ -138,7 +156,11 @@ def _other_value(param):
     if param.value_type == "integer":
         return param.default + 4 if param.path == "sensor.bit_depth" else param.default + 1
     if param.value_type == "pair":
-        return (0.5, 0.75) if param.default is None else (param.default[0] * 0.5, param.default[1] * 0.75)
+        return (
+            (0.5, 0.75)
+            if param.default is None
+            else (param.default[0] * 0.5, param.default[1] * 0.75)
+        )
     if param.value_type == "vector":
         return tuple(0.01 * (k + 1) * (-1) ** k for k in range(param.size))
     if param.value_type == "path":
@@ -157,7 +179,9 @@ def _other_value(param):
 
 
 def _as_text(value) -> str:
-    if isinstance(value, tuple) and value and isinstance(value[0], tuple):  # a table of named numbers
+    if (
+        isinstance(value, tuple) and value and isinstance(value[0], tuple)
+    ):  # a table of named numbers
         return ",".join(f"{name}={number!r}" for name, number in value)
     return ",".join(f"{v!r}" for v in value) if isinstance(value, tuple) else str(value)
 
@@ -180,10 +204,17 @@ def _unique_lines(directories=()) -> dict[str, set[str]]:
     paths = [p for d in (shader_dir(), *map(Path, directories)) for p in sorted(d.glob("*.glsl"))]
     files = {p.name: p.read_text() for p in paths}
     lines = {
-        name: {ln.strip() for ln in text.splitlines() if len(ln.strip()) > 12 and not ln.strip().startswith(("//", "{$"))}
+        name: {
+            ln.strip()
+            for ln in text.splitlines()
+            if len(ln.strip()) > 12 and not ln.strip().startswith(("//", "{$"))
+        }
         for name, text in files.items()
     }
-    return {name: own - set().union(*(v for k, v in lines.items() if k != name)) for name, own in lines.items()}
+    return {
+        name: own - set().union(*(v for k, v in lines.items() if k != name))
+        for name, own in lines.items()
+    }
 
 
 def check_absent_code(scene: Scene, outputs) -> None:
@@ -198,7 +229,9 @@ def check_absent_code(scene: Scene, outputs) -> None:
         if name in named:
             assert found, f"{name} is named for {features.selected()} but absent"
         else:
-            assert not found, f"{name} is not needed by {features.selected()} but in its source: {sorted(found)[:2]}"
+            assert not found, (
+                f"{name} is not needed by {features.selected()} but in its source: {sorted(found)[:2]}"
+            )
 
 
 # ------------------------------------------------------------------ parametrised
@@ -230,7 +263,10 @@ def test_every_parameter_is_declared_once_with_a_unit_and_a_role():
     assert len({p.path for p in params}) == len(params)
     for param in params:
         assert param.role in ("feature", "uniform") and param.doc, param.path
-        assert param.check(param.default, registry().choices(param)) == param.default or param.default is None
+        assert (
+            param.check(param.default, registry().choices(param)) == param.default
+            or param.default is None
+        )
 
 
 def test_a_missing_uniform_is_an_error_not_a_zero(renderer):
@@ -268,9 +304,13 @@ def test_a_toy_surface_plugs_in_without_touching_glshade(renderer, tmp_path):
     traces in the oracle, meets every contract, and appears in the schema, the docs and
     the CLI."""
     with registry().registered(Tilted()) as toy:
-        scene = paper_scene("flat", theta_deg=30.0).with_size(24).with_value("surface.kind", "tilted")
+        scene = (
+            paper_scene("flat", theta_deg=30.0).with_size(24).with_value("surface.kind", "tilted")
+        )
         tilted = scene.with_value("surface.tilt_deg", 2.0)
-        assert not np.array_equal(renderer.render(scene, ("uv",)).uv, renderer.render(tilted, ("uv",)).uv, equal_nan=True)
+        assert not np.array_equal(
+            renderer.render(scene, ("uv",)).uv, renderer.render(tilted, ("uv",)).uv, equal_nan=True
+        )
         check_uniforms(renderer, toy)
         for precision in ("fp32", "fp64"):
             check_oracle(renderer, toy, precision)
@@ -284,14 +324,32 @@ def test_a_toy_surface_plugs_in_without_touching_glshade(renderer, tmp_path):
         assert "surface.tilt_deg" in {p.path for p in registry().params()}
         from glshade.app.viewer.controls import apply_setting, controls, panel_params
 
-        assert "tilt" in controls() and "tilted" in apply_setting(scene, "surface", "tilted").surface.kind
-        assert apply_setting(scene, "tilt", 25.0, slider=True).surface.tilt_deg == 10.0  # clamped to its slider
+        assert (
+            "tilt" in controls()
+            and "tilted" in apply_setting(scene, "surface", "tilted").surface.kind
+        )
+        assert (
+            apply_setting(scene, "tilt", 25.0, slider=True).surface.tilt_deg == 10.0
+        )  # clamped to its slider
         assert "surface.tilt_deg" in [p.path for p in panel_params(scene)]
         assert "surface.radius" not in [p.path for p in panel_params(scene)]
         assert "`tilt_deg`" in scene_format_markdown() and "`tilted`" in scene_format_markdown()
         out = tmp_path / "tilted.png"
-        code = cli.main(["render", "--surface", "tilted", "--set", "surface.tilt_deg=1.5", "--size", "16",
-                         "-o", str(out), "--save-scene", str(tmp_path / "tilted.toml")])
+        code = cli.main(
+            [
+                "render",
+                "--surface",
+                "tilted",
+                "--set",
+                "surface.tilt_deg=1.5",
+                "--size",
+                "16",
+                "-o",
+                str(out),
+                "--save-scene",
+                str(tmp_path / "tilted.toml"),
+            ]
+        )
         assert code == 0 and out.is_file()
         assert Scene.load(tmp_path / "tilted.toml").surface.tilt_deg == 1.5
     assert "tilted" not in registry().names("surface")
@@ -319,14 +377,20 @@ def test_sweeps_group_cases_by_program():
 
 def test_metrics_and_plans_import_without_gl():
     """Only glshade.gpu and glshade.app load moderngl."""
-    code = ("import sys, glshade, glshade.metrics.visibility, glshade.metrics.measurement, glshade.oracle.tracer, "
-            "glshade.scene.schema_doc, glshade.metrics.physics, glshade.study.plan, glshade.study.store, "
-            "glshade.study.findings, glshade.components.registry; glshade.components.registry.registry(); "
-            "print('moderngl' in sys.modules)")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    code = (
+        "import sys, glshade, glshade.metrics.visibility, glshade.metrics.measurement, glshade.oracle.tracer, "
+        "glshade.scene.schema_doc, glshade.metrics.physics, glshade.study.plan, glshade.study.store, "
+        "glshade.study.findings, glshade.components.registry; glshade.components.registry.registry(); "
+        "print('moderngl' in sys.modules)"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    )
     assert result.stdout.strip() == "False"
 
 
 def test_scene_format_doc_is_generated_from_the_schema():
     doc = Path(__file__).resolve().parents[1] / "docs" / "scene-format.md"
-    assert doc.read_text() == scene_format_markdown(), "regenerate: python -m glshade.scene.schema_doc > docs/scene-format.md"
+    assert doc.read_text() == scene_format_markdown(), (
+        "regenerate: python -m glshade.scene.schema_doc > docs/scene-format.md"
+    )

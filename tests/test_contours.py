@@ -93,7 +93,10 @@ def test_a_stripe_turned_over_is_measured_at_its_outermost_crossing():
     defect[36:40, 95] = True  # its join to the stripe
     result = measure(normal, defect)
     assert result.distance_px == 7
-    assert result.shift.side == "upper" and (result.shift.normal_row, result.shift.defect_row) == (40.0, 33.0)
+    assert result.shift.side == "upper" and (result.shift.normal_row, result.shift.defect_row) == (
+        40.0,
+        33.0,
+    )
     assert result.islands == 0
 
 
@@ -179,7 +182,9 @@ def test_the_limit_on_an_analytic_fold_is_the_cap_of_physics_md():
     v0, v1 = folded_maps(1.2, b)  # F < 1: no fold, the limit is the deflection
     moved = deflection(v0, v1, columns)
     assert not moved.folded
-    assert visibility_limit(v0, v1, valid, columns, levels, moved).visibility_px == pytest.approx(moved.deflection_px, rel=1e-6)
+    assert visibility_limit(v0, v1, valid, columns, levels, moved).visibility_px == pytest.approx(
+        moved.deflection_px, rel=1e-6
+    )
 
 
 # --------------------------------------------------------------------------- more cases by construction
@@ -235,9 +240,13 @@ def test_one_contour_moved_by_k_is_measured_on_its_own_side(k, side):
     result = measure(normal, defect)
     assert result.shift.distance_px == k and result.shift.side == side
     assert 15 <= result.shift.column <= 24
-    assert (result.shift.normal_row, result.shift.defect_row) == ((10.0, 10.0 - k) if side == "upper" else (44.0, 44.0 + k))
+    assert (result.shift.normal_row, result.shift.defect_row) == (
+        (10.0, 10.0 - k) if side == "upper" else (44.0, 44.0 + k)
+    )
     assert (result.pairs, result.unpaired, result.islands) == (2, 0, 0)
-    paper = V.image_visibility(lambda p: normal * 1.0, lambda p: defect * 1.0, 2.0, V.MetricSettings(keep_fraction=1.0))
+    paper = V.image_visibility(
+        lambda p: normal * 1.0, lambda p: defect * 1.0, 2.0, V.MetricSettings(keep_fraction=1.0)
+    )
     assert paper.visibility_px == k and paper.offset_px == (0, 0) and paper.shift.side == side
     assert 15 <= paper.shift.column <= 24
     assert len(paper.per_phase) == 8 and all(r.distance_px == k for r in paper.per_phase)
@@ -282,9 +291,16 @@ def arc_pair():
 def test_an_arc_is_paired_by_overlap_and_its_shift_measured():
     normal, defect = arc_pair()
     assert roles_of(normal) == roles_of(defect) == [ct.BORDER, ct.CUT]
-    assert ct.pair_stripes(ct.find_stripes(normal), ct.find_stripes(defect)).tolist() == [[1, 1], [2, 2]]
+    assert ct.pair_stripes(ct.find_stripes(normal), ct.find_stripes(defect)).tolist() == [
+        [1, 1],
+        [2, 2],
+    ]
     result = measure(normal, defect)
-    assert result.shift.distance_px == 3.0 and result.shift.side == "lower" and 16 <= result.shift.column <= 23
+    assert (
+        result.shift.distance_px == 3.0
+        and result.shift.side == "lower"
+        and 16 <= result.shift.column <= 23
+    )
     assert (result.shift.normal_row, result.shift.defect_row) == (7.0, 10.0)
     assert (result.pairs, result.unpaired, result.islands) == (2, 0, 0)
 
@@ -341,9 +357,17 @@ def test_a_split_stripe_is_compared_where_both_images_have_it():
     defect[10:20, 17:23] = False
     defect[8:10, 12:17] = True
     assert roles_of(defect) == [ct.CUT, ct.CUT, ct.CUT]
-    assert ct.pair_stripes(ct.find_stripes(normal), ct.find_stripes(defect)).tolist() == [[1, 1], [1, 2], [2, 3]]
+    assert ct.pair_stripes(ct.find_stripes(normal), ct.find_stripes(defect)).tolist() == [
+        [1, 1],
+        [1, 2],
+        [2, 3],
+    ]
     result = measure(normal, defect)
-    assert result.shift.distance_px == 2.0 and result.shift.side == "upper" and 12 <= result.shift.column <= 16
+    assert (
+        result.shift.distance_px == 2.0
+        and result.shift.side == "upper"
+        and 12 <= result.shift.column <= 16
+    )
     assert (result.pairs, result.unpaired, result.islands) == (3, 0, 0)
 
 
@@ -358,7 +382,11 @@ def test_a_merged_group_still_measures_its_outer_contours():
     assert measure(normal, defect).shift.distance_px == 0.0
     defect[9, 4:7] = True
     result = measure(normal, defect)
-    assert result.shift.distance_px == 1.0 and result.shift.side == "upper" and 4 <= result.shift.column <= 6
+    assert (
+        result.shift.distance_px == 1.0
+        and result.shift.side == "upper"
+        and 4 <= result.shift.column <= 6
+    )
     assert (result.pairs, result.unpaired) == (2, 0)
 
 
@@ -370,16 +398,22 @@ def test_the_limit_converges_on_the_cap_for_other_folds(d, b):
     v0, v1 = folded_maps(d, b, size=(81, 120), width_px=10.0)
     columns = V.kept_columns(120, 0.5)
     f = d * math.sqrt(math.e) / b
-    assert 10.0 * math.sqrt(2 * math.log(f)) < columns.stop - 60  # the fold ends inside the kept columns
+    assert (
+        10.0 * math.sqrt(2 * math.log(f)) < columns.stop - 60
+    )  # the fold ends inside the kept columns
     moved = deflection(v0, v1, columns)
     assert moved.folded and moved.deflection_px == pytest.approx(d, rel=1e-9)
     cap = b * math.sqrt(2 * math.log(f))
     levels = StripeLevels(2.0, 0.5)
-    coarse = visibility_limit(v0, v1, np.isfinite(v0), columns, levels, moved, upsample=2, phase_samples=32)
+    coarse = visibility_limit(
+        v0, v1, np.isfinite(v0), columns, levels, moved, upsample=2, phase_samples=32
+    )
     assert coarse.visibility_px == pytest.approx(cap, rel=0.03)
     r0, r1, c0, c1 = coarse.window
     assert r0 <= 40 < r1 and c0 <= 60 < c1
-    fine = visibility_limit(v0, v1, np.isfinite(v0), columns, levels, moved, upsample=8, phase_samples=64)
+    fine = visibility_limit(
+        v0, v1, np.isfinite(v0), columns, levels, moved, upsample=8, phase_samples=64
+    )
     assert fine.visibility_px == pytest.approx(cap, rel=0.015)
 
 

@@ -38,7 +38,9 @@ from glshade.study.store import read_results_csv
 from glshade.units import parse_quantity
 
 ROOT = Path(__file__).resolve().parents[1]
-FAST = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+FAST = settings(
+    max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 
 
 def _one_line(exc: Exception) -> bool:
@@ -49,8 +51,13 @@ def _one_line(exc: Exception) -> bool:
 # --------------------------------------------------------------------------- property tests
 _KEYS = [(p.table, p.key) for p in registry().params()]
 _VALUES = st.one_of(
-    st.none(), st.booleans(), st.integers(-10**20, 10**20), st.floats(allow_nan=True, allow_infinity=True),
-    st.text(max_size=12), st.lists(st.floats(-1e3, 1e3), max_size=3), st.dictionaries(st.text(max_size=4), st.integers(), max_size=2),
+    st.none(),
+    st.booleans(),
+    st.integers(-(10**20), 10**20),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=12),
+    st.lists(st.floats(-1e3, 1e3), max_size=3),
+    st.dictionaries(st.text(max_size=4), st.integers(), max_size=2),
     st.sampled_from(["flat", "sphere", "cylinder", "x", "z", "fp64", "blinn-phong", "mirror"]),
 )
 
@@ -65,7 +72,9 @@ def scene_documents(draw) -> dict:
         if value is not None:
             document.setdefault(table, {})[key] = value
     if draw(st.booleans()):
-        document[draw(st.text(min_size=1, max_size=6))] = draw(st.one_of(_VALUES, st.just({"k": 1})))
+        document[draw(st.text(min_size=1, max_size=6))] = draw(
+            st.one_of(_VALUES, st.just({"k": 1}))
+        )
     return document
 
 
@@ -95,20 +104,67 @@ def test_random_scene_documents_give_a_scene_or_one_line(tmp_path, document):
 def test_random_and_mutated_bytes_give_a_scene_or_one_line(tmp_path, data, cut, byte):
     good = (ROOT / "docs" / "figures" / "paper_centre.toml").read_bytes()
     path = tmp_path / "scene.toml"
-    for raw in (data, good[:cut] + bytes([byte]) + good[cut + 1:], good[:cut]):
+    for raw in (data, good[:cut] + bytes([byte]) + good[cut + 1 :], good[:cut]):
         path.write_bytes(raw)
         _load_or_refuse(path)
 
 
-_FLAGS = ["--theta", "--dmax", "--sigma2", "--period", "--phase", "--radius", "--size", "--supersample", "--shininess",
-          "--surface", "--axis", "--precision", "--reflection", "--set", "--bits", "-o", "--uv"]
-_WORDS = ["5", "-1", "0", "95", "nan", "inf", "1e400", "5um", "3mm2", "0.2rad", "abc", "", "=", "camera.theta_deg=5",
-          "defect.dmax=5um", "emitter.half_size=1,2", "lens.f=1", "sphere", "torus", "x", "fp64", "blinn-phong",
-          "16", "65536", "-", "--", "a.png"]
+_FLAGS = [
+    "--theta",
+    "--dmax",
+    "--sigma2",
+    "--period",
+    "--phase",
+    "--radius",
+    "--size",
+    "--supersample",
+    "--shininess",
+    "--surface",
+    "--axis",
+    "--precision",
+    "--reflection",
+    "--set",
+    "--bits",
+    "-o",
+    "--uv",
+]
+_WORDS = [
+    "5",
+    "-1",
+    "0",
+    "95",
+    "nan",
+    "inf",
+    "1e400",
+    "5um",
+    "3mm2",
+    "0.2rad",
+    "abc",
+    "",
+    "=",
+    "camera.theta_deg=5",
+    "defect.dmax=5um",
+    "emitter.half_size=1,2",
+    "lens.f=1",
+    "sphere",
+    "torus",
+    "x",
+    "fp64",
+    "blinn-phong",
+    "16",
+    "65536",
+    "-",
+    "--",
+    "a.png",
+]
 
 
 @FAST
-@given(argv=st.lists(st.one_of(st.sampled_from(_FLAGS), st.sampled_from(_WORDS), st.text(max_size=6)), max_size=8))
+@given(
+    argv=st.lists(
+        st.one_of(st.sampled_from(_FLAGS), st.sampled_from(_WORDS), st.text(max_size=6)), max_size=8
+    )
+)
 def test_random_argument_lists_give_a_scene_or_one_line(argv):
     stderr = io.StringIO()
     try:
@@ -167,8 +223,12 @@ def test_image_format_follows_the_extension(tmp_path, renderer):
     stored = cv2.imread(str(tmp_path / "f.tif"), cv2.IMREAD_UNCHANGED)
     assert stored.dtype == np.float32 and np.array_equal(stored, image)
     sixteen = cv2.imread(str(tmp_path / "i.tiff"), cv2.IMREAD_UNCHANGED)
-    assert sixteen.dtype == np.uint16 and np.array_equal(sixteen, cv2.imread(str(tmp_path / "p.png"), -1))
-    assert (tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG" and (tmp_path / "f.tif").read_bytes()[:2] == b"II"
+    assert sixteen.dtype == np.uint16 and np.array_equal(
+        sixteen, cv2.imread(str(tmp_path / "p.png"), -1)
+    )
+    assert (tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG" and (
+        tmp_path / "f.tif"
+    ).read_bytes()[:2] == b"II"
     for name in ("x.jpg", "x.JPEG", "x.webp"):
         with pytest.raises(GlshadeError, match="lossy"):
             write_image(tmp_path / name, image)
@@ -183,8 +243,12 @@ def test_cli_writes_tiff_by_extension(tmp_path, capsys):
 
 # --------------------------------------------------------------------------- studies
 def _paper(out: Path, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.Popen([sys.executable, "-m", "glshade", "paper", "--out", str(out), "--no-progress", *extra],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "glshade", "paper", "--out", str(out), "--no-progress", *extra],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def test_a_second_study_on_the_same_directory_is_refused(tmp_path):
@@ -199,9 +263,16 @@ def test_a_second_study_on_the_same_directory_is_refused(tmp_path):
     _, first_err = first.communicate(timeout=300)
     assert first.returncode == 0, first_err
     assert second.returncode == 2 and len(err.strip().splitlines()) == 1, err
-    assert re.search(rf"--out {re.escape(str(out))}: in use by 'glshade paper' \(pid {first.pid} on .+, since ", err), err
+    assert re.search(
+        rf"--out {re.escape(str(out))}: in use by 'glshade paper' \(pid {first.pid} on .+, since ",
+        err,
+    ), err
     rows = read_results_csv(out / "results.csv")
-    assert len(rows) == 2 * 3 * 8 == len({(r.surface, r.theta_deg, r.sigma2_mm2, r.dmax_mm) for r in rows})
+    assert (
+        len(rows)
+        == 2 * 3 * 8
+        == len({(r.surface, r.theta_deg, r.sigma2_mm2, r.dmax_mm) for r in rows})
+    )
     assert not owner.exists()
     # the lock died with its holder: a third run resumes everything
     third = _paper(out, "--surfaces", "flat,cylinder", "--thetas", "85,45,5", "--size", "192")
@@ -211,27 +282,62 @@ def test_a_second_study_on_the_same_directory_is_refused(tmp_path):
 
 def test_a_subset_rerun_is_refused_and_overwrite_removes_the_stale_files(tmp_path, capsys):
     out = tmp_path / "study"
-    full = ["paper", "--out", str(out), "--no-progress", "--size", "64", "--thetas", "85,45,5", "--surfaces", "flat"]
+    full = [
+        "paper",
+        "--out",
+        str(out),
+        "--no-progress",
+        "--size",
+        "64",
+        "--thetas",
+        "85,45,5",
+        "--surfaces",
+        "flat",
+    ]
     assert main(full) == 0
     before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
     assert "grid_flat_dmax3um.png" in before and len(read_results_csv(out / "results.csv")) == 24
-    subset = ["paper", "--out", str(out), "--no-progress", "--size", "64", "--thetas", "85,45", "--surfaces", "flat",
-              "--dmaxs", "5um"]
+    subset = [
+        "paper",
+        "--out",
+        str(out),
+        "--no-progress",
+        "--size",
+        "64",
+        "--thetas",
+        "85,45",
+        "--surfaces",
+        "flat",
+        "--dmaxs",
+        "5um",
+    ]
     capsys.readouterr()
     assert main(subset) == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith(f"glshade: error: --out {out}: holds a study with another plan (dmaxs: 0.003,0.005 there, "
-                          "0.005 asked; thetas: 85,45,5 there, 85,45 asked)") and "--overwrite" in err
+    assert (
+        err.startswith(
+            f"glshade: error: --out {out}: holds a study with another plan (dmaxs: 0.003,0.005 there, "
+            "0.005 asked; thetas: 85,45,5 there, 85,45 asked)"
+        )
+        and "--overwrite" in err
+    )
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before  # untouched
     assert main([*subset, "--overwrite"]) == 0
     rows = read_results_csv(out / "results.csv")
-    assert sorted((r.theta_deg, r.dmax_mm) for r in rows) == sorted((t, 0.005) for t in (85.0, 45.0) for _ in range(4))
+    assert sorted((r.theta_deg, r.dmax_mm) for r in rows) == sorted(
+        (t, 0.005) for t in (85.0, 45.0) for _ in range(4)
+    )
     names = {p.name for p in out.iterdir() if p.is_file()}
-    assert "grid_flat_dmax3um.png" not in names and "visibility_flat_dmax3um.png" not in names  # stale: removed
+    assert (
+        "grid_flat_dmax3um.png" not in names and "visibility_flat_dmax3um.png" not in names
+    )  # stale: removed
     assert {"grid_flat_dmax5um.png", "visibility_flat_dmax5um.png", "report.md"} <= names
-    assert "theta 5" not in (out / "report.md").read_text().replace("theta 5 ", "")  # only the new plan
+    assert "theta 5" not in (out / "report.md").read_text().replace(
+        "theta 5 ", ""
+    )  # only the new plan
     assert sorted(p.stem for p in (out / "cases").glob("*.json")) == sorted(
-        f"flat_theta{t}_sigma2_{s}_dmax5um" for t in (85, 45) for s in (1, 4, 9, 16))  # reused, not recomputed
+        f"flat_theta{t}_sigma2_{s}_dmax5um" for t in (85, 45) for s in (1, 4, 9, 16)
+    )  # reused, not recomputed
     # the same plan again resumes without --overwrite
     assert main(subset) == 0 and "0 cases computed, 8 resumed" in capsys.readouterr().out
 
@@ -248,19 +354,46 @@ def test_other_settings_refused_then_replaced_wholesale(tmp_path):
 
 
 # --------------------------------------------------------------------------- units
-@pytest.mark.parametrize("text, unit, value", [
-    ("5", "mm", 5.0), ("5um", "mm", 0.005), ("5 µm", "mm", 0.005), ("0.005mm", "mm", 0.005), ("2cm", "mm", 20.0),
-    ("1e3nm", "mm", 1e-3), ("5UM", "mm", 0.005), ("-3um", "mm", -0.003), ("4mm2", "mm²", 4.0),
-    ("4e6um2", "mm²", 4.0), ("1cm^2", "mm²", 100.0), ("2mm²", "mm²", 2.0), ("15deg", "deg", 15.0),
-    ("0.5rad", "deg", math.degrees(0.5)), ("64px", "px", 64.0), ("nan", "mm", math.nan),
-])
+@pytest.mark.parametrize(
+    "text, unit, value",
+    [
+        ("5", "mm", 5.0),
+        ("5um", "mm", 0.005),
+        ("5 µm", "mm", 0.005),
+        ("0.005mm", "mm", 0.005),
+        ("2cm", "mm", 20.0),
+        ("1e3nm", "mm", 1e-3),
+        ("5UM", "mm", 0.005),
+        ("-3um", "mm", -0.003),
+        ("4mm2", "mm²", 4.0),
+        ("4e6um2", "mm²", 4.0),
+        ("1cm^2", "mm²", 100.0),
+        ("2mm²", "mm²", 2.0),
+        ("15deg", "deg", 15.0),
+        ("0.5rad", "deg", math.degrees(0.5)),
+        ("64px", "px", 64.0),
+        ("nan", "mm", math.nan),
+    ],
+)
 def test_unit_parser(text, unit, value):
     got = parse_quantity(text, unit, "field")
     assert (math.isnan(got) and math.isnan(value)) or got == pytest.approx(value, rel=1e-12)
 
 
-@pytest.mark.parametrize("text, unit", [("5xx", "mm"), ("5um", "deg"), ("5mm", "mm²"), ("4um2", "mm"), ("5mm", ""),
-                                        ("", "mm"), ("um", "mm"), ("5 5", "mm"), ("1,5", "mm")])
+@pytest.mark.parametrize(
+    "text, unit",
+    [
+        ("5xx", "mm"),
+        ("5um", "deg"),
+        ("5mm", "mm²"),
+        ("4um2", "mm"),
+        ("5mm", ""),
+        ("", "mm"),
+        ("um", "mm"),
+        ("5 5", "mm"),
+        ("1,5", "mm"),
+    ],
+)
 def test_unit_parser_refuses(text, unit):
     with pytest.raises(SceneError, match=r"^field: must be a number") as info:
         parse_quantity(text, unit, "field")
@@ -269,24 +402,78 @@ def test_unit_parser_refuses(text, unit):
 
 def test_units_on_the_command_line_and_the_implausible_warning(tmp_path, capsys):
     saved = tmp_path / "s.toml"
-    assert main(["render", "--size", "16", "--dmax", "3um", "--set", "defect.sigma2=9e6um2", "-o",
-                 str(tmp_path / "a.png"), "--save-scene", str(saved)]) == 0
+    assert (
+        main(
+            [
+                "render",
+                "--size",
+                "16",
+                "--dmax",
+                "3um",
+                "--set",
+                "defect.sigma2=9e6um2",
+                "-o",
+                str(tmp_path / "a.png"),
+                "--save-scene",
+                str(saved),
+            ]
+        )
+        == 0
+    )
     scene = Scene.load(saved)
     assert scene.defect.dmax == pytest.approx(0.003) and scene.defect.sigma_x2 == pytest.approx(9.0)
     assert capsys.readouterr().err == ""
-    assert main(["render", "--size", "16", "--dmax", "50", "--sigma2", "2e5", "-o", str(tmp_path / "b.png")]) == 0
+    assert (
+        main(
+            [
+                "render",
+                "--size",
+                "16",
+                "--dmax",
+                "50",
+                "--sigma2",
+                "2e5",
+                "-o",
+                str(tmp_path / "b.png"),
+            ]
+        )
+        == 0
+    )
     warnings = capsys.readouterr().err.strip().splitlines()
     assert warnings == [
-        ("glshade: warning: defect.dmax = 50 mm is beyond 0.1 mm (deeper than the shallow dents glshade simulates); "
-         "values are in mm, write 5um for micrometres"),
-        ("glshade: warning: defect.sigma2 = 200000 mm² is beyond 10000 mm² (a dent over 100 mm wide); values are in "
-         "mm², write 4um2 for µm²"),
+        (
+            "glshade: warning: defect.dmax = 50 mm is beyond 0.1 mm (deeper than the shallow dents glshade simulates); "
+            "values are in mm, write 5um for micrometres"
+        ),
+        (
+            "glshade: warning: defect.sigma2 = 200000 mm² is beyond 10000 mm² (a dent over 100 mm wide); values are in "
+            "mm², write 4um2 for µm²"
+        ),
     ]
 
 
 def test_study_titles_and_file_names_say_their_unit(tmp_path, capsys):
-    assert main(["paper", "--out", str(tmp_path), "--no-progress", "--size", "48", "--thetas", "45,5",
-                 "--surfaces", "flat", "--sigma2s", "4", "--dmaxs", "3"]) == 0
+    assert (
+        main(
+            [
+                "paper",
+                "--out",
+                str(tmp_path),
+                "--no-progress",
+                "--size",
+                "48",
+                "--thetas",
+                "45,5",
+                "--surfaces",
+                "flat",
+                "--sigma2s",
+                "4",
+                "--dmaxs",
+                "3",
+            ]
+        )
+        == 0
+    )
     err = capsys.readouterr().err
     assert "glshade: warning: defect.dmax = 3 mm is beyond 0.1 mm" in err
     assert (tmp_path / "visibility_flat_dmax3000um.png").exists()
@@ -300,14 +487,31 @@ def test_banded_render_is_the_single_draw(renderer, monkeypatch):
     monkeypatch.setattr(renderer_module, "SINGLE_DRAW_WORK", 500)  # bands of a few rows
     banded = renderer.render(scene, ("image", "uv", "mask"))
     assert np.array_equal(whole.image, banded.image)
-    assert np.array_equal(whole.uv, banded.uv, equal_nan=True) and np.array_equal(whole.mask, banded.mask)
+    assert np.array_equal(whole.uv, banded.uv, equal_nan=True) and np.array_equal(
+        whole.mask, banded.mask
+    )
 
 
 def test_ctrl_c_stops_a_long_render_within_seconds(tmp_path):
     """4096² at 16 x 16 rays takes over a minute on a CPU; SIGINT must end it promptly."""
     out = tmp_path / "big.png"
-    process = subprocess.Popen([sys.executable, "-m", "glshade", "render", "--size", "4096", "--supersample", "16",
-                                "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "glshade",
+            "render",
+            "--size",
+            "4096",
+            "--supersample",
+            "16",
+            "-o",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     time.sleep(4.0)  # past start-up, into the bands
     if process.poll() is not None:
         pytest.skip("the render finished within 4 s (a fast GPU): nothing to interrupt")
@@ -325,14 +529,19 @@ def test_ctrl_c_stops_a_long_render_within_seconds(tmp_path):
 def test_work_budget_refuses_up_front(renderer):
     scene = paper_scene().with_size(64).updated(render={"supersample": 4})
     small = renderer_module.Renderer(renderer.context, max_rays=64 * 64 * 16 - 1)
-    with pytest.raises(GlshadeError, match=r"64x64 pixels x 16 rays \(x 1 aperture and lobe samples\) = 6.55e\+04 rays, more than the work budget"):
+    with pytest.raises(
+        GlshadeError,
+        match=r"64x64 pixels x 16 rays \(x 1 aperture and lobe samples\) = 6.55e\+04 rays, more than the work budget",
+    ):
         small.render(scene)
     small.release()
 
 
 # --------------------------------------------------------------------------- lobes
 def test_lobe_footprint_is_twice_the_lobe_times_the_distance():
-    scene = paper_scene()  # flat, θ 45: the centre ray reflects into the emitter's centre, 256 mm away
+    scene = (
+        paper_scene()
+    )  # flat, θ 45: the centre ray reflects into the emitter's centre, 256 mm away
     assert footprint_mm(scene, 1e-3) == pytest.approx(2 * 1e-3 * scene.emitter.distance, rel=1e-3)
 
 
@@ -341,8 +550,13 @@ def test_lobe_warning_and_a_default_that_shows_the_stripes(renderer):
     assert scene_warnings(scene) == ()
     old = scene.updated(render={"reflection": "blinn-phong", "shininess": 1000.0})
     (line,) = scene_warnings(old)
-    assert line.startswith("render.reflection = blinn-phong: the lobe spreads each point over 32.4 mm of the emitter, "
-                           "more than half the 2 mm stripe period") and "render.shininess >= 1.05e+06" in line
+    assert (
+        line.startswith(
+            "render.reflection = blinn-phong: the lobe spreads each point over 32.4 mm of the emitter, "
+            "more than half the 2 mm stripe period"
+        )
+        and "render.shininess >= 1.05e+06" in line
+    )
     default = scene.updated(render={"reflection": "blinn-phong"})
     assert scene_warnings(default) == ()
     assert scene_warnings(default.updated(render={"shininess": 1.1e6})) == ()
@@ -366,7 +580,11 @@ def test_the_scene_format_is_in_the_repository_and_linked(tmp_path):
     path = tmp_path / "example.toml"
     path.write_text(example)
     scene = Scene.load(path)
-    assert (scene.surface.kind, scene.camera.theta_deg, scene.defect.dmax) == ("cylinder", 15.0, 0.003)
+    assert (scene.surface.kind, scene.camera.theta_deg, scene.defect.dmax) == (
+        "cylinder",
+        15.0,
+        0.003,
+    )
 
 
 def test_measure_refuses_bad_input_before_rendering(tmp_path):
@@ -374,13 +592,17 @@ def test_measure_refuses_bad_input_before_rendering(tmp_path):
 
     bad = tmp_path / "bad.toml"
     bad.write_bytes(b"[defect]\ndmax = 0.005\n# \xff\n")
-    for scene, fragment in ((tmp_path / "missing.toml", "scene file: must be an existing TOML file"),
-                            (bad, "must be UTF-8 text (byte 0xff on line 3"),
-                            (42, "scene: must be a glshade Scene or the path of a scene file, got int")):
+    for scene, fragment in (
+        (tmp_path / "missing.toml", "scene file: must be an existing TOML file"),
+        (bad, "must be UTF-8 text (byte 0xff on line 3"),
+        (42, "scene: must be a glshade Scene or the path of a scene file, got int"),
+    ):
         with pytest.raises(GlshadeError, match=re.escape(fragment)) as info:
             glshade.measure(scene)
         assert _one_line(info.value)
     os.mkfifo(tmp_path / "fifo.png")
     for overlay, fragment in (("o.jpg", "lossy"), (tmp_path / "fifo.png", "is a FIFO")):
         with pytest.raises(GlshadeError, match=fragment):
-            glshade.measure(paper_scene().with_size(32), overlay=overlay, renderer=object())  # never reaches it
+            glshade.measure(
+                paper_scene().with_size(32), overlay=overlay, renderer=object()
+            )  # never reaches it

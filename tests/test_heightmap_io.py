@@ -31,14 +31,20 @@ def test_npy_in_any_real_dtype(tmp_path):
         np.save(tmp_path / "m.npy", (MAP * 1000).astype(dtype))
         got = read_height_map(tmp_path / "m.npy", scale=0.001)
         assert isinstance(got, HeightMap) and got.source == str(tmp_path / "m.npy")
-        assert got.heights.dtype == np.float64 and got.heights.shape == (5, 6) and got.spacing_mm is None
+        assert (
+            got.heights.dtype == np.float64
+            and got.heights.shape == (5, 6)
+            and got.spacing_mm is None
+        )
         assert got.heights == pytest.approx(MAP, abs=1e-9)
 
 
 def test_the_scale_is_mm_per_stored_unit(tmp_path):
     np.save(tmp_path / "m.npy", MAP.astype(np.float32))
     assert read_height_map(tmp_path / "m.npy").heights == pytest.approx(MAP, abs=1e-7)
-    assert read_height_map(tmp_path / "m.npy", scale=-2.5).heights == pytest.approx(-2.5 * MAP, abs=1e-6)
+    assert read_height_map(tmp_path / "m.npy", scale=-2.5).heights == pytest.approx(
+        -2.5 * MAP, abs=1e-6
+    )
 
 
 def test_x3p_is_metres_with_x_along_columns_and_y_along_rows(tmp_path):
@@ -46,7 +52,9 @@ def test_x3p_is_metres_with_x_along_columns_and_y_along_rows(tmp_path):
     # The file itself: SizeX counts the 6 columns, SizeY the 5 rows, x varies fastest.
     xml = zipfile.ZipFile(tmp_path / "m.x3p").read("main.xml").decode()
     assert "<SizeX>6</SizeX>" in xml and "<SizeY>5</SizeY>" in xml
-    got = read_height_map(tmp_path / "m.x3p", scale=123.0)  # the scale does not apply: the file has units
+    got = read_height_map(
+        tmp_path / "m.x3p", scale=123.0
+    )  # the scale does not apply: the file has units
     assert got.heights.shape == (5, 6)
     assert got.heights == pytest.approx(MAP, rel=1e-12)  # [row, column] = [y index, x index]
     assert got.heights[0, 1] == pytest.approx(0.001) and got.heights[1, 0] == pytest.approx(0.006)
@@ -105,7 +113,11 @@ def _x3p_with_x_increment(path, increment):
     """An x3p whose x increment x3pio would not write (checksum made to match)."""
     x3pio.write(path.with_suffix(".tmp"), MAP * 1e-3, x_scale=20e-6, y_scale=30e-6)
     src = zipfile.ZipFile(path.with_suffix(".tmp"))
-    xml = src.read("main.xml").decode().replace("<Increment>2e-05</Increment>", f"<Increment>{increment}</Increment>")
+    xml = (
+        src.read("main.xml")
+        .decode()
+        .replace("<Increment>2e-05</Increment>", f"<Increment>{increment}</Increment>")
+    )
     with zipfile.ZipFile(path, "w") as out:
         out.writestr("main.xml", xml)
         out.writestr("md5checksum.hex", hashlib.md5(xml.encode()).hexdigest() + " *main.xml\n")
@@ -119,35 +131,115 @@ REFUSALS = [
     ("m.csv", lambda p: p.write_text("1,2"), "a height map file (.npy, .x3p, .tif, .tiff, .png)"),
     ("noext", lambda p: p.write_text("1,2"), "a height map file (.npy"),
     ("dir.npy", lambda p: p.mkdir(), "not a directory"),
-    ("corrupt.npy", lambda p: p.write_bytes(b"\x93NUMPY garbage"), "a readable height map (corrupt.npy: "),
+    (
+        "corrupt.npy",
+        lambda p: p.write_bytes(b"\x93NUMPY garbage"),
+        "a readable height map (corrupt.npy: ",
+    ),
     ("empty.npy", lambda p: p.write_bytes(b""), "a readable height map (empty.npy: "),
-    ("short.npy", lambda p: p.write_bytes(_npy_bytes(np.zeros((50, 50)))[:200]), "a readable height map (short.npy"),
-    ("corrupt.x3p", lambda p: p.write_bytes(b"PK\x03\x04 not a zip"), "a readable height map (corrupt.x3p: "),
-    ("corrupt.tif", lambda p: p.write_bytes(b"II*\x00garbage"), "a readable height map (corrupt.tif: "),
-    ("corrupt.png", lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n garbage"), "a readable PNG (corrupt.png"),
-    ("complex.npy", lambda p: np.save(p, MAP.astype(complex)), "real integers or floats (complex.npy holds complex128)"),
+    (
+        "short.npy",
+        lambda p: p.write_bytes(_npy_bytes(np.zeros((50, 50)))[:200]),
+        "a readable height map (short.npy",
+    ),
+    (
+        "corrupt.x3p",
+        lambda p: p.write_bytes(b"PK\x03\x04 not a zip"),
+        "a readable height map (corrupt.x3p: ",
+    ),
+    (
+        "corrupt.tif",
+        lambda p: p.write_bytes(b"II*\x00garbage"),
+        "a readable height map (corrupt.tif: ",
+    ),
+    (
+        "corrupt.png",
+        lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n garbage"),
+        "a readable PNG (corrupt.png",
+    ),
+    (
+        "complex.npy",
+        lambda p: np.save(p, MAP.astype(complex)),
+        "real integers or floats (complex.npy holds complex128)",
+    ),
     ("bool.npy", lambda p: np.save(p, MAP > 0.01), "real integers or floats (bool.npy holds bool)"),
-    ("object.npy", lambda p: np.save(p, MAP.astype(object), allow_pickle=True), "(object.npy holds object)"),
-    ("struct.npy", lambda p: np.save(p, np.zeros((5, 5), [("a", "f8"), ("b", "f8")])), "real integers or floats"),
-    ("cube.npy", lambda p: np.save(p, np.zeros((4, 4, 4))), "a 2-D map, rows x columns (cube.npy has shape (4, 4, 4))"),
+    (
+        "object.npy",
+        lambda p: np.save(p, MAP.astype(object), allow_pickle=True),
+        "(object.npy holds object)",
+    ),
+    (
+        "struct.npy",
+        lambda p: np.save(p, np.zeros((5, 5), [("a", "f8"), ("b", "f8")])),
+        "real integers or floats",
+    ),
+    (
+        "cube.npy",
+        lambda p: np.save(p, np.zeros((4, 4, 4))),
+        "a 2-D map, rows x columns (cube.npy has shape (4, 4, 4))",
+    ),
     ("line.npy", lambda p: np.save(p, np.zeros(16)), "a 2-D map"),
-    ("small.npy", lambda p: np.save(p, np.zeros((3, 8))), "at least 4 x 4 samples (small.npy has 3 rows x 8 columns)"),
-    ("nan.npy", lambda p: np.save(p, _nan_at(1, 2)), "(nan.npy has 2 NaN or Inf samples, the first at row 1, column 2)"),
-    ("inf.tif", lambda p: tifffile.imwrite(p, np.full((5, 5), -np.inf, np.float32)), "25 NaN or Inf samples"),
-    ("hole.x3p", lambda p: x3pio.write(p, _nan_at(3, 0) * 1e-3, x_scale=1e-5, y_scale=1e-5),
-     "x3p marks unmeasured points so: fill them first), the first at row 3, column 0"),
-    ("rgb.png", lambda p: cv2.imwrite(str(p), np.zeros((5, 5, 3), np.uint16)), "(rgb.png is 16-bit with 3 channels)"),
-    ("eight.png", lambda p: cv2.imwrite(str(p), np.zeros((5, 5), np.uint8)), "(eight.png is 8-bit greyscale)"),
-    ("int.tif", lambda p: tifffile.imwrite(p, np.zeros((5, 5), np.int16)), "unsigned integers (int.tif holds int16)"),
-    ("half.tif", lambda p: tifffile.imwrite(p, np.zeros((5, 5), np.float16)), "(half.tif holds float16)"),
+    (
+        "small.npy",
+        lambda p: np.save(p, np.zeros((3, 8))),
+        "at least 4 x 4 samples (small.npy has 3 rows x 8 columns)",
+    ),
+    (
+        "nan.npy",
+        lambda p: np.save(p, _nan_at(1, 2)),
+        "(nan.npy has 2 NaN or Inf samples, the first at row 1, column 2)",
+    ),
+    (
+        "inf.tif",
+        lambda p: tifffile.imwrite(p, np.full((5, 5), -np.inf, np.float32)),
+        "25 NaN or Inf samples",
+    ),
+    (
+        "hole.x3p",
+        lambda p: x3pio.write(p, _nan_at(3, 0) * 1e-3, x_scale=1e-5, y_scale=1e-5),
+        "x3p marks unmeasured points so: fill them first), the first at row 3, column 0",
+    ),
+    (
+        "rgb.png",
+        lambda p: cv2.imwrite(str(p), np.zeros((5, 5, 3), np.uint16)),
+        "(rgb.png is 16-bit with 3 channels)",
+    ),
+    (
+        "eight.png",
+        lambda p: cv2.imwrite(str(p), np.zeros((5, 5), np.uint8)),
+        "(eight.png is 8-bit greyscale)",
+    ),
+    (
+        "int.tif",
+        lambda p: tifffile.imwrite(p, np.zeros((5, 5), np.int16)),
+        "unsigned integers (int.tif holds int16)",
+    ),
+    (
+        "half.tif",
+        lambda p: tifffile.imwrite(p, np.zeros((5, 5), np.float16)),
+        "(half.tif holds float16)",
+    ),
     ("rgb.tif", lambda p: tifffile.imwrite(p, np.zeros((5, 5, 3), np.uint8)), "a 2-D map"),
-    ("profile.x3p", lambda p: x3pio.write(p, np.zeros(10), x_scale=1e-5), "(profile.x3p holds a profile)"),
-    ("cloud.x3p", lambda p: x3pio.write_points(p, np.random.default_rng(1).uniform(0, 1e-3, (20, 3))),
-     "(cloud.x3p holds a pointcloud)"),
-    ("irregular.x3p", lambda p: x3pio.Surface.from_points(_irregular_points()).save(p),
-     "(irregular.x3p is a non-regular grid"),
-    ("backwards.x3p", lambda p: _x3p_with_x_increment(p, "-2e-05"),
-     "positive spacings (backwards.x3p has x increment -2e-05 m, y increment 3e-05 m)"),
+    (
+        "profile.x3p",
+        lambda p: x3pio.write(p, np.zeros(10), x_scale=1e-5),
+        "(profile.x3p holds a profile)",
+    ),
+    (
+        "cloud.x3p",
+        lambda p: x3pio.write_points(p, np.random.default_rng(1).uniform(0, 1e-3, (20, 3))),
+        "(cloud.x3p holds a pointcloud)",
+    ),
+    (
+        "irregular.x3p",
+        lambda p: x3pio.Surface.from_points(_irregular_points()).save(p),
+        "(irregular.x3p is a non-regular grid",
+    ),
+    (
+        "backwards.x3p",
+        lambda p: _x3p_with_x_increment(p, "-2e-05"),
+        "positive spacings (backwards.x3p has x increment -2e-05 m, y increment 3e-05 m)",
+    ),
     ("zero.x3p", lambda p: _x3p_with_x_increment(p, "0.0"), "a readable height map (zero.x3p: "),
     ("line\nbreak.npy", lambda p: np.save(p, np.zeros((2, 8))), "line\\nbreak.npy has 2 rows"),
 ]
@@ -186,10 +278,14 @@ def test_the_largest_side(tmp_path, monkeypatch):
     monkeypatch.setattr(heightmap_io, "MAX_SIDE", 6)
     assert read_height_map(tmp_path / "m.npy").heights.shape == (5, 6)
     monkeypatch.setattr(heightmap_io, "MAX_SIDE", 5)
-    with pytest.raises(SceneError, match=r"at most 5 samples a side \(m.npy has 5 rows x 6 columns\)"):
+    with pytest.raises(
+        SceneError, match=r"at most 5 samples a side \(m.npy has 5 rows x 6 columns\)"
+    ):
         read_height_map(tmp_path / "m.npy")
     x3pio.write(tmp_path / "m.x3p", np.zeros((6, 5)), x_scale=1e-5, y_scale=1e-5)
-    with pytest.raises(SceneError, match=r"at most 5 samples a side \(m.x3p has 6 rows x 5 columns\)"):
+    with pytest.raises(
+        SceneError, match=r"at most 5 samples a side \(m.x3p has 6 rows x 5 columns\)"
+    ):
         read_height_map(tmp_path / "m.x3p")
 
 

@@ -17,13 +17,26 @@ from glshade.gpu.renderer import Renderer
 from glshade.metrics.measurement import measure_scene
 from glshade.scene import paper_scene
 
-KEYS = ("visibility_px", "visibility_continuous_px", "deflection_px", "folded", "islands", "best_phase_mm")
+KEYS = (
+    "visibility_px",
+    "visibility_continuous_px",
+    "deflection_px",
+    "folded",
+    "islands",
+    "best_phase_mm",
+)
 FOLDING = ["--surface", "flat", "--theta", "5", "--sigma2", "1", "--dmax", "0.005"]
 
 
 def cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "glshade", "measure", *args],
-                          capture_output=True, text=True, timeout=300, cwd=cwd, check=False)
+    return subprocess.run(
+        [sys.executable, "-m", "glshade", "measure", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=cwd,
+        check=False,
+    )
 
 
 def as_json(result) -> dict:
@@ -59,7 +72,12 @@ def test_table_and_overlay(tmp_path):
     numbers = {line.split()[0]: line.split()[1] for line in text.splitlines()[1:4]}
     assert float(numbers["deflection_px"]) == pytest.approx(18.0 / 4, rel=0.05)
     pixels = read_png(png)  # a matplotlib figure: RGB or RGBA
-    assert pixels.ndim == 3 and pixels.shape[0] > 100 and pixels.shape[1] > 100 and pixels.shape[2] in (3, 4)
+    assert (
+        pixels.ndim == 3
+        and pixels.shape[0] > 100
+        and pixels.shape[1] > 100
+        and pixels.shape[2] in (3, 4)
+    )
     assert pixels.dtype == np.uint8 and pixels.std() > 10  # a picture, not a blank
     assert sorted(p.name for p in tmp_path.iterdir()) == ["overlay.png"]  # no temporary left over
 
@@ -80,7 +98,10 @@ def test_python_api_gives_the_cli_numbers():
         (["--theta", "95"], "camera.theta_deg: must be in (0, 90)"),
         (["--step", "3"], "step: must be at most one stripe period (2 mm)"),
         (["--threshold", "1.5"], "threshold: must be in (0, 1)"),
-        (["--overlay", "no_such_dir/overlay.png"], "--overlay no_such_dir/overlay.png: directory no_such_dir does not exist"),
+        (
+            ["--overlay", "no_such_dir/overlay.png"],
+            "--overlay no_such_dir/overlay.png: directory no_such_dir does not exist",
+        ),
     ],
     ids=["missing-scene", "theta", "step", "threshold", "overlay-dir"],
 )
@@ -119,7 +140,11 @@ def test_viewer_reports_what_measure_reports(size, theta):
     assert r.visibility_px == truth.visibility_px and r.visibility_px > 0
     assert r.continuous_px == truth.visibility_continuous_px
     assert r.deflection_px == truth.deflection_px
-    assert (r.folded, r.islands, r.best_phase_mm) == (truth.folded, truth.islands, truth.best_phase_mm)
+    assert (r.folded, r.islands, r.best_phase_mm) == (
+        truth.folded,
+        truth.islands,
+        truth.best_phase_mm,
+    )
     # the live comparison at phase 0 is the sweep's first phase (no registration offset here)
     assert truth.offset_px == (0, 0) and r.at_phase_px == truth.per_phase[0].distance_px
     model.close()

@@ -18,6 +18,7 @@ import math
 import cv2
 import numpy as np
 import pytest
+from tests.test_components import check_absent_code
 
 from glshade.components.camera_model import distort, undistort
 from glshade.components.registry import registry
@@ -25,7 +26,6 @@ from glshade.errors import SceneError
 from glshade.metrics.measurement import measure_scene, shades_from_map
 from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
-from tests.test_components import check_absent_code
 
 
 def j1(x: float) -> float:
@@ -79,21 +79,31 @@ def test_thin_lens_tends_to_the_pinhole_and_is_sharp_on_the_stripes(renderer):
     assert np.abs(tiny - pinhole).max() < 1e-4
     # focused on the stripes' mirror image (Dc + De along the axis) a flat mirror is sharp
     far = scene.camera.distance + scene.emitter.distance
-    sharp = renderer.render(scene.updated(camera={"f_number": 2.8, "focus_distance": far, "aperture_samples": 64}))
+    sharp = renderer.render(
+        scene.updated(camera={"f_number": 2.8, "focus_distance": far, "aperture_samples": 64})
+    )
     assert np.abs(sharp.image - pinhole).max() < 2e-3
     blurred = renderer.render(scene.updated(camera={"f_number": 2.8, "aperture_samples": 64})).image
     assert np.abs(blurred - pinhole).max() > 0.3
 
 
 def test_thin_lens_agrees_with_the_oracle(renderer):
-    scene = paper_scene("flat", 30.0, 2.0, 0.005).with_size(24).updated(
-        camera={"f_number": 8.0, "aperture_samples": 16, "focus_distance": 300.0})
+    scene = (
+        paper_scene("flat", 30.0, 2.0, 0.005)
+        .with_size(24)
+        .updated(camera={"f_number": 8.0, "aperture_samples": 16, "focus_distance": 300.0})
+    )
     for precision, tol in (("fp32", 2e-4), ("fp64", 1e-6)):
         s = scene.updated(render={"precision": precision})
-        shader, oracle = renderer.render(s, ("image", "uv", "mask")), tracer.trace(s, ("image", "uv", "mask"))
+        shader, oracle = (
+            renderer.render(s, ("image", "uv", "mask")),
+            tracer.trace(s, ("image", "uv", "mask")),
+        )
         assert (shader.mask == oracle.mask).all()
         assert np.abs(shader.image - oracle.image).max() < tol * 10
-        assert np.nanmax(np.abs(shader.uv - oracle.uv)) < max(tol, 5e-4 if precision == "fp32" else 0)
+        assert np.nanmax(np.abs(shader.uv - oracle.uv)) < max(
+            tol, 5e-4 if precision == "fp32" else 0
+        )
 
 
 # ------------------------------------------------------------------ distortion
@@ -103,7 +113,9 @@ CALIBRATED = (-0.21, 0.08, 0.0012, -0.0009, -0.015)  # a typical cv2.calibrateCa
 def camera_matrix(scene: Scene) -> np.ndarray:
     cam = scene.camera
     f = cam.focal / cam.pixel_pitch
-    return np.array([[f, 0.0, cam.width / 2 - 0.5], [0.0, f, cam.height / 2 - 0.5], [0.0, 0.0, 1.0]])
+    return np.array(
+        [[f, 0.0, cam.width / 2 - 0.5], [0.0, f, cam.height / 2 - 0.5], [0.0, 0.0, 1.0]]
+    )
 
 
 def test_distorted_rays_project_back_onto_their_pixels():
@@ -113,7 +125,9 @@ def test_distorted_rays_project_back_onto_their_pixels():
     _, d = registry().active(scene).camera.pixel_rays(scene)
     forward, right, up = scene.camera.basis()
     points = np.stack([d @ right, -(d @ up), d @ forward], axis=-1).reshape(-1, 1, 3)
-    projected, _ = cv2.projectPoints(points, np.zeros(3), np.zeros(3), camera_matrix(scene), np.array(CALIBRATED))
+    projected, _ = cv2.projectPoints(
+        points, np.zeros(3), np.zeros(3), camera_matrix(scene), np.array(CALIBRATED)
+    )
     rows, cols = np.mgrid[0:48, 0:48]
     expected = np.stack([cols, rows], axis=-1).reshape(-1, 1, 2)
     assert np.abs(projected - expected).max() < 1e-6
@@ -124,8 +138,12 @@ def test_undistortion_matches_opencv():
     scene = flat(30.0, 1024)
     k = camera_matrix(scene)
     criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-14)
-    ours = np.stack(undistort(CALIBRATED, (pixels[..., 0] - k[0, 2]) / k[0, 0], (pixels[..., 1] - k[1, 2]) / k[1, 1]),
-                    axis=-1)
+    ours = np.stack(
+        undistort(
+            CALIBRATED, (pixels[..., 0] - k[0, 2]) / k[0, 0], (pixels[..., 1] - k[1, 2]) / k[1, 1]
+        ),
+        axis=-1,
+    )
     theirs = cv2.undistortPoints(pixels, k, np.array(CALIBRATED), None, None, None, criteria)
     assert np.abs(ours - theirs).max() * k[0, 0] < 1e-6  # pixels
     back = np.stack(distort(CALIBRATED, ours[..., 0], ours[..., 1]), axis=-1)
@@ -146,11 +164,19 @@ def test_distortion_agrees_with_the_oracle_and_bends_lines(renderer):
 
 
 def test_a_distortion_that_folds_inside_the_sensor_is_refused():
-    with pytest.raises(SceneError, match="camera.distortion: must be coefficients whose map does not fold"):
+    with pytest.raises(
+        SceneError, match="camera.distortion: must be coefficients whose map does not fold"
+    ):
         flat().updated(camera={"distortion": [-20.0, 0.0, 0.0, 0.0, 0.0]})
     # the same coefficient on a narrower sensor folds outside it: accepted
-    flat().updated(camera={"width": 512, "height": 512, "pixel_pitch": 0.005,
-                           "distortion": [-20.0, 0.0, 0.0, 0.0, 0.0]})
+    flat().updated(
+        camera={
+            "width": 512,
+            "height": 512,
+            "pixel_pitch": 0.005,
+            "distortion": [-20.0, 0.0, 0.0, 0.0, 0.0],
+        }
+    )
 
 
 # ------------------------------------------------------------------ microfacets
@@ -170,15 +196,20 @@ def _hits(scene: Scene, rows: slice, cols: slice):
 def test_microfacet_lobes_agree_with_monte_carlo(renderer, lobe):
     """The closed form and the lattice against the oracle's Monte-Carlo (2^16 samples a
     pixel): within 4 standard errors plus the method's own error."""
-    scene = paper_scene("flat", 30.0, 4.0, 0.005).with_size(32).updated(
-        render={"reflection": lobe, "roughness": 0.002})
+    scene = (
+        paper_scene("flat", 30.0, 4.0, 0.005)
+        .with_size(32)
+        .updated(render={"reflection": lobe, "roughness": 0.002})
+    )
     rows, cols = slice(14, 18), slice(12, 20)
     parts, p, d, n = _hits(scene, rows, cols)
     mean, error = parts.reflection._monte_carlo(scene, p, d, n, 1 << 16, 11)
     assert 0.05 < mean.max() - mean.min()  # the stripes are still there
     closed = renderer.render(scene).image[rows, cols].ravel()
     assert np.abs(closed - mean).max() < 4 * error.max() + 1e-3
-    lattice = renderer.render(scene.updated(render={"lobe_method": "lattice", "lobe_samples": 1024})).image
+    lattice = renderer.render(
+        scene.updated(render={"lobe_method": "lattice", "lobe_samples": 1024})
+    ).image
     assert np.abs(lattice[rows, cols].ravel() - mean).max() < 4 * error.max() + 1e-2
 
 
@@ -187,7 +218,9 @@ def test_microfacet_lobes_agree_with_monte_carlo(renderer, lobe):
 def test_microfacet_tends_to_the_mirror(renderer, lobe, method):
     scene = flat(30.0, 48)
     mirror = renderer.render(scene).image
-    rough = scene.updated(render={"reflection": lobe, "roughness": 1e-6, "lobe_method": method, "lobe_samples": 16})
+    rough = scene.updated(
+        render={"reflection": lobe, "roughness": 1e-6, "lobe_method": method, "lobe_samples": 16}
+    )
     assert np.abs(renderer.render(rough).image - mirror).max() < 2e-3
     wider = renderer.render(rough.updated(render={"roughness": 0.003})).image
     assert np.ptp(wider) < 0.8 * np.ptp(mirror)  # a rough lobe washes the stripes out
@@ -195,24 +228,29 @@ def test_microfacet_tends_to_the_mirror(renderer, lobe, method):
 
 # ------------------------------------------------------------------ eq. (1)
 def test_eq1_mirror_and_its_lambertian_remainder_agree_with_the_oracle(renderer):
-    scene = paper_scene("flat", 20.0, 4.0, 0.005).with_size(24).updated(render={"height_rms_um": 0.04})
+    scene = (
+        paper_scene("flat", 20.0, 4.0, 0.005).with_size(24).updated(render={"height_rms_um": 0.04})
+    )
     shader, oracle = renderer.render(scene), tracer.trace(scene, ("image",))
     assert np.abs(shader.image - oracle.image).max() < 2e-4
 
 
 def test_eq1_turns_a_rough_finish_into_a_mirror_at_grazing_views(renderer):
     """The same finish: mostly scattered seen from above, mostly coherent from the side."""
+
     def contrast(theta):
         """The stripes' contrast with eq. (1) over the mirror's, in the central 8 x 8 pixels
         (the Lambertian remainder is smooth there)."""
         scene = flat(theta, 256)
-        rough = renderer.render(scene.updated(render={"height_rms_um": 0.05})).image[124:132, 124:132]
+        rough = renderer.render(scene.updated(render={"height_rms_um": 0.05})).image[
+            124:132, 124:132
+        ]
         return float(np.ptp(rough) / np.ptp(renderer.render(scene).image[124:132, 124:132]))
 
     high, low = contrast(85.0), contrast(5.0)
     k = 4 * math.pi * 0.05 / 0.55
-    assert high == pytest.approx(math.exp(-(k * math.sin(math.radians(85.0))) ** 2), abs=0.01)
-    assert low == pytest.approx(math.exp(-(k * math.sin(math.radians(5.0))) ** 2), abs=0.01)
+    assert high == pytest.approx(math.exp(-((k * math.sin(math.radians(85.0))) ** 2)), abs=0.01)
+    assert low == pytest.approx(math.exp(-((k * math.sin(math.radians(5.0))) ** 2)), abs=0.01)
     assert low > 0.95 and high < 0.4
 
 
@@ -231,10 +269,14 @@ FRESNEL_TABLE = [
 @pytest.mark.parametrize("n, k, incidence, expected", FRESNEL_TABLE)
 def test_fresnel_against_tabulated_values(renderer, n, k, incidence, expected):
     kind = "conductor" if k else "dielectric"
-    scene = flat(max(0.2, 90.0 - incidence), 32).updated(render={"fresnel": kind, "ior": n, "extinction": k})
+    scene = flat(max(0.2, 90.0 - incidence), 32).updated(
+        render={"fresnel": kind, "ior": n, "extinction": k}
+    )
     component = registry().active(scene).fresnel
     cos_i = math.cos(math.radians(incidence))
-    assert float(component.reflectance(scene, np.array([cos_i]))[0]) == pytest.approx(expected, abs=2e-3)
+    assert float(component.reflectance(scene, np.array([cos_i]))[0]) == pytest.approx(
+        expected, abs=2e-3
+    )
     # the shader at the gaze point: radiance x R(theta_i) (incidence = 90 - theta there)
     if incidence < 89.0:
         mirror = renderer.render(flat(90.0 - incidence, 32).updated(emitter={"phase": 0.0})).image
@@ -245,7 +287,9 @@ def test_fresnel_against_tabulated_values(renderer, n, k, incidence, expected):
 
 # ------------------------------------------------------------------ sensor
 def test_sensor_noise_statistics_on_a_uniform_image():
-    scene = flat(size=8).updated(sensor={"full_well_e": 10000.0, "read_noise_e": 5.0, "bit_depth": 16, "seed": 4})
+    scene = flat(size=8).updated(
+        sensor={"full_well_e": 10000.0, "read_noise_e": 5.0, "bit_depth": 16, "seed": 4}
+    )
     sensor = registry().active(scene).sensor
     uniform = np.full((400, 400), 0.5, np.float32)
     image = sensor.develop(scene, uniform).astype(np.float64)
@@ -253,14 +297,20 @@ def test_sensor_noise_statistics_on_a_uniform_image():
     assert image.mean() == pytest.approx(0.5, abs=3e-4)
     assert image.var() == pytest.approx(expected_var, rel=0.03)
     # bit depth: 8 bits store multiples of 1/255; the full well clips at 1
-    coarse = sensor.develop(scene.updated(sensor={"bit_depth": 8}), np.full((50, 50), 2.0, np.float32))
+    coarse = sensor.develop(
+        scene.updated(sensor={"bit_depth": 8}), np.full((50, 50), 2.0, np.float32)
+    )
     assert (coarse == 1.0).all()
     eight = sensor.develop(scene.updated(sensor={"bit_depth": 8}), uniform)
     assert np.allclose(eight * 255.0, np.round(eight * 255.0), atol=1e-4)
     # deterministic in the seed, independent between exposures and seeds
     assert np.array_equal(sensor.develop(scene, uniform), sensor.develop(scene, uniform))
-    assert not np.array_equal(sensor.develop(scene, uniform), sensor.develop(scene, uniform, exposure=1))
-    assert not np.array_equal(sensor.develop(scene, uniform), sensor.develop(scene.updated(sensor={"seed": 5}), uniform))
+    assert not np.array_equal(
+        sensor.develop(scene, uniform), sensor.develop(scene, uniform, exposure=1)
+    )
+    assert not np.array_equal(
+        sensor.develop(scene, uniform), sensor.develop(scene.updated(sensor={"seed": 5}), uniform)
+    )
 
 
 def test_sensor_table_switches_it_on_and_round_trips(tmp_path):
@@ -285,12 +335,17 @@ def test_renderer_image_is_the_sensor_image(renderer):
 
 
 def test_sensor_noise_floor_is_reported(renderer):
-    scene = paper_scene("flat", 45.0, 4.0, 0.005).with_size(256).updated(
-        sensor={"full_well_e": 2000.0, "read_noise_e": 10.0, "bit_depth": 12})
+    scene = (
+        paper_scene("flat", 45.0, 4.0, 0.005)
+        .with_size(256)
+        .updated(sensor={"full_well_e": 2000.0, "read_noise_e": 10.0, "bit_depth": 12})
+    )
     result = measure_scene(renderer, scene)
     assert result.noise_floor_px is not None and 0.0 < result.noise_floor_px < result.visibility_px
     assert "noise_floor_px" in result.summary()
-    assert measure_scene(renderer, scene.updated(sensor={"full_well_e": None})).noise_floor_px is None
+    assert (
+        measure_scene(renderer, scene.updated(sensor={"full_well_e": None})).noise_floor_px is None
+    )
 
 
 def test_fresnel_keeps_the_visibility_through_the_image_level(renderer):
@@ -309,7 +364,9 @@ FEATURE_SCENES = {
     "lens+distortion": {"camera": {"f_number": 4.0, "distortion": list(CALIBRATED)}},
     "beckmann-closed": {"render": {"reflection": "beckmann", "roughness": 0.001}},
     "ggx-lattice": {"render": {"reflection": "ggx", "roughness": 0.001, "lobe_method": "lattice"}},
-    "ggx-sampling+eq1": {"render": {"reflection": "ggx", "lobe_method": "sampling", "height_rms_um": 0.02}},
+    "ggx-sampling+eq1": {
+        "render": {"reflection": "ggx", "lobe_method": "sampling", "height_rms_um": 0.02}
+    },
     "mirror+eq1": {"render": {"height_rms_um": 0.02}},
     "blinn+eq1": {"render": {"reflection": "blinn-phong", "height_rms_um": 0.02}},
     "conductor": {"render": {"fresnel": "conductor", "extinction": 3.0}},
@@ -330,7 +387,9 @@ def test_finding3_study_writes_its_report_and_the_study_quotes_it(tmp_path):
     from glshade.study import optics
 
     chosen = (optics.VARIANTS[0], optics.VARIANTS[4], optics.VARIANTS[5])  # mirror, Fresnel, sensor
-    report = optics.run(tmp_path, size=256, variants=chosen, thetas=(85.0, 45.0, 5.0), sigma2s=(4.0, 9.0, 16.0))
+    report = optics.run(
+        tmp_path, size=256, variants=chosen, thetas=(85.0, 45.0, 5.0), sigma2s=(4.0, 9.0, 16.0)
+    )
     text = report.read_text()
     assert "# Finding 3 under realistic optics" in text and "## Noise floor" in text
     rows = optics.read_rows(tmp_path / "finding3.csv")
@@ -339,4 +398,7 @@ def test_finding3_study_writes_its_report_and_the_study_quotes_it(tmp_path):
     assert all(r["noise_floor_px"] is not None for r in sensor_rows)
     assert all(r["noise_floor_px"] is None for r in rows if r["variant"] == "mirror")
     section = optics.report_section(tmp_path)
-    assert section[0] == "## Finding 3 under realistic optics" and sum("finding 3 " in line for line in section) >= 3
+    assert (
+        section[0] == "## Finding 3 under realistic optics"
+        and sum("finding 3 " in line for line in section) >= 3
+    )

@@ -25,7 +25,9 @@ IMAGE_TOL = {"fp32": 2e-3, "fp64": 1e-5}
 MASK_MISMATCH = 0.002
 
 
-def _case(surface: str, theta: float, *, radius=70.0, axis="z", defect: Defect | None = None) -> Scene:
+def _case(
+    surface: str, theta: float, *, radius=70.0, axis="z", defect: Defect | None = None
+) -> Scene:
     scene = paper_scene(surface, theta, 4.0, 0.005)
     scene = replace(scene, surface=Surface(kind=surface, radius=radius, axis=axis))
     if defect is not None:
@@ -66,8 +68,12 @@ def compare(actual, expected, precision: str) -> dict[str, float]:
     assert mismatch <= MASK_MISMATCH, f"mask differs on {mismatch:.2%} of the pixels"
     assert both.mean() > 0.05, "too few pixels reach the emitter for a meaningful comparison"
     assert uv_error <= UV_TOL[precision], f"uv error {uv_error:.3g} mm > {UV_TOL[precision]:g}"
-    assert uv_error_edge <= 4 * UV_TOL[precision], f"uv error at the mask's edge {uv_error_edge:.3g} mm"
-    assert image_error <= IMAGE_TOL[precision], f"image error {image_error:.3g} > {IMAGE_TOL[precision]:g}"
+    assert uv_error_edge <= 4 * UV_TOL[precision], (
+        f"uv error at the mask's edge {uv_error_edge:.3g} mm"
+    )
+    assert image_error <= IMAGE_TOL[precision], (
+        f"image error {image_error:.3g} > {IMAGE_TOL[precision]:g}"
+    )
     # where one says no hit, the uv map is NaN and the image black
     assert np.isnan(actual.uv[~actual.mask]).all() and (actual.image[~actual.mask] == 0).all()
     return {"uv": uv_error, "image": image_error, "mask": mismatch}
@@ -81,7 +87,9 @@ def test_shader_matches_reference_near_the_dent(renderer, name, precision):
     # a 48x48 window around the dent's image (the dent centre projects near the centre)
     rows = cols = slice(232, 280)
     expected = reference.trace(scene, ("image", "uv", "mask"), rows=rows, cols=cols)
-    window = type(frame)(image=frame.image[rows, cols], uv=frame.uv[rows, cols], mask=frame.mask[rows, cols])
+    window = type(frame)(
+        image=frame.image[rows, cols], uv=frame.uv[rows, cols], mask=frame.mask[rows, cols]
+    )
     compare(window, expected, precision)
 
 
@@ -105,7 +113,11 @@ def test_deep_bowl_hides_its_bottom(renderer):
 
 def test_supersampled_matches_reference(renderer):
     scene = CASES["sphere-convex-85"].with_size(32).updated(render={"supersample": 3})
-    compare(renderer.render(scene, ("image", "uv", "mask")), reference.trace(scene, ("image", "uv", "mask")), "fp32")
+    compare(
+        renderer.render(scene, ("image", "uv", "mask")),
+        reference.trace(scene, ("image", "uv", "mask")),
+        "fp32",
+    )
 
 
 @pytest.mark.parametrize("theta", [45.0, 15.0])

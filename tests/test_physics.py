@@ -29,20 +29,33 @@ def test_flat_closed_form_is_the_spec_number():
     for theta in (85.0, 45.0, 5.0):
         law = physics.laws(paper_scene("flat", theta, 1.0, 0.005))
         assert law.magnification == 1.0
-        assert law.deflection_px == pytest.approx(spec * (1 + 2 * math.cos(math.radians(theta)) / 256.0), rel=1e-12)
+        assert law.deflection_px == pytest.approx(
+            spec * (1 + 2 * math.cos(math.radians(theta)) / 256.0), rel=1e-12
+        )
         assert law.deflection_px == pytest.approx(18.0, rel=0.01)
 
 
-@pytest.mark.parametrize("surface, axis, theta, sigma2", [
-    ("flat", "z", 85.0, 16.0), ("flat", "z", 45.0, 4.0), ("flat", "z", 15.0, 9.0), ("flat", "z", 5.0, 16.0),
-    ("cylinder", "z", 45.0, 4.0), ("cylinder", "z", 15.0, 16.0),
-    ("cylinder", "x", 85.0, 4.0), ("cylinder", "x", 75.0, 16.0),
-    ("sphere", "z", 85.0, 4.0), ("sphere", "z", 75.0, 9.0),
-])
+@pytest.mark.parametrize(
+    "surface, axis, theta, sigma2",
+    [
+        ("flat", "z", 85.0, 16.0),
+        ("flat", "z", 45.0, 4.0),
+        ("flat", "z", 15.0, 9.0),
+        ("flat", "z", 5.0, 16.0),
+        ("cylinder", "z", 45.0, 4.0),
+        ("cylinder", "z", 15.0, 16.0),
+        ("cylinder", "x", 85.0, 4.0),
+        ("cylinder", "x", 75.0, 16.0),
+        ("sphere", "z", 85.0, 4.0),
+        ("sphere", "z", 75.0, 9.0),
+    ],
+)
 def test_deflection_law_within_3_percent(renderer, surface, axis, theta, sigma2):
     """Away from grazing views of a convex base: the deflection (and the convex base's
     magnification m) within 3 % of the rendered one."""
-    scene = paper_scene(surface, theta, sigma2, 0.005).updated(surface={"axis": axis}).with_size(SIZE)
+    scene = (
+        paper_scene(surface, theta, sigma2, 0.005).updated(surface={"axis": axis}).with_size(SIZE)
+    )
     law = physics.laws(scene)
     assert rendered_deflection(renderer, scene) == pytest.approx(law.deflection_px, rel=0.03)
 
@@ -54,7 +67,9 @@ def test_convex_magnification_shrinks_the_deflection(renderer):
     flat = paper_scene("flat", 45.0, 4.0, 0.005).with_size(SIZE)
     sphere = paper_scene("sphere", 45.0, 4.0, 0.005).with_size(SIZE)
     m = physics.laws(sphere).magnification
-    assert m == pytest.approx(1 + 2 * 175.6 * 256.0 / (70.0 * math.sin(math.radians(45.0)) * 431.6), rel=1e-12)
+    assert m == pytest.approx(
+        1 + 2 * 175.6 * 256.0 / (70.0 * math.sin(math.radians(45.0)) * 431.6), rel=1e-12
+    )
     ratio = rendered_deflection(renderer, flat) / rendered_deflection(renderer, sphere)
     assert ratio == pytest.approx(m, rel=0.12)
 
@@ -83,8 +98,12 @@ def test_fold_onset_law_against_the_folded_flag_on_the_whole_table_1_grid(render
 def test_fold_onset_elevations():
     """σ² 1, dmax 5 µm folds at every θ; σ² 4, dmax 5 µm below 15.1°; the sphere never."""
     assert physics.fold_onset_theta_deg(paper_scene("flat", 45.0, 1.0, 0.005)) == 90.0
-    assert physics.fold_onset_theta_deg(paper_scene("flat", 45.0, 4.0, 0.005)) == pytest.approx(15.09, abs=0.01)
-    assert physics.fold_onset_theta_deg(paper_scene("flat", 45.0, 1.0, 0.003)) == pytest.approx(38.68, abs=0.01)
+    assert physics.fold_onset_theta_deg(paper_scene("flat", 45.0, 4.0, 0.005)) == pytest.approx(
+        15.09, abs=0.01
+    )
+    assert physics.fold_onset_theta_deg(paper_scene("flat", 45.0, 1.0, 0.003)) == pytest.approx(
+        38.68, abs=0.01
+    )
     assert physics.fold_onset_theta_deg(paper_scene("sphere", 45.0, 1.0, 0.005)) == 0.0
     # a bump folds on its flanks, where the curvature is 2 e^(-3/2) of a dent's floor
     bump = physics.laws(paper_scene("flat", 45.0, 1.0, -0.005))
@@ -92,13 +111,16 @@ def test_fold_onset_elevations():
     assert bump.fold_ratio == pytest.approx(2 * math.exp(-1.5) * dent.fold_ratio)
 
 
-@pytest.mark.parametrize("surface, theta, sigma2, saddle", [
-    ("flat", 5.0, 1.0, False),      # capped at b sqrt(2 ln F): 5.5 px of an 18 px deflection
-    ("flat", 15.0, 1.0, False),     # 12.3 px
-    ("flat", 5.0, 4.0, False),      # 7.3 of 9.1 px
-    ("cylinder", 5.0, 1.0, True),   # the sagittal curvature lifts the saddles: 7.7 px
-    ("cylinder", 5.0, 4.0, True),   # ... and here removes the cap altogether
-])
+@pytest.mark.parametrize(
+    "surface, theta, sigma2, saddle",
+    [
+        ("flat", 5.0, 1.0, False),  # capped at b sqrt(2 ln F): 5.5 px of an 18 px deflection
+        ("flat", 15.0, 1.0, False),  # 12.3 px
+        ("flat", 5.0, 4.0, False),  # 7.3 of 9.1 px
+        ("cylinder", 5.0, 1.0, True),  # the sagittal curvature lifts the saddles: 7.7 px
+        ("cylinder", 5.0, 4.0, True),  # ... and here removes the cap altogether
+    ],
+)
 def test_fold_cap_law_against_the_continuous_limit(renderer, surface, theta, sigma2, saddle):
     scene = paper_scene(surface, theta, sigma2, 0.005).with_size(SIZE)
     law = physics.laws(scene)
@@ -106,9 +128,15 @@ def test_fold_cap_law_against_the_continuous_limit(renderer, surface, theta, sig
     assert result.folded and law.folds
     assert result.visibility_continuous_px == pytest.approx(law.visibility_px, rel=0.03)
     assert (law.saddle_rows > 0) == saddle
-    if not saddle:  # the plain cap: the band where the deflection exceeds the distance from the dent
-        focus = law.deflection_px * math.sqrt(math.e) / law.dent_extent_px  # F = D e^(1/2) / b, m = 1 here
-        assert law.visibility_px == pytest.approx(law.dent_extent_px * math.sqrt(2 * math.log(focus)), rel=1e-9)
+    if (
+        not saddle
+    ):  # the plain cap: the band where the deflection exceeds the distance from the dent
+        focus = (
+            law.deflection_px * math.sqrt(math.e) / law.dent_extent_px
+        )  # F = D e^(1/2) / b, m = 1 here
+        assert law.visibility_px == pytest.approx(
+            law.dent_extent_px * math.sqrt(2 * math.log(focus)), rel=1e-9
+        )
         assert law.visibility_px < 0.85 * law.deflection_px
 
 

@@ -71,7 +71,9 @@ def test_radiance_peaks_and_width():
     assert 2e-5 < tail < 5e-5
     # one sigma away from a peak: exp(-1/2) plus the two neighbours
     at_sigma = ref.radiance(em, 0.3 + sigma)
-    neighbours = math.exp(-((2.0 - sigma) ** 2) / (2 * sigma**2)) + math.exp(-((2.0 + sigma) ** 2) / (2 * sigma**2))
+    neighbours = math.exp(-((2.0 - sigma) ** 2) / (2 * sigma**2)) + math.exp(
+        -((2.0 + sigma) ** 2) / (2 * sigma**2)
+    )
     assert at_sigma == pytest.approx(math.exp(-0.5) + neighbours, abs=1e-15)
     # periodic, and a maximum at the peak
     v = np.linspace(-3, 3, 101)
@@ -94,7 +96,9 @@ def test_radiance_wide_stripes_sum_every_overlapping_stripe(sigma):
 def test_pixel_rays_follow_spec_and_windows():
     cam = Camera(theta_deg=30.0, width=7, height=5, pixel_pitch=0.01)
     origin, d = ref.pixel_rays(cam)
-    np.testing.assert_allclose(origin, cam.distance * np.array([0.0, 0.5, math.cos(math.radians(30))]), atol=1e-12)
+    np.testing.assert_allclose(
+        origin, cam.distance * np.array([0.0, 0.5, math.cos(math.radians(30))]), atol=1e-12
+    )
     np.testing.assert_allclose(d, _spec_directions(cam), atol=1e-15)
     assert d[0, 3, 1] > d[-1, 3, 1]  # row 0 looks higher (top of the image)
     assert d[2, -1, 0] > 0  # the last column looks towards +x
@@ -113,7 +117,9 @@ def test_surface_height_forms_and_domain():
     z = np.zeros_like(x)
     none = Defect(dmax=0.0)
     sphere = ref.surface_height(Surface("sphere", 70.0), none, x, z)
-    np.testing.assert_allclose(sphere[:5], np.sqrt(70.0**2 - x[:5] ** 2) - 70.0, rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(
+        sphere[:5], np.sqrt(70.0**2 - x[:5] ** 2) - 70.0, rtol=1e-12, atol=1e-13
+    )
     assert sphere[1] == pytest.approx(-(1e-4**2) / 140.0, rel=1e-9)  # the sag form keeps digits
     assert np.isnan(sphere[5])
     bowl = ref.surface_height(Surface("sphere", -70.0), none, x, z)
@@ -126,7 +132,9 @@ def test_surface_height_forms_and_domain():
     px, pz = 1.0 - 0.3, -1.0 + 0.2
     inv = np.linalg.inv(np.array([[2.0, 0.5], [0.5, 1.0]]))
     expected = -0.005 * math.exp(-0.5 * np.array([px, pz]) @ inv @ np.array([px, pz]))
-    assert ref.surface_height(Surface("flat"), dent, 1.0, -1.0) == pytest.approx(expected, rel=1e-14)
+    assert ref.surface_height(Surface("flat"), dent, 1.0, -1.0) == pytest.approx(
+        expected, rel=1e-14
+    )
 
 
 # --------------------------------------------------------------------------- flat mirror
@@ -150,7 +158,10 @@ def test_flat_uv_equals_mirror_image_construction():
 
 @pytest.mark.parametrize("theta", [85.0, 45.0, 5.0])
 def test_flat_centre_pixel_sees_the_emitter_centre(theta):
-    scene = replace(paper_scene("flat", theta_deg=theta, dmax=0.0), camera=Camera(theta_deg=theta, width=5, height=5))
+    scene = replace(
+        paper_scene("flat", theta_deg=theta, dmax=0.0),
+        camera=Camera(theta_deg=theta, width=5, height=5),
+    )
     frame = ref.trace(scene)
     np.testing.assert_allclose(frame.uv[2, 2], [0.0, 0.0], atol=1e-9)
     assert frame.image[2, 2] == pytest.approx(ref.radiance(scene.emitter, 0.0), abs=1e-12)
@@ -238,7 +249,9 @@ def test_sphere_silhouette_normals_stay_finite():
         assert valid[0] and np.isfinite(n).all()
         assert p[0, 2] == pytest.approx(math.sqrt(25.0 - lift * lift), abs=1e-12)
         if lift == 1e-4:
-            np.testing.assert_allclose(n[0], [0.0, lift / 5.0, math.sqrt(1 - (lift / 5.0) ** 2)], atol=1e-10)
+            np.testing.assert_allclose(
+                n[0], [0.0, lift / 5.0, math.sqrt(1 - (lift / 5.0) ** 2)], atol=1e-10
+            )
         else:
             assert abs(n[0, 1]) < 1e-6 and n[0, 2] > 1 - 1e-12
 
@@ -279,7 +292,11 @@ def test_rays_parallel_to_axes():
     assert valid[0]
     assert p[0, 1] == pytest.approx(math.sqrt(70.0**2 - 30.0**2) - 70.0, abs=1e-12)
     # the centre column of an odd image has dx = 0 exactly: in the plane of a z-axis cylinder
-    scene = Scene(camera=Camera(theta_deg=30.0, width=5, height=5), surface=Surface("cylinder", 70.0, "z"), defect=none)
+    scene = Scene(
+        camera=Camera(theta_deg=30.0, width=5, height=5),
+        surface=Surface("cylinder", 70.0, "z"),
+        defect=none,
+    )
     origin, dirs = ref.pixel_rays(scene.camera)
     assert (dirs[:, 2, 0] == 0).all()
     t, p, n, valid = ref.first_hit(scene, origin, dirs)
@@ -314,7 +331,9 @@ def test_deep_concave_bowl_hides_its_inside():
     origin, d = ref.pixel_rays(high.camera)
     t, p, n, valid = ref.first_hit(high, origin, d)
     assert valid[6:10, 6:10].all()
-    np.testing.assert_allclose(p[valid][:, 1], 20.0 - np.sqrt(400.0 - (p[valid][:, [0, 2]] ** 2).sum(1)), atol=1e-10)
+    np.testing.assert_allclose(
+        p[valid][:, 1], 20.0 - np.sqrt(400.0 - (p[valid][:, [0, 2]] ** 2).sum(1)), atol=1e-10
+    )
 
 
 def test_first_crossing_of_steep_bump_at_grazing_view():
@@ -373,7 +392,9 @@ def test_supersampling_is_the_mean_of_a_finer_camera():
     fine = base.with_size(32)
     a = ref.trace(coarse)
     b = ref.trace(fine)
-    blocks = lambda x: x.reshape(16, 2, 16, 2, *x.shape[2:]).swapaxes(1, 2).reshape(16, 16, 4, *x.shape[2:])
+    blocks = lambda x: (
+        x.reshape(16, 2, 16, 2, *x.shape[2:]).swapaxes(1, 2).reshape(16, 16, 4, *x.shape[2:])
+    )
     np.testing.assert_allclose(a.image, blocks(b.image).mean(axis=2), atol=1e-13)
     count = blocks(b.mask).sum(axis=2)
     assert ((count > 0) & (count < 4)).sum() >= 4  # partially covered pixels exist
@@ -456,7 +477,9 @@ def test_blinn_phong_converges_to_mirror():
     mirror = ref.trace(base, "image").image
     diffs = []
     for n in (1e6, 1e8):
-        bp = ref.trace(replace(base, render=RenderSettings(reflection="blinn-phong", shininess=n)), "image").image
+        bp = ref.trace(
+            replace(base, render=RenderSettings(reflection="blinn-phong", shininess=n)), "image"
+        ).image
         diffs.append(np.max(np.abs(bp - mirror)))
     assert diffs[0] > 0.05  # the lobe (0.5 mm on the emitter) blurs 0.42 mm stripes
     assert diffs[1] < 0.02 and diffs[1] < diffs[0] / 10
@@ -479,6 +502,9 @@ def test_blinn_phong_uniform_emitter_gives_one():
 
 
 def test_blinn_phong_rejects_tiny_exponents():
-    scene = replace(paper_scene("flat").with_size(2), render=RenderSettings(reflection="blinn-phong", shininess=10.0))
+    scene = replace(
+        paper_scene("flat").with_size(2),
+        render=RenderSettings(reflection="blinn-phong", shininess=10.0),
+    )
     with pytest.raises(SceneError, match="render.shininess"):
         ref.trace(scene, "image")

@@ -29,7 +29,9 @@ def test_only_requested_outputs_are_computed_and_read(renderer):
 
 
 def test_fp64_uv_is_float64(renderer):
-    frame = renderer.render(paper_scene().with_size(16).updated(render={"precision": "fp64"}), ("uv", "mask"))
+    frame = renderer.render(
+        paper_scene().with_size(16).updated(render={"precision": "fp64"}), ("uv", "mask")
+    )
     assert frame.uv.dtype == np.float64
     np.testing.assert_array_equal(np.isnan(frame.uv[..., 0]), ~frame.mask)
 
@@ -58,7 +60,9 @@ def _rss_bytes() -> int:
         return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
-@pytest.mark.skipif(not os.path.exists("/proc/self/statm"), reason="needs /proc to read the resident set size")
+@pytest.mark.skipif(
+    not os.path.exists("/proc/self/statm"), reason="needs /proc to read the resident set size"
+)
 def test_thousands_of_frames_do_not_grow_memory(renderer):
     scenes = [paper_scene(s).with_size(24) for s in ("flat", "cylinder", "sphere")]
     for scene in scenes * 20:  # warm-up: programs, targets, allocator pools
@@ -109,7 +113,9 @@ def test_blinn_phong_converges_to_mirror(renderer):
     mirror = renderer.render(scene).image
     errors = []
     for n in (1e5, 1e7, 1e9, 1e11):
-        phong = renderer.render(scene.updated(render={"reflection": "blinn-phong", "shininess": n})).image
+        phong = renderer.render(
+            scene.updated(render={"reflection": "blinn-phong", "shininess": n})
+        ).image
         errors.append(float(np.abs(phong - mirror).max()))
     assert errors == sorted(errors, reverse=True)
     assert errors[0] > 0.05  # a broad lobe really blurs the stripes
@@ -121,7 +127,11 @@ def test_blinn_phong_converges_to_mirror(renderer):
 def test_blinn_phong_keeps_a_uniform_emitter_uniform(renderer):
     """Stripes far wider than their period make a uniform emitter: the normalised lobe
     must return it unchanged, however broad."""
-    scene = paper_scene("sphere", 30.0, 4.0, 0.005).with_size(48).updated(emitter={"stripe_sigma": 200.0})
+    scene = (
+        paper_scene("sphere", 30.0, 4.0, 0.005)
+        .with_size(48)
+        .updated(emitter={"stripe_sigma": 200.0})
+    )
     mirror = renderer.render(scene, ("image", "mask"))
     phong = renderer.render(scene.updated(render={"reflection": "blinn-phong", "shininess": 1e3}))
     level = 200.0 * math.sqrt(2 * math.pi) / 10.0  # Poisson sum of unit-peak stripes

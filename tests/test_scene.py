@@ -39,7 +39,9 @@ def test_geometry_follows_spec():
     assert right == pytest.approx([1, 0, 0])
     assert up == pytest.approx([0, math.sqrt(3) / 2, -0.5])
     frame = s.emitter_frame()
-    assert frame.centre == pytest.approx(256 * __import__("numpy").array([0, 0.5, -math.sqrt(3) / 2]))
+    assert frame.centre == pytest.approx(
+        256 * __import__("numpy").array([0, 0.5, -math.sqrt(3) / 2])
+    )
     assert frame.normal @ frame.e_v == pytest.approx(0.0)
     assert frame.centre @ frame.e_v == pytest.approx(0.0, abs=1e-12)
 
@@ -55,7 +57,9 @@ def test_view_matrix_matches_basis():
     np.testing.assert_allclose(view[:3, 2], -forward, atol=1e-12)
     # the principal point maps to the camera origin, the gazing point onto the axis
     np.testing.assert_allclose(np.append(cam.position(), 1.0) @ view, [0, 0, 0, 1], atol=1e-9)
-    np.testing.assert_allclose((np.array([0.0, 0.0, 0.0, 1.0]) @ view)[:3], [0, 0, -cam.distance], atol=1e-9)
+    np.testing.assert_allclose(
+        (np.array([0.0, 0.0, 0.0, 1.0]) @ view)[:3], [0, 0, -cam.distance], atol=1e-9
+    )
 
 
 def test_resampling_keeps_field_of_view():
@@ -75,7 +79,9 @@ def test_resampling_keeps_field_of_view():
             emitter=Emitter(stripe_sigma=0.3, half_size=(100.0, 80.0)),
             surface=Surface(kind="cylinder", radius=-35.0, axis="x"),
             defect=Defect(dmax=-0.002, sigma_x2=4.0, sigma_z2=1.0, sigma_xz=0.5, x0=1.5, z0=-2.0),
-            render=RenderSettings(precision="fp64", supersample=3, reflection="blinn-phong", shininess=5e5),
+            render=RenderSettings(
+                precision="fp64", supersample=3, reflection="blinn-phong", shininess=5e5
+            ),
         ),
     ],
 )
@@ -89,9 +95,9 @@ def test_toml_round_trip(scene, tmp_path):
 def test_toml_file_layout_of_spec(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text(
-        '[camera]\ntheta_deg = 15.0\nwidth = 64\nheight = 64\n'
+        "[camera]\ntheta_deg = 15.0\nwidth = 64\nheight = 64\n"
         '[surface]\nkind = "sphere"\nradius = -70.0\n'
-        '[defect]\nsigma_x2 = 4.0\nsigma_z2 = 1.0\nsigma_xz = 0.5\n'
+        "[defect]\nsigma_x2 = 4.0\nsigma_z2 = 1.0\nsigma_xz = 0.5\n"
     )
     s = Scene.load(path)
     assert s.camera.theta_deg == 15.0 and s.camera.distance == 175.6
@@ -124,7 +130,11 @@ def test_isotropic_written_as_sigma2():
         ({"surface": {"kind": "torus"}}, "surface.kind", "flat, cylinder, sphere"),
         ({"surface": {"radius": 0.0}}, "surface.radius", "non-zero"),
         ({"surface": {"axis": "y"}}, "surface.axis", "z, x"),
-        ({"defect": {"sigma_x2": 1.0, "sigma_z2": 1.0, "sigma_xz": 1.0}}, "defect.sigma_xz", "positive definite"),
+        (
+            {"defect": {"sigma_x2": 1.0, "sigma_z2": 1.0, "sigma_xz": 1.0}},
+            "defect.sigma_xz",
+            "positive definite",
+        ),
         ({"defect": {"sigma2": -4.0}}, "defect.sigma_x2", "> 0"),
         ({"defect": {"sigma2": 4.0, "sigma_xz": 0.1}}, "defect.sigma_xz", "absent"),
         ({"defect": {"dmax": float("nan")}}, "defect.dmax", "finite"),

@@ -106,13 +106,24 @@ def test_precision_code_only():
 
 def test_supersampling_code_only_when_asked():
     assert absent(source(paper_scene()), "supersample")
-    assert present(source(replace(paper_scene(), render=RenderSettings(supersample=2))), "supersample")
+    assert present(
+        source(replace(paper_scene(), render=RenderSettings(supersample=2))), "supersample"
+    )
 
 
 @pytest.mark.parametrize(
     "outputs",
-    [("image",), ("uv",), ("mask",), ("image", "uv"), ("uv", "mask"), ("image", "uv", "mask"),
-     ("distance",), ("iterations",), ("image", "distance", "iterations")],
+    [
+        ("image",),
+        ("uv",),
+        ("mask",),
+        ("image", "uv"),
+        ("uv", "mask"),
+        ("image", "uv", "mask"),
+        ("distance",),
+        ("iterations",),
+        ("image", "distance", "iterations"),
+    ],
 )
 def test_only_requested_outputs_are_declared(outputs):
     src = source(paper_scene(), outputs)
@@ -128,13 +139,31 @@ def test_only_requested_outputs_are_declared(outputs):
 
 def test_features_come_from_scene_values():
     f = ShaderFeatures.from_scene(paper_scene("cylinder", 5.0, 9.0, -0.002), ("uv", "image"))
-    assert f.selected() == {"render": "sampling", "camera": "camera", "surface": "cylinder", "defect": "gaussian",
-                            "emitter": "stripes", "reflection": "mirror", "fresnel": "none", "sensor": "sensor"}
-    assert dict(f.variables) == {"cylinder_axis": "z", "defect": "isotropic", "precision": "fp32", "supersample": False,
-                                "aperture": False, "distortion": False, "coherence": False, "fresnel": False}
+    assert f.selected() == {
+        "render": "sampling",
+        "camera": "camera",
+        "surface": "cylinder",
+        "defect": "gaussian",
+        "emitter": "stripes",
+        "reflection": "mirror",
+        "fresnel": "none",
+        "sensor": "sensor",
+    }
+    assert dict(f.variables) == {
+        "cylinder_axis": "z",
+        "defect": "isotropic",
+        "precision": "fp32",
+        "supersample": False,
+        "aperture": False,
+        "distortion": False,
+        "coherence": False,
+        "fresnel": False,
+    }
     assert f.outputs == ("image", "uv")
     # theta, phase, sigma2, dmax (non-zero) are uniforms: same features
-    g = ShaderFeatures.from_scene(paper_scene("cylinder", 45.0, 4.0, 0.005, phase=0.5), ("image", "uv"))
+    g = ShaderFeatures.from_scene(
+        paper_scene("cylinder", 45.0, 4.0, 0.005, phase=0.5), ("image", "uv")
+    )
     assert f == g
 
 
@@ -165,7 +194,13 @@ def test_error_line_parsing():
     assert error_lines(mesa) == [12, 40]
     assert error_lines(nvidia) == [7]
     text = numbered_excerpt("\n".join(f"line{i}" for i in range(1, 21)), 10, context=2)
-    assert text.splitlines() == ["   8 | line8", "   9 | line9", "> 10 | line10", "  11 | line11", "  12 | line12"]
+    assert text.splitlines() == [
+        "   8 | line8",
+        "   9 | line9",
+        "> 10 | line10",
+        "  11 | line11",
+        "  12 | line12",
+    ]
 
 
 def test_compile_error_shows_numbered_lines(gl_context, monkeypatch):
@@ -175,7 +210,10 @@ def test_compile_error_shows_numbered_lines(gl_context, monkeypatch):
     lines[fault - 1] = "    this is not GLSL;"
     broken = "\n".join(lines)
     monkeypatch.setattr(renderer_module, "compose", lambda features: (vertex, broken))
-    with Renderer(gl_context) as fresh, pytest.raises(ShaderCompileError) as info:  # empty program cache
+    with (
+        Renderer(gl_context) as fresh,
+        pytest.raises(ShaderCompileError) as info,
+    ):  # empty program cache
         fresh.render(paper_scene().with_size(8))
     message = str(info.value)
     assert "fragment shader failed to compile" in message

@@ -25,7 +25,9 @@ PIXEL_TOLERANCE = 2e-3
 MAX_DIFFERING = 32
 HARD_LIMIT = 0.05
 
-CASES = [(surface, theta) for surface in ("flat", "cylinder", "sphere") for theta in (85.0, 45.0, 5.0)]
+CASES = [
+    (surface, theta) for surface in ("flat", "cylinder", "sphere") for theta in (85.0, 45.0, 5.0)
+]
 
 
 @pytest.mark.parametrize("surface, theta", CASES, ids=[f"{s}-{t:g}" for s, t in CASES])
@@ -40,7 +42,9 @@ def test_snapshot(renderer, gl_context, request, surface, theta):
         write_png(path, image, bits=16)
         pytest.skip(f"regenerated {name}")
     if "llvmpipe" not in gl_context.info().renderer:
-        pytest.skip("snapshots were made on llvmpipe; other renderers are checked against the oracle")
+        pytest.skip(
+            "snapshots were made on llvmpipe; other renderers are checked against the oracle"
+        )
     assert path.exists(), f"missing snapshot {path}: run pytest --regenerate-snapshots"
 
     reference = read_png(path).astype(np.float64) / 65535.0

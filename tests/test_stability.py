@@ -24,10 +24,18 @@ DISTANCE_TOL_ALL = {"fp32": 1e-3, "fp64": 1e-6}
 def test_extreme_case_against_oracle(renderer, case, view, precision):
     c = S.check(renderer, case, view, precision)
     assert c.nonfinite == 0, "NaN or Inf inside the mask or in the image"
-    assert c.mask_mismatch <= MAX_MISMATCH * c.pixels, f"{c.mask_mismatch} pixels reach the emitter in one tracer only"
-    assert c.surface_mismatch <= MAX_MISMATCH * c.pixels, f"{c.surface_mismatch} pixels hit the surface in one tracer only"
-    assert c.distance_error <= DISTANCE_TOL[precision], f"hit distance off by {c.distance_error:.2e} (relative): a farther root?"
-    assert c.distance_error_all <= DISTANCE_TOL_ALL[precision], f"hit distance off by {c.distance_error_all:.2e} (relative)"
+    assert c.mask_mismatch <= MAX_MISMATCH * c.pixels, (
+        f"{c.mask_mismatch} pixels reach the emitter in one tracer only"
+    )
+    assert c.surface_mismatch <= MAX_MISMATCH * c.pixels, (
+        f"{c.surface_mismatch} pixels hit the surface in one tracer only"
+    )
+    assert c.distance_error <= DISTANCE_TOL[precision], (
+        f"hit distance off by {c.distance_error:.2e} (relative): a farther root?"
+    )
+    assert c.distance_error_all <= DISTANCE_TOL_ALL[precision], (
+        f"hit distance off by {c.distance_error_all:.2e} (relative)"
+    )
     assert c.uv_error_mm <= case.uv_tolerance(precision), f"uv error {c.uv_error_mm:.2e} mm"
     assert c.max_iterations <= S.iteration_cap(), f"{c.max_iterations} evaluations of g"
 

@@ -25,7 +25,10 @@ def _stable(rows):
 
 def test_reduced_study_end_to_end_through_the_cli(tmp_path, capsys):
     out = tmp_path / "study"
-    assert main(["paper", "--out", str(out), "--size", "128", "--thetas", "45,5", "--no-progress"]) == 0
+    assert (
+        main(["paper", "--out", str(out), "--size", "128", "--thetas", "45,5", "--no-progress"])
+        == 0
+    )
     assert "48 cases computed" in capsys.readouterr().out
     rows = read_results_csv(out / "results.csv")
     assert len(rows) == 3 * 2 * 4 * 2
@@ -52,16 +55,25 @@ def test_reduced_study_end_to_end_through_the_cli(tmp_path, capsys):
     assert sphere["visibility_continuous_px"] > 0.2 and not sphere["folded"]
     assert all(0.0 <= r["unresolved_fraction"] <= 1.0 for r in rows)
     for name in (
-        "fig09_contour_overlay.png", "fig09_contour_overlay_fold.png", "grid_flat_dmax5um.png",
-        "grid_sphere_dmax3um.png", "visibility_cylinder_dmax5um.png", "law_vs_simulation.png",
-        "report.md", "study.json",
+        "fig09_contour_overlay.png",
+        "fig09_contour_overlay_fold.png",
+        "grid_flat_dmax5um.png",
+        "grid_sphere_dmax3um.png",
+        "visibility_cylinder_dmax5um.png",
+        "law_vs_simulation.png",
+        "report.md",
+        "study.json",
     ):
         assert (out / name).stat().st_size > 0, name
     report = (out / "report.md").read_text()
     for number in range(1, 6):
         assert f"## Finding {number}" in report
-    for heading in ("## What to do with it: where to put the camera", "## How the verdicts are decided",
-                    "## The closed forms against the simulation", "## Where the stripe map folds"):
+    for heading in (
+        "## What to do with it: where to put the camera",
+        "## How the verdicts are decided",
+        "## The closed forms against the simulation",
+        "## Where the stripe map folds",
+    ):
         assert heading in report, heading
     assert "not resolved" in report  # the flat cases at 128 px are called out
     assert not list(out.rglob("*.tmp"))
@@ -97,9 +109,17 @@ def test_resume_after_interruption_gives_the_same_results(tmp_path):
 
 
 def test_directory_with_other_settings_is_refused(tmp_path):
-    run_study(StudyPlan(surfaces=("flat",), thetas=(45.0,), sigma2s=(4.0,), dmaxs=(0.005,), size=64), tmp_path, progress=False)
+    run_study(
+        StudyPlan(surfaces=("flat",), thetas=(45.0,), sigma2s=(4.0,), dmaxs=(0.005,), size=64),
+        tmp_path,
+        progress=False,
+    )
     with pytest.raises(GlshadeError, match="another plan"):
-        run_study(StudyPlan(surfaces=("flat",), thetas=(45.0,), sigma2s=(4.0,), dmaxs=(0.005,), size=96), tmp_path, progress=False)
+        run_study(
+            StudyPlan(surfaces=("flat",), thetas=(45.0,), sigma2s=(4.0,), dmaxs=(0.005,), size=96),
+            tmp_path,
+            progress=False,
+        )
 
 
 @pytest.mark.parametrize(
@@ -121,11 +141,15 @@ def test_bad_input_is_one_line_exit_2(tmp_path, args, fragment):
     out = tmp_path / "out"
     result = subprocess.run(
         [sys.executable, "-m", "glshade", "paper", "--out", str(out), "--no-progress", *args],
-        capture_output=True, text=True, timeout=120,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("glshade: error: ") and fragment in lines[0], result.stderr
+    assert len(lines) == 1 and lines[0].startswith("glshade: error: ") and fragment in lines[0], (
+        result.stderr
+    )
     if "--workers" not in args:
         assert not out.exists()  # rejected before anything is written
 
@@ -135,8 +159,20 @@ def test_output_path_that_is_a_file(tmp_path):
     target.write_text("keep me")
     for out, fragment in ((target, "is not a directory"), (target / "sub", "cannot create it")):
         result = subprocess.run(
-            [sys.executable, "-m", "glshade", "paper", "--out", str(out), "--size", "32", "--no-progress"],
-            capture_output=True, text=True, timeout=120,
+            [
+                sys.executable,
+                "-m",
+                "glshade",
+                "paper",
+                "--out",
+                str(out),
+                "--size",
+                "32",
+                "--no-progress",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
         )
         assert result.returncode == 2 and fragment in result.stderr, result.stderr
     assert target.read_text() == "keep me"
@@ -150,21 +186,44 @@ def test_findings_rules_on_made_up_rows():
             for sigma2 in (1.0, 4.0, 9.0, 16.0):
                 for dmax in (0.003, 0.005):
                     steep = sigma2 <= 4.0
-                    trend = theta / 2 if steep else (90 - theta) / 2  # finding 3 and 4 as the paper says
+                    trend = (
+                        theta / 2 if steep else (90 - theta) / 2
+                    )  # finding 3 and 4 as the paper says
                     value = dmax * 1000 * (20 / sigma2) + trend
                     if surface == "sphere" and steep:
                         value = dmax * 1000 * (20 / sigma2) + 5.0  # no trend with theta
-                    rows.append(dict(surface=surface, theta_deg=theta, sigma2_mm2=sigma2, dmax_mm=dmax,
-                                     visibility_px=value, visibility_continuous_px=value, folded=False))
-    verdicts = {(v.finding, v.scope): v.verdict for v in findings.evaluate(rows) if v.metric == "paper metric"}
+                    rows.append(
+                        dict(
+                            surface=surface,
+                            theta_deg=theta,
+                            sigma2_mm2=sigma2,
+                            dmax_mm=dmax,
+                            visibility_px=value,
+                            visibility_continuous_px=value,
+                            folded=False,
+                        )
+                    )
+    verdicts = {
+        (v.finding, v.scope): v.verdict
+        for v in findings.evaluate(rows)
+        if v.metric == "paper metric"
+    }
     assert verdicts[(1, "flat")] == findings.HOLDS
     assert verdicts[(3, "flat, dmax 5 µm")] == findings.HOLDS
     assert verdicts[(4, "flat, dmax 5 µm")] == findings.HOLDS
     assert verdicts[(4, "sphere, dmax 5 µm")] == findings.NOT
     assert verdicts[(5, "flat, sphere")] == findings.NOT
     # a perfectly ranked but tiny trend (2 %) is only "partly"
-    tiny = [dict(r, visibility_px=10.0 + (90 - r["theta_deg"]) / 400) for r in rows if r["surface"] == "flat"]
-    tiny_verdicts = {(v.finding, v.scope): v.verdict for v in findings.evaluate(tiny) if v.metric == "paper metric"}
+    tiny = [
+        dict(r, visibility_px=10.0 + (90 - r["theta_deg"]) / 400)
+        for r in rows
+        if r["surface"] == "flat"
+    ]
+    tiny_verdicts = {
+        (v.finding, v.scope): v.verdict
+        for v in findings.evaluate(tiny)
+        if v.metric == "paper metric"
+    }
     assert tiny_verdicts[(3, "flat, dmax 5 µm")] == findings.PARTLY
     assert findings.spearman([1, 2, 3], [3, 2, 1]) == pytest.approx(-1.0)
     assert findings.spearman([1, 2, 3], [5, 5, 5]) == 0.0
@@ -173,9 +232,18 @@ def test_findings_rules_on_made_up_rows():
 def test_a_case_is_a_pure_function_of_its_scene(tmp_path, renderer):
     """The study shares one defect-free analysis between the defects of a geometry; its
     rows are nevertheless exactly what measure_scene gives for each scene on its own."""
-    plan = StudyPlan(surfaces=("flat", "sphere"), thetas=(45.0, 5.0), sigma2s=(1.0,), dmaxs=(0.005,), size=256)
+    plan = StudyPlan(
+        surfaces=("flat", "sphere"), thetas=(45.0, 5.0), sigma2s=(1.0,), dmaxs=(0.005,), size=256
+    )
     rows = run_study(plan, tmp_path, progress=False, renderer=renderer).rows
-    keys = ("visibility_px", "visibility_continuous_px", "deflection_px", "folded", "islands", "best_phase_mm")
+    keys = (
+        "visibility_px",
+        "visibility_continuous_px",
+        "deflection_px",
+        "folded",
+        "islands",
+        "best_phase_mm",
+    )
     for row, case in zip(rows, plan.cases(), strict=True):
         alone = measure_scene(renderer, plan.scene(*case), plan.metric).summary()
         assert {k: row[k] for k in keys} == {k: alone[k] for k in keys}, case
@@ -189,15 +257,36 @@ def test_findings_advice_names_the_fold_and_the_magnification():
     for theta in (85.0, 45.0, 5.0):
         for sigma2 in (1.0, 16.0):
             folded = sigma2 == 1.0 and theta == 5.0
-            rows.append(dict(surface="flat", theta_deg=theta, sigma2_mm2=sigma2, dmax_mm=0.005, folded=folded,
-                             visibility_px=5.0 if folded else 18.0 / sigma2 ** 0.5,
-                             visibility_continuous_px=5.5 if folded else 18.0 / sigma2 ** 0.5,
-                             deflection_px=18.0 / sigma2 ** 0.5))
-            rows.append(dict(surface="sphere", theta_deg=theta, sigma2_mm2=sigma2, dmax_mm=0.005, folded=False,
-                             visibility_px=1.0, visibility_continuous_px=theta / 20, deflection_px=theta / 20))
+            rows.append(
+                dict(
+                    surface="flat",
+                    theta_deg=theta,
+                    sigma2_mm2=sigma2,
+                    dmax_mm=0.005,
+                    folded=folded,
+                    visibility_px=5.0 if folded else 18.0 / sigma2**0.5,
+                    visibility_continuous_px=5.5 if folded else 18.0 / sigma2**0.5,
+                    deflection_px=18.0 / sigma2**0.5,
+                )
+            )
+            rows.append(
+                dict(
+                    surface="sphere",
+                    theta_deg=theta,
+                    sigma2_mm2=sigma2,
+                    dmax_mm=0.005,
+                    folded=False,
+                    visibility_px=1.0,
+                    visibility_continuous_px=theta / 20,
+                    deflection_px=theta / 20,
+                )
+            )
     text = "\n".join(findings.advice(rows))
     assert "**flat, steep dents (σ² 1, 4)**: θ 85–45° (5 µm)" in text
     assert "**flat, gentle dents (σ² 9, 16)**: θ 85–5° (5 µm)" in text
     assert "moves the rays by 18.0 px and its contours by 5.5 px" in text
-    assert "**sphere, steep dents (σ² 1, 4)**: θ 85° (5 µm)" in text and "magnifies the stripes" in text
+    assert (
+        "**sphere, steep dents (σ² 1, 4)**: θ 85° (5 µm)" in text
+        and "magnifies the stripes" in text
+    )
     assert findings.theta_ranges({85.0, 45.0, 5.0}, (85.0, 65.0, 45.0, 5.0)) == "85°, 45–5°"

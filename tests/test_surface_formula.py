@@ -18,7 +18,9 @@ SPHERE_SAG = "-(x^2 + z^2) / (R + sqrt(R^2 - x^2 - z^2))"
 
 
 def _formula(scene: Scene, expression: str, parameters=()) -> Scene:
-    return scene.updated(surface={"kind": "formula", "expression": expression, "parameters": parameters})
+    return scene.updated(
+        surface={"kind": "formula", "expression": expression, "parameters": parameters}
+    )
 
 
 def _sphere(theta: float, size: int) -> Scene:
@@ -49,8 +51,11 @@ def test_the_sphere_as_a_formula_is_as_visible(renderer):
 
 @pytest.mark.parametrize("theta", [45.0, 10.0])
 def test_a_wavy_saddle_agrees_with_the_oracle(renderer, theta):
-    scene = _formula(paper_scene(theta_deg=theta).with_size(48), "0.0005*x^2 - 0.0002*z^2 + a*sin(z/b)",
-                     {"a": 0.002, "b": 5.0})
+    scene = _formula(
+        paper_scene(theta_deg=theta).with_size(48),
+        "0.0005*x^2 - 0.0002*z^2 + a*sin(z/b)",
+        {"a": 0.002, "b": 5.0},
+    )
     shader = renderer.render(scene, ("uv", "mask"))
     oracle = tracer.trace(scene, ("uv", "mask"))
     assert np.array_equal(shader.mask, oracle.mask)
@@ -59,8 +64,10 @@ def test_a_wavy_saddle_agrees_with_the_oracle(renderer, theta):
 
 def test_scene_file_of_spec_8_1(tmp_path):
     path = tmp_path / "panel.toml"
-    path.write_text('[surface]\nkind = "formula"\nexpression = "0.0005*x^2 - 0.0002*z^2 + a*sin(z/b)"\n'
-                    "parameters = { a = 0.002, b = 5.0 }\n")
+    path.write_text(
+        '[surface]\nkind = "formula"\nexpression = "0.0005*x^2 - 0.0002*z^2 + a*sin(z/b)"\n'
+        "parameters = { a = 0.002, b = 5.0 }\n"
+    )
     scene = Scene.load(path)
     assert scene.surface.parameters == (("a", 0.002), ("b", 5.0))
     scene.save(tmp_path / "again.toml")
@@ -72,20 +79,33 @@ def test_fp64_refuses_what_glsl_has_no_double_for():
     scene = _formula(paper_scene(), "sin(x)").updated(render={"precision": "fp64"})
     from glshade.gpu.compose import ShaderFeatures
 
-    with pytest.raises(SceneError, match="render.precision: must be fp32 for this formula: GLSL has no double"):
+    with pytest.raises(
+        SceneError, match="render.precision: must be fp32 for this formula: GLSL has no double"
+    ):
         ShaderFeatures.from_scene(scene)
 
 
-@pytest.mark.parametrize("args, fragment", [
-    (["--set", "surface.expression=x;y"], "surface.expression: ';' at column 2 is not allowed"),
-    (["--set", "surface.expression=a*x"], "the undeclared name 'a' at column 1"),
-    (["--set", "surface.expression=__import__('os')"], "surface.expression:"),
-    (["--set", "surface.parameters=x=1"], "surface.parameters: must be parameter names"),
-    (["--set", "surface.expression=sin(x)", "--precision", "fp64"], "GLSL has no double-precision version of sin"),
-])
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--set", "surface.expression=x;y"], "surface.expression: ';' at column 2 is not allowed"),
+        (["--set", "surface.expression=a*x"], "the undeclared name 'a' at column 1"),
+        (["--set", "surface.expression=__import__('os')"], "surface.expression:"),
+        (["--set", "surface.parameters=x=1"], "surface.parameters: must be parameter names"),
+        (
+            ["--set", "surface.expression=sin(x)", "--precision", "fp64"],
+            "GLSL has no double-precision version of sin",
+        ),
+    ],
+)
 def test_bad_formulas_on_the_command_line(tmp_path, args, fragment):
-    result = subprocess.run([sys.executable, "-m", "glshade", "render", "--surface", "formula", "--size", "8", *args],
-                            capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-m", "glshade", "render", "--surface", "formula", "--size", "8", *args],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
     lines = result.stderr.strip().splitlines()
     assert result.returncode == 2 and len(lines) == 1 and fragment in lines[0], result.stderr
     assert list(tmp_path.iterdir()) == []
@@ -100,10 +120,44 @@ def test_a_study_runs_on_free_form_scene_files(tmp_path):
     root = Path(__file__).resolve().parents[1] / "examples"
     saddle, panel = str(root / "saddle.toml"), str(root / "panel.toml")
     out = tmp_path / "study"
-    assert main(["paper", "--surfaces", f"flat,{saddle},{panel}", "--thetas", "45,15", "--sigma2s", "4",
-                 "--dmaxs", "5um", "--size", "96", "--out", str(out), "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "paper",
+                "--surfaces",
+                f"flat,{saddle},{panel}",
+                "--thetas",
+                "45,15",
+                "--sigma2s",
+                "4",
+                "--dmaxs",
+                "5um",
+                "--size",
+                "96",
+                "--out",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     rows = read_results_csv(out / "results.csv")
-    assert [r.surface for r in rows].count(saddle) == 2 and [r.surface for r in rows].count(panel) == 2
-    assert {"grid_saddle_dmax5um.png", "visibility_panel_dmax5um.png"} <= {p.name for p in out.iterdir()}
+    assert [r.surface for r in rows].count(saddle) == 2 and [r.surface for r in rows].count(
+        panel
+    ) == 2
+    assert {"grid_saddle_dmax5um.png", "visibility_panel_dmax5um.png"} <= {
+        p.name for p in out.iterdir()
+    }
     assert "saddle.toml" in (out / "report.md").read_text()
-    assert main(["paper", "--surfaces", f"{saddle},{tmp_path / 'x' / 'saddle.toml'}", "--out", str(tmp_path / "b")]) == 2
+    assert (
+        main(
+            [
+                "paper",
+                "--surfaces",
+                f"{saddle},{tmp_path / 'x' / 'saddle.toml'}",
+                "--out",
+                str(tmp_path / "b"),
+            ]
+        )
+        == 2
+    )

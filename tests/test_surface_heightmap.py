@@ -17,7 +17,9 @@ from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
 
 
-def _sample(path, surface: Scene, spacing: float, half_x: float = 30.0, half_z: float = 50.0) -> str:
+def _sample(
+    path, surface: Scene, spacing: float, half_x: float = 30.0, half_z: float = 50.0
+) -> str:
     """``surface``'s analytic height sampled on a grid (mm), saved as .npy."""
     from glshade.components.registry import registry
 
@@ -30,7 +32,9 @@ def _sample(path, surface: Scene, spacing: float, half_x: float = 30.0, half_z: 
 
 
 def _map_scene(scene: Scene, file: str, spacing: float, **surface) -> Scene:
-    return scene.updated(surface={"kind": "heightmap", "file": file, "spacing": (spacing, spacing), **surface})
+    return scene.updated(
+        surface={"kind": "heightmap", "file": file, "spacing": (spacing, spacing), **surface}
+    )
 
 
 def test_the_spline_interpolates_and_its_gradient_is_exact():
@@ -42,8 +46,12 @@ def test_the_spline_interpolates_and_its_gradient_is_exact():
     u, v = rng.uniform(0, 10, 200), rng.uniform(0, 8, 200)
     f, fu, fv = catmull_rom(heights, u, v)
     h = 1e-6
-    assert fu == pytest.approx((catmull_rom(heights, u + h, v)[0] - catmull_rom(heights, u - h, v)[0]) / (2 * h), abs=1e-6)
-    assert fv == pytest.approx((catmull_rom(heights, u, v + h)[0] - catmull_rom(heights, u, v - h)[0]) / (2 * h), abs=1e-6)
+    assert fu == pytest.approx(
+        (catmull_rom(heights, u + h, v)[0] - catmull_rom(heights, u - h, v)[0]) / (2 * h), abs=1e-6
+    )
+    assert fv == pytest.approx(
+        (catmull_rom(heights, u, v + h)[0] - catmull_rom(heights, u, v - h)[0]) / (2 * h), abs=1e-6
+    )
     lo, hi, _ = map_bounds(heights, (1.0, 1.0))
     dense = catmull_rom(heights, *np.meshgrid(np.linspace(0, 10, 301), np.linspace(0, 8, 301)))[0]
     assert lo <= dense.min() and dense.max() <= hi
@@ -56,6 +64,7 @@ def test_curvature_bound_holds():
     _, _, bound = map_bounds(heights, spacing)
     u, v = np.meshgrid(np.linspace(0, 11, 200), np.linspace(0, 11, 200))
     h = 1e-4
+
     def f(du, dv):
         return catmull_rom(heights, u + du, v + dv)[0]
 
@@ -99,7 +108,9 @@ def test_a_wavy_map_agrees_with_the_oracle(renderer, tmp_path, outside, precisio
     xx, zz = np.meshgrid(x, x)
     heights = 0.004 * np.sin(xx / 1.7) * np.cos(zz / 2.3) - 0.0002 * xx * zz
     np.save(tmp_path / "wavy.npy", heights)
-    scene = _map_scene(paper_scene(theta_deg=40.0).with_size(40), str(tmp_path / "wavy.npy"), 0.4, outside=outside)
+    scene = _map_scene(
+        paper_scene(theta_deg=40.0).with_size(40), str(tmp_path / "wavy.npy"), 0.4, outside=outside
+    )
     scene = scene.updated(render={"precision": precision})
     shader = renderer.render(scene, ("uv", "mask"))
     oracle = tracer.trace(scene, ("uv", "mask"))
@@ -117,7 +128,9 @@ def test_relative_paths_follow_the_scene_file(tmp_path, renderer):
     (tmp_path / "maps").mkdir()
     np.save(tmp_path / "maps" / "m.npy", np.zeros((8, 8)))
     scene_file = tmp_path / "maps" / "part.toml"
-    scene_file.write_text('[surface]\nkind = "heightmap"\nfile = "m.npy"\nspacing = [2.0, 2.0]\noutside = "flat"\n')
+    scene_file.write_text(
+        '[surface]\nkind = "heightmap"\nfile = "m.npy"\nspacing = [2.0, 2.0]\noutside = "flat"\n'
+    )
     scene = Scene.load(scene_file)
     assert scene.surface.file == str(tmp_path / "maps" / "m.npy")
     scene.save(tmp_path / "maps" / "again.toml")
@@ -126,14 +139,25 @@ def test_relative_paths_follow_the_scene_file(tmp_path, renderer):
     assert np.nanmax(np.abs(renderer.render(scene.with_size(24), ("uv",)).uv - flat)) < 1e-3
 
 
-@pytest.mark.parametrize("setup, args, fragment", [
-    (None, ["--set", "surface.file=missing.npy", "--set", "surface.spacing=1,1"], "surface.file"),
-    ("nan", ["--set", "surface.file=bad.npy", "--set", "surface.spacing=1,1"], "NaN"),
-    ("small", ["--set", "surface.file=small.npy", "--set", "surface.spacing=1,1"], "4"),
-    ("good", ["--set", "surface.file=good.npy"], "surface.spacing: must be set"),
-    ("good", ["--set", "surface.file=good.npy", "--set", "surface.spacing=0,1"], "surface.spacing"),
-    (None, [], "surface.file: must be set"),
-])
+@pytest.mark.parametrize(
+    "setup, args, fragment",
+    [
+        (
+            None,
+            ["--set", "surface.file=missing.npy", "--set", "surface.spacing=1,1"],
+            "surface.file",
+        ),
+        ("nan", ["--set", "surface.file=bad.npy", "--set", "surface.spacing=1,1"], "NaN"),
+        ("small", ["--set", "surface.file=small.npy", "--set", "surface.spacing=1,1"], "4"),
+        ("good", ["--set", "surface.file=good.npy"], "surface.spacing: must be set"),
+        (
+            "good",
+            ["--set", "surface.file=good.npy", "--set", "surface.spacing=0,1"],
+            "surface.spacing",
+        ),
+        (None, [], "surface.file: must be set"),
+    ],
+)
 def test_bad_height_maps_are_one_line(tmp_path, setup, args, fragment):
     if setup == "nan":
         heights = np.zeros((8, 8))
@@ -144,8 +168,13 @@ def test_bad_height_maps_are_one_line(tmp_path, setup, args, fragment):
     elif setup == "good":
         np.save(tmp_path / "good.npy", np.zeros((8, 8)))
     before = sorted(p.name for p in tmp_path.iterdir())
-    result = subprocess.run([sys.executable, "-m", "glshade", "render", "--surface", "heightmap", "--size", "8", *args],
-                            capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-m", "glshade", "render", "--surface", "heightmap", "--size", "8", *args],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
     lines = result.stderr.strip().splitlines()
     assert result.returncode == 2 and len(lines) == 1 and fragment in lines[0], result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == before

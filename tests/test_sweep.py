@@ -43,8 +43,10 @@ SMALL = {
     "grid": {
         "camera.theta_deg": [45, 15],
         "defect.sigma2": {"start": 1.0, "stop": 4.0, "num": 2},
-        "surface": [{"label": "flat", "surface.kind": "flat"},
-                    {"label": "sphere", "surface.kind": "sphere", "emitter.period": 10.0}],
+        "surface": [
+            {"label": "flat", "surface.kind": "flat"},
+            {"label": "sphere", "surface.kind": "sphere", "emitter.period": 10.0},
+        ],
     },
 }
 
@@ -55,19 +57,39 @@ def small_spec(**changes):
 
 # ------------------------------------------------------------------ the sweep file
 def test_ranges_lists_and_linked_axes():
-    spec = spec_from_dict({"grid": {"camera.theta_deg": {"start": 5.0, "stop": 85.0, "num": 5},
-                                    "camera.azimuth_deg": {"start": 0.0, "stop": 90.0, "step": 30.0},
-                                    "surface": SMALL["grid"]["surface"]}})
+    spec = spec_from_dict(
+        {
+            "grid": {
+                "camera.theta_deg": {"start": 5.0, "stop": 85.0, "num": 5},
+                "camera.azimuth_deg": {"start": 0.0, "stop": 90.0, "step": 30.0},
+                "surface": SMALL["grid"]["surface"],
+            }
+        }
+    )
     assert spec.count == 5 * 4 * 2
     assert [v for ((_, v),) in spec.axes[0].entries] == [5.0, 25.0, 45.0, 65.0, 85.0]
     assert [v for ((_, v),) in spec.axes[1].entries] == [0.0, 30.0, 60.0, 90.0]
     cases = spec.cases()
     last = cases[-1].scene
-    assert (last.camera.theta_deg, last.camera.azimuth_deg, last.surface.kind, last.emitter.period) == \
-        (85.0, 90.0, "sphere", 10.0)
-    assert spec.columns == ("surface", "camera.theta_deg", "camera.azimuth_deg", "surface.kind", "emitter.period")
+    assert (
+        last.camera.theta_deg,
+        last.camera.azimuth_deg,
+        last.surface.kind,
+        last.emitter.period,
+    ) == (85.0, 90.0, "sphere", 10.0)
+    assert spec.columns == (
+        "surface",
+        "camera.theta_deg",
+        "camera.azimuth_deg",
+        "surface.kind",
+        "emitter.period",
+    )
     row = spec.swept_values(cases[1])
-    assert row["surface"] == "sphere" and row["emitter.period"] == 10.0 and row["camera.azimuth_deg"] == 0.0
+    assert (
+        row["surface"] == "sphere"
+        and row["emitter.period"] == 10.0
+        and row["camera.azimuth_deg"] == 0.0
+    )
 
 
 def test_the_issues_rig_azimuth_spelling_is_the_cameras_key():
@@ -76,7 +98,9 @@ def test_the_issues_rig_azimuth_spelling_is_the_cameras_key():
     assert spec.cases()[1].scene.camera.azimuth_deg == 45.0
     (dim,) = opt.parse_over("rig.azimuth_deg=0..90")
     assert dim.key == "camera.azimuth_deg" and dim.name == "rig.azimuth_deg"
-    flat = opt.search(lambda p: (-(p[:, 0] - 30.0) ** 2,) * 2 + ((-(p[:, 0] - 30.0) ** 2)[:, None],), (dim,))
+    flat = opt.search(
+        lambda p: (-((p[:, 0] - 30.0) ** 2),) * 2 + ((-((p[:, 0] - 30.0) ** 2))[:, None],), (dim,)
+    )
     assert set(flat.optimum) == {"rig.azimuth_deg"}
 
 
@@ -88,20 +112,23 @@ def test_case_ids_follow_the_full_scene_and_metric():
     assert not {c.case_id for c in a} & {c.case_id for c in other}
 
 
-@pytest.mark.parametrize("data, words", [
-    ({"grid": {"camera.theta": [5]}}, "camera.theta"),
-    ({"grid": {"camera.theta_deg": []}}, "empty list"),
-    ({"grid": {"camera.theta_deg": {"start": 80.0, "stop": 10.0, "num": 3}}}, "inverted"),
-    ({"grid": {"camera.theta_deg": {"start": 10.0, "stop": 80.0}}}, "{start, stop, num}"),
-    ({"grid": {"camera.theta_deg": [95]}}, "camera.theta_deg"),
-    ({"grid": {"camera.theta_deg": [5, 5]}}, "repeat"),
-    ({"grid": {}}, "at least one axis"),
-    ({"grid": {"camera.theta_deg": [5]}, "extra": 1}, "unknown key 'extra'"),
-    ({"grid": {"camera.theta_deg": [5]}, "metric": {"step": 1}}, "metric.step"),
-    ({"grid": {"camera.theta_deg": [5], "camera.theta_deg ": [6]}}, "camera.theta_deg"),
-    ({"grid": {"theta": [5]}}, "unknown key 'theta'"),
-    ({"grid": {"surface": [{"label": "a"}]}}, "at least one dotted key"),
-])
+@pytest.mark.parametrize(
+    "data, words",
+    [
+        ({"grid": {"camera.theta": [5]}}, "camera.theta"),
+        ({"grid": {"camera.theta_deg": []}}, "empty list"),
+        ({"grid": {"camera.theta_deg": {"start": 80.0, "stop": 10.0, "num": 3}}}, "inverted"),
+        ({"grid": {"camera.theta_deg": {"start": 10.0, "stop": 80.0}}}, "{start, stop, num}"),
+        ({"grid": {"camera.theta_deg": [95]}}, "camera.theta_deg"),
+        ({"grid": {"camera.theta_deg": [5, 5]}}, "repeat"),
+        ({"grid": {}}, "at least one axis"),
+        ({"grid": {"camera.theta_deg": [5]}, "extra": 1}, "unknown key 'extra'"),
+        ({"grid": {"camera.theta_deg": [5]}, "metric": {"step": 1}}, "metric.step"),
+        ({"grid": {"camera.theta_deg": [5], "camera.theta_deg ": [6]}}, "camera.theta_deg"),
+        ({"grid": {"theta": [5]}}, "unknown key 'theta'"),
+        ({"grid": {"surface": [{"label": "a"}]}}, "at least one dotted key"),
+    ],
+)
 def test_bad_sweep_files_name_the_field(data, words):
     with pytest.raises(GlshadeError) as info:
         spec_from_dict(data)
@@ -110,7 +137,9 @@ def test_bad_sweep_files_name_the_field(data, words):
 
 def test_a_big_grid_needs_yes(tmp_path, capsys):
     path = tmp_path / "big.toml"
-    path.write_text(f'[grid]\n"camera.theta_deg" = {{ start = 1.0, stop = 89.0, num = {MAX_CASES_UNCONFIRMED + 1} }}\n')
+    path.write_text(
+        f'[grid]\n"camera.theta_deg" = {{ start = 1.0, stop = 89.0, num = {MAX_CASES_UNCONFIRMED + 1} }}\n'
+    )
     assert main(["sweep", str(path), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert "--yes" in err and str(MAX_CASES_UNCONFIRMED) in err
@@ -167,7 +196,9 @@ def test_a_changed_base_scene_is_refused_and_nothing_is_overwritten(local_table,
     scene_file = tmp_path / "base.toml"
     paper_scene().updated(camera={"distance": 200.0}).save(scene_file)
     sweep_file = tmp_path / "sweep.toml"
-    sweep_file.write_text(f'base = "{scene_file.name}"\nsize = 160\n[grid]\n"camera.theta_deg" = [45, 15]\n')
+    sweep_file.write_text(
+        f'base = "{scene_file.name}"\nsize = 160\n[grid]\n"camera.theta_deg" = [45, 15]\n'
+    )
     assert main(["sweep", str(sweep_file), "--out", str(out), "--no-progress"]) == 2
     after = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
     assert after == before
@@ -181,7 +212,10 @@ def test_a_table_from_another_glshade_version_is_refused(local_table, tmp_path, 
     moved.mkdir()
     table = pq.read_table(out / "results.parquet")
     manifest = {**json.loads(table.schema.metadata[b"glshade"]), "glshade_version": "0.0.1"}
-    pq.write_table(table.replace_schema_metadata({b"glshade": json.dumps(manifest).encode()}), moved / "results.parquet")
+    pq.write_table(
+        table.replace_schema_metadata({b"glshade": json.dumps(manifest).encode()}),
+        moved / "results.parquet",
+    )
     before = (moved / "results.parquet").read_bytes()
     sweep_file = tmp_path / "s.toml"
     sweep_file.write_text('size = 160\n[grid]\n"camera.theta_deg" = [45]\n')
@@ -191,7 +225,9 @@ def test_a_table_from_another_glshade_version_is_refused(local_table, tmp_path, 
 
 
 def test_images_on_request(tmp_path, renderer):
-    spec = spec_from_dict({"size": 96, "grid": {"camera.theta_deg": [45]}, "output": {"images": True}})
+    spec = spec_from_dict(
+        {"size": 96, "grid": {"camera.theta_deg": [45]}, "output": {"images": True}}
+    )
     run_sweep(spec, tmp_path, renderer=renderer)
     (case,) = spec.cases()
     png = tmp_path / "images" / f"{case.case_id}.png"
@@ -200,11 +236,25 @@ def test_images_on_request(tmp_path, renderer):
 
 def test_resume_after_kill_9(tmp_path):
     sweep_file = tmp_path / "s.toml"
-    sweep_file.write_text('size = 256\n[grid]\n"camera.theta_deg" = [85, 75, 65, 55, 45, 35, 25, 15]\n'
-                          '"defect.sigma2" = [1.0, 4.0]\n')
+    sweep_file.write_text(
+        'size = 256\n[grid]\n"camera.theta_deg" = [85, 75, 65, 55, 45, 35, 25, 15]\n'
+        '"defect.sigma2" = [1.0, 4.0]\n'
+    )
     out = tmp_path / "out"
-    process = subprocess.Popen([sys.executable, "-m", "glshade", "sweep", str(sweep_file), "--out", str(out),
-                                "--no-progress"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "glshade",
+            "sweep",
+            str(sweep_file),
+            "--out",
+            str(out),
+            "--no-progress",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and len(list((out / "cases").glob("*.json"))) < 3:
         time.sleep(0.05)
@@ -229,8 +279,10 @@ def test_a_worker_killed_mid_sweep_loses_and_duplicates_nothing(local_table, tmp
     from distributed import Client, LocalCluster
 
     _out, result = local_table
-    with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None) as cluster, \
-            Client(cluster, set_as_default=False) as client:
+    with (
+        LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None) as cluster,
+        Client(cluster, set_as_default=False) as client,
+    ):
         killed = []
 
         def kill_one(row) -> None:
@@ -240,8 +292,12 @@ def test_a_worker_killed_mid_sweep_loses_and_duplicates_nothing(local_table, tmp
                 os.kill(victim, signal.SIGKILL)
                 killed.append(victim)
 
-        dask = run_sweep(small_spec(), tmp_path, Distribution(scheduler=cluster.scheduler_address, batch=1),
-                         on_row=kill_one)
+        dask = run_sweep(
+            small_spec(),
+            tmp_path,
+            Distribution(scheduler=cluster.scheduler_address, batch=1),
+            on_row=kill_one,
+        )
     assert killed
     assert dask.rows == result.rows
     assert len(list((tmp_path / "cases").glob("*.json"))) == 8
@@ -251,8 +307,19 @@ def test_an_unreachable_scheduler_is_one_line_within_the_timeout(tmp_path, capsy
     sweep_file = tmp_path / "s.toml"
     sweep_file.write_text('size = 64\n[grid]\n"camera.theta_deg" = [45]\n')
     start = time.monotonic()
-    code = main(["sweep", str(sweep_file), "--out", str(tmp_path / "out"), "--scheduler", "tcp://127.0.0.1:9",
-                 "--connect-timeout", "2", "--no-progress"])
+    code = main(
+        [
+            "sweep",
+            str(sweep_file),
+            "--out",
+            str(tmp_path / "out"),
+            "--scheduler",
+            "tcp://127.0.0.1:9",
+            "--connect-timeout",
+            "2",
+            "--no-progress",
+        ]
+    )
     assert code == 2 and time.monotonic() - start < 60
     err = capsys.readouterr().err
     assert "--scheduler tcp://127.0.0.1:9: no Dask scheduler answered within 2 s" in err
@@ -263,7 +330,9 @@ def test_an_unreachable_scheduler_is_one_line_within_the_timeout(tmp_path, capsy
 def test_egl_device_of_a_cuda_worker():
     assert egl_index_for_cuda([None, 2, 0, 1], 0) == 2
     assert egl_index_for_cuda([None, None], 0) is None
-    assert egl_index_for_cuda([0, 0], 0) is None  # not a map: leave the choice to GLSHADE_EGL_DEVICE
+    assert (
+        egl_index_for_cuda([0, 0], 0) is None
+    )  # not a map: leave the choice to GLSHADE_EGL_DEVICE
     assert worker_egl_device({"CUDA_VISIBLE_DEVICES": "3", "GLSHADE_EGL_DEVICE": "1"}) is None
     assert worker_egl_device({}) is None
     numbers = egl_cuda_numbers()  # Mesa: devices, none of them a CUDA device
@@ -289,7 +358,12 @@ def test_azimuth_turns_the_rig_over_the_dent_and_the_cylinder(renderer):
     turned = flat.updated(camera={"azimuth_deg": 90.0}, defect={"sigma_x2": 4.0, "sigma_z2": 1.0})
     a, b = renderer.render(along_z, ("uv",)).uv, renderer.render(turned, ("uv",)).uv
     assert np.nanmax(np.abs(a - b)) < 1e-4
-    assert np.nanmax(np.abs(a - renderer.render(turned.updated(camera={"azimuth_deg": 0.0}), ("uv",)).uv)) > 1e-2
+    assert (
+        np.nanmax(
+            np.abs(a - renderer.render(turned.updated(camera={"azimuth_deg": 0.0}), ("uv",)).uv)
+        )
+        > 1e-2
+    )
     cylinder = paper_scene("cylinder", 30.0, 4.0, 0.005).with_size(96)
     a = renderer.render(cylinder.updated(surface={"axis": "x"}), ("uv",)).uv
     b = renderer.render(cylinder.updated(camera={"azimuth_deg": 90.0}), ("uv",)).uv
@@ -297,19 +371,30 @@ def test_azimuth_turns_the_rig_over_the_dent_and_the_cylinder(renderer):
 
 
 def test_azimuth_agrees_with_the_oracle(renderer):
-    scene = paper_scene("cylinder", 25.0, 2.0, 0.005).with_size(32).updated(
-        camera={"azimuth_deg": 33.0}, defect={"x0": 0.4, "z0": -0.3})
-    shader, oracle = renderer.render(scene, ("image", "uv", "mask")), tracer.trace(scene, ("image", "uv", "mask"))
+    scene = (
+        paper_scene("cylinder", 25.0, 2.0, 0.005)
+        .with_size(32)
+        .updated(camera={"azimuth_deg": 33.0}, defect={"x0": 0.4, "z0": -0.3})
+    )
+    shader, oracle = (
+        renderer.render(scene, ("image", "uv", "mask")),
+        tracer.trace(scene, ("image", "uv", "mask")),
+    )
     assert (shader.mask == oracle.mask).all()
     assert np.nanmax(np.abs(shader.uv - oracle.uv)) < 5e-4
 
 
 def test_azimuth_turns_the_closed_forms():
     cylinder = paper_scene("cylinder", 30.0, 4.0, 0.005)
-    assert physics.laws(cylinder.updated(camera={"azimuth_deg": 90.0})).magnification == pytest.approx(
-        physics.laws(cylinder.updated(surface={"axis": "x"})).magnification)
+    assert physics.laws(
+        cylinder.updated(camera={"azimuth_deg": 90.0})
+    ).magnification == pytest.approx(
+        physics.laws(cylinder.updated(surface={"axis": "x"})).magnification
+    )
     skew = paper_scene("flat").updated(defect={"sigma_x2": 4.0, "sigma_z2": 1.0, "sigma_xz": 0.5})
-    turned = skew.updated(camera={"azimuth_deg": 90.0}, defect={"sigma_x2": 1.0, "sigma_z2": 4.0, "sigma_xz": -0.5})
+    turned = skew.updated(
+        camera={"azimuth_deg": 90.0}, defect={"sigma_x2": 1.0, "sigma_z2": 4.0, "sigma_xz": -0.5}
+    )
     assert physics.laws(turned).deflection_px == pytest.approx(physics.laws(skew).deflection_px)
 
 
@@ -320,6 +405,7 @@ def synthetic(peak: tuple[float, ...], quantum: float = 0.0):
         paper = np.floor(value / quantum) * quantum if quantum else value
         score = paper + opt.TIE * value if quantum else value
         return score, paper, paper[:, None]
+
     return objective
 
 
@@ -330,13 +416,17 @@ def test_the_optimiser_finds_a_known_optimum():
     assert result.evaluations <= 9 + 30
     two = opt.parse_over("camera.theta_deg,camera.azimuth_deg=0..90")
     result = opt.search(synthetic((61.0, 20.0)), two)
-    assert result.optimum == pytest.approx({"camera.theta_deg": 61.0, "camera.azimuth_deg": 20.0}, abs=0.2)
+    assert result.optimum == pytest.approx(
+        {"camera.theta_deg": 61.0, "camera.azimuth_deg": 20.0}, abs=0.2
+    )
 
 
 def test_the_refinement_copes_with_a_piecewise_constant_objective():
     """Whole-pixel plateaus: the tie-break by the continuous value still leads to the peak,
     and the reported plateau contains it."""
-    result = opt.search(synthetic((52.0,), quantum=1.0), opt.parse_over("camera.theta_deg"), metric="paper")
+    result = opt.search(
+        synthetic((52.0,), quantum=1.0), opt.parse_over("camera.theta_deg"), metric="paper"
+    )
     assert result.visibility_px == 9.0  # floor(10 - small)
     assert abs(result.optimum["camera.theta_deg"] - 52.0) < 2.0
     lo, hi = result.near_optimal["camera.theta_deg"]
@@ -347,10 +437,19 @@ def test_the_optimiser_agrees_with_a_dense_grid_on_a_real_scene(renderer):
     base = paper_scene("sphere", 45.0, 4.0, 0.005).with_size(128)
     dims = (opt.Dimension("camera.theta_deg", 10.0, 80.0),)
     with open_executor(Distribution(), renderer) as executor:
-        result = opt.optimize_scene(base, dims, [{}], metric="continuous", executor=executor, grid_points=8,
-                                    refine_evaluations=12)
+        result = opt.optimize_scene(
+            base,
+            dims,
+            [{}],
+            metric="continuous",
+            executor=executor,
+            grid_points=8,
+            refine_evaluations=12,
+        )
         step = 2.5
-        dense = opt.SceneObjective(base, dims, [{}], glshade.MetricSettings(), "continuous", executor)
+        dense = opt.SceneObjective(
+            base, dims, [{}], glshade.MetricSettings(), "continuous", executor
+        )
         thetas = np.arange(10.0, 80.0 + 1e-9, step)
         _, values, _ = dense(thetas[:, None])
     best = thetas[int(np.argmax(values))]
@@ -362,8 +461,12 @@ def test_families_and_bad_optimiser_input():
     family = opt.parse_family("defect.sigma2=1..16,defect.dmax=0.003|0.005", points=3)
     assert len(family) == 6 and family[0] == {"defect.sigma2": 1.0, "defect.dmax": 0.003}
     assert family[-1] == {"defect.sigma2": 16.0, "defect.dmax": 0.005}
-    for text, words in (("camera.theta_deg=80..10", "inverted"), ("camera.nope", "camera.nope"),
-                        ("surface.kind", "not a number"), ("emitter.period", "give its bounds")):
+    for text, words in (
+        ("camera.theta_deg=80..10", "inverted"),
+        ("camera.nope", "camera.nope"),
+        ("surface.kind", "not a number"),
+        ("emitter.period", "give its bounds"),
+    ):
         with pytest.raises(GlshadeError, match=words):
             opt.parse_over(text)
     with pytest.raises(GlshadeError, match="KEY=LO..HI"):
@@ -372,8 +475,26 @@ def test_families_and_bad_optimiser_input():
 
 def test_optimize_cli_json_and_plot(tmp_path, capsys):
     plot = tmp_path / "objective.png"
-    code = main(["optimize", "--over", "camera.theta_deg=20..60", "--grid", "3", "--refine", "4", "--size", "96",
-                 "--metric", "continuous", "--family", "defect.sigma2=1|4", "--json", "--plot", str(plot)])
+    code = main(
+        [
+            "optimize",
+            "--over",
+            "camera.theta_deg=20..60",
+            "--grid",
+            "3",
+            "--refine",
+            "4",
+            "--size",
+            "96",
+            "--metric",
+            "continuous",
+            "--family",
+            "defect.sigma2=1|4",
+            "--json",
+            "--plot",
+            str(plot),
+        ]
+    )
     assert code == 0
     summary = json.loads(capsys.readouterr().out)
     assert set(summary) >= {"optimum", "visibility_px", "evaluations"}

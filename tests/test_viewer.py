@@ -38,12 +38,14 @@ def test_controls_clamp_and_validate():
     assert apply_setting(scene, "theta", 95.0, slider=True).camera.theta_deg == 89.5
     assert apply_setting(scene, "theta", -3.0, slider=True).camera.theta_deg == 0.5
     assert apply_setting(scene, "supersample", 40, slider=True).render.supersample == 8
-    assert apply_setting(scene, "theta", 89.7).camera.theta_deg == 89.7  # beyond the slider, within render's range
+    assert (
+        apply_setting(scene, "theta", 89.7).camera.theta_deg == 89.7
+    )  # beyond the slider, within render's range
     with pytest.raises(SceneError, match=r"camera.theta_deg: must be in \(0, 90\) degrees, got 95"):
         apply_setting(scene, "theta", 95.0)
     # the covariance stays positive definite whatever the slider says
     full = apply_setting(apply_setting(scene, "sigma_z2", 1.0), "sigma_xz", 100.0, slider=True)
-    assert full.defect.sigma_xz ** 2 < full.defect.sigma_x2 * full.defect.sigma_z2
+    assert full.defect.sigma_xz**2 < full.defect.sigma_x2 * full.defect.sigma_z2
     # the radius keeps its sign (concave is a checkbox)
     bowl = apply_setting(apply_setting(scene, "surface", "sphere"), "concave", True)
     assert apply_setting(bowl, "radius", 30.0).surface.radius == -30.0
@@ -55,20 +57,28 @@ def test_model_rejects_what_the_scene_rejects():
     model = ViewerModel(paper_scene().with_size(SIZE))
     before = model.scene
     assert not model.set("surface", "torus")
-    assert model.scene == before and model.refused.startswith("refused: surface.kind: must be one of")
+    assert model.scene == before and model.refused.startswith(
+        "refused: surface.kind: must be one of"
+    )
     assert not model.set("theta", 95.0)  # the panel shows why, in render's words
     assert model.refused == "refused: camera.theta_deg: must be in (0, 90) degrees, got 95.0"
     assert model.set("theta", 30.0) and model.refused == ""
 
 
 def test_parse_sets():
-    scene, extra = parse_sets(["theta=5", "surface=sphere", "view=overlay", "animate=1"], paper_scene())
+    scene, extra = parse_sets(
+        ["theta=5", "surface=sphere", "view=overlay", "animate=1"], paper_scene()
+    )
     assert scene.camera.theta_deg == 5.0 and scene.surface.kind == "sphere"
     assert extra == {"view": "overlay", "animate": "1"}
-    for bad, fragment in (("theta", "expected name=value"), ("theta=abc", "a number in degrees"),
-                          ("view=movie", "--set view"), ("theta=nan", "finite"),
-                          ("theta=120", r"camera.theta_deg: must be in \(0, 90\) degrees"),
-                          ("camera.distance=-1", "camera.distance")):
+    for bad, fragment in (
+        ("theta", "expected name=value"),
+        ("theta=abc", "a number in degrees"),
+        ("view=movie", "--set view"),
+        ("theta=nan", "finite"),
+        ("theta=120", r"camera.theta_deg: must be in \(0, 90\) degrees"),
+        ("camera.distance=-1", "camera.distance"),
+    ):
         with pytest.raises(GlshadeError, match=fragment):
             parse_sets([bad], paper_scene())
 
@@ -91,9 +101,13 @@ def test_phase_change_reshades_geometry_change_retraces():
 def test_model_pictures_metrics_and_hover():
     scene = paper_scene("flat", 45.0, 1.0, 0.005).with_size(256)
     model = ViewerModel(scene)
-    model.traced(render(scene, ("uv",)).uv, render(scene.without_defect(), ("uv",)).uv[..., 1].copy())
+    model.traced(
+        render(scene, ("uv",)).uv, render(scene.without_defect(), ("uv",)).uv[..., 1].copy()
+    )
     rgba = model.overlay_rgba()
-    assert rgba.shape == (256, 256, 4) and (rgba[..., 0] == 255).any() and (rgba[..., 2] == 255).any()
+    assert (
+        rgba.shape == (256, 256, 4) and (rgba[..., 0] == 255).any() and (rgba[..., 2] == 255).any()
+    )
     assert readout_lines(model.readout)[0].endswith("...")  # nothing measured yet
     model.start_metrics()
     model.wait_for_metrics()
@@ -134,7 +148,9 @@ def test_render_loop_schedule_fills_the_readout_and_drops_no_finished_job():
     numbers reach the readout; one in flight is never replaced."""
     scene = paper_scene("flat", 45.0, 1.0, 0.005).with_size(128).updated(emitter={"period": 4.0})
     model = ViewerModel(scene, animate=True)
-    model.traced(render(scene, ("uv",)).uv, render(scene.without_defect(), ("uv",)).uv[..., 1].copy())
+    model.traced(
+        render(scene, ("uv",)).uv, render(scene.without_defect(), ("uv",)).uv[..., 1].copy()
+    )
     pool = model._pool = _RecordingPool()
     phases_taken = set()
     deadline = time.monotonic() + 120.0  # a bound on a stuck worker, not a timing assertion
@@ -186,7 +202,9 @@ def test_metric_refusal_is_shown_not_raised():
     the scene, and the viewer says why instead of dying in the render loop."""
     scene = apply_setting(paper_scene().with_size(SIZE), "period", 0.2)
     model = ViewerModel(scene, view="overlay")
-    model.traced(render(scene, ("uv",)).uv, render(scene.without_defect(), ("uv",)).uv[..., 1].copy())
+    model.traced(
+        render(scene, ("uv",)).uv, render(scene.without_defect(), ("uv",)).uv[..., 1].copy()
+    )
     model.start_metrics()
     model.wait_for_metrics()
     assert model.readout.error is not None and "step" in model.readout.error
@@ -196,7 +214,10 @@ def test_metric_refusal_is_shown_not_raised():
     assert model._case_job is None and model._phase_job is None  # nothing resubmitted
     assert model.overlay_rgba().shape == (SIZE, SIZE, 4)
     model.set("period", 2.0)  # a geometry the metric accepts measures again
-    model.traced(render(model.scene, ("uv",)).uv, render(model.scene.without_defect(), ("uv",)).uv[..., 1].copy())
+    model.traced(
+        render(model.scene, ("uv",)).uv,
+        render(model.scene.without_defect(), ("uv",)).uv[..., 1].copy(),
+    )
     model.start_metrics()
     model.wait_for_metrics()
     assert model.readout.error is None and model.readout.deflection_px is not None
@@ -227,10 +248,14 @@ def view(*args, timeout=180):
 
 def screenshot(tmp_path, name, *sets):
     path = tmp_path / name
-    result = view("--size", "256", "--frames", "6", "--screenshot", str(path), *[f"--set={s}" for s in sets])
+    result = view(
+        "--size", "256", "--frames", "6", "--screenshot", str(path), *[f"--set={s}" for s in sets]
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     pixels = read_png(path)
-    return pixels[:256, :256, 0].astype(np.float64) / 255.0  # the image sits at the window's top left
+    return (
+        pixels[:256, :256, 0].astype(np.float64) / 255.0
+    )  # the image sits at the window's top left
 
 
 @needs_display
@@ -271,8 +296,20 @@ def test_scripted_run_ends_with_the_measured_readout():
     """A few hundred frames with the phase animated and the panel drawn: the readout line
     has numbers (the worker's results reached the window), the same as glshade.measure's
     for the scene."""
-    result = view("--size", "128", "--frames", "300", "--set", "theta=45", "--set", "sigma2=1",
-                  "--set", "period=4", "--set", "animate=1")
+    result = view(
+        "--size",
+        "128",
+        "--frames",
+        "300",
+        "--set",
+        "theta=45",
+        "--set",
+        "sigma2=1",
+        "--set",
+        "period=4",
+        "--set",
+        "animate=1",
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     lines = [line for line in result.stdout.splitlines() if line.startswith("readout: ")]
     assert len(lines) == 1, result.stdout
@@ -294,13 +331,26 @@ def test_scripted_run_ends_with_the_measured_readout():
 def test_bad_scene_file_opens_nothing(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[camera]\ntheta_deg = 120.0\n")
-    result = subprocess.run([sys.executable, "-m", "glshade", "view", str(bad), "--frames", "1"],
-                            capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-m", "glshade", "view", str(bad), "--frames", "1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert result.returncode == 2
-    assert result.stderr.strip() == "glshade: error: camera.theta_deg: must be in (0, 90) degrees, got 120.0"
-    result = subprocess.run([sys.executable, "-m", "glshade", "view", "--set", "theta=abc"],
-                            capture_output=True, text=True, timeout=60)
-    assert result.returncode == 2 and "camera.theta_deg: must be a number in degrees" in result.stderr
+    assert (
+        result.stderr.strip()
+        == "glshade: error: camera.theta_deg: must be in (0, 90) degrees, got 120.0"
+    )
+    result = subprocess.run(
+        [sys.executable, "-m", "glshade", "view", "--set", "theta=abc"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert (
+        result.returncode == 2 and "camera.theta_deg: must be a number in degrees" in result.stderr
+    )
 
 
 def test_formulas_and_files_are_text_fields(tmp_path):

@@ -29,7 +29,9 @@ def emitter_maps(bump_mm: float, width_px: float = 12.0, tilt_mm_per_col: float 
 
 
 def images(v0, v1):
-    return (lambda p: V.stripe_radiance(v0, EMITTER, p)), (lambda p: V.stripe_radiance(v1, EMITTER, p))
+    return (lambda p: V.stripe_radiance(v0, EMITTER, p)), (
+        lambda p: V.stripe_radiance(v1, EMITTER, p)
+    )
 
 
 @pytest.mark.parametrize("shift_px", [2.0, 5.0, 8.5])
@@ -99,7 +101,9 @@ def test_fold_is_reported_not_hidden():
     result = V.Baseline(v0, EMITTER).measure(v1)
     assert result.folded and result.islands > 0
     assert result.deflection_px == pytest.approx(30.0, abs=0.5)
-    assert result.visibility_continuous_px < 0.6 * result.deflection_px  # islands and a capped contour: 15.8 of 30 px
+    assert (
+        result.visibility_continuous_px < 0.6 * result.deflection_px
+    )  # islands and a capped contour: 15.8 of 30 px
     assert abs(result.visibility_px - result.visibility_continuous_px) <= 1.5
     paper = V.image_visibility(*images(v0, v1), EMITTER.period)
     assert paper.islands > 0 and paper.visibility_px == result.visibility_px
@@ -111,8 +115,15 @@ def test_phases_and_settings_validation():
     assert len(settings.phases(10.0)) == 40
     with pytest.raises(GlshadeError, match="at most one stripe period"):
         V.MetricSettings(step_mm=3.0).phases(2.0)
-    for bad in (dict(threshold=1.0), dict(keep_fraction=0.0), dict(step_mm=-1.0), dict(min_period_px=-1),
-                dict(max_offset_px=-1), dict(limit_upsample=0), dict(limit_phases=2)):
+    for bad in (
+        dict(threshold=1.0),
+        dict(keep_fraction=0.0),
+        dict(step_mm=-1.0),
+        dict(min_period_px=-1),
+        dict(max_offset_px=-1),
+        dict(limit_upsample=0),
+        dict(limit_phases=2),
+    ):
         with pytest.raises(GlshadeError):
             V.MetricSettings(**bad)
 
@@ -126,7 +137,9 @@ def test_binarising_from_v_equals_thresholding_the_radiance():
         assert (exact != fast).sum() <= 2 * 30  # only at the threshold's float rounding
     # L(w*) is the threshold (neighbouring stripes add 0.002 there, so w* sits 1.4 µm
     # beyond the quarter period that one stripe's FWHM alone would give)
-    assert float(V.stripe_radiance(np.array([half]), EMITTER, 0.0)[0]) == pytest.approx(0.5, abs=1e-6)
+    assert float(V.stripe_radiance(np.array([half]), EMITTER, 0.0)[0]) == pytest.approx(
+        0.5, abs=1e-6
+    )
     assert half == pytest.approx(EMITTER.period / 4, rel=0.01)
 
 
@@ -170,6 +183,8 @@ def test_deflection_flat_closed_form(renderer):
         result = V.Baseline(v0, scene.emitter).measure(v1)
         assert result.deflection_px == pytest.approx(expected, rel=0.02), theta
         if theta >= 45.0:
-            assert result.visibility_continuous_px == pytest.approx(result.deflection_px, rel=0.01), theta
+            assert result.visibility_continuous_px == pytest.approx(
+                result.deflection_px, rel=0.01
+            ), theta
         else:  # at 15° the fold caps it (physics.md §3: 12.3 px)
             assert result.visibility_continuous_px == pytest.approx(12.3, rel=0.02)

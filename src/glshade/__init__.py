@@ -29,7 +29,10 @@ from glshade.scene import (
 
 __version__ = "0.1.0"
 
-_LAZY = {"Renderer": ("glshade.gpu.renderer", "Renderer"), "measure": ("glshade.metrics.measurement", "measure")}
+_LAZY = {
+    "Renderer": ("glshade.gpu.renderer", "Renderer"),
+    "measure": ("glshade.metrics.measurement", "measure"),
+}
 
 
 def __getattr__(name: str):

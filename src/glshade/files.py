@@ -23,11 +23,18 @@ from glshade.errors import GlshadeError
 #: Image formats by file extension (lossless only: the metric measures stripe edges).
 IMAGE_SUFFIXES: dict[str, str] = {".png": ".png", ".tif": ".tiff", ".tiff": ".tiff"}
 _LOSSY = frozenset({".jpg", ".jpeg", ".jpe", ".jfif", ".webp", ".avif", ".jp2", ".heic", ".heif"})
-_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-          (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"))
+_KINDS = (
+    (stat.S_ISDIR, "a directory"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISFIFO, "a FIFO"),
+    (stat.S_ISSOCK, "a socket"),
+)
 
 
-def check_output(path: str | os.PathLike[str], what: str = "output", suffixes: tuple[str, ...] = ()) -> Path:
+def check_output(
+    path: str | os.PathLike[str], what: str = "output", suffixes: tuple[str, ...] = ()
+) -> Path:
     """The regular file ``path`` will be written as (a symbolic link is written through),
     or a :class:`GlshadeError` naming ``what`` (a flag such as ``-o``) and why not: an
     existing directory, device, FIFO or socket, a missing or unwritable directory, or an
@@ -58,7 +65,9 @@ def check_output(path: str | os.PathLike[str], what: str = "output", suffixes: t
 def _suffix_problem(suffix: str, suffixes: tuple[str, ...]) -> str:
     allowed = ", ".join(suffixes)
     if suffix in _LOSSY:
-        return f"{suffix} is a lossy format, which would blur the stripe edges; use one of {allowed}"
+        return (
+            f"{suffix} is a lossy format, which would blur the stripe edges; use one of {allowed}"
+        )
     return f"the extension {suffix or '(none)'} is not supported; use one of {allowed}"
 
 
@@ -110,7 +119,9 @@ def encode_png(image: np.ndarray, bits: int = 8) -> bytes:
     else:
         pixels = quantize(image, bits)
     if pixels.ndim == 3 and pixels.shape[2] in (3, 4):
-        pixels = np.ascontiguousarray(pixels[..., [2, 1, 0, 3][: pixels.shape[2]]])  # OpenCV wants BGR(A)
+        pixels = np.ascontiguousarray(
+            pixels[..., [2, 1, 0, 3][: pixels.shape[2]]]
+        )  # OpenCV wants BGR(A)
     ok, buf = cv2.imencode(".png", pixels)
     if not ok:  # pragma: no cover - OpenCV only fails on unsupported dtypes
         raise GlshadeError("PNG encoding failed")
@@ -138,17 +149,23 @@ def encode_image(image: np.ndarray, suffix: str, bits: int = 8) -> bytes:
     integers) or 32 (float32 radiance, TIFF only)."""
     format_ = IMAGE_SUFFIXES.get(suffix.lower())
     if format_ is None:
-        raise GlshadeError(f"image {suffix}: {_suffix_problem(suffix.lower(), tuple(IMAGE_SUFFIXES))}")
+        raise GlshadeError(
+            f"image {suffix}: {_suffix_problem(suffix.lower(), tuple(IMAGE_SUFFIXES))}"
+        )
     if format_ == ".png":
         return encode_png(image, bits)
-    pixels = np.nan_to_num(image, nan=0.0).astype(np.float32) if bits == 32 else quantize(image, bits)
+    pixels = (
+        np.nan_to_num(image, nan=0.0).astype(np.float32) if bits == 32 else quantize(image, bits)
+    )
     ok, buf = cv2.imencode(".tiff", pixels)
     if not ok:  # pragma: no cover
         raise GlshadeError("TIFF encoding failed")
     return buf.tobytes()
 
 
-def write_image(path: str | os.PathLike[str], image: np.ndarray, bits: int = 8, what: str = "-o") -> None:
+def write_image(
+    path: str | os.PathLike[str], image: np.ndarray, bits: int = 8, what: str = "-o"
+) -> None:
     """Write a radiance image in the format its extension names (PNG or TIFF), atomically."""
     target = check_image_output(path, what, bits)
     atomic_write_bytes(Path(path), encode_image(image, target.suffix, bits), what)
@@ -160,7 +177,9 @@ def read_png(path: str | os.PathLike[str]) -> np.ndarray:
     if pixels is None:
         raise GlshadeError(f"{path}: not a readable PNG")
     if pixels.ndim == 3:  # OpenCV reads BGR(A): back to RGB(A), alpha stays last
-        pixels = pixels[..., [2, 1, 0, 3][: pixels.shape[2]]] if pixels.shape[2] in (3, 4) else pixels
+        pixels = (
+            pixels[..., [2, 1, 0, 3][: pixels.shape[2]]] if pixels.shape[2] in (3, 4) else pixels
+        )
     return pixels
 
 

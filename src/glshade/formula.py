@@ -35,16 +35,110 @@ MAX_LENGTH = 2000
 MAX_DEPTH = 40
 #: The functions of the grammar and how many arguments each takes.
 FUNCTIONS: dict[str, tuple[int, int]] = {
-    "sqrt": (1, 1), "exp": (1, 1), "log": (1, 1), "sin": (1, 1), "cos": (1, 1), "tan": (1, 1),
-    "abs": (1, 1), "min": (2, 8), "max": (2, 8),
+    "sqrt": (1, 1),
+    "exp": (1, 1),
+    "log": (1, 1),
+    "sin": (1, 1),
+    "cos": (1, 1),
+    "tan": (1, 1),
+    "abs": (1, 1),
+    "min": (2, 8),
+    "max": (2, 8),
 }
 VARIABLES = ("x", "z")
 #: A parameter's name: a letter, then letters, digits or underscores (GLSL-safe).
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
 _GLSL_RESERVED = frozenset(
-    ["attribute", "const", "uniform", "varying", "buffer", "shared", "coherent", "volatile", "restrict", "readonly", "writeonly", "layout", "centroid", "flat", "smooth", "noperspective", "patch", "sample", "break", "continue", "do", "for", "while", "switch", "case", "default", "if", "else", "subroutine", "in", "out", "inout", "float", "double", "int", "void", "bool", "true", "false", "invariant", "precise", "discard", "return", "mat2", "mat3", "mat4", "vec2", "vec3", "vec4", "dvec2", "dvec3", "dvec4", "struct", "real", "input", "output", "asm", "class", "union", "enum", "typedef", "template", "this", "goto", "inline", "noinline", "public", "static", "extern", "external", "interface", "long", "short", "half", "fixed", "unsigned", "superp", "sizeof", "cast", "namespace", "using", "step", "sign", "pow"]
+    [
+        "attribute",
+        "const",
+        "uniform",
+        "varying",
+        "buffer",
+        "shared",
+        "coherent",
+        "volatile",
+        "restrict",
+        "readonly",
+        "writeonly",
+        "layout",
+        "centroid",
+        "flat",
+        "smooth",
+        "noperspective",
+        "patch",
+        "sample",
+        "break",
+        "continue",
+        "do",
+        "for",
+        "while",
+        "switch",
+        "case",
+        "default",
+        "if",
+        "else",
+        "subroutine",
+        "in",
+        "out",
+        "inout",
+        "float",
+        "double",
+        "int",
+        "void",
+        "bool",
+        "true",
+        "false",
+        "invariant",
+        "precise",
+        "discard",
+        "return",
+        "mat2",
+        "mat3",
+        "mat4",
+        "vec2",
+        "vec3",
+        "vec4",
+        "dvec2",
+        "dvec3",
+        "dvec4",
+        "struct",
+        "real",
+        "input",
+        "output",
+        "asm",
+        "class",
+        "union",
+        "enum",
+        "typedef",
+        "template",
+        "this",
+        "goto",
+        "inline",
+        "noinline",
+        "public",
+        "static",
+        "extern",
+        "external",
+        "interface",
+        "long",
+        "short",
+        "half",
+        "fixed",
+        "unsigned",
+        "superp",
+        "sizeof",
+        "cast",
+        "namespace",
+        "using",
+        "step",
+        "sign",
+        "pow",
+    ]
 )
-_ALLOWED = "numbers, x, z, {params}+ - * / ** ^, parentheses and sqrt exp log sin cos tan abs min max"
+_ALLOWED = (
+    "numbers, x, z, {params}+ - * / ** ^, parentheses and sqrt exp log sin cos tan abs min max"
+)
 
 
 class FormulaError(SceneError):
@@ -52,12 +146,24 @@ class FormulaError(SceneError):
     may use …`` (one line)."""
 
     def __init__(self, field_name: str, what: str, column: int | None, parameters) -> None:
-        names = "".join(f"the parameter{'s' if len(parameters) > 1 else ''} {', '.join(parameters)}, "
-                        if parameters else "")
-        self.field, self.allowed, self.got, self.column = field_name, _ALLOWED.format(params=names), what, column
+        names = "".join(
+            f"the parameter{'s' if len(parameters) > 1 else ''} {', '.join(parameters)}, "
+            if parameters
+            else ""
+        )
+        self.field, self.allowed, self.got, self.column = (
+            field_name,
+            _ALLOWED.format(params=names),
+            what,
+            column,
+        )
         where = f" at column {column + 1}" if column is not None else ""
-        GlshadeError.__init__(self, printable(f"{field_name}: {what}{where} is not allowed; a formula may use "
-                                              f"{self.allowed}"))
+        GlshadeError.__init__(
+            self,
+            printable(
+                f"{field_name}: {what}{where} is not allowed; a formula may use {self.allowed}"
+            ),
+        )
 
 
 def _refuse(field_name: str, what: str, column: int | None, parameters) -> FormulaError:
@@ -67,10 +173,22 @@ def _refuse(field_name: str, what: str, column: int | None, parameters) -> Formu
 def check_parameter_name(name: object, field_name: str = "surface.parameters") -> str:
     """A declared parameter's name, or a SceneError: letters, digits and underscores, not
     ``x``/``z``, a function, a Python keyword or a GLSL reserved word."""
-    if (not isinstance(name, str) or not _NAME.match(name) or name in VARIABLES or name in FUNCTIONS
-            or keyword.iskeyword(name) or name in _GLSL_RESERVED or "__" in name or name.startswith("gl_")):
-        raise SceneError(field_name, "parameter names of a letter then letters, digits or single underscores, "
-                         "none of x, z, the functions or a reserved word", name)
+    if (
+        not isinstance(name, str)
+        or not _NAME.match(name)
+        or name in VARIABLES
+        or name in FUNCTIONS
+        or keyword.iskeyword(name)
+        or name in _GLSL_RESERVED
+        or "__" in name
+        or name.startswith("gl_")
+    ):
+        raise SceneError(
+            field_name,
+            "parameter names of a letter then letters, digits or single underscores, "
+            "none of x, z, the functions or a reserved word",
+            name,
+        )
     return name
 
 
@@ -138,8 +256,11 @@ class Formula:
     def symbols(self):
         import sympy
 
-        return (sympy.Symbol("x", real=True), sympy.Symbol("z", real=True),
-                *(sympy.Symbol(f"p_{name}", real=True) for name, _ in self.parameters))
+        return (
+            sympy.Symbol("x", real=True),
+            sympy.Symbol("z", real=True),
+            *(sympy.Symbol(f"p_{name}", real=True) for name, _ in self.parameters),
+        )
 
     @cached_property
     def derivatives(self) -> tuple[object, object]:
@@ -174,7 +295,9 @@ class Formula:
 
         values = [value for _, value in self.parameters]
         modules = [{"Heaviside": _heaviside}, "numpy"]
-        return tuple(_bound(sympy.lambdify(self.symbols, e, modules=modules), values) for e in expressions)
+        return tuple(
+            _bound(sympy.lambdify(self.symbols, e, modules=modules), values) for e in expressions
+        )
 
     @cached_property
     def numpy(self) -> tuple[Callable, Callable, Callable]:
@@ -187,7 +310,9 @@ def _bound(compiled, values):
     def evaluate(x, z):
         x, z = np.asarray(x, np.float64), np.asarray(z, np.float64)
         with np.errstate(all="ignore"):
-            return np.broadcast_to(np.asarray(compiled(x, z, *values), np.float64), np.broadcast(x, z).shape)
+            return np.broadcast_to(
+                np.asarray(compiled(x, z, *values), np.float64), np.broadcast(x, z).shape
+            )
 
     return evaluate
 
@@ -196,17 +321,23 @@ def _heaviside(t, *_):
     return np.heaviside(t, 0.5)
 
 
-def parse_formula(text: object, parameters: object = None, field_name: str = "surface.expression") -> Formula:
+def parse_formula(
+    text: object, parameters: object = None, field_name: str = "surface.expression"
+) -> Formula:
     """``text`` checked against the grammar and rebuilt as a SymPy expression, or a
     :class:`SceneError` naming ``field_name``, the offending token and its column."""
     params = _parameters(parameters)
     if not isinstance(text, str) or not text.strip():
         raise SceneError(field_name, "a non-empty formula in x and z", text)
     if len(text) > MAX_LENGTH:
-        raise SceneError(field_name, f"a formula of at most {MAX_LENGTH} characters (this one has {len(text)})")
+        raise SceneError(
+            field_name, f"a formula of at most {MAX_LENGTH} characters (this one has {len(text)})"
+        )
     source, columns = _power_tokens(text, field_name, params)
     try:
-        with warnings.catch_warnings():  # "invalid decimal literal" and friends: the error below says it
+        with (
+            warnings.catch_warnings()
+        ):  # "invalid decimal literal" and friends: the error below says it
             warnings.simplefilter("ignore")
             expression = ast.parse(source.strip() or "()", mode="eval")
     except SyntaxError as exc:
@@ -231,8 +362,12 @@ def _check_defined(formula: Formula, field_name: str, params) -> None:
     bad = (sympy.nan, sympy.zoo, sympy.oo, -sympy.oo, sympy.I)
     for expression in (formula.tree, *formula.derivatives):
         if any(expression.has(b) for b in bad):
-            raise _refuse(field_name, "a constant part that is not a finite real number (0/0, 1/0, log(0), "
-                          "sqrt(-1))", None, params)
+            raise _refuse(
+                field_name,
+                "a constant part that is not a finite real number (0/0, 1/0, log(0), sqrt(-1))",
+                None,
+                params,
+            )
 
 
 def _parameters(parameters: object) -> dict[str, float]:
@@ -243,7 +378,11 @@ def _parameters(parameters: object) -> dict[str, float]:
     out = {}
     for name, value in parameters.items():
         check_parameter_name(name)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not math.isfinite(value)
+        ):
             raise SceneError(f"surface.parameters.{name}", "a finite number", value)
         out[name] = float(value)
     return out
@@ -252,20 +391,42 @@ def _parameters(parameters: object) -> dict[str, float]:
 class _Builder:
     """The accepted AST, node by node, as SymPy; anything else is refused."""
 
-    def __init__(self, text: str, columns: list[int], params: dict[str, float], field_name: str) -> None:
+    def __init__(
+        self, text: str, columns: list[int], params: dict[str, float], field_name: str
+    ) -> None:
         import sympy
 
-        self.sympy, self.text, self.columns, self.params, self.field = sympy, text, columns, params, field_name
-        self.names = {"x": sympy.Symbol("x", real=True), "z": sympy.Symbol("z", real=True),
-                      **{name: sympy.Symbol(f"p_{name}", real=True) for name in params}}
-        self.functions = {"sqrt": sympy.sqrt, "exp": sympy.exp, "log": sympy.log, "sin": sympy.sin,
-                          "cos": sympy.cos, "tan": sympy.tan, "abs": sympy.Abs, "min": sympy.Min, "max": sympy.Max}
+        self.sympy, self.text, self.columns, self.params, self.field = (
+            sympy,
+            text,
+            columns,
+            params,
+            field_name,
+        )
+        self.names = {
+            "x": sympy.Symbol("x", real=True),
+            "z": sympy.Symbol("z", real=True),
+            **{name: sympy.Symbol(f"p_{name}", real=True) for name in params},
+        }
+        self.functions = {
+            "sqrt": sympy.sqrt,
+            "exp": sympy.exp,
+            "log": sympy.log,
+            "sin": sympy.sin,
+            "cos": sympy.cos,
+            "tan": sympy.tan,
+            "abs": sympy.Abs,
+            "min": sympy.Min,
+            "max": sympy.Max,
+        }
 
     def refuse(self, node: ast.AST, what: str | None = None) -> SceneError:
         offset = getattr(node, "col_offset", 0)
         column = self.columns[min(offset, len(self.columns) - 1)] if self.columns else 0
-        end = self.columns[min(max(getattr(node, "end_col_offset", offset + 1) - 1, 0), len(self.columns) - 1)]
-        shown = what or repr(self.text[column:end + 1][:20])
+        end = self.columns[
+            min(max(getattr(node, "end_col_offset", offset + 1) - 1, 0), len(self.columns) - 1)
+        ]
+        shown = what or repr(self.text[column : end + 1][:20])
         return _refuse(self.field, shown, column, self.params)
 
     def build(self, node: ast.AST, depth: int):
@@ -277,7 +438,11 @@ class _Builder:
                 raise self.refuse(node)
             if isinstance(node.value, float) and not math.isfinite(node.value):
                 raise self.refuse(node, "a number too large")
-            return sp.Integer(node.value) if isinstance(node.value, int) else sp.Float(repr(node.value), 17)
+            return (
+                sp.Integer(node.value)
+                if isinstance(node.value, int)
+                else sp.Float(repr(node.value), 17)
+            )
         if isinstance(node, ast.Name):
             if node.id not in self.names:
                 raise self.refuse(node, f"the undeclared name {node.id!r}")
@@ -285,14 +450,24 @@ class _Builder:
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
             operand = self.build(node.operand, depth + 1)
             return -operand if isinstance(node.op, ast.USub) else operand
-        if isinstance(node, ast.BinOp) and isinstance(node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)):
+        if isinstance(node, ast.BinOp) and isinstance(
+            node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)
+        ):
             left, right = self.build(node.left, depth + 1), self.build(node.right, depth + 1)
             if isinstance(node.op, ast.Pow) and right.is_number and abs(float(right)) > 64:
                 raise self.refuse(node.right, "a power beyond 64")
             op = node.op
-            return (left + right if isinstance(op, ast.Add) else left - right if isinstance(op, ast.Sub)
-                    else left * right if isinstance(op, ast.Mult) else left / right if isinstance(op, ast.Div)
-                    else left**right)
+            return (
+                left + right
+                if isinstance(op, ast.Add)
+                else left - right
+                if isinstance(op, ast.Sub)
+                else left * right
+                if isinstance(op, ast.Mult)
+                else left / right
+                if isinstance(op, ast.Div)
+                else left**right
+            )
         if isinstance(node, ast.Call):
             return self.call(node, depth)
         if isinstance(node, (ast.BinOp, ast.BoolOp, ast.Compare, ast.UnaryOp)):
@@ -306,9 +481,15 @@ class _Builder:
             start, stop = node.col_offset, operands[0].col_offset
         else:
             start, stop = operands[0].end_col_offset, operands[1].col_offset
-        source = "".join(self.text[c] if c < len(self.text) else " " for c in self.columns[start:stop])
+        source = "".join(
+            self.text[c] if c < len(self.text) else " " for c in self.columns[start:stop]
+        )
         token = source.strip(" ()") or source.strip() or "?"
-        column = self.columns[start] + source.index(token[0]) if token[0] in source else self.columns[start]
+        column = (
+            self.columns[start] + source.index(token[0])
+            if token[0] in source
+            else self.columns[start]
+        )
         return _refuse(self.field, f"the operator {token!r}", column, self.params)
 
     def call(self, node: ast.Call, depth: int):
@@ -341,7 +522,9 @@ def _glsl_printer(precision: str = "fp32"):
             if exponent.is_Integer and 1 <= abs(int(exponent)) <= 64:
                 product = "*".join([f"({self._print(base)})"] * abs(int(exponent)))
                 return f"({product})" if exponent > 0 else f"(1.0{suffix}/({product}))"
-            if exponent.is_Rational and exponent.q == 2 and abs(exponent.p) <= 63:  # sqrt(b)^p, exact in fp64
+            if (
+                exponent.is_Rational and exponent.q == 2 and abs(exponent.p) <= 63
+            ):  # sqrt(b)^p, exact in fp64
                 product = "*".join([f"sqrt({self._print(base)})"] * abs(int(exponent.p)))
                 return f"({product})" if exponent > 0 else f"(1.0{suffix}/({product}))"
             if suffix:
@@ -369,5 +552,8 @@ def _glsl_printer(precision: str = "fp32"):
 
 
 def _no_double(what: str) -> SceneError:
-    return SceneError("render.precision", f"fp32 for this formula: GLSL has no double-precision version of {what} "
-                      "(fp64 formulas may use + - * /, integer powers, sqrt, abs, min and max)")
+    return SceneError(
+        "render.precision",
+        f"fp32 for this formula: GLSL has no double-precision version of {what} "
+        "(fp64 formulas may use + - * /, integer powers, sqrt, abs, min and max)",
+    )

@@ -46,12 +46,16 @@ class Frame:
         raise ValueError("empty frame")
 
 
-def normalize_outputs(outputs: str | tuple[str, ...] | list[str] | frozenset[str]) -> frozenset[str]:
+def normalize_outputs(
+    outputs: str | tuple[str, ...] | list[str] | frozenset[str],
+) -> frozenset[str]:
     """Check and canonicalise a request such as ``("image", "uv")``."""
     from glshade.errors import GlshadeError
 
     wanted = frozenset([outputs] if isinstance(outputs, str) else outputs)
     unknown = wanted - set(OUTPUTS)
     if unknown or not wanted:
-        raise GlshadeError(f"outputs: must be a non-empty subset of {', '.join(OUTPUTS)}, got {sorted(wanted)}")
+        raise GlshadeError(
+            f"outputs: must be a non-empty subset of {', '.join(OUTPUTS)}, got {sorted(wanted)}"
+        )
     return wanted

@@ -54,8 +54,20 @@ MAX_SIDE = 16384
 # feeding them truncated and bit-flipped files): numpy's header parser lets TokenError
 # through, tifffile ZeroDivisionError, struct.error and zlib.error, and a damaged header
 # can ask for an impossible allocation.
-_DAMAGED = (OSError, ValueError, TypeError, KeyError, IndexError, EOFError, RuntimeError, ArithmeticError,
-            MemoryError, struct.error, zlib.error, tokenize.TokenError)
+_DAMAGED = (
+    OSError,
+    ValueError,
+    TypeError,
+    KeyError,
+    IndexError,
+    EOFError,
+    RuntimeError,
+    ArithmeticError,
+    MemoryError,
+    struct.error,
+    zlib.error,
+    tokenize.TokenError,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,7 +103,9 @@ def read_height_map(path: str | os.PathLike[str], scale: float = 1.0) -> HeightM
         raise
     except _DAMAGED + _library_errors(suffix) as exc:
         detail = " ".join(str(exc).split())[:120] or "no detail"
-        raise SceneError(FIELD, f"a readable height map ({name}: {type(exc).__name__}: {detail})") from None
+        raise SceneError(
+            FIELD, f"a readable height map ({name}: {type(exc).__name__}: {detail})"
+        ) from None
     heights = _checked(np.asarray(heights), name, suffix)
     if suffix != ".x3p":
         heights = _scaled(heights, scale, name)
@@ -142,11 +156,16 @@ def _check_shape(shape: tuple[int, ...], name: str) -> None:
         raise SceneError(FIELD, f"a 2-D map, rows x columns ({name} has shape {tuple(shape)})")
     rows, cols = shape
     if min(rows, cols) < MIN_SIDE:
-        raise SceneError(FIELD, f"a map of at least {MIN_SIDE} x {MIN_SIDE} samples ({name} has {rows} rows x "
-                                f"{cols} columns)")
+        raise SceneError(
+            FIELD,
+            f"a map of at least {MIN_SIDE} x {MIN_SIDE} samples ({name} has {rows} rows x "
+            f"{cols} columns)",
+        )
     if max(rows, cols) > MAX_SIDE:
-        raise SceneError(FIELD, f"a map of at most {MAX_SIDE} samples a side ({name} has {rows} rows x "
-                                f"{cols} columns)")
+        raise SceneError(
+            FIELD,
+            f"a map of at most {MAX_SIDE} samples a side ({name} has {rows} rows x {cols} columns)",
+        )
 
 
 def _checked(heights: np.ndarray, name: str, suffix: str) -> np.ndarray:
@@ -157,8 +176,11 @@ def _checked(heights: np.ndarray, name: str, suffix: str) -> np.ndarray:
     if bad.any():
         row, col = (int(i) for i in np.argwhere(bad)[0])
         hint = " (x3p marks unmeasured points so: fill them first)" if suffix == ".x3p" else ""
-        raise SceneError(FIELD, f"a height map with finite values ({name} has {int(bad.sum())} NaN or Inf "
-                                f"samples{hint}, the first at row {row}, column {col})")
+        raise SceneError(
+            FIELD,
+            f"a height map with finite values ({name} has {int(bad.sum())} NaN or Inf "
+            f"samples{hint}, the first at row {row}, column {col})",
+        )
     return heights
 
 
@@ -168,7 +190,9 @@ def _scaled(heights: np.ndarray, scale: float, name: str) -> np.ndarray:
     with np.errstate(over="ignore"):
         heights = heights * scale
     if not np.isfinite(heights).all():
-        raise SceneError(FIELD, f"a height map that stays finite in mm ({name} times scale {scale:g} overflows)")
+        raise SceneError(
+            FIELD, f"a height map that stays finite in mm ({name} times scale {scale:g} overflows)"
+        )
     return heights
 
 
@@ -191,15 +215,24 @@ def _x3p(path: Path):
         kind = type(x3p).__name__.lower()
         raise SceneError(FIELD, f"an x3p surface on a regular grid ({path.name} holds a {kind})")
     header = x3p.header
-    if header.x.axis_type is not x3pio.AxisType.INCREMENTAL or header.y.axis_type is not x3pio.AxisType.INCREMENTAL:
-        raise SceneError(FIELD, f"an x3p surface on a regular grid ({path.name} is a non-regular grid: its x or y "
-                                "axis is absolute)")
+    if (
+        header.x.axis_type is not x3pio.AxisType.INCREMENTAL
+        or header.y.axis_type is not x3pio.AxisType.INCREMENTAL
+    ):
+        raise SceneError(
+            FIELD,
+            f"an x3p surface on a regular grid ({path.name} is a non-regular grid: its x or y "
+            "axis is absolute)",
+        )
     if not x3p.layers:
         raise SceneError(FIELD, f"an x3p surface with a layer of heights ({path.name} has none)")
     dx, dy = float(header.x.increment), float(header.y.increment)
     if not (dx > 0 and dy > 0):
-        raise SceneError(FIELD, f"an x3p grid with positive spacings ({path.name} has x increment {dx:g} m, "
-                                f"y increment {dy:g} m)")
+        raise SceneError(
+            FIELD,
+            f"an x3p grid with positive spacings ({path.name} has x increment {dx:g} m, "
+            f"y increment {dy:g} m)",
+        )
     z = np.asarray(x3p.layers[0].z)  # (SizeY rows along our z, SizeX columns along our x), metres
     _check_shape(z.shape, path.name)
     return z * 1e3, (dx * 1e3, dy * 1e3)
@@ -212,8 +245,10 @@ def _tiff(path: Path):
         series = tif.series[0]
         dtype = np.dtype(series.dtype)
         if not (dtype.kind == "u" or dtype in (np.float32, np.float64)):
-            raise SceneError(FIELD, f"a TIFF of 32- or 64-bit floats or unsigned integers ({path.name} holds "
-                                    f"{dtype})")
+            raise SceneError(
+                FIELD,
+                f"a TIFF of 32- or 64-bit floats or unsigned integers ({path.name} holds {dtype})",
+            )
         _check_shape(tuple(series.shape), path.name)
         return tif.asarray(), None
 
@@ -227,5 +262,7 @@ def _png(path: Path):
     channels = 1 if image.ndim == 2 else image.shape[2]
     if image.dtype != np.uint16 or channels != 1:
         kind = "greyscale" if channels == 1 else f"with {channels} channels"
-        raise SceneError(FIELD, f"a 16-bit greyscale PNG ({path.name} is {image.dtype.itemsize * 8}-bit {kind})")
+        raise SceneError(
+            FIELD, f"a 16-bit greyscale PNG ({path.name} is {image.dtype.itemsize * 8}-bit {kind})"
+        )
     return image, None

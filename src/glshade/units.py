@@ -15,9 +15,22 @@ import re
 from glshade.errors import SceneError
 
 #: Length units, in mm.
-LENGTHS_MM: dict[str, float] = {"nm": 1e-6, "um": 1e-3, "µm": 1e-3, "μm": 1e-3, "mm": 1.0, "cm": 10.0, "m": 1e3}
+LENGTHS_MM: dict[str, float] = {
+    "nm": 1e-6,
+    "um": 1e-3,
+    "µm": 1e-3,
+    "μm": 1e-3,
+    "mm": 1.0,
+    "cm": 10.0,
+    "m": 1e3,
+}
 #: Angle units, in degrees.
-ANGLES_DEG: dict[str, float] = {"deg": 1.0, "°": 1.0, "rad": 180.0 / math.pi, "mrad": 0.18 / math.pi}
+ANGLES_DEG: dict[str, float] = {
+    "deg": 1.0,
+    "°": 1.0,
+    "rad": 180.0 / math.pi,
+    "mrad": 0.18 / math.pi,
+}
 _AREA_SUFFIXES = ("²", "^2", "2")
 _QUANTITY = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([^\s\d.+-][^\s]*)?\s*$")
 
@@ -28,7 +41,11 @@ def units_for(unit: str) -> dict[str, float]:
     if unit == "mm":
         return dict(LENGTHS_MM)
     if unit == "mm²":
-        return {name + suffix: factor**2 for name, factor in LENGTHS_MM.items() for suffix in _AREA_SUFFIXES}
+        return {
+            name + suffix: factor**2
+            for name, factor in LENGTHS_MM.items()
+            for suffix in _AREA_SUFFIXES
+        }
     if unit == "deg":
         return dict(ANGLES_DEG)
     if unit == "px":

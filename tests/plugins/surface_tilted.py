@@ -12,7 +12,12 @@ from glshade.components.base import SurfaceComponent
 from glshade.scene.params import Control, Param
 
 TILT = Param(
-    "surface.tilt_deg", "deg", 0.0, "tilt of the plane about the x axis (toy)", lo=-30.0, hi=30.0,
+    "surface.tilt_deg",
+    "deg",
+    0.0,
+    "tilt of the plane about the x axis (toy)",
+    lo=-30.0,
+    hi=30.0,
     control=Control("tilt", -10.0, 10.0, fmt="%.2f deg"),
 )
 

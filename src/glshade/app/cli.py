@@ -43,11 +43,19 @@ def _add_scene_flags(p: argparse.ArgumentParser) -> None:
     for param in registry().params():
         if param.flag is not None:
             p.add_argument(param.flag, dest=_flag_dest(param), **_flag_options(param))
-    p.add_argument("--set", dest="settings", action="append", default=[], metavar="PATH=VALUE",
-                   help="set any scene parameter by its dotted path, e.g. --set camera.theta_deg=15 "
-                   "(see docs/scene-format.md); applied after the short flags")
+    p.add_argument(
+        "--set",
+        dest="settings",
+        action="append",
+        default=[],
+        metavar="PATH=VALUE",
+        help="set any scene parameter by its dotted path, e.g. --set camera.theta_deg=15 "
+        "(see docs/scene-format.md); applied after the short flags",
+    )
     p.add_argument("--size", type=int, metavar="N", help="N pixels across, same field of view")
-    p.add_argument("--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)")
+    p.add_argument(
+        "--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)"
+    )
 
 
 def _path(text: str) -> Path:
@@ -64,15 +72,20 @@ def _flag_dest(param: Param) -> str:
 
 def _flag_options(param: Param) -> dict[str, object]:
     """argparse options of a parameter's short flag, from its declaration."""
-    unit = f" ({param.unit}, or a value with its unit: 5um)" if param.unit == "mm" else (
-        f" ({param.unit})" if param.unit else "")
+    unit = (
+        f" ({param.unit}, or a value with its unit: 5um)"
+        if param.unit == "mm"
+        else (f" ({param.unit})" if param.unit else "")
+    )
     options: dict[str, object] = {"help": f"{param.path}: {param.doc}{unit}"}
     if param.value_type == "choice":
         options["choices"] = registry().choices(param) or param.choices
     elif param.value_type == "integer":
         options.update(type=_param_type(param), metavar="N")
     elif param.value_type == "real":
-        options.update(type=_param_type(param), metavar=(param.unit or "X").upper().replace("²", "2"))
+        options.update(
+            type=_param_type(param), metavar=(param.unit or "X").upper().replace("²", "2")
+        )
     elif param.value_type in ("pair", "vector"):
         count = 2 if param.value_type == "pair" else param.size
         options.update(type=_param_type(param), metavar=",".join(["X"] * count))
@@ -100,8 +113,12 @@ def _param_type(param: Param):
 
 def _quantity_list(path: str):
     """argparse type of a comma-separated list of one parameter's values (units allowed)."""
-    return _argument_type(path, lambda text: [registry().param(path).parse(part) for part in text.split(",")
-                                              if part.strip()])
+    return _argument_type(
+        path,
+        lambda text: [
+            registry().param(path).parse(part) for part in text.split(",") if part.strip()
+        ],
+    )
 
 
 def _length_mm(text: str) -> float:
@@ -112,16 +129,33 @@ def _length_mm(text: str) -> float:
 
 def _add_metric_flags(p: argparse.ArgumentParser) -> None:
     """How visibility is measured (paper and measure)."""
-    p.add_argument("--step", type=_argument_type("length", _length_mm), default=0.25, metavar="MM",
-                   help="phase step of the metric, mm or with a unit (default 0.25)")
-    p.add_argument("--threshold", type=float, default=0.5, help="binarisation threshold, fraction of the peak (default 0.5)")
-    p.add_argument("--keep-fraction", type=float, default=0.5, help="central fraction of the columns kept (default 0.5)")
+    p.add_argument(
+        "--step",
+        type=_argument_type("length", _length_mm),
+        default=0.25,
+        metavar="MM",
+        help="phase step of the metric, mm or with a unit (default 0.25)",
+    )
+    p.add_argument(
+        "--threshold",
+        type=float,
+        default=0.5,
+        help="binarisation threshold, fraction of the peak (default 0.5)",
+    )
+    p.add_argument(
+        "--keep-fraction",
+        type=float,
+        default=0.5,
+        help="central fraction of the columns kept (default 0.5)",
+    )
 
 
 def _metric_settings(args: argparse.Namespace):
     from glshade.metrics.visibility import MetricSettings
 
-    return MetricSettings(threshold=args.threshold, keep_fraction=args.keep_fraction, step_mm=args.step)
+    return MetricSettings(
+        threshold=args.threshold, keep_fraction=args.keep_fraction, step_mm=args.step
+    )
 
 
 def _add_render(sub: argparse._SubParsersAction) -> None:
@@ -133,12 +167,32 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
         "the file; lengths are in mm unless they carry a unit (--dmax 5um).",
     )
     _add_scene_flags(p)
-    p.add_argument("-o", "--output", type=_path, default=Path("render.png"),
-                   help="image, PNG or TIFF by its extension (default render.png); lossy formats are refused")
-    p.add_argument("--bits", type=int, choices=(8, 16, 32), default=8,
-                   help="bits per pixel: 8 or 16 (integers), 32 (float radiance, TIFF only); default 8")
-    p.add_argument("--uv", type=_path, metavar="UV.npy", help="also write the uv map (float32 H×W×2, mm, NaN = no hit)")
-    p.add_argument("--save-scene", type=_path, metavar="SCENE.toml", help="also write the effective scene as TOML")
+    p.add_argument(
+        "-o",
+        "--output",
+        type=_path,
+        default=Path("render.png"),
+        help="image, PNG or TIFF by its extension (default render.png); lossy formats are refused",
+    )
+    p.add_argument(
+        "--bits",
+        type=int,
+        choices=(8, 16, 32),
+        default=8,
+        help="bits per pixel: 8 or 16 (integers), 32 (float radiance, TIFF only); default 8",
+    )
+    p.add_argument(
+        "--uv",
+        type=_path,
+        metavar="UV.npy",
+        help="also write the uv map (float32 H×W×2, mm, NaN = no hit)",
+    )
+    p.add_argument(
+        "--save-scene",
+        type=_path,
+        metavar="SCENE.toml",
+        help="also write the effective scene as TOML",
+    )
     p.set_defaults(run=_cmd_render)
 
 
@@ -154,7 +208,12 @@ def _add_measure(sub: argparse._SubParsersAction) -> None:
     _add_scene_flags(p)
     _add_metric_flags(p)
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
-    p.add_argument("--overlay", type=_path, metavar="PNG", help="also write the Fig. 9 contour overlay at the best phase")
+    p.add_argument(
+        "--overlay",
+        type=_path,
+        metavar="PNG",
+        help="also write the Fig. 9 contour overlay at the best phase",
+    )
     p.set_defaults(run=_cmd_measure)
 
 
@@ -168,31 +227,52 @@ def _cmd_measure(args: argparse.Namespace) -> int:
 
     scene = scene_from_args(args)
     settings = _metric_settings(args)
-    settings.phases(scene.emitter.period)  # a step longer than the period is refused before rendering
+    settings.phases(
+        scene.emitter.period
+    )  # a step longer than the period is refused before rendering
     if args.overlay is not None:
         check_output(args.overlay, "--overlay", (".png",))
     _warn(scene_warnings(scene))
     start = time.perf_counter()
-    with GLContext(device_index=args.device) as context, Renderer(context, progress=True) as renderer:
+    with (
+        GLContext(device_index=args.device) as context,
+        Renderer(context, progress=True) as renderer,
+    ):
         result = measure_scene(renderer, scene, settings, overlay=args.overlay)
     seconds = time.perf_counter() - start
     law = physics.laws(scene)
     if args.json:
-        out = {**result.summary(), "scene": scene.title(), "size": [scene.camera.width, scene.camera.height],
-               "laws": {"deflection_px": _finite(law.deflection_px), "visibility_px": _finite(law.visibility_px),
-                        "fold_ratio": _finite(law.fold_ratio), "magnification": _finite(law.magnification)},
-               "seconds": round(seconds, 3)}
+        out = {
+            **result.summary(),
+            "scene": scene.title(),
+            "size": [scene.camera.width, scene.camera.height],
+            "laws": {
+                "deflection_px": _finite(law.deflection_px),
+                "visibility_px": _finite(law.visibility_px),
+                "fold_ratio": _finite(law.fold_ratio),
+                "magnification": _finite(law.magnification),
+            },
+            "seconds": round(seconds, 3),
+        }
         print(json.dumps(out))
         return 0
     cam = scene.camera
-    print(f"{scene.title()} ({cam.width}x{cam.height}, {scene.render.precision}, {scene.render.reflection})")
-    print(f"  visibility_px             {result.visibility_px:g}  (the paper's metric, best phase {result.best_phase_mm:g} mm)")
-    print(f"  visibility_continuous_px  {result.visibility_continuous_px:.2f}  (its limit: finer phase step and pixels)")
+    print(
+        f"{scene.title()} ({cam.width}x{cam.height}, {scene.render.precision}, {scene.render.reflection})"
+    )
+    print(
+        f"  visibility_px             {result.visibility_px:g}  (the paper's metric, best phase {result.best_phase_mm:g} mm)"
+    )
+    print(
+        f"  visibility_continuous_px  {result.visibility_continuous_px:.2f}  (its limit: finer phase step and pixels)"
+    )
     print(f"  deflection_px             {result.deflection_px:.2f}  (how far the rays move)")
     fold = f"yes, {result.islands} islands at most" if result.folded else "no"
     print(f"  folded                    {fold}")
-    print(f"  closed forms              deflection {law.deflection_px:.2f} px, visible {law.visibility_px:.2f} px, "
-          f"fold ratio {law.fold_ratio:.2f} (folds above 1)")
+    print(
+        f"  closed forms              deflection {law.deflection_px:.2f} px, visible {law.visibility_px:.2f} px, "
+        f"fold ratio {law.fold_ratio:.2f} (folds above 1)"
+    )
     if args.overlay is not None:
         print(f"  wrote {args.overlay}")
     return 0
@@ -207,7 +287,9 @@ def _finite(value: float) -> float | None:
 
 def _add_info(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("info", help="print the GL renderer, version and fp64 support")
-    p.add_argument("--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)")
+    p.add_argument(
+        "--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)"
+    )
     p.set_defaults(run=_cmd_info)
 
 
@@ -220,20 +302,57 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
         "Rerunning with the same --out resumes: finished cases are skipped. The directory is locked while a run "
         "uses it; one that holds a study with another plan is refused unless --overwrite.",
     )
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace a study with another plan in --out (its results, figures and report are removed)")
-    p.add_argument("--out", type=_path, default=Path("paper_study"), metavar="DIR", help="output directory (default paper_study)")
-    p.add_argument("--surfaces", default="flat,cylinder,sphere", metavar="LIST",
-                   help="comma-separated surface kinds, or scene files (.toml) of free-form surfaces")
-    p.add_argument("--thetas", type=_quantity_list("camera.theta_deg"), metavar="LIST",
-                   help="camera elevations, degrees, strictly decreasing (default 85,75,…,5)")
-    p.add_argument("--sigma2s", type=_quantity_list("defect.sigma2"), metavar="LIST",
-                   help="defect variances, mm² or with a unit (default 1,4,9,16)")
-    p.add_argument("--dmaxs", type=_quantity_list("defect.dmax"), metavar="LIST",
-                   help="defect depths, mm or with a unit: 0.003,0.005 or 3um,5um (the default)")
-    p.add_argument("--size", type=int, default=1024, metavar="N", help="pixels across, the paper's field of view (default 1024)")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace a study with another plan in --out (its results, figures and report are removed)",
+    )
+    p.add_argument(
+        "--out",
+        type=_path,
+        default=Path("paper_study"),
+        metavar="DIR",
+        help="output directory (default paper_study)",
+    )
+    p.add_argument(
+        "--surfaces",
+        default="flat,cylinder,sphere",
+        metavar="LIST",
+        help="comma-separated surface kinds, or scene files (.toml) of free-form surfaces",
+    )
+    p.add_argument(
+        "--thetas",
+        type=_quantity_list("camera.theta_deg"),
+        metavar="LIST",
+        help="camera elevations, degrees, strictly decreasing (default 85,75,…,5)",
+    )
+    p.add_argument(
+        "--sigma2s",
+        type=_quantity_list("defect.sigma2"),
+        metavar="LIST",
+        help="defect variances, mm² or with a unit (default 1,4,9,16)",
+    )
+    p.add_argument(
+        "--dmaxs",
+        type=_quantity_list("defect.dmax"),
+        metavar="LIST",
+        help="defect depths, mm or with a unit: 0.003,0.005 or 3um,5um (the default)",
+    )
+    p.add_argument(
+        "--size",
+        type=int,
+        default=1024,
+        metavar="N",
+        help="pixels across, the paper's field of view (default 1024)",
+    )
     _add_metric_flags(p)
-    p.add_argument("--workers", type=int, default=2, metavar="N", help="threads for the metric's analysis (default 2)")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=2,
+        metavar="N",
+        help="threads for the metric's analysis (default 2)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--device", type=int, metavar="N", help="EGL device index")
     p.set_defaults(run=_cmd_paper)
@@ -255,8 +374,14 @@ def _cmd_paper(args: argparse.Namespace) -> int:
         size=args.size,
         metric=metric,
     )
-    _warn(tuple(line for sigma2 in plan.sigma2s for dmax in plan.dmaxs
-                for line in scene_warnings(plan.scene(plan.surfaces[0], plan.thetas[0], sigma2, dmax))))
+    _warn(
+        tuple(
+            line
+            for sigma2 in plan.sigma2s
+            for dmax in plan.dmaxs
+            for line in scene_warnings(plan.scene(plan.surfaces[0], plan.thetas[0], sigma2, dmax))
+        )
+    )
     with study_lock(args.out):
         return _run_paper(args, plan)
 
@@ -275,19 +400,30 @@ def _run_paper(args: argparse.Namespace, plan) -> int:
     drawn: dict = {}
     figure_seconds = 0.0
 
-    def draw(surface: str, rows: list[CaseResult]) -> None:  # while the workers measure the next surface
+    def draw(
+        surface: str, rows: list[CaseResult]
+    ) -> None:  # while the workers measure the next surface
         nonlocal figure_seconds
         begin = time.perf_counter()
         drawn[surface] = plots.surface_figures(rows, args.out, plan, surface)
         figure_seconds += time.perf_counter() - begin
 
     with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
-        result = run_study(plan, args.out, workers=args.workers, progress=not args.no_progress,
-                           renderer=renderer, on_surface_done=draw, overwrite=args.overwrite)
+        result = run_study(
+            plan,
+            args.out,
+            workers=args.workers,
+            progress=not args.no_progress,
+            renderer=renderer,
+            on_surface_done=draw,
+            overwrite=args.overwrite,
+        )
     figure_start = time.perf_counter()
     written = plots.write_figures(result.rows, args.out, plan, drawn)
     result.timings.figures = figure_seconds + time.perf_counter() - figure_start
-    overlays = [args.out / name for name in study.OVERLAY_CASES.values() if (args.out / name).exists()]
+    overlays = [
+        args.out / name for name in study.OVERLAY_CASES.values() if (args.out / name).exists()
+    ]
     report = findings.write_report(result.rows, args.out, plan, overlays + written, result.timings)
     print(
         f"{result.computed} cases computed, {result.skipped} resumed; wrote {args.out / 'results.csv'}, "
@@ -305,14 +441,35 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
         "Keys: S screenshot, T save the scene as TOML, R reset to the paper's defaults, O toggle the overlay. "
         "Scripted mode: --frames N [--screenshot out.png] [--set theta=5 ...].",
     )
-    p.add_argument("scene", nargs="?", type=_path, help="scene file (TOML); default: the paper's scene")
-    p.add_argument("--size", type=int, default=512, metavar="N", help="pixels across, same field of view (default 512)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="a setting, e.g. theta=5, sigma2=9, surface=sphere, view=overlay, animate=1 (repeatable)")
+    p.add_argument(
+        "scene", nargs="?", type=_path, help="scene file (TOML); default: the paper's scene"
+    )
+    p.add_argument(
+        "--size",
+        type=int,
+        default=512,
+        metavar="N",
+        help="pixels across, same field of view (default 512)",
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a setting, e.g. theta=5, sigma2=9, surface=sphere, view=overlay, animate=1 (repeatable)",
+    )
     p.add_argument("--frames", type=int, metavar="N", help="draw N frames, then exit")
-    p.add_argument("--screenshot", type=_path, metavar="PNG", help="with --frames: save the last frame")
-    p.add_argument("--benchmark", choices=("phase", "theta"), help="with --frames: animate the phase or drag theta, print fps")
-    p.add_argument("--no-panel", action="store_true", help="no control panel (the window shows the image only)")
+    p.add_argument(
+        "--screenshot", type=_path, metavar="PNG", help="with --frames: save the last frame"
+    )
+    p.add_argument(
+        "--benchmark",
+        choices=("phase", "theta"),
+        help="with --frames: animate the phase or drag theta, print fps",
+    )
+    p.add_argument(
+        "--no-panel", action="store_true", help="no control panel (the window shows the image only)"
+    )
     p.set_defaults(run=_cmd_view)
 
 
@@ -332,7 +489,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
     options = viewer.ViewerOptions(
         scene=scene,
         view=extra.get("view", "image"),
-        animate=args.benchmark == "phase" or extra.get("animate", "0").lower() in ("1", "true", "yes"),
+        animate=args.benchmark == "phase"
+        or extra.get("animate", "0").lower() in ("1", "true", "yes"),
         frames=args.frames,
         screenshot=args.screenshot,
         benchmark=args.benchmark,
@@ -341,8 +499,10 @@ def _cmd_view(args: argparse.Namespace) -> int:
     stats = viewer.run(options)
     if args.benchmark and stats["seconds"] > 0:
         cam = scene.camera
-        print(f"{args.benchmark} at {cam.width}x{cam.height}: {stats['frames'] / stats['seconds']:.1f} fps over "
-              f"{stats['frames']} frames ({stats['traces']} traces, {stats['reshades']} re-shades)")
+        print(
+            f"{args.benchmark} at {cam.width}x{cam.height}: {stats['frames'] / stats['seconds']:.1f} fps over "
+            f"{stats['frames']} frames ({stats['traces']} traces, {stats['reshades']} re-shades)"
+        )
     if args.frames is not None and "readout" in stats:
         print("readout: " + "; ".join(viewer.readout_lines(stats["readout"])))
     if args.screenshot is not None:
@@ -359,11 +519,29 @@ def _add_accuracy(sub: argparse._SubParsersAction) -> None:
         "defaults, and the stability table of the extreme cases. 'glshade accuracy --out docs' "
         "regenerates the repository's report (a few minutes).",
     )
-    p.add_argument("--out", type=_path, default=Path("accuracy"), metavar="DIR", help="output directory (default accuracy)")
-    p.add_argument("--repeats", type=int, default=5, metavar="K", help="timed repeats per setting (default 5)")
-    p.add_argument("--size", type=int, default=256, metavar="N", help="pixels across for the per-frame knobs (default 256)")
-    p.add_argument("--scenes", default="flat,cylinder,sphere", metavar="LIST",
-                   help="surface kinds of the knobs' paper scenes (default flat,cylinder,sphere)")
+    p.add_argument(
+        "--out",
+        type=_path,
+        default=Path("accuracy"),
+        metavar="DIR",
+        help="output directory (default accuracy)",
+    )
+    p.add_argument(
+        "--repeats", type=int, default=5, metavar="K", help="timed repeats per setting (default 5)"
+    )
+    p.add_argument(
+        "--size",
+        type=int,
+        default=256,
+        metavar="N",
+        help="pixels across for the per-frame knobs (default 256)",
+    )
+    p.add_argument(
+        "--scenes",
+        default="flat,cylinder,sphere",
+        metavar="LIST",
+        help="surface kinds of the knobs' paper scenes (default flat,cylinder,sphere)",
+    )
     p.set_defaults(run=_cmd_accuracy)
 
 
@@ -376,8 +554,13 @@ def _cmd_accuracy(args: argparse.Namespace) -> int:
         raise GlshadeError(f"--out {args.out}: is not a directory")
     Camera().resampled(args.size)
     surfaces = tuple(part.strip() for part in args.scenes.split(",") if part.strip())
-    path = accuracy.run(args.out, repeats=args.repeats, size=args.size, surfaces=surfaces,
-                        log=lambda m: print(m, file=sys.stderr))
+    path = accuracy.run(
+        args.out,
+        repeats=args.repeats,
+        size=args.size,
+        surfaces=surfaces,
+        log=lambda m: print(m, file=sys.stderr),
+    )
     print(f"wrote {path}")
     return 0
 
@@ -391,8 +574,13 @@ def _add_finding3(sub: argparse._SubParsersAction) -> None:
         "OUT/finding3.csv, finding3.png and finding3.md ('glshade paper --out OUT' then quotes the verdicts). "
         "About 12 minutes at the default size on 2 CPU cores.",
     )
-    p.add_argument("--out", type=_path, default=Path("paper_study"), metavar="DIR",
-                   help="output directory (default paper_study)")
+    p.add_argument(
+        "--out",
+        type=_path,
+        default=Path("paper_study"),
+        metavar="DIR",
+        help="output directory (default paper_study)",
+    )
     p.add_argument("--size", type=int, default=512, metavar="N", help="pixels across (default 512)")
     p.set_defaults(run=_cmd_finding3)
 
@@ -404,10 +592,18 @@ def _cmd_finding3(args: argparse.Namespace) -> int:
         raise GlshadeError(f"--out {args.out}: is not a directory")
     Camera().resampled(args.size)
     if args.size < 256:
-        raise GlshadeError(f"--size: must be at least 256 (the stripes need 4 pixels a period), got {args.size}")
-    path = optics.run(args.out, size=args.size, progress=lambda row: print(
-        f"{row['variant']:>13} theta {row['theta_deg']:>4g} sigma2 {row['sigma2_mm2']:>3g}: "
-        f"{row['visibility_px']:g} px ({row['seconds']:.1f} s)", file=sys.stderr))
+        raise GlshadeError(
+            f"--size: must be at least 256 (the stripes need 4 pixels a period), got {args.size}"
+        )
+    path = optics.run(
+        args.out,
+        size=args.size,
+        progress=lambda row: print(
+            f"{row['variant']:>13} theta {row['theta_deg']:>4g} sigma2 {row['sigma2_mm2']:>3g}: "
+            f"{row['visibility_px']:g} px ({row['seconds']:.1f} s)",
+            file=sys.stderr,
+        ),
+    )
     print(f"wrote {path}")
     return 0
 
@@ -419,16 +615,25 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
         description="Render the paper's flat scene (theta 45) and report the median time per frame "
         "and megapixels per second for the fp32 and fp64 shaders and the NumPy fp64 reference.",
     )
-    p.add_argument("--size", type=int, default=1024, metavar="N", help="pixels across (default 1024)")
+    p.add_argument(
+        "--size", type=int, default=1024, metavar="N", help="pixels across (default 1024)"
+    )
     p.add_argument("--theta", type=float, default=45.0, metavar="DEG")
-    p.add_argument("--repeats", type=int, default=9, metavar="K", help="frames timed per shader (default 9)")
-    p.add_argument("--reference-rows", type=int, metavar="R", help="trace only R rows with NumPy and scale")
+    p.add_argument(
+        "--repeats", type=int, default=9, metavar="K", help="frames timed per shader (default 9)"
+    )
+    p.add_argument(
+        "--reference-rows", type=int, metavar="R", help="trace only R rows with NumPy and scale"
+    )
     p.add_argument("--device", type=int, metavar="N", help="EGL device index")
     p.set_defaults(run=_cmd_bench)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="glshade", description="GPU deflectometry simulator (stripe reflections on glossy surfaces).")
+    parser = _Parser(
+        prog="glshade",
+        description="GPU deflectometry simulator (stripe reflections on glossy surfaces).",
+    )
     parser.add_argument("--version", action="version", version=f"glshade {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     _add_render(sub)
@@ -460,7 +665,9 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
         if value is not None:
             tables.setdefault(param.table, {})[param.key] = value
     for item in args.settings:  # later settings win; all are applied at once, so values that
-        path, value = parse_setting(item)  # only make sense together (a kind and its file) can be given
+        path, value = parse_setting(
+            item
+        )  # only make sense together (a kind and its file) can be given
         table, _, key = path.partition(".")
         tables.setdefault(table, {})[key] = value
     scene = scene.updated(**tables)
@@ -475,7 +682,9 @@ def parse_setting(item: str) -> tuple[str, object]:
     path, sep, text = item.partition("=")
     path = path.strip()
     if not sep or "." not in path:
-        raise GlshadeError(f"--set {item!r}: expected PATH=VALUE with a dotted path such as camera.theta_deg=15")
+        raise GlshadeError(
+            f"--set {item!r}: expected PATH=VALUE with a dotted path such as camera.theta_deg=15"
+        )
     return path, registry().param(path).parse(text)
 
 
@@ -492,7 +701,10 @@ def _cmd_render(args: argparse.Namespace) -> int:
         check_output(args.save_scene, "--save-scene", (".toml",))
     _warn(scene_warnings(scene))
     outputs = ("image", "uv") if args.uv is not None else ("image",)
-    with GLContext(device_index=args.device) as context, Renderer(context, progress=True) as renderer:
+    with (
+        GLContext(device_index=args.device) as context,
+        Renderer(context, progress=True) as renderer,
+    ):
         start = time.perf_counter()
         frame = renderer.render(scene, outputs)
         seconds = time.perf_counter() - start
@@ -534,7 +746,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.reference_rows is not None and args.reference_rows < 1:
         raise GlshadeError(f"--reference-rows: must be an integer >= 1, got {args.reference_rows}")
     Camera().resampled(args.size)  # validates --size
-    timings, gl_renderer = bench.run(args.size, args.theta, args.repeats, args.reference_rows, args.device)
+    timings, gl_renderer = bench.run(
+        args.size, args.theta, args.repeats, args.reference_rows, args.device
+    )
     print(bench.report(timings, gl_renderer, args.size, args.theta, args.repeats))
     return 0
 
@@ -553,7 +767,9 @@ def main(argv: list[str] | None = None) -> int:
         hint = " (finished cases are saved: rerun the same command to resume)" if resumable else ""
         print(f"glshade: interrupted{hint}", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except ShaderCompileError as exc:  # a composed shader the driver refused: its numbered lines help
+    except (
+        ShaderCompileError
+    ) as exc:  # a composed shader the driver refused: its numbered lines help
         print(f"glshade: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except GlshadeError as exc:

@@ -28,22 +28,46 @@ OPTIMIZE_SIZE = 256
 
 def _add_distribution_flags(p: argparse.ArgumentParser) -> None:
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, metavar="N",
-                       help="start a local Dask cluster of N worker processes (default: run in this process)")
-    where.add_argument("--scheduler", metavar="ADDRESS",
-                       help="use an existing Dask cluster, e.g. tcp://head:8786 (dask-jobqueue, dask-cuda, ...)")
-    p.add_argument("--connect-timeout", type=float, default=10.0, metavar="S",
-                   help="seconds to wait for --scheduler before giving up (default 10)")
-    p.add_argument("--threads", type=int, default=2, metavar="N",
-                   help="in-process: threads for the metric's analysis (default 2)")
-    p.add_argument("--batch", type=int, default=16, metavar="K", help="Dask: most cases per task (default 16)")
+    where.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="start a local Dask cluster of N worker processes (default: run in this process)",
+    )
+    where.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="use an existing Dask cluster, e.g. tcp://head:8786 (dask-jobqueue, dask-cuda, ...)",
+    )
+    p.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="seconds to wait for --scheduler before giving up (default 10)",
+    )
+    p.add_argument(
+        "--threads",
+        type=int,
+        default=2,
+        metavar="N",
+        help="in-process: threads for the metric's analysis (default 2)",
+    )
+    p.add_argument(
+        "--batch", type=int, default=16, metavar="K", help="Dask: most cases per task (default 16)"
+    )
 
 
 def _distribution(args: argparse.Namespace):
     from glshade.sweep.run import Distribution
 
-    return Distribution(workers=args.workers, scheduler=args.scheduler, threads=args.threads,
-                        connect_timeout_s=args.connect_timeout, batch=args.batch)
+    return Distribution(
+        workers=args.workers,
+        scheduler=args.scheduler,
+        threads=args.threads,
+        connect_timeout_s=args.connect_timeout,
+        batch=args.batch,
+    )
 
 
 # --------------------------------------------------------------------------- sweep
@@ -57,11 +81,20 @@ def add_sweep(sub: argparse._SubParsersAction) -> None:
         "Rerunning resumes: a case already measured (by the hash of its scene and metric) is never measured again.",
     )
     p.add_argument("file", type=_path, metavar="FILE.toml", help="the sweep file")
-    p.add_argument("--out", type=_path, metavar="DIR", help="output directory (default sweep_<file stem>)")
-    p.add_argument("--size", type=int, metavar="N", help="pixels across, overriding the file's size")
-    p.add_argument("--yes", action="store_true", help="run a grid of more cases than the confirmation limit")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace a sweep of another base scene, size, metric or glshade version in --out")
+    p.add_argument(
+        "--out", type=_path, metavar="DIR", help="output directory (default sweep_<file stem>)"
+    )
+    p.add_argument(
+        "--size", type=int, metavar="N", help="pixels across, overriding the file's size"
+    )
+    p.add_argument(
+        "--yes", action="store_true", help="run a grid of more cases than the confirmation limit"
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace a sweep of another base scene, size, metric or glshade version in --out",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_distribution_flags(p)
     p.set_defaults(run=_cmd_sweep)
@@ -76,11 +109,23 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     out = args.out if args.out is not None else Path(f"sweep_{args.file.stem}")
     _warn(line for case in spec.cases()[:1] for line in scene_warnings(case.scene))
     reuse_freed_memory()
-    result = run_sweep(spec, out, distribution, yes=args.yes, overwrite=args.overwrite,
-                       progress=not args.no_progress)
-    rate = f", {result.computed / result.seconds:.2f} cases/s" if result.computed and result.seconds > 0 else ""
-    print(f"wrote {out / 'results.parquet'} and results.csv: {len(result.rows)} cases ({result.computed} measured, "
-          f"{result.skipped} already done) in {result.seconds:.1f} s{rate}")
+    result = run_sweep(
+        spec,
+        out,
+        distribution,
+        yes=args.yes,
+        overwrite=args.overwrite,
+        progress=not args.no_progress,
+    )
+    rate = (
+        f", {result.computed / result.seconds:.2f} cases/s"
+        if result.computed and result.seconds > 0
+        else ""
+    )
+    print(
+        f"wrote {out / 'results.parquet'} and results.csv: {len(result.rows)} cases ({result.computed} measured, "
+        f"{result.skipped} already done) in {result.seconds:.1f} s{rate}"
+    )
     return 0
 
 
@@ -95,17 +140,45 @@ def add_optimize(sub: argparse._SubParsersAction) -> None:
         f"how flat it is; --plot draws the objective. Scenes are rendered at --size (default {OPTIMIZE_SIZE}).",
     )
     _add_scene_flags(p)
-    p.add_argument("--over", required=True, metavar="KEY[=LO..HI][,...]",
-                   help="keys to optimise and their bounds, e.g. camera.theta_deg,camera.azimuth_deg=0..90 "
-                        "(theta defaults to 5..85, azimuth to 0..180)")
-    p.add_argument("--family", metavar="SPEC",
-                   help="defects to guard against, e.g. \"defect.sigma2=1..16,defect.dmax=0.003..0.005\" "
-                        "(ranges sampled at --family-points values) or defect.sigma2=1|4|9")
-    p.add_argument("--family-points", type=int, default=3, metavar="N", help="values per family range (default 3)")
-    p.add_argument("--metric", choices=("paper", "continuous"), default="paper",
-                   help="paper: whole-pixel contour shift (SPEC §6); continuous: its sub-pixel limit (default paper)")
-    p.add_argument("--grid", type=int, metavar="N", help="coarse grid points per key (default 9, 7 for two keys, 5)")
-    p.add_argument("--refine", type=int, default=30, metavar="K", help="most refinement evaluations (default 30; 0: none)")
+    p.add_argument(
+        "--over",
+        required=True,
+        metavar="KEY[=LO..HI][,...]",
+        help="keys to optimise and their bounds, e.g. camera.theta_deg,camera.azimuth_deg=0..90 "
+        "(theta defaults to 5..85, azimuth to 0..180)",
+    )
+    p.add_argument(
+        "--family",
+        metavar="SPEC",
+        help='defects to guard against, e.g. "defect.sigma2=1..16,defect.dmax=0.003..0.005" '
+        "(ranges sampled at --family-points values) or defect.sigma2=1|4|9",
+    )
+    p.add_argument(
+        "--family-points",
+        type=int,
+        default=3,
+        metavar="N",
+        help="values per family range (default 3)",
+    )
+    p.add_argument(
+        "--metric",
+        choices=("paper", "continuous"),
+        default="paper",
+        help="paper: whole-pixel contour shift (SPEC §6); continuous: its sub-pixel limit (default paper)",
+    )
+    p.add_argument(
+        "--grid",
+        type=int,
+        metavar="N",
+        help="coarse grid points per key (default 9, 7 for two keys, 5)",
+    )
+    p.add_argument(
+        "--refine",
+        type=int,
+        default=30,
+        metavar="K",
+        help="most refinement evaluations (default 30; 0: none)",
+    )
     p.add_argument("--plot", type=_path, metavar="PNG", help="write the objective's curve or map")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     _add_metric_flags(p)
@@ -127,7 +200,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     scene = scene_from_args(args)
     dimensions = parse_over(args.over)
     if not 1 <= args.family_points <= 64:
-        raise GlshadeError(f"--family-points: must be an integer in [1, 64], got {args.family_points}")
+        raise GlshadeError(
+            f"--family-points: must be an integer in [1, 64], got {args.family_points}"
+        )
     if not 0 <= args.refine <= 1000:
         raise GlshadeError(f"--refine: must be an integer in [0, 1000], got {args.refine}")
     family = parse_family(args.family, args.family_points)
@@ -139,8 +214,16 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     reuse_freed_memory()
     start = time.perf_counter()
     with open_executor(distribution) as executor:
-        result = optimize_scene(scene, dimensions, family, metric=args.metric, settings=settings, executor=executor,
-                                grid_points=args.grid, refine_evaluations=args.refine)
+        result = optimize_scene(
+            scene,
+            dimensions,
+            family,
+            metric=args.metric,
+            settings=settings,
+            executor=executor,
+            grid_points=args.grid,
+            refine_evaluations=args.refine,
+        )
     seconds = time.perf_counter() - start
     if args.plot is not None:
         objective_figure(result, args.plot)
@@ -153,6 +236,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     print(f"{worst} ({args.metric}): {result.visibility_px:.3f} px")
     for key, (lo, hi) in result.near_optimal.items():
         print(f"  {result.near_text()}: {key} in [{lo:g}, {hi:g}]")
-    print(f"{result.evaluations} viewpoints ({result.grid_count} on the grid), {result.cases} cases, {seconds:.1f} s"
-          + (f"; plot: {args.plot}" if args.plot is not None else ""), file=sys.stdout)
+    print(
+        f"{result.evaluations} viewpoints ({result.grid_count} on the grid), {result.cases} cases, {seconds:.1f} s"
+        + (f"; plot: {args.plot}" if args.plot is not None else ""),
+        file=sys.stdout,
+    )
     return 0

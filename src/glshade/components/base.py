@@ -118,7 +118,9 @@ class Component:
         the same scene (their noise differs)."""
         return image
 
-    def read_file(self, values: dict[str, Any], current: dict[str, Any] | None = None) -> dict[str, Any]:
+    def read_file(
+        self, values: dict[str, Any], current: dict[str, Any] | None = None
+    ) -> dict[str, Any]:
         """Its table's keys as a scene file gives them -> the table's fields (shorthands
         expanded); the identity unless the component has a shorthand. ``current``: the
         table's values the keys change (None when a scene file gives the whole table)."""
@@ -144,7 +146,9 @@ class SurfaceComponent(Component):
         n = len(d)
         return np.full(n, -np.inf), np.full(n, np.inf)
 
-    def band_roots(self, scene: Scene, o: np.ndarray, d: np.ndarray, shift: float) -> list[np.ndarray]:
+    def band_roots(
+        self, scene: Scene, o: np.ndarray, d: np.ndarray, shift: float
+    ) -> list[np.ndarray]:
         """Ray parameters where ``y - f = shift`` (every root; spurious ones only add
         breakpoints to the search)."""
         raise NotImplementedError
@@ -157,7 +161,9 @@ class SurfaceComponent(Component):
         """True where the surface does not exist (its height is NaN)."""
         return np.zeros(np.broadcast(x, z).shape, dtype=bool)
 
-    def normal(self, scene: Scene, x: np.ndarray, z: np.ndarray, dx: np.ndarray, dz: np.ndarray) -> np.ndarray:
+    def normal(
+        self, scene: Scene, x: np.ndarray, z: np.ndarray, dx: np.ndarray, dz: np.ndarray
+    ) -> np.ndarray:
         """Unnormalised normal (…, 3) of ``f + D`` given the defect's gradient
         ``(D_x, D_z)``; finite wherever the surface exists."""
         raise NotImplementedError
@@ -208,7 +214,9 @@ class CameraComponent(Component):
 
     slot = "camera"
 
-    def pixel_rays(self, scene: Scene, rows, cols, supersample: int) -> tuple[np.ndarray, np.ndarray]:
+    def pixel_rays(
+        self, scene: Scene, rows, cols, supersample: int
+    ) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
 
     def samples(self, scene: Scene) -> int:
@@ -218,7 +226,9 @@ class CameraComponent(Component):
     def work_factor(self, scene: Scene) -> int:
         return self.samples(scene)
 
-    def sample_rays(self, scene: Scene, rows, cols, supersample: int) -> tuple[np.ndarray, np.ndarray]:
+    def sample_rays(
+        self, scene: Scene, rows, cols, supersample: int
+    ) -> tuple[np.ndarray, np.ndarray]:
         """``(origins, directions)``, (h, w, S, 3) each: every ray of each pixel."""
         origin, d = self.pixel_rays(scene, rows, cols, supersample)
         h, w = d.shape[:2]
@@ -273,9 +283,11 @@ class ReflectionComponent(Component):
         if width is None or width <= 0.5 * period:
             return ()
         hint = self.sharpen_hint(scene, width / (0.5 * period))
-        line = (f"render.reflection = {self.name}: the lobe spreads each point over {width:.3g} mm of the emitter, "
-                f"more than half the {period:g} mm stripe period, so the stripes wash out; use {hint} "
-                "(docs/physics.md, 'Glossy lobes and stripes')")
+        line = (
+            f"render.reflection = {self.name}: the lobe spreads each point over {width:.3g} mm of the emitter, "
+            f"more than half the {period:g} mm stripe period, so the stripes wash out; use {hint} "
+            "(docs/physics.md, 'Glossy lobes and stripes')"
+        )
         return (line,)
 
     def sharpen_hint(self, scene: Scene, ratio: float) -> str:

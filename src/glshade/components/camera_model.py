@@ -43,41 +43,79 @@ UNDISTORT_ITERATIONS = 10
 GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 
 THETA = Param(
-    "camera.theta_deg", "deg", 45.0, "elevation of the line of sight above the surface",
-    lo=0.0, hi=90.0, flag="--theta", control=Control("theta", 0.5, 89.5, fmt="%.1f deg"),
+    "camera.theta_deg",
+    "deg",
+    45.0,
+    "elevation of the line of sight above the surface",
+    lo=0.0,
+    hi=90.0,
+    flag="--theta",
+    control=Control("theta", 0.5, 89.5, fmt="%.1f deg"),
 )
 AZIMUTH = Param(
-    "camera.azimuth_deg", "deg", 0.0,
+    "camera.azimuth_deg",
+    "deg",
+    0.0,
     "azimuth of the rig (camera and emitter together) about the surface normal at the origin, +y: 0 puts the "
     "camera on +z (as in the paper), 90 on +x; turns the plane of incidence over the surface, its dent and a cylinder's axis",
-    lo=-360.0, hi=360.0, closed=True, flag="--azimuth", control=Control("azimuth", -180.0, 180.0, fmt="%.1f deg"),
+    lo=-360.0,
+    hi=360.0,
+    closed=True,
+    flag="--azimuth",
+    control=Control("azimuth", -180.0, 180.0, fmt="%.1f deg"),
 )
-DISTANCE = Param("camera.distance", "mm", 175.6, "origin (the gaze point) to the principal point", lo=0.0)
+DISTANCE = Param(
+    "camera.distance", "mm", 175.6, "origin (the gaze point) to the principal point", lo=0.0
+)
 FOCAL = Param("camera.focal", "mm", 25.0, "focal length", lo=0.0)
 PITCH = Param("camera.pixel_pitch", "mm", 0.005, "sensor pixel pitch", lo=0.0)
-WIDTH = Param("camera.width", "px", 1024, "sensor width", value_type="integer", lo=1, hi=MAX_IMAGE_SIDE)
-HEIGHT = Param("camera.height", "px", 1024, "sensor height", value_type="integer", lo=1, hi=MAX_IMAGE_SIDE)
+WIDTH = Param(
+    "camera.width", "px", 1024, "sensor width", value_type="integer", lo=1, hi=MAX_IMAGE_SIDE
+)
+HEIGHT = Param(
+    "camera.height", "px", 1024, "sensor height", value_type="integer", lo=1, hi=MAX_IMAGE_SIDE
+)
 F_NUMBER = Param(
-    "camera.f_number", "", 0.0,
+    "camera.f_number",
+    "",
+    0.0,
     "0: a pinhole; > 0: a thin lens of aperture diameter focal / f_number (depth of field: a point so mm away "
     "blurs into a disc of angular diameter A |so - sf| / (so sf))",
-    lo=0.0, closed=True, role="feature", flag="--f-number", control=Control("f-number", 0.0, 64.0, fmt="f/%.1f"),
+    lo=0.0,
+    closed=True,
+    role="feature",
+    flag="--f-number",
+    control=Control("f-number", 0.0, 64.0, fmt="f/%.1f"),
     allowed_text="a finite number >= 0 (0: pinhole)",
 )
 FOCUS = Param(
-    "camera.focus_distance", "mm", None,
+    "camera.focus_distance",
+    "mm",
+    None,
     "thin lens: distance along the optical axis of the plane in focus (unset: camera.distance, the surface at the "
     "gaze point; camera.distance + emitter.distance focuses on the stripes' mirror image)",
-    lo=0.0, flag="--focus",
+    lo=0.0,
+    flag="--focus",
 )
 APERTURE_SAMPLES = Param(
-    "camera.aperture_samples", "", 64, "thin lens: rays per pixel sample over the aperture (Vogel spiral)",
-    value_type="integer", lo=1, hi=MAX_APERTURE_SAMPLES, flag="--aperture-samples",
+    "camera.aperture_samples",
+    "",
+    64,
+    "thin lens: rays per pixel sample over the aperture (Vogel spiral)",
+    value_type="integer",
+    lo=1,
+    hi=MAX_APERTURE_SAMPLES,
+    flag="--aperture-samples",
 )
 DISTORTION = Param(
-    "camera.distortion", "", (0.0, 0.0, 0.0, 0.0, 0.0),
+    "camera.distortion",
+    "",
+    (0.0, 0.0, 0.0, 0.0, 0.0),
     "OpenCV lens distortion (k1, k2, p1, p2, k3) on normalised coordinates, as cv2.calibrateCamera returns it",
-    value_type="vector", size=5, role="feature", flag="--distortion",
+    value_type="vector",
+    size=5,
+    role="feature",
+    flag="--distortion",
 )
 
 
@@ -91,8 +129,10 @@ def distort(coeffs, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarra
     k1, k2, p1, p2, k3 = coeffs
     r2 = x * x + y * y
     radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    return (x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
-            y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y)
+    return (
+        x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+        y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y,
+    )
 
 
 def distortion_jacobian(coeffs, x: np.ndarray, y: np.ndarray):
@@ -122,7 +162,9 @@ def undistort(coeffs, xd: np.ndarray, yd: np.ndarray) -> tuple[np.ndarray, np.nd
     return x, y
 
 
-def distortion_fold(coeffs, half_x: float, half_y: float, angles: int = 90, steps: int = 1500) -> float | None:
+def distortion_fold(
+    coeffs, half_x: float, half_y: float, angles: int = 90, steps: int = 1500
+) -> float | None:
     """Where (an ideal radius) the distortion folds inside the sensor, or None.
 
     Along ``angles`` rays of ideal directions, from the centre outwards until the
@@ -153,7 +195,9 @@ def distortion_fold(coeffs, half_x: float, half_y: float, angles: int = 90, step
 
 def check_distortion(values: dict) -> None:
     coeffs = values["distortion"]
-    half = sensor_half_extent(values["width"], values["height"], values["pixel_pitch"], values["focal"])
+    half = sensor_half_extent(
+        values["width"], values["height"], values["pixel_pitch"], values["focal"]
+    )
     where = distortion_fold(coeffs, *half)
     if where is not None:
         angle = math.degrees(math.atan(where))
@@ -168,7 +212,19 @@ def check_distortion(values: dict) -> None:
 class CameraModel(CameraComponent):
     name = "camera"
     doc = "a pinhole or a thin lens at the principal point, looking at the origin, with OpenCV distortion"
-    params = (THETA, AZIMUTH, DISTANCE, FOCAL, PITCH, WIDTH, HEIGHT, F_NUMBER, FOCUS, APERTURE_SAMPLES, DISTORTION)
+    params = (
+        THETA,
+        AZIMUTH,
+        DISTANCE,
+        FOCAL,
+        PITCH,
+        WIDTH,
+        HEIGHT,
+        F_NUMBER,
+        FOCUS,
+        APERTURE_SAMPLES,
+        DISTORTION,
+    )
     checks = (check_distortion,)
 
     def features(self, scene):
@@ -197,8 +253,11 @@ class CameraModel(CameraComponent):
             "u_size": (cam.width, cam.height),
         }
         if frame.variables["aperture"]:
-            values.update(u_aperture_radius=aperture_radius(cam), u_focus=focus_distance(cam),
-                          u_aperture_samples=cam.aperture_samples)
+            values.update(
+                u_aperture_radius=aperture_radius(cam),
+                u_focus=focus_distance(cam),
+                u_aperture_samples=cam.aperture_samples,
+            )
         if frame.variables["distortion"]:
             k1, k2, p1, p2, k3 = cam.distortion
             values.update(u_dist_radial=(k1, k2, k3), u_dist_tangential=(p1, p2))
@@ -256,7 +315,9 @@ class CameraModel(CameraComponent):
         forward, right, up = camera.basis()
         disc = aperture_points(camera.aperture_samples) * aperture_radius(camera)  # (K, 2) mm
         lens = origin + disc[:, :1] * right + disc[:, 1:] * up  # (K, 3)
-        focus = origin + (focus_distance(camera) / (chief @ forward))[..., None] * chief  # (h, w, s, 3)
+        focus = (
+            origin + (focus_distance(camera) / (chief @ forward))[..., None] * chief
+        )  # (h, w, s, 3)
         towards = focus[:, :, :, None, :] - lens[None, None, None, :, :]
         directions = towards / np.linalg.norm(towards, axis=-1, keepdims=True)
         origins = np.broadcast_to(lens[None, None, None], directions.shape)

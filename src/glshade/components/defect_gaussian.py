@@ -20,27 +20,52 @@ from glshade.oracle.roots import stable_roots
 from glshade.scene.params import Control, Param
 
 DMAX = Param(
-    "defect.dmax", "mm", 0.005, "depth: > 0 a dent, < 0 a bump, 0 none", flag="--dmax",
+    "defect.dmax",
+    "mm",
+    0.005,
+    "depth: > 0 a dent, < 0 a bump, 0 none",
+    flag="--dmax",
     control=Control("dmax", -0.05, 0.05, fmt="%.4f mm"),
-    plausible_max=0.1, plausible_why="deeper than the shallow dents glshade simulates",
+    plausible_max=0.1,
+    plausible_why="deeper than the shallow dents glshade simulates",
 )
 SIGMA2 = Param(
-    "defect.sigma2", "mm²", 4.0, "isotropic variance: sets sigma_x2 = sigma_z2 = sigma2, sigma_xz = 0",
-    lo=0.0, flag="--sigma2", control=Control("sigma2", 0.05, 100.0, log=True, fmt="%.2f mm2"), plausible_max=1e4,
-    plausible_why="a dent over 100 mm wide", stored=False,
+    "defect.sigma2",
+    "mm²",
+    4.0,
+    "isotropic variance: sets sigma_x2 = sigma_z2 = sigma2, sigma_xz = 0",
+    lo=0.0,
+    flag="--sigma2",
+    control=Control("sigma2", 0.05, 100.0, log=True, fmt="%.2f mm2"),
+    plausible_max=1e4,
+    plausible_why="a dent over 100 mm wide",
+    stored=False,
 )
 SIGMA_X2 = Param(
-    "defect.sigma_x2", "mm²", 4.0, "variance along x", lo=0.0,
-    control=Control("sigma_x2", 0.05, 100.0, log=True, fmt="%.2f mm2"), plausible_max=1e4,
+    "defect.sigma_x2",
+    "mm²",
+    4.0,
+    "variance along x",
+    lo=0.0,
+    control=Control("sigma_x2", 0.05, 100.0, log=True, fmt="%.2f mm2"),
+    plausible_max=1e4,
     plausible_why="a dent over 100 mm wide",
 )
 SIGMA_Z2 = Param(
-    "defect.sigma_z2", "mm²", 4.0, "variance along z", lo=0.0,
-    control=Control("sigma_z2", 0.05, 100.0, log=True, fmt="%.2f mm2"), plausible_max=1e4,
+    "defect.sigma_z2",
+    "mm²",
+    4.0,
+    "variance along z",
+    lo=0.0,
+    control=Control("sigma_z2", 0.05, 100.0, log=True, fmt="%.2f mm2"),
+    plausible_max=1e4,
     plausible_why="a dent over 100 mm wide",
 )
 SIGMA_XZ = Param(
-    "defect.sigma_xz", "mm²", 0.0, "covariance; |sigma_xz| < sqrt(sigma_x2 sigma_z2)",
+    "defect.sigma_xz",
+    "mm²",
+    0.0,
+    "covariance; |sigma_xz| < sqrt(sigma_x2 sigma_z2)",
     control=Control("sigma_xz", -100.0, 100.0, fmt="%.3f mm2"),
 )
 X0 = Param("defect.x0", "mm", 0.0, "centre, x", control=Control("x0", -15.0, 15.0, fmt="%.2f mm"))
@@ -124,8 +149,13 @@ class Gaussian(DefectComponent):
     @staticmethod
     def _principal(dent) -> tuple[tuple[float, float], tuple[float, float]]:
         """The first principal axis (x, z) and the inverse principal variances (1/mm²)."""
-        variances, axes = np.linalg.eigh(np.array([[dent.sigma_x2, dent.sigma_xz], [dent.sigma_xz, dent.sigma_z2]]))
-        return (float(axes[0, 0]), float(axes[1, 0])), (float(1.0 / variances[0]), float(1.0 / variances[1]))
+        variances, axes = np.linalg.eigh(
+            np.array([[dent.sigma_x2, dent.sigma_xz], [dent.sigma_xz, dent.sigma_z2]])
+        )
+        return (float(axes[0, 0]), float(axes[1, 0])), (
+            float(1.0 / variances[0]),
+            float(1.0 / variances[1]),
+        )
 
     # ------------------------------------------------------------------ oracle
     def present(self, scene):
@@ -165,7 +195,11 @@ class Gaussian(DefectComponent):
         last the defect is below ``2e-16 |dmax|``)."""
         if not scene.defect.present:
             return []
-        return [root for radius in DEFECT_RADII for root in self._ellipse_roots(scene.defect, o, d, radius)]
+        return [
+            root
+            for radius in DEFECT_RADII
+            for root in self._ellipse_roots(scene.defect, o, d, radius)
+        ]
 
     @staticmethod
     def _ellipse_roots(defect, o, d, radius):

@@ -20,18 +20,33 @@ STRIPE_SIGMA_PER_PERIOD = 1.0 / (4.0 * math.sqrt(2.0 * math.log(2.0)))
 
 DISTANCE = Param("emitter.distance", "mm", 256.0, "origin to the emitter's centre", lo=0.0)
 PERIOD = Param(
-    "emitter.period", "mm", 2.0, "stripe spacing along v", lo=0.0, flag="--period",
+    "emitter.period",
+    "mm",
+    2.0,
+    "stripe spacing along v",
+    lo=0.0,
+    flag="--period",
     control=Control("period", 0.2, 20.0, log=True, fmt="%.2f mm"),
 )
 STRIPE_SIGMA = Param(
-    "emitter.stripe_sigma", "mm", None, "Gaussian width of one stripe (unset: FWHM = half a period)",
-    lo=0.0, control=Control("stripe_sigma", 0.02, 10.0, log=True, fmt="%.3f mm"),
+    "emitter.stripe_sigma",
+    "mm",
+    None,
+    "Gaussian width of one stripe (unset: FWHM = half a period)",
+    lo=0.0,
+    control=Control("stripe_sigma", 0.02, 10.0, log=True, fmt="%.3f mm"),
 )
 PHASE = Param(
-    "emitter.phase", "mm", 0.0, "shift of the stripes along v", flag="--phase",
+    "emitter.phase",
+    "mm",
+    0.0,
+    "shift of the stripes along v",
+    flag="--phase",
     control=Control("phase", -1000.0, 1000.0, fmt="%.3f mm"),
 )
-HALF_SIZE = Param("emitter.half_size", "mm", (150.0, 150.0), "half extents in u and v", value_type="pair")
+HALF_SIZE = Param(
+    "emitter.half_size", "mm", (150.0, 150.0), "half extents in u and v", value_type="pair"
+)
 
 
 class Stripes(EmitterComponent):
@@ -40,7 +55,11 @@ class Stripes(EmitterComponent):
     params = (DISTANCE, PERIOD, STRIPE_SIGMA, PHASE, HALF_SIZE)
 
     def glsl(self, variables):
-        return ("emitter.glsl", "stripes.glsl") if "image" in variables["outputs"] else ("emitter.glsl",)
+        return (
+            ("emitter.glsl", "stripes.glsl")
+            if "image" in variables["outputs"]
+            else ("emitter.glsl",)
+        )
 
     def uniforms(self, scene, frame):
         em, plane, origin = scene.emitter, scene.emitter_frame(), frame.origin
@@ -49,7 +68,11 @@ class Stripes(EmitterComponent):
             "u_em_eu": tuple(plane.e_u),
             "u_em_ev": tuple(plane.e_v),
             "u_em_dist": em.distance,
-            "u_em_offset": (float(origin @ plane.e_u), float(origin @ plane.e_v), float(origin @ plane.normal)),
+            "u_em_offset": (
+                float(origin @ plane.e_u),
+                float(origin @ plane.e_v),
+                float(origin @ plane.normal),
+            ),
             "u_em_half": em.half_size,
         }
         if "image" in frame.variables["outputs"]:

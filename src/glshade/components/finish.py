@@ -28,15 +28,28 @@ import numpy as np
 from glshade.scene.params import Control, Param
 
 HEIGHT_RMS = Param(
-    "render.height_rms_um", "µm", 0.0,
+    "render.height_rms_um",
+    "µm",
+    0.0,
     "paper eq. (1): rms height sigma_h of the finish; the coherent (mirror) fraction is exp(-(4 pi sigma_h cos(i) "
     "/ lambda)^2), the rest is scattered into the model's lobe (the mirror's: Lambertian). 0: off",
-    lo=0.0, closed=True, role="feature", flag="--height-rms", control=Control("height rms", 0.0, 0.2, fmt="%.3f um"),
-    plausible_max=5.0, plausible_why="a finish this rough reflects no coherent light at any angle",
+    lo=0.0,
+    closed=True,
+    role="feature",
+    flag="--height-rms",
+    control=Control("height rms", 0.0, 0.2, fmt="%.3f um"),
+    plausible_max=5.0,
+    plausible_why="a finish this rough reflects no coherent light at any angle",
 )
 WAVELENGTH = Param(
-    "render.wavelength_um", "µm", 0.55, "paper eq. (1): wavelength lambda of the light", lo=0.0,
-    flag="--wavelength", plausible_max=20.0, plausible_why="beyond the thermal infrared",
+    "render.wavelength_um",
+    "µm",
+    0.55,
+    "paper eq. (1): wavelength lambda of the light",
+    lo=0.0,
+    flag="--wavelength",
+    plausible_max=20.0,
+    plausible_why="beyond the thermal infrared",
 )
 COHERENCE_PARAMS = (HEIGHT_RMS, WAVELENGTH)
 
@@ -65,7 +78,11 @@ def glsl(variables, *model_files: str) -> tuple[str, ...]:
 
 def uniforms(scene, variables) -> dict[str, object]:
     """eq. (1)'s uniform where the program has it."""
-    return coherence_uniforms(scene) if "image" in variables["outputs"] and variables["coherence"] else {}
+    return (
+        coherence_uniforms(scene)
+        if "image" in variables["outputs"] and variables["coherence"]
+        else {}
+    )
 
 
 def coherent_fraction(scene, cos_i: np.ndarray) -> np.ndarray:

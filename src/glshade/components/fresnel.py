@@ -20,13 +20,24 @@ from glshade.components.base import Component
 from glshade.scene.params import Control, Param
 
 IOR = Param(
-    "render.ior", "", 1.5, "Fresnel: refractive index n of the surface (clear coat 1.5; aluminium 0.96; steel 2.9)",
-    lo=0.0, flag="--ior", control=Control("ior", 0.1, 5.0, fmt="%.2f"),
+    "render.ior",
+    "",
+    1.5,
+    "Fresnel: refractive index n of the surface (clear coat 1.5; aluminium 0.96; steel 2.9)",
+    lo=0.0,
+    flag="--ior",
+    control=Control("ior", 0.1, 5.0, fmt="%.2f"),
 )
 EXTINCTION = Param(
-    "render.extinction", "", 0.0, "Fresnel, conductor: extinction coefficient k of the complex index n + ik "
+    "render.extinction",
+    "",
+    0.0,
+    "Fresnel, conductor: extinction coefficient k of the complex index n + ik "
     "(aluminium 6.69; steel 3.0)",
-    lo=0.0, closed=True, flag="--extinction", control=Control("extinction k", 0.0, 10.0, fmt="%.2f"),
+    lo=0.0,
+    closed=True,
+    flag="--extinction",
+    control=Control("extinction k", 0.0, 10.0, fmt="%.2f"),
 )
 
 

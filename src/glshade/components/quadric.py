@@ -17,8 +17,13 @@ from glshade.oracle.roots import circle_roots
 from glshade.scene.params import Control, Param
 
 RADIUS = Param(
-    "surface.radius", "mm", 70.0, "radius of the cylinder or sphere; negative = concave",
-    nonzero=True, flag="--radius", allowed_text="non-zero (mm; negative = concave)",
+    "surface.radius",
+    "mm",
+    70.0,
+    "radius of the cylinder or sphere; negative = concave",
+    nonzero=True,
+    flag="--radius",
+    allowed_text="non-zero (mm; negative = concave)",
     control=Control("radius", 5.0, 2000.0, log=True, fmt="%.1f mm", signed=True),
 )
 

@@ -28,10 +28,14 @@ if TYPE_CHECKING:
 DEFAULT_SHININESS = 1e7
 
 SHININESS = Param(
-    "render.shininess", "", DEFAULT_SHININESS,
+    "render.shininess",
+    "",
+    DEFAULT_SHININESS,
     "Blinn-Phong exponent N (the reflected direction's angular std is 2/sqrt(N) rad; stripes of period P "
     "seen L mm away wash out below N = (8 L / P)^2)",
-    lo=0.0, flag="--shininess", control=Control("shininess", 100.0, 1e10, log=True, fmt="%.3g"),
+    lo=0.0,
+    flag="--shininess",
+    control=Control("shininess", 100.0, 1e10, log=True, fmt="%.3g"),
 )
 
 #: Blinn-Phong box half-width in lobe standard deviations (of the half vector's angle,
@@ -55,8 +59,6 @@ _LOBE_MAX_POINTS = 8192
 _LOBE_BATCH = 1_000_000
 #: The smallest Blinn-Phong exponent whose lobe (8 std) fits the gnomonic box.
 MIN_SHININESS = 50.0
-
-
 
 
 class BlinnPhong(ReflectionComponent):
@@ -101,7 +103,9 @@ def _lobe_basis(n_s: np.ndarray, wo: np.ndarray) -> tuple[np.ndarray, np.ndarray
     norm = np.linalg.norm(e1, axis=1)
     degenerate = norm < 1e-12  # normal incidence: any perpendicular of n
     if degenerate.any():
-        helper = np.where(np.abs(n_s[:, [0]]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+        helper = np.where(
+            np.abs(n_s[:, [0]]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]])
+        )
         e1 = np.where(degenerate[:, None], np.cross(n_s, helper), e1)
         norm = np.linalg.norm(e1, axis=1)
     e1 = e1 / norm[:, None]
@@ -126,7 +130,9 @@ def _lobe_samples(scene, p, wo, n_s, e1, e2, a, b):
 
     def along(x: np.ndarray):
         """``(h·x, wo·x)`` for a fixed vector ``x``, per pixel and sample."""
-        hx = ((n_s @ x)[:, None, None] + a * (e1 @ x)[:, None, None] + b * (e2 @ x)[:, None, None]) * inv
+        hx = (
+            (n_s @ x)[:, None, None] + a * (e1 @ x)[:, None, None] + b * (e2 @ x)[:, None, None]
+        ) * inv
         return hx, (wo @ x)[:, None, None]
 
     wo_h = (
@@ -184,7 +190,9 @@ def _blinn_phong(scene: Scene, p: np.ndarray, d: np.ndarray, n_s: np.ndarray) ->
     shininess = scene.render.shininess
     if shininess < MIN_SHININESS:
         raise SceneError(
-            "render.shininess", f">= {MIN_SHININESS:g} for the NumPy reference's Blinn-Phong quadrature", shininess
+            "render.shininess",
+            f">= {MIN_SHININESS:g} for the NumPy reference's Blinn-Phong quadrature",
+            shininess,
         )
     out = np.zeros(len(p))
     if not len(p):
@@ -201,9 +209,9 @@ def _blinn_phong(scene: Scene, p: np.ndarray, d: np.ndarray, n_s: np.ndarray) ->
         batch = max(1, _LOBE_BATCH // (n1 * n2))
         for s in range(0, len(group), batch):
             idx = group[s : s + batch]
-            weight, v, ok = _lobe_samples(scene, p[idx], wo[idx], n_s[idx], e1[idx], e2[idx], a[None], b[None])
+            weight, v, ok = _lobe_samples(
+                scene, p[idx], wo[idx], n_s[idx], e1[idx], e2[idx], a[None], b[None]
+            )
             lum = np.where(ok, stripe_radiance(scene.emitter, np.where(ok, v, 0.0)), 0.0)
             out[idx] = np.sum(lum * weight, axis=(1, 2)) / np.sum(weight, axis=(1, 2))
     return out
-
-

@@ -39,21 +39,38 @@ LOBE_METHODS = ("closed", "lattice", "sampling")
 MAX_LOBE_SAMPLES = 4096
 
 ROUGHNESS = Param(
-    "render.roughness", "", 0.0,
+    "render.roughness",
+    "",
+    0.0,
     "microfacet roughness alpha (Beckmann: rms slope x sqrt 2; the reflected direction spreads by about 2 alpha "
     "rad); 0 is the mirror",
-    lo=0.0, closed=True, flag="--roughness", control=Control("roughness", 1e-5, 0.05, log=True, fmt="%.2g"),
-    plausible_max=0.5, plausible_why="a lobe this wide shows no stripes at any distance",
+    lo=0.0,
+    closed=True,
+    flag="--roughness",
+    control=Control("roughness", 1e-5, 0.05, log=True, fmt="%.2g"),
+    plausible_max=0.5,
+    plausible_why="a lobe this wide shows no stripes at any distance",
 )
 LOBE_METHOD = Param(
-    "render.lobe_method", "", "closed",
+    "render.lobe_method",
+    "",
+    "closed",
     "how the stripes are integrated over a microfacet lobe: closed (linearised, one evaluation), lattice "
     "(quasi-Monte Carlo, lobe_samples rays), sampling (the lattice randomised per pixel)",
-    value_type="choice", choices=LOBE_METHODS, role="feature", flag="--lobe-method",
+    value_type="choice",
+    choices=LOBE_METHODS,
+    role="feature",
+    flag="--lobe-method",
 )
 LOBE_SAMPLES = Param(
-    "render.lobe_samples", "", 64, "microfacet lattice or sampling: slope samples per ray",
-    value_type="integer", lo=1, hi=MAX_LOBE_SAMPLES, flag="--lobe-samples",
+    "render.lobe_samples",
+    "",
+    64,
+    "microfacet lattice or sampling: slope samples per ray",
+    value_type="integer",
+    lo=1,
+    hi=MAX_LOBE_SAMPLES,
+    flag="--lobe-samples",
 )
 
 
@@ -76,7 +93,9 @@ def slope_density(kind: str, alpha: float, r2: np.ndarray) -> np.ndarray:
     return np.exp(-r2 / alpha**2) / (math.pi * alpha**2)
 
 
-def sample_slopes(kind: str, alpha: float, u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def sample_slopes(
+    kind: str, alpha: float, u1: np.ndarray, u2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Slopes ``(x, y)`` distributed as ``P22`` from uniforms (inverse CDF of the radius)."""
     if kind == "ggx":
         radius = alpha * np.sqrt(u1 / (1.0 - u1))
@@ -93,7 +112,11 @@ class Microfacet(ReflectionComponent):
     oracle_samples = 1 << 14
 
     def features(self, scene):
-        return {**finish.features(scene), "lobe": self.name, "lobe_method": scene.render.lobe_method}
+        return {
+            **finish.features(scene),
+            "lobe": self.name,
+            "lobe_method": scene.render.lobe_method,
+        }
 
     def glsl(self, variables):
         return finish.glsl(variables, "reflect_microfacet.glsl")
@@ -135,7 +158,9 @@ class Microfacet(ReflectionComponent):
             lobe = self._monte_carlo(scene, p, d, n, samples or self.oracle_samples, seed)[0]
         return finish.mix_coherent(scene, mirror, lobe, d, n)
 
-    def _monte_carlo(self, scene, p, d, n, samples: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    def _monte_carlo(
+        self, scene, p, d, n, samples: int, seed: int
+    ) -> tuple[np.ndarray, np.ndarray]:
         """``(mean, standard error)`` per hit."""
         alpha, kind = scene.render.roughness, self.name
         rng = np.random.default_rng(seed)
@@ -146,7 +171,11 @@ class Microfacet(ReflectionComponent):
         for i in range(len(p)):
             wo = -d[i]
             e1 = wo - (wo @ n[i]) * n[i]
-            e1 = e1 / np.linalg.norm(e1) if np.linalg.norm(e1) > 1e-12 else np.cross(n[i], [1.0, 0.0, 0.0])
+            e1 = (
+                e1 / np.linalg.norm(e1)
+                if np.linalg.norm(e1) > 1e-12
+                else np.cross(n[i], [1.0, 0.0, 0.0])
+            )
             e1 /= np.linalg.norm(e1)
             e2 = np.cross(n[i], e1)
             x, y = sample_slopes(kind, alpha, rng.random(samples), rng.random(samples))
@@ -168,7 +197,14 @@ class Microfacet(ReflectionComponent):
                 t = -(rel @ frame.normal) / facing
                 uu = rel @ frame.e_u + t * (l_dir @ frame.e_u)
                 vv = rel @ frame.e_v + t * (l_dir @ frame.e_v)
-            seen = (facing < 0) & (t > 0) & (np.abs(uu) <= hu) & (np.abs(vv) <= hv) & (cos_l > 0) & (wo_h > 0)
+            seen = (
+                (facing < 0)
+                & (t > 0)
+                & (np.abs(uu) <= hu)
+                & (np.abs(vv) <= hv)
+                & (cos_l > 0)
+                & (wo_h > 0)
+            )
             radiance = np.where(seen, stripe_radiance(scene.emitter, np.where(seen, vv, 0.0)), 0.0)
             values = np.where(seen, radiance * brdf * cos_l / pdf_l, 0.0)
             mean[i] = values.mean()

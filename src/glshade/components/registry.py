@@ -29,28 +29,53 @@ if TYPE_CHECKING:
 TABLES: tuple[str, ...] = ("camera", "emitter", "surface", "defect", "render", "sensor")
 
 SURFACE_KIND = Param(
-    "surface.kind", "", "flat", "the base surface: which surface component", value_type="choice",
-    role="feature", flag="--surface",
+    "surface.kind",
+    "",
+    "flat",
+    "the base surface: which surface component",
+    value_type="choice",
+    role="feature",
+    flag="--surface",
 )
 FRESNEL = Param(
-    "render.fresnel", "", "none", "the Fresnel reflectance: which Fresnel component", value_type="choice",
-    role="feature", flag="--fresnel",
+    "render.fresnel",
+    "",
+    "none",
+    "the Fresnel reflectance: which Fresnel component",
+    value_type="choice",
+    role="feature",
+    flag="--fresnel",
 )
 REFLECTION = Param(
-    "render.reflection", "", "mirror", "the reflection model: which reflection component", value_type="choice",
-    role="feature", flag="--reflection",
+    "render.reflection",
+    "",
+    "mirror",
+    "the reflection model: which reflection component",
+    value_type="choice",
+    role="feature",
+    flag="--reflection",
 )
 
 #: The slots, in the order their GLSL is composed.
 SLOTS: tuple[Slot, ...] = (
     Slot("render", "render", None, True, "precision and rays per pixel: the program's preamble"),
     Slot("camera", "camera", None, False, "pixels to rays"),
-    Slot("surface", "surface", SURFACE_KIND, False, "the base surface y = f(x, z) and its first hit"),
-    Slot("defect", "defect", None, False, "the defect D(x, z) on the surface, and the hit it needs"),
+    Slot(
+        "surface", "surface", SURFACE_KIND, False, "the base surface y = f(x, z) and its first hit"
+    ),
+    Slot(
+        "defect", "defect", None, False, "the defect D(x, z) on the surface, and the hit it needs"
+    ),
     Slot("emitter", "emitter", None, False, "the light source the rays land on"),
     Slot("reflection", "render", REFLECTION, False, "how the surface reflects"),
     Slot("fresnel", "render", FRESNEL, False, "how much it reflects, by the angle of incidence"),
-    Slot("sensor", "sensor", None, False, "what the camera's sensor makes of the radiance (noise, quantisation)"),
+    Slot(
+        "sensor",
+        "sensor",
+        None,
+        False,
+        "what the camera's sensor makes of the radiance (noise, quantisation)",
+    ),
 )
 
 #: The built-in components: module, class.
@@ -99,7 +124,9 @@ class Registry:
         self._slots = {slot.name: slot for slot in slots}
         self._tables = tables
         self._components: dict[str, dict[str, Component]] = {slot.name: {} for slot in slots}
-        self._schema: dict[str | None, tuple[Param, ...]] = {}  # params() (key None) and per table, until the next change
+        self._schema: dict[
+            str | None, tuple[Param, ...]
+        ] = {}  # params() (key None) and per table, until the next change
 
     # ------------------------------------------------------------------ changes
     def register(self, component: Component) -> Component:
@@ -115,7 +142,9 @@ class Registry:
         known = {param.path: param for param in self.params()}
         for param in component.params:
             if param.table != slot.table:
-                raise ValueError(f"{component!r} declares {param.path} outside its table {slot.table!r}")
+                raise ValueError(
+                    f"{component!r} declares {param.path} outside its table {slot.table!r}"
+                )
             if param.path in known and known[param.path] is not param:
                 raise ValueError(f"{param.path} is declared twice ({component!r}); share one Param")
         self._components[slot.name][component.name] = component
@@ -154,7 +183,9 @@ class Registry:
             return self._components[slot][name]
         except KeyError:
             selector = self._slots[slot].selector
-            raise SceneError(selector.path if selector else slot, self.allowed_names(slot), name) from None
+            raise SceneError(
+                selector.path if selector else slot, self.allowed_names(slot), name
+            ) from None
 
     def names(self, slot: str) -> tuple[str, ...]:
         return tuple(self._components[slot])
@@ -206,7 +237,9 @@ class Registry:
                 return param
         table = path.partition(".")[0]
         if table not in self._tables:
-            raise SceneError(table, "one of the tables " + ", ".join(self._tables) + " (unknown table)")
+            raise SceneError(
+                table, "one of the tables " + ", ".join(self._tables) + " (unknown table)"
+            )
         keys = ", ".join(p.key for p in self.table_params(table))
         raise SceneError(path, f"one of the keys {keys} (unknown key)")
 

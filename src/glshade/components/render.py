@@ -13,12 +13,25 @@ MAX_SUPERSAMPLE = 16
 PRECISIONS: tuple[str, ...] = ("fp32", "fp64")
 
 PRECISION = Param(
-    "render.precision", "", "fp32", "arithmetic of the shader: fp32, or fp64 (the GPU-side reference)",
-    value_type="choice", choices=PRECISIONS, role="feature", flag="--precision",
+    "render.precision",
+    "",
+    "fp32",
+    "arithmetic of the shader: fp32, or fp64 (the GPU-side reference)",
+    value_type="choice",
+    choices=PRECISIONS,
+    role="feature",
+    flag="--precision",
 )
 SUPERSAMPLE = Param(
-    "render.supersample", "", 1, "rays per pixel side (n x n rays per pixel; 1 = one ray through the centre)",
-    value_type="integer", lo=1, hi=MAX_SUPERSAMPLE, role="feature", flag="--supersample",
+    "render.supersample",
+    "",
+    1,
+    "rays per pixel side (n x n rays per pixel; 1 = one ray through the centre)",
+    value_type="integer",
+    lo=1,
+    hi=MAX_SUPERSAMPLE,
+    role="feature",
+    flag="--supersample",
     control=Control("supersample", 1, 8, fmt="%d"),
 )
 

@@ -29,16 +29,44 @@ BIT_DEPTHS = (8, 10, 12, 16)
 DEFAULT_FULL_WELL_E = 10000.0
 
 FULL_WELL = Param(
-    "sensor.full_well_e", "e-", None,
+    "sensor.full_well_e",
+    "e-",
+    None,
     "electrons at radiance 1 (the emitter's peak in a perfect mirror); unset: no sensor (a [sensor] table sets "
-    f"{DEFAULT_FULL_WELL_E:g})", lo=0.0, flag="--full-well",
+    f"{DEFAULT_FULL_WELL_E:g})",
+    lo=0.0,
+    flag="--full-well",
 )
-READ_NOISE = Param("sensor.read_noise_e", "e-", 5.0, "read noise, electrons rms", lo=0.0, closed=True,
-                   flag="--read-noise")
-BIT_DEPTH = Param("sensor.bit_depth", "bit", 12, "bits of the stored image", value_type="integer", lo=1, hi=64,
-                  allowed_text="one of " + ", ".join(map(str, BIT_DEPTHS)), flag="--bit-depth")
-SEED = Param("sensor.seed", "", 0, "seed of the noise (with the scene and the exposure number)",
-             value_type="integer", lo=0, hi=2**63 - 1, flag="--seed")
+READ_NOISE = Param(
+    "sensor.read_noise_e",
+    "e-",
+    5.0,
+    "read noise, electrons rms",
+    lo=0.0,
+    closed=True,
+    flag="--read-noise",
+)
+BIT_DEPTH = Param(
+    "sensor.bit_depth",
+    "bit",
+    12,
+    "bits of the stored image",
+    value_type="integer",
+    lo=1,
+    hi=64,
+    allowed_text="one of " + ", ".join(map(str, BIT_DEPTHS)),
+    flag="--bit-depth",
+)
+SEED = Param(
+    "sensor.seed",
+    "",
+    0,
+    "seed of the noise (with the scene and the exposure number)",
+    value_type="integer",
+    lo=0,
+    hi=2**63 - 1,
+    flag="--seed",
+)
 
 
 def check_bit_depth(values: dict) -> None:

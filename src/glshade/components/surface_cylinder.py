@@ -12,8 +12,14 @@ from glshade.components.quadric import RADIUS, Quadric
 from glshade.scene.params import Param
 
 AXIS = Param(
-    "surface.axis", "", "z", "the cylinder's axis: z (in the plane of incidence) or x (across it)",
-    value_type="choice", choices=("z", "x"), role="feature", flag="--axis",
+    "surface.axis",
+    "",
+    "z",
+    "the cylinder's axis: z (in the plane of incidence) or x (across it)",
+    value_type="choice",
+    choices=("z", "x"),
+    role="feature",
+    flag="--axis",
 )
 
 

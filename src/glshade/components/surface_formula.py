@@ -26,12 +26,19 @@ from glshade.formula import parse_formula
 from glshade.scene.params import Param
 
 EXPRESSION = Param(
-    "surface.expression", "mm", "0.0005*x^2 - 0.0002*z^2",
+    "surface.expression",
+    "mm",
+    "0.0005*x^2 - 0.0002*z^2",
     "f(x, z) in mm, of x and z in mm and the parameters (a saddle by default; grammar: docs/scene-format.md, "
-    "Formulas)", value_type="text", role="feature",
+    "Formulas)",
+    value_type="text",
+    role="feature",
 )
 PARAMETERS = Param(
-    "surface.parameters", "", (), "named numbers the expression uses, e.g. { a = 0.002, b = 5.0 }",
+    "surface.parameters",
+    "",
+    (),
+    "named numbers the expression uses, e.g. { a = 0.002, b = 5.0 }",
     value_type="table",
 )
 #: Samples per side of the grid the bounds are taken on, and their safety factor.
@@ -43,8 +50,10 @@ MARCH_STEPS = 256
 
 def march_uniforms(scene, frame) -> dict[str, object]:
     """The uniforms of ``freeform_march.glsl`` (shared by every free-form surface)."""
-    return {"u_freeform_steps": max(MARCH_STEPS, 4 * frame.solver.march_steps),
-            "u_freeform_tol": frame.solver.tolerance_for(scene.render.precision)}
+    return {
+        "u_freeform_steps": max(MARCH_STEPS, 4 * frame.solver.march_steps),
+        "u_freeform_tol": frame.solver.tolerance_for(scene.render.precision),
+    }
 
 
 def check_formula(values: dict) -> None:
@@ -71,8 +80,12 @@ class Formula(SurfaceComponent):
     def features(self, scene):
         formula = formula_of(scene)
         f, fx, fz = formula.glsl(scene.render.precision)
-        return {"formula_f": f, "formula_fx": fx, "formula_fz": fz,
-                "formula_parameters": tuple(name for name, _ in formula.parameters)}
+        return {
+            "formula_f": f,
+            "formula_fx": fx,
+            "formula_fz": fz,
+            "formula_parameters": tuple(name for name, _ in formula.parameters),
+        }
 
     def glsl(self, variables):
         return ("freeform_march.glsl", "surface_formula.glsl")
@@ -80,8 +93,14 @@ class Formula(SurfaceComponent):
     def uniforms(self, scene, frame):
         lo, hi, curvature = bounds(scene)
         values = {f"p_{name}": value for name, value in formula_of(scene).parameters}
-        return {**values, "u_formula_origin": tuple(float(v) for v in frame.origin), "u_formula_lo": lo,
-                "u_formula_hi": hi, "u_formula_curvature": curvature, **march_uniforms(scene, frame)}
+        return {
+            **values,
+            "u_formula_origin": tuple(float(v) for v in frame.origin),
+            "u_formula_lo": lo,
+            "u_formula_hi": hi,
+            "u_formula_curvature": curvature,
+            **march_uniforms(scene, frame),
+        }
 
     def second_derivatives(self, scene):
         fxx, _, fzz = (float(h(0.0, 0.0)) for h in formula_of(scene).hessian)
@@ -95,7 +114,10 @@ class Formula(SurfaceComponent):
     def band_roots(self, scene, o, d, shift):
         lo, hi, _ = bounds(scene)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return [np.where(d[:, 1] != 0, (level + shift - o[:, 1]) / d[:, 1], np.nan) for level in (hi, lo)]
+            return [
+                np.where(d[:, 1] != 0, (level + shift - o[:, 1]) / d[:, 1], np.nan)
+                for level in (hi, lo)
+            ]
 
     def height(self, scene, x, z):
         return formula_of(scene).numpy[0](x, z)
@@ -105,7 +127,9 @@ class Formula(SurfaceComponent):
 
     def normal(self, scene, x, z, dx, dz):
         _, fx, fz = formula_of(scene).numpy
-        return np.stack([-(fx(x, z) + dx), np.ones(np.broadcast(x, z).shape), -(fz(x, z) + dz)], axis=-1)
+        return np.stack(
+            [-(fx(x, z) + dx), np.ones(np.broadcast(x, z).shape), -(fz(x, z) + dz)], axis=-1
+        )
 
 
 def bounds(scene) -> tuple[float, float, float]:
@@ -131,17 +155,27 @@ def _box(cam, x0: float, z0: float) -> tuple[float, float, float, float]:
         for r in rows:
             for c in cols:
                 o, d = pixel_rays(cam, slice(int(r), int(r) + 1), slice(int(c), int(c) + 1))
-                o, d = np.asarray(o, float).reshape(-1, 3)[0], np.asarray(d, float).reshape(-1, 3)[0]
+                o, d = (
+                    np.asarray(o, float).reshape(-1, 3)[0],
+                    np.asarray(d, float).reshape(-1, 3)[0],
+                )
                 t = -o[1] / d[1] if d[1] < 0 else 1000.0 / np.linalg.norm(d)
                 points.append((o + min(t, 1000.0) * d)[[0, 2]])
     xz = np.array(points)
     lo, hi = xz.min(axis=0), xz.max(axis=0)
     margin = 0.25 * (hi - lo) + 2.0
-    return (float(lo[0] - margin[0]), float(hi[0] + margin[0]), float(lo[1] - margin[1]), float(hi[1] + margin[1]))
+    return (
+        float(lo[0] - margin[0]),
+        float(hi[0] + margin[0]),
+        float(lo[1] - margin[1]),
+        float(hi[1] + margin[1]),
+    )
 
 
 @functools.lru_cache(maxsize=64)
-def _bounds(formula: ParsedFormula, box: tuple[float, float, float, float]) -> tuple[float, float, float]:
+def _bounds(
+    formula: ParsedFormula, box: tuple[float, float, float, float]
+) -> tuple[float, float, float]:
     x = np.linspace(box[0], box[1], BOUND_SAMPLES)
     z = np.linspace(box[2], box[3], BOUND_SAMPLES)
     xx, zz = np.meshgrid(x, z)
@@ -149,9 +183,13 @@ def _bounds(formula: ParsedFormula, box: tuple[float, float, float, float]) -> t
     fxx, fxz, fzz = (h(xx, zz) for h in formula.hessian)
     finite = np.isfinite(f)
     if not finite.any():
-        raise SceneError("surface.expression", "a formula with finite values where the camera looks")
+        raise SceneError(
+            "surface.expression", "a formula with finite values where the camera looks"
+        )
     spectral = np.abs(0.5 * (fxx + fzz)) + np.hypot(0.5 * (fxx - fzz), fxz)  # largest |eigenvalue|
-    curvature = float(np.nanmax(np.where(np.isfinite(spectral), spectral, 0.0))) * BOUND_SAFETY + 1e-12
+    curvature = (
+        float(np.nanmax(np.where(np.isfinite(spectral), spectral, 0.0))) * BOUND_SAFETY + 1e-12
+    )
     cell = math.hypot(x[1] - x[0], z[1] - z[0])
     slack = curvature * cell * cell / 8.0 + 1e-9 + 1e-9 * float(np.nanmax(np.abs(f[finite])))
     return float(np.min(f[finite]) - slack), float(np.max(f[finite]) + slack), curvature

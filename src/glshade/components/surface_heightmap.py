@@ -28,16 +28,45 @@ from glshade.errors import SceneError
 from glshade.scene.params import Param
 
 OUTSIDES = ("curtain", "flat")
-FILE = Param("surface.file", "", None, "the height map: .npy, .x3p (ISO 25178-72), float .tif/.tiff or 16-bit .png",
-             value_type="path", role="feature")
-SPACING = Param("surface.spacing", "mm", None, "sample spacing along x (columns) and z (rows); .x3p carries its own",
-                value_type="pair", lo=0.0)
-ORIGIN = Param("surface.origin", "mm", None, "(x, z) of sample [row 0, column 0]; unset: the map centred on the origin",
-               value_type="pair")
-SCALE = Param("surface.scale", "mm", 1.0, "mm of height per stored unit (.x3p: from the file, metres to mm)",
-              nonzero=True)
-OUTSIDE = Param("surface.outside", "", "curtain", "beyond the map: curtain (no surface) or flat (y = 0)",
-                value_type="choice", choices=OUTSIDES, role="feature")
+FILE = Param(
+    "surface.file",
+    "",
+    None,
+    "the height map: .npy, .x3p (ISO 25178-72), float .tif/.tiff or 16-bit .png",
+    value_type="path",
+    role="feature",
+)
+SPACING = Param(
+    "surface.spacing",
+    "mm",
+    None,
+    "sample spacing along x (columns) and z (rows); .x3p carries its own",
+    value_type="pair",
+    lo=0.0,
+)
+ORIGIN = Param(
+    "surface.origin",
+    "mm",
+    None,
+    "(x, z) of sample [row 0, column 0]; unset: the map centred on the origin",
+    value_type="pair",
+)
+SCALE = Param(
+    "surface.scale",
+    "mm",
+    1.0,
+    "mm of height per stored unit (.x3p: from the file, metres to mm)",
+    nonzero=True,
+)
+OUTSIDE = Param(
+    "surface.outside",
+    "",
+    "curtain",
+    "beyond the map: curtain (no surface) or flat (y = 0)",
+    value_type="choice",
+    choices=OUTSIDES,
+    role="feature",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,7 +91,9 @@ class Grid:
     @property
     def far_corner(self) -> tuple[float, float]:
         rows, cols = self.shape
-        return self.corner[0] + (cols - 1) * self.spacing[0], self.corner[1] + (rows - 1) * self.spacing[1]
+        return self.corner[0] + (cols - 1) * self.spacing[0], self.corner[1] + (
+            rows - 1
+        ) * self.spacing[1]
 
 
 def check_heightmap(values: dict) -> None:
@@ -70,8 +101,14 @@ def check_heightmap(values: dict) -> None:
     if values.get("kind") != "heightmap":
         return
     if values.get("file") is None:
-        raise SceneError("surface.file", "set for kind = \"heightmap\" (the height map to read)")
-    _grid(values["file"], values.get("scale", 1.0), values.get("spacing"), values.get("origin"), values.get("outside"))
+        raise SceneError("surface.file", 'set for kind = "heightmap" (the height map to read)')
+    _grid(
+        values["file"],
+        values.get("scale", 1.0),
+        values.get("spacing"),
+        values.get("origin"),
+        values.get("outside"),
+    )
 
 
 def grid_of(scene) -> Grid:
@@ -82,7 +119,9 @@ def grid_of(scene) -> Grid:
 def _grid(file, scale, spacing, origin, outside) -> Grid:
     from glshade.heightmap_io import cached_height_map
 
-    height_map = cached_height_map(file, float(scale))  # the same object while the file is unchanged
+    height_map = cached_height_map(
+        file, float(scale)
+    )  # the same object while the file is unchanged
     return _build(height_map, spacing, origin, outside or "curtain")
 
 
@@ -94,7 +133,10 @@ def _build(height_map, spacing, origin, outside: str) -> Grid:
     if height_map.spacing_mm is not None and spacing is None:
         spacing = height_map.spacing_mm
     if spacing is None:
-        raise SceneError("surface.spacing", f"set: {Path(file).name} carries no sample spacing (two numbers > 0, mm)")
+        raise SceneError(
+            "surface.spacing",
+            f"set: {Path(file).name} carries no sample spacing (two numbers > 0, mm)",
+        )
     rows, cols = heights.shape
     if origin is None:  # the map centred on the origin
         origin = (-0.5 * (cols - 1) * spacing[0], -0.5 * (rows - 1) * spacing[1])
@@ -102,10 +144,22 @@ def _build(height_map, spacing, origin, outside: str) -> Grid:
     if outside == "flat":
         lo, hi = min(lo, 0.0), max(hi, 0.0)
     high = heights.astype(np.float32)
-    texture = np.stack([high, (heights - high).astype(np.float32)], axis=-1)  # hi + lo: the doubles, to ~1e-14
-    heights = high.astype(np.float64) + texture[..., 1]  # the oracle interpolates what the shader reads
-    return Grid(heights, texture, (float(spacing[0]), float(spacing[1])),
-                (float(origin[0]), float(origin[1])), lo, hi, curvature, Path(file).name)
+    texture = np.stack(
+        [high, (heights - high).astype(np.float32)], axis=-1
+    )  # hi + lo: the doubles, to ~1e-14
+    heights = (
+        high.astype(np.float64) + texture[..., 1]
+    )  # the oracle interpolates what the shader reads
+    return Grid(
+        heights,
+        texture,
+        (float(spacing[0]), float(spacing[1])),
+        (float(origin[0]), float(origin[1])),
+        lo,
+        hi,
+        curvature,
+        Path(file).name,
+    )
 
 
 def map_bounds(heights: np.ndarray, spacing) -> tuple[float, float, float]:
@@ -155,9 +209,15 @@ class HeightMap(SurfaceComponent):
         grid = grid_of(scene)
         rows, cols = grid.shape
         corner = (grid.corner[0] - float(frame.origin[0]), grid.corner[1] - float(frame.origin[2]))
-        return {"u_map_corner": corner, "u_map_spacing": grid.spacing, "u_map_size": (cols, rows),
-                "u_map_lo": grid.lo, "u_map_hi": grid.hi, "u_map_curvature": grid.curvature,
-                **march_uniforms(scene, frame)}
+        return {
+            "u_map_corner": corner,
+            "u_map_spacing": grid.spacing,
+            "u_map_size": (cols, rows),
+            "u_map_lo": grid.lo,
+            "u_map_hi": grid.hi,
+            "u_map_curvature": grid.curvature,
+            **march_uniforms(scene, frame),
+        }
 
     def second_derivatives(self, scene):
         grid = grid_of(scene)
@@ -180,7 +240,10 @@ class HeightMap(SurfaceComponent):
             return np.full(n, -np.inf), np.full(n, np.inf)
         grid = grid_of(scene)
         t_in, t_out = np.full(n, -np.inf), np.full(n, np.inf)
-        for axis, lo, hi in ((0, grid.corner[0], grid.far_corner[0]), (2, grid.corner[1], grid.far_corner[1])):
+        for axis, lo, hi in (
+            (0, grid.corner[0], grid.far_corner[0]),
+            (2, grid.corner[1], grid.far_corner[1]),
+        ):
             with np.errstate(divide="ignore", invalid="ignore"):
                 a, b = (lo - o[:, axis]) / d[:, axis], (hi - o[:, axis]) / d[:, axis]
             parallel = d[:, axis] == 0
@@ -195,7 +258,10 @@ class HeightMap(SurfaceComponent):
         grid = grid_of(scene)
         levels = (grid.hi, grid.lo, 0.0) if scene.surface.outside == "flat" else (grid.hi, grid.lo)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return [np.where(d[:, 1] != 0, (level + shift - o[:, 1]) / d[:, 1], np.nan) for level in levels]
+            return [
+                np.where(d[:, 1] != 0, (level + shift - o[:, 1]) / d[:, 1], np.nan)
+                for level in levels
+            ]
 
     def height(self, scene, x, z):
         return self._evaluate(scene, x, z)[0]
@@ -203,7 +269,9 @@ class HeightMap(SurfaceComponent):
     def outside(self, scene, x, z):
         if scene.surface.outside == "flat":
             return np.zeros(np.broadcast(x, z).shape, dtype=bool)
-        return ~self._inside(grid_of(scene), *np.broadcast_arrays(np.asarray(x, float), np.asarray(z, float)))
+        return ~self._inside(
+            grid_of(scene), *np.broadcast_arrays(np.asarray(x, float), np.asarray(z, float))
+        )
 
     def normal(self, scene, x, z, dx, dz):
         _, fx, fz = self._evaluate(scene, x, z)
@@ -219,8 +287,11 @@ class HeightMap(SurfaceComponent):
         edge for a curtain (the tracer stays in the domain), 0 beyond it for a flat."""
         grid = grid_of(scene)
         x, z = np.broadcast_arrays(np.asarray(x, np.float64), np.asarray(z, np.float64))
-        f, fx, fz = catmull_rom(grid.heights, (x - grid.corner[0]) / grid.spacing[0],
-                                (z - grid.corner[1]) / grid.spacing[1])
+        f, fx, fz = catmull_rom(
+            grid.heights,
+            (x - grid.corner[0]) / grid.spacing[0],
+            (z - grid.corner[1]) / grid.spacing[1],
+        )
         fx, fz = fx / grid.spacing[0], fz / grid.spacing[1]
         if scene.surface.outside == "flat":
             inside = self._inside(grid, x, z)
@@ -231,10 +302,24 @@ class HeightMap(SurfaceComponent):
 def _weights(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Catmull-Rom weights of the 4 taps and their derivatives, (…, 4) each."""
     t2, t3 = t * t, t * t * t
-    w = np.stack([0.5 * (-t3 + 2 * t2 - t), 0.5 * (3 * t3 - 5 * t2 + 2), 0.5 * (-3 * t3 + 4 * t2 + t),
-                  0.5 * (t3 - t2)], axis=-1)
-    dw = np.stack([0.5 * (-3 * t2 + 4 * t - 1), 0.5 * (9 * t2 - 10 * t), 0.5 * (-9 * t2 + 8 * t + 1),
-                   0.5 * (3 * t2 - 2 * t)], axis=-1)
+    w = np.stack(
+        [
+            0.5 * (-t3 + 2 * t2 - t),
+            0.5 * (3 * t3 - 5 * t2 + 2),
+            0.5 * (-3 * t3 + 4 * t2 + t),
+            0.5 * (t3 - t2),
+        ],
+        axis=-1,
+    )
+    dw = np.stack(
+        [
+            0.5 * (-3 * t2 + 4 * t - 1),
+            0.5 * (9 * t2 - 10 * t),
+            0.5 * (-9 * t2 + 8 * t + 1),
+            0.5 * (3 * t2 - 2 * t),
+        ],
+        axis=-1,
+    )
     return w, dw
 
 

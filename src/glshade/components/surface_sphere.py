@@ -21,7 +21,10 @@ class Sphere(Quadric):
         return ("quadric_crossing.glsl", "surface_sphere.glsl")
 
     def uniforms(self, scene, frame):
-        return {**self.uniform_radius(scene), "u_axis_xz": (float(frame.origin[0]), float(frame.origin[2]))}
+        return {
+            **self.uniform_radius(scene),
+            "u_axis_xz": (float(frame.origin[0]), float(frame.origin[2])),
+        }
 
     def second_derivatives(self, scene):
         r = scene.surface.radius

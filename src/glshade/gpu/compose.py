@@ -94,7 +94,9 @@ def shader_dir() -> Path:
     checkout = Path(__file__).resolve().parents[3] / "shaders"
     if checkout.is_dir():
         return checkout
-    raise FileNotFoundError(f"glshade's GLSL sources are missing (looked in {packaged} and {checkout})")
+    raise FileNotFoundError(
+        f"glshade's GLSL sources are missing (looked in {packaged} and {checkout})"
+    )
 
 
 @functools.cache
@@ -121,7 +123,9 @@ def render_template(name: str, directories: tuple[str, ...] = (), **variables: o
     return _environment((str(shader_dir()), *directories)).get_template(name).render(**variables)
 
 
-def component_files(features: ShaderFeatures) -> tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]:
+def component_files(
+    features: ShaderFeatures,
+) -> tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]:
     """``(preamble, stages, directories)``: the GLSL files the active components name, in
     composition order (a file two of them name comes once), and where plug-ins keep theirs."""
     variables = features.template_variables()
@@ -145,7 +149,11 @@ def compose(features: ShaderFeatures) -> tuple[str, str]:
     template with the files the active components name, nothing else."""
     preamble, stages, directories = component_files(features)
     fragment = render_template(
-        FRAGMENT_TEMPLATE, directories, preamble=preamble, stages=stages, **features.template_variables()
+        FRAGMENT_TEMPLATE,
+        directories,
+        preamble=preamble,
+        stages=stages,
+        **features.template_variables(),
     )
     # Blank lines left by removed blocks carry no meaning: squeeze runs of them.
     fragment = re.sub(r"\n{3,}", "\n\n", fragment)
@@ -186,10 +194,15 @@ def numbered_excerpt(source: str, line: int, context: int = 3) -> str:
     )
 
 
-def compile_error(stage: str, log: str, source: str, features: ShaderFeatures | None = None) -> ShaderCompileError:
+def compile_error(
+    stage: str, log: str, source: str, features: ShaderFeatures | None = None
+) -> ShaderCompileError:
     """A :class:`ShaderCompileError` that shows the driver's log and the numbered lines
     around each line it names."""
-    parts = [f"GLSL {stage} shader failed to compile" + (f" for {features}" if features else "") + ":", log.strip()]
+    parts = [
+        f"GLSL {stage} shader failed to compile" + (f" for {features}" if features else "") + ":",
+        log.strip(),
+    ]
     for line in error_lines(log)[:3]:
         parts.append(numbered_excerpt(source, line))
     return ShaderCompileError("\n".join(parts))

@@ -83,8 +83,10 @@ def egl_devices(count: int, libegl: str | None = None) -> list[str]:
 
 def _missing_device(index: int, count: int, libegl: str | None) -> str:
     devices = "; ".join(egl_devices(count, libegl))
-    return (f"--device {index}: must be an EGL device index in [0, {count - 1}]; found {count} device"
-            f"{'s' if count > 1 else ''}: {devices}")
+    return (
+        f"--device {index}: must be an EGL device index in [0, {count - 1}]; found {count} device"
+        f"{'s' if count > 1 else ''}: {devices}"
+    )
 
 
 class GLContext:
@@ -95,7 +97,9 @@ class GLContext:
         """Adopt a context someone else owns and keeps current (a viewer window's): glshade
         renders into it without switching contexts, and ``release`` leaves it alone."""
         if ctx.version_code < REQUIRED_GL:
-            raise ContextError(f"OpenGL {ctx.info.get('GL_VERSION', '?')} is too old: glshade needs 4.5 core")
+            raise ContextError(
+                f"OpenGL {ctx.info.get('GL_VERSION', '?')} is too old: glshade needs 4.5 core"
+            )
         self = cls.__new__(cls)
         self.device_index = -1
         self.ctx = ctx
@@ -120,14 +124,18 @@ class GLContext:
             reason = " ".join(str(exc).split()) or type(exc).__name__
             found = re.search(r"found (\d+) devices?", reason)
             if found is not None and self.device_index >= int(found.group(1)) > 0:
-                raise ContextError(_missing_device(self.device_index, int(found.group(1)), libegl)) from None
+                raise ContextError(
+                    _missing_device(self.device_index, int(found.group(1)), libegl)
+                ) from None
             raise ContextError(
                 f"no OpenGL context through EGL (device {self.device_index}): {reason}; {INSTALL_HINT}"
             ) from None
         if self.ctx.version_code < REQUIRED_GL:
             version = self.ctx.info.get("GL_VERSION", "?")
             self.release()
-            raise ContextError(f"OpenGL {version} is too old: glshade needs 4.5 core; {INSTALL_HINT}")
+            raise ContextError(
+                f"OpenGL {version} is too old: glshade needs 4.5 core; {INSTALL_HINT}"
+            )
         self._depth = 0
         # A 1x1 framebuffer to bind while others are released: moderngl re-binds the
         # framebuffer it last bound whenever it creates another, so that one must never

@@ -44,15 +44,19 @@ def egl_cuda_numbers(libegl: str | None = None) -> list[int | None]:
         return []
     get_proc = lib.eglGetProcAddress
     get_proc.restype, get_proc.argtypes = ctypes.c_void_p, [ctypes.c_char_p]
-    addresses = [get_proc(name) for name in (b"eglQueryDevicesEXT", b"eglQueryDeviceStringEXT",
-                                              b"eglQueryDeviceAttribEXT")]
+    addresses = [
+        get_proc(name)
+        for name in (b"eglQueryDevicesEXT", b"eglQueryDeviceStringEXT", b"eglQueryDeviceAttribEXT")
+    ]
     if not all(addresses):
         return []
-    query_devices = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p),
-                                     ctypes.POINTER(ctypes.c_int))(addresses[0])
+    query_devices = ctypes.CFUNCTYPE(
+        ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_int)
+    )(addresses[0])
     query_string = ctypes.CFUNCTYPE(ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int)(addresses[1])
-    query_attrib = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_void_p, ctypes.c_int,
-                                    ctypes.POINTER(ctypes.c_ssize_t))(addresses[2])
+    query_attrib = ctypes.CFUNCTYPE(
+        ctypes.c_uint, ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_ssize_t)
+    )(addresses[2])
     devices = (ctypes.c_void_p * MAX_DEVICES)()
     count = ctypes.c_int(0)
     if not query_devices(MAX_DEVICES, devices, ctypes.byref(count)):
@@ -61,12 +65,16 @@ def egl_cuda_numbers(libegl: str | None = None) -> list[int | None]:
     for device in devices[: count.value]:
         extensions = (query_string(device, EGL_EXTENSIONS) or b"").split()
         value = ctypes.c_ssize_t(-1)
-        has = b"EGL_NV_device_cuda" in extensions and query_attrib(device, EGL_CUDA_DEVICE_NV, ctypes.byref(value))
+        has = b"EGL_NV_device_cuda" in extensions and query_attrib(
+            device, EGL_CUDA_DEVICE_NV, ctypes.byref(value)
+        )
         numbers.append(int(value.value) if has else None)
     return numbers
 
 
-def worker_egl_device(environ: os._Environ | dict = os.environ, libegl: str | None = None) -> int | None:
+def worker_egl_device(
+    environ: os._Environ | dict = os.environ, libegl: str | None = None
+) -> int | None:
     """The EGL device index a worker should open (None: leave it to ``GLSHADE_EGL_DEVICE``
     or device 0, :class:`glshade.gpu.context.GLContext`'s own rule)."""
     if environ.get("GLSHADE_EGL_DEVICE") or not environ.get("CUDA_VISIBLE_DEVICES", "").strip():

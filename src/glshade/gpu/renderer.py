@@ -49,6 +49,8 @@ def _target_format(name: str, precision: str) -> tuple[int, str]:
     if name == "uv":
         return (4 if precision == "fp64" else 2), "f4"
     return 1, ("f1" if name == "mask" else "f4")
+
+
 DEFAULT_MEMORY_BUDGET_MB = 2048
 #: Most rays one frame may trace (pixels x rays per pixel) unless ``GLSHADE_MAX_RAYS``
 #: says otherwise: 4096² pixels at 16 x 16 rays each (87 s on the 2-core llvmpipe).
@@ -79,8 +81,12 @@ class RootSolver:
         if not 1 <= self.march_steps <= 4096:
             raise SceneError("root solver march_steps", "an integer in [1, 4096]", self.march_steps)
         if not 0 <= self.newton_iterations <= 1000:
-            raise SceneError("root solver newton_iterations", "an integer in [0, 1000]", self.newton_iterations)
-        if self.tolerance_mm is not None and not (math.isfinite(self.tolerance_mm) and self.tolerance_mm > 0):
+            raise SceneError(
+                "root solver newton_iterations", "an integer in [0, 1000]", self.newton_iterations
+            )
+        if self.tolerance_mm is not None and not (
+            math.isfinite(self.tolerance_mm) and self.tolerance_mm > 0
+        ):
             raise SceneError("root solver tolerance_mm", "a finite number > 0", self.tolerance_mm)
 
     def tolerance_for(self, precision: str) -> float:
@@ -89,7 +95,9 @@ class RootSolver:
         return 1e-7 if precision == "fp32" else 1e-13
 
 
-def _number_from_env(name: str, allowed: str, positive_only: bool, lowest: float = 0.0) -> float | None:
+def _number_from_env(
+    name: str, allowed: str, positive_only: bool, lowest: float = 0.0
+) -> float | None:
     """The number in environment variable ``name`` (None when unset); a SceneError naming
     the variable when it is not one above ``lowest`` (or at least it, unless
     ``positive_only``)."""
@@ -113,7 +121,9 @@ def memory_budget_from_env() -> int:
 
 def max_rays_from_env() -> int:
     """Rays one frame may trace: ``GLSHADE_MAX_RAYS`` or :data:`DEFAULT_MAX_RAYS`."""
-    rays = _number_from_env("GLSHADE_MAX_RAYS", "a number of rays >= 1", positive_only=False, lowest=1.0)
+    rays = _number_from_env(
+        "GLSHADE_MAX_RAYS", "a number of rays >= 1", positive_only=False, lowest=1.0
+    )
     return DEFAULT_MAX_RAYS if rays is None else int(rays)
 
 
@@ -191,7 +201,9 @@ def scene_textures(scene: Scene) -> dict[str, np.ndarray]:
 class _Targets:
     """Render targets of one size and output set, reused across frames."""
 
-    def __init__(self, context: GLContext, width: int, height: int, outputs: tuple[str, ...], precision: str) -> None:
+    def __init__(
+        self, context: GLContext, width: int, height: int, outputs: tuple[str, ...], precision: str
+    ) -> None:
         self.context = context
         with context.current() as ctx:
             self.textures = []
@@ -233,7 +245,9 @@ class Renderer:
     ) -> None:
         self._owns_context = context is None
         self.context = context if context is not None else GLContext()
-        self.memory_budget_bytes = memory_budget_from_env() if memory_budget_bytes is None else memory_budget_bytes
+        self.memory_budget_bytes = (
+            memory_budget_from_env() if memory_budget_bytes is None else memory_budget_bytes
+        )
         self.max_rays = max_rays_from_env() if max_rays is None else max_rays
         self.progress = progress
         self.root_solver = root_solver
@@ -279,20 +293,26 @@ class Renderer:
         if cached is not None:
             return cached
         if features.precision == "fp64" and not self._fp64:
-            raise ContextError("render.precision = fp64 needs GL_ARB_gpu_shader_fp64, which this GL lacks")
+            raise ContextError(
+                "render.precision = fp64 needs GL_ARB_gpu_shader_fp64, which this GL lacks"
+            )
         vertex, fragment = compose(features)
         with self.context.current() as ctx:
             try:
                 program = ctx.program(vertex_shader=vertex, fragment_shader=fragment)
             except moderngl.Error as exc:
                 text = str(exc)
-                stage, source = ("vertex", vertex) if "vertex_shader" in text else ("fragment", fragment)
+                stage, source = (
+                    ("vertex", vertex) if "vertex_shader" in text else ("fragment", fragment)
+                )
                 raise compile_error(stage, text, source, features) from None
             vao = ctx.vertex_array(program, [])
         self._programs[features] = (program, vao)
         return program, vao
 
-    def _active_uniforms(self, program: moderngl.Program, features: ShaderFeatures) -> tuple[str, ...]:
+    def _active_uniforms(
+        self, program: moderngl.Program, features: ShaderFeatures
+    ) -> tuple[str, ...]:
         """The uniforms the driver kept in ``program`` (each must be given a value: a
         uniform left unset would silently read 0)."""
         names = self._uniform_names.get(features)
@@ -301,7 +321,9 @@ class Renderer:
             self._uniform_names[features] = names
         return names
 
-    def _render_targets(self, width: int, height: int, outputs: tuple[str, ...], precision: str) -> _Targets:
+    def _render_targets(
+        self, width: int, height: int, outputs: tuple[str, ...], precision: str
+    ) -> _Targets:
         key = (width, height, outputs, precision == "fp64" and "uv" in outputs)
         targets = self._targets.get(key)
         if targets is None:
@@ -313,7 +335,9 @@ class Renderer:
         return targets
 
     # ---------------------------------------------------------------- render
-    def render(self, scene: Scene, outputs=("image",), *, out: Frame | None = None, exposure: int = 0) -> Frame:
+    def render(
+        self, scene: Scene, outputs=("image",), *, out: Frame | None = None, exposure: int = 0
+    ) -> Frame:
         """Render ``scene``; ``outputs`` is a subset of image, uv, mask.
 
         ``out``: a frame whose arrays (float32 image, float32 uv, bool mask of the right
@@ -324,7 +348,11 @@ class Renderer:
         cam = scene.camera
         width, height = cam.width, cam.height
         if max(width, height) > self._max_side:
-            raise SceneError("camera.width/height", f"at most {self._max_side} pixels (GL_MAX_TEXTURE_SIZE)", max(width, height))
+            raise SceneError(
+                "camera.width/height",
+                f"at most {self._max_side} pixels (GL_MAX_TEXTURE_SIZE)",
+                max(width, height),
+            )
         check_frame_budget(scene, features.outputs, self.memory_budget_bytes)
         check_work_budget(scene, self.max_rays)
         with self.context.current():
@@ -347,7 +375,9 @@ class Renderer:
             uniforms[name] = unit
         for name in self._active_uniforms(program, features):
             if name not in uniforms:
-                raise GlshadeError(f"uniform {name} of {features.selected()} is provided by no active component")
+                raise GlshadeError(
+                    f"uniform {name} of {features.selected()} is provided by no active component"
+                )
             program[name].value = uniforms[name]
         targets = self._render_targets(width, height, features.outputs, features.precision)
         targets.fbo.use()
@@ -365,11 +395,15 @@ class Renderer:
             viewport = (0, 0, width, height)
             if name == "uv" and features.precision == "fp64":
                 pairs = np.empty((height, width, 4), np.float32)  # (u_hi, v_hi, u_lo, v_lo)
-                targets.fbo.read_into(pairs, viewport=viewport, components=4, attachment=index, dtype="f4")
+                targets.fbo.read_into(
+                    pairs, viewport=viewport, components=4, attachment=index, dtype="f4"
+                )
                 np.add(pairs[..., :2], pairs[..., 2:], out=array, dtype=np.float64)
             else:
                 host = array.view(np.uint8) if name == "mask" else array
-                targets.fbo.read_into(host, viewport=viewport, components=components, attachment=index, dtype=dtype)
+                targets.fbo.read_into(
+                    host, viewport=viewport, components=components, attachment=index, dtype=dtype
+                )
             arrays[name] = array
         return Frame(**arrays)
 
@@ -407,7 +441,11 @@ class Renderer:
                 done += band
                 rows = max(1, min(height, int(band * TILE_SECONDS / max(seconds, 1e-4))))
                 elapsed = time.perf_counter() - start
-                if bar is None and self.progress and elapsed * height / done > PROGRESS_AFTER_SECONDS:
+                if (
+                    bar is None
+                    and self.progress
+                    and elapsed * height / done > PROGRESS_AFTER_SECONDS
+                ):
                     bar = _progress_bar(height, done)
                 elif bar is not None:
                     bar.update(band)
@@ -417,7 +455,9 @@ class Renderer:
                 bar.close()
 
     @staticmethod
-    def _output_array(name: str, height: int, width: int, precision: str, out: Frame | None) -> np.ndarray:
+    def _output_array(
+        name: str, height: int, width: int, precision: str, out: Frame | None
+    ) -> np.ndarray:
         shape = (height, width, 2) if name == "uv" else (height, width)
         if name == "mask":
             dtype = np.bool_
@@ -429,15 +469,23 @@ class Renderer:
         if given is None:
             return np.empty(shape, dtype)
         if given.shape != shape or given.dtype != dtype or not given.flags.c_contiguous:
-            raise GlshadeError(f"out.{name}: must be a C-contiguous {np.dtype(dtype).name} array of shape {shape}")
+            raise GlshadeError(
+                f"out.{name}: must be a C-contiguous {np.dtype(dtype).name} array of shape {shape}"
+            )
         return given
 
 
 def _progress_bar(total_rows: int, done_rows: int):
     from tqdm import tqdm
 
-    return tqdm(total=total_rows, initial=done_rows, unit="row", desc="glshade render", dynamic_ncols=True,
-                leave=False)
+    return tqdm(
+        total=total_rows,
+        initial=done_rows,
+        unit="row",
+        desc="glshade render",
+        dynamic_ncols=True,
+        leave=False,
+    )
 
 
 def render(scene: Scene, outputs=("image",)) -> Frame:

@@ -48,7 +48,9 @@ def deflection(v0: np.ndarray, v1: np.ndarray, columns: slice) -> Deflection:
     Only pixels where ``v1`` differs from ``v0`` need a search: elsewhere ``r0 = r``.
     """
     height, width = v0.shape
-    dtype = np.result_type(v0.dtype, v1.dtype, np.float32)  # fp32 maps stay fp32: more bits would be noise
+    dtype = np.result_type(
+        v0.dtype, v1.dtype, np.float32
+    )  # fp32 maps stay fp32: more bits would be noise
     a = np.asarray(v0[:, columns], dtype)
     b = np.asarray(v1[:, columns], dtype)
     displacement = np.full((height, width), np.nan, np.float32)
@@ -192,7 +194,9 @@ def visibility_limit(
     r0, r1, c0, c1 = window
     outside[r0:r1, c0:c1] = np.nan
     rest = float(np.nanmax(outside)) if np.isfinite(outside).any() else 0.0
-    inside, phase = _window_limit(v0[r0:r1, c0:c1], v1[r0:r1, c0:c1], valid[r0:r1, c0:c1], stripes, upsample, phase_samples)
+    inside, phase = _window_limit(
+        v0[r0:r1, c0:c1], v1[r0:r1, c0:c1], valid[r0:r1, c0:c1], stripes, upsample, phase_samples
+    )
     return Limit(max(inside, rest), phase, window)
 
 
@@ -201,7 +205,9 @@ def visibility_limit(
 WINDOW_TOLERANCE_PX = 1e-3
 
 
-def _fold_window(v0, v1, columns: slice, folds: np.ndarray, period_mm: float) -> tuple[int, int, int, int]:
+def _fold_window(
+    v0, v1, columns: slice, folds: np.ndarray, period_mm: float
+) -> tuple[int, int, int, int]:
     """Rows and columns around the fold: the folded columns plus 3 on each side (kept
     columns only); the rows where the dent moves the map in them by more than
     :data:`WINDOW_TOLERANCE_PX`, plus a stripe period.
@@ -231,13 +237,19 @@ _ZOOM = 8
 _ZOOM_SEEDS = (2, 1)
 
 
-def _window_limit(v0, v1, valid, stripes: StripeLevels, upsample: int, phase_samples: int) -> tuple[float, float]:
+def _window_limit(
+    v0, v1, valid, stripes: StripeLevels, upsample: int, phase_samples: int
+) -> tuple[float, float]:
     """The largest contour shift inside the fold window over a zooming phase search."""
     height, width = v0.shape
     size = (width, height * upsample)
     ok = valid & np.isfinite(v0) & np.isfinite(v1)
-    fine0 = cv2.resize(np.where(ok, v0, 0.0).astype(np.float64), size, interpolation=cv2.INTER_CUBIC)
-    fine1 = cv2.resize(np.where(ok, v1, 0.0).astype(np.float64), size, interpolation=cv2.INTER_CUBIC)
+    fine0 = cv2.resize(
+        np.where(ok, v0, 0.0).astype(np.float64), size, interpolation=cv2.INTER_CUBIC
+    )
+    fine1 = cv2.resize(
+        np.where(ok, v1, 0.0).astype(np.float64), size, interpolation=cv2.INTER_CUBIC
+    )
     fine_ok = cv2.resize(ok.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
     border = _border_of(fine_ok)
 
@@ -265,7 +277,9 @@ class _Edges:
     lower: np.ndarray
 
 
-def _stripe_edges(v: np.ndarray, ok: np.ndarray, border: np.ndarray, phase: float, stripes: StripeLevels) -> _Edges:
+def _stripe_edges(
+    v: np.ndarray, ok: np.ndarray, border: np.ndarray, phase: float, stripes: StripeLevels
+) -> _Edges:
     period, half = stripes.period_mm, stripes.half_width_mm
     w = (v - phase) / period
     k = np.rint(w).astype(np.int64)
@@ -273,9 +287,13 @@ def _stripe_edges(v: np.ndarray, ok: np.ndarray, border: np.ndarray, phase: floa
     kept = np.zeros_like(bright)
     for parity in (0, 1):  # neighbouring stripes have other parities: they never merge
         mine = bright & ((k & 1) == parity)
-        count, labels = cv2.connectedComponents(mine.astype(np.uint8), connectivity=8, ltype=cv2.CV_32S)
+        count, labels = cv2.connectedComponents(
+            mine.astype(np.uint8), connectivity=8, ltype=cv2.CV_32S
+        )
         reaches = np.zeros(count, bool)
-        reaches[labels[0]] = reaches[labels[-1]] = reaches[labels[:, 0]] = reaches[labels[:, -1]] = True
+        reaches[labels[0]] = reaches[labels[-1]] = reaches[labels[:, 0]] = reaches[
+            labels[:, -1]
+        ] = True
         reaches[labels[border]] = True
         reaches[0] = False
         kept |= reaches[labels]
@@ -295,7 +313,9 @@ def _border_of(ok: np.ndarray) -> np.ndarray:
     return (cv2.dilate((~ok).astype(np.uint8), np.ones((3, 3), np.uint8)) > 0) & ok
 
 
-def _crossings(v, ok, index, kept, phase, stripes: StripeLevels, k0: int, count: int, direction: int) -> np.ndarray:
+def _crossings(
+    v, ok, index, kept, phase, stripes: StripeLevels, k0: int, count: int, direction: int
+) -> np.ndarray:
     """Outermost sub-pixel crossing per (stripe, column): ``direction`` +1 for the upper
     contour (first kept pixel of the stripe from the top), -1 for the lower one."""
     height, width = v.shape
@@ -316,7 +336,9 @@ def _crossings(v, ok, index, kept, phase, stripes: StripeLevels, k0: int, count:
     good = inside & ok[outer_c, cols] & np.isfinite(t) & (t >= 0) & (t <= 1)
     position = np.where(good, outer_c + direction * t, rows - 0.5 * direction)
     out = np.full(count * width, np.inf if direction > 0 else -np.inf)
-    target = (index[rows, cols] * width + cols).astype(np.intp)  # flat indices: ufunc.at's fast path
+    target = (index[rows, cols] * width + cols).astype(
+        np.intp
+    )  # flat indices: ufunc.at's fast path
     (np.minimum if direction > 0 else np.maximum).at(out, target, position.astype(np.float64))
     return out.reshape(count, width)
 

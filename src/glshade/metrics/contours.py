@@ -76,8 +76,10 @@ class StripeMap:
         """The rows and columns a stripe spans (from its runs)."""
         top, bottom = self.top.labels == label, self.bottom.labels == label
         cols = self.top.cols[top]
-        return (slice(int(self.top.rows[top].min()), int(self.bottom.rows[bottom].max()) + 1),
-                slice(int(cols.min()), int(cols.max()) + 1))
+        return (
+            slice(int(self.top.rows[top].min()), int(self.bottom.rows[bottom].max()) + 1),
+            slice(int(cols.min()), int(cols.max()) + 1),
+        )
 
 
 def border_pixels(valid: np.ndarray) -> np.ndarray:
@@ -87,7 +89,12 @@ def border_pixels(valid: np.ndarray) -> np.ndarray:
     edge = np.zeros_like(valid)
     edge[0] = edge[-1] = True
     if not valid.all():
-        outside = cv2.dilate((~valid).astype(np.uint8), _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0
+        outside = (
+            cv2.dilate(
+                (~valid).astype(np.uint8), _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0
+            )
+            > 0
+        )
         edge |= outside
     return edge & valid
 
@@ -98,7 +105,9 @@ def find_stripes(binary: np.ndarray, edge: np.ndarray | None = None) -> StripeMa
     ``edge``: the border pixels of the analysed region (:func:`border_pixels`); default:
     the top and bottom rows only (an image with no mask, such as a photograph).
     """
-    count, labels = cv2.connectedComponents(np.asarray(binary, np.uint8), connectivity=8, ltype=cv2.CV_32S)
+    count, labels = cv2.connectedComponents(
+        np.asarray(binary, np.uint8), connectivity=8, ltype=cv2.CV_32S
+    )
     roles = np.full(count, ISLAND, np.uint8)
     on_edge = np.zeros(count, bool)
     if edge is None:
@@ -114,7 +123,9 @@ def find_stripes(binary: np.ndarray, edge: np.ndarray | None = None) -> StripeMa
     starts[1:] &= labels[1:] != labels[:-1]
     ends = white.copy()
     ends[:-1] &= labels[:-1] != labels[1:]
-    return StripeMap(labels=labels, roles=roles, top=_runs(labels, starts), bottom=_runs(labels, ends))
+    return StripeMap(
+        labels=labels, roles=roles, top=_runs(labels, starts), bottom=_runs(labels, ends)
+    )
 
 
 def _runs(labels: np.ndarray, mask: np.ndarray) -> Runs:
@@ -146,12 +157,17 @@ def pair_stripes(normal: StripeMap, defect: StripeMap, min_iou: float = 0.5) -> 
     return pairs
 
 
-def _overlap_pairs(normal: StripeMap, defect: StripeMap, pairs: np.ndarray, min_iou: float) -> np.ndarray:
+def _overlap_pairs(
+    normal: StripeMap, defect: StripeMap, pairs: np.ndarray, min_iou: float
+) -> np.ndarray:
     """Pairs for ``BORDER`` stripes that no cut column paired, by overlap: each lone
     stripe is compared, inside its bounding box, with the other image's contour-bearing
     stripes."""
     found = set()
-    for mine, other, paired, flip in ((defect, normal, pairs[:, 1], False), (normal, defect, pairs[:, 0], True)):
+    for mine, other, paired, flip in (
+        (defect, normal, pairs[:, 1], False),
+        (normal, defect, pairs[:, 0], True),
+    ):
         lone = np.nonzero(mine.roles == BORDER)[0]
         for label in lone[~np.isin(lone, paired)]:
             box = mine.box(int(label))
@@ -214,7 +230,9 @@ def _extremes(runs: Runs, group: np.ndarray, groups: int, width: int, upper: boo
     out = np.full(groups * width, np.inf if upper else -np.inf)
     g = group[runs.labels]
     keep = g >= 0
-    index = (g[keep] * width + runs.cols[keep]).astype(np.intp)  # flat indices: ufunc.at's fast path
+    index = (g[keep] * width + runs.cols[keep]).astype(
+        np.intp
+    )  # flat indices: ufunc.at's fast path
     (np.minimum if upper else np.maximum).at(out, index, runs.rows[keep].astype(np.float64))
     return out.reshape(groups, width)
 
@@ -236,7 +254,11 @@ def contour_shift(normal: StripeMap, defect: StripeMap, pairs: np.ndarray) -> Co
             np.subtract(a, b, out=gap, where=both)
             np.abs(gap, out=gap, where=both)
             g, column = divmod(int(np.argmax(gap)), width)
-            found.append(ContourShift(float(gap[g, column]), column, float(a[g, column]), float(b[g, column]), side))
+            found.append(
+                ContourShift(
+                    float(gap[g, column]), column, float(a[g, column]), float(b[g, column]), side
+                )
+            )
     return max(found, key=lambda s: s.distance_px, default=ContourShift())
 
 
@@ -257,16 +279,22 @@ class PhaseResult:
         return self.shift.distance_px
 
 
-def compare(normal: StripeMap, defect_binary: np.ndarray, edge: np.ndarray | None, phase_mm: float = 0.0) -> PhaseResult:
+def compare(
+    normal: StripeMap, defect_binary: np.ndarray, edge: np.ndarray | None, phase_mm: float = 0.0
+) -> PhaseResult:
     """Steps 3–5 at one phase: the defect image (cut, bool) against the normal stripes."""
     defect = find_stripes(defect_binary, edge)
     pairs = pair_stripes(normal, defect)
     paired_a = np.unique(pairs[:, 0]) if len(pairs) else np.empty(0, np.int64)
     paired_b = np.unique(pairs[:, 1]) if len(pairs) else np.empty(0, np.int64)
-    bearing = int(np.count_nonzero(normal.roles[1:] != ISLAND) + np.count_nonzero(defect.roles[1:] != ISLAND))
+    bearing = int(
+        np.count_nonzero(normal.roles[1:] != ISLAND) + np.count_nonzero(defect.roles[1:] != ISLAND)
+    )
     unpaired = bearing - len(paired_a) - len(paired_b)
     islands = max(0, defect.islands - normal.islands)  # a curved base may close stripes by itself
-    return PhaseResult(phase_mm, contour_shift(normal, defect, pairs), islands, unpaired, len(pairs))
+    return PhaseResult(
+        phase_mm, contour_shift(normal, defect, pairs), islands, unpaired, len(pairs)
+    )
 
 
 # --------------------------------------------------------------------------- registration
@@ -277,7 +305,9 @@ def contour_image(binary: np.ndarray) -> np.ndarray:
     return ((white > 0) & (inner == 0)).astype(np.uint8) * 255
 
 
-def register(normal_binary: np.ndarray, defect_binary: np.ndarray, max_offset_px: int = 8) -> tuple[int, int]:
+def register(
+    normal_binary: np.ndarray, defect_binary: np.ndarray, max_offset_px: int = 8
+) -> tuple[int, int]:
     """Whole-pixel offset ``(dx, dy)`` that moves the defect image onto the normal one
     (SPEC §6 step 4): the shift within ``±max_offset_px`` that best correlates their
     contour images (normalised cross-correlation); among equally good shifts the

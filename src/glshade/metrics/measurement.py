@@ -41,10 +41,14 @@ def shades_from_map(scene: Scene) -> bool:
     return all(component.image_from_v(scene) for component in registry().active(scene))
 
 
-def phase_images(renderer: Renderer, scene: Scene, exposure: int = 0) -> Callable[[float], np.ndarray]:
+def phase_images(
+    renderer: Renderer, scene: Scene, exposure: int = 0
+) -> Callable[[float], np.ndarray]:
     """``phase -> rendered radiance image`` of a scene, for shading that needs images
     (with a sensor: what it records in exposure number ``exposure``)."""
-    return lambda phase: renderer.render(scene.with_phase(phase), ("image",), exposure=exposure).image
+    return lambda phase: (
+        renderer.render(scene.with_phase(phase), ("image",), exposure=exposure).image
+    )
 
 
 def levels_from_image(scene: Scene, settings: MetricSettings) -> bool:
@@ -55,12 +59,19 @@ def levels_from_image(scene: Scene, settings: MetricSettings) -> bool:
     return not all(component.keeps_emitter_scale(scene) for component in registry().active(scene))
 
 
-def baseline_for(renderer: Renderer, scene: Scene, settings: MetricSettings = MetricSettings()) -> Baseline:
+def baseline_for(
+    renderer: Renderer, scene: Scene, settings: MetricSettings = MetricSettings()
+) -> Baseline:
     """The defect-free analysis of a scene's geometry (its defect is ignored)."""
     normal = scene.without_defect()
     images = None if shades_from_map(scene) else phase_images(renderer, normal)
-    return Baseline(emitter_map(renderer, normal), scene.emitter, settings, images,
-                    image_levels=levels_from_image(scene, settings))
+    return Baseline(
+        emitter_map(renderer, normal),
+        scene.emitter,
+        settings,
+        images,
+        image_levels=levels_from_image(scene, settings),
+    )
 
 
 def measure_scene(
@@ -93,7 +104,13 @@ def measure_scene(
         from glshade.study.plots import overlay_figure
 
         normal, defect = baseline.stripes_at(v1, result.best_phase_mm, result.offset_px, images)
-        overlay_figure(overlay_rgb(normal, defect), result, baseline.columns.start, scene.title(), Path(overlay))
+        overlay_figure(
+            overlay_rgb(normal, defect),
+            result,
+            baseline.columns.start,
+            scene.title(),
+            Path(overlay),
+        )
     return result
 
 
@@ -119,11 +136,15 @@ def measure(
     if isinstance(scene, (str, os.PathLike)):
         scene = Scene.load(scene)
     if not isinstance(scene, Scene):
-        raise GlshadeError(f"scene: must be a glshade Scene or the path of a scene file, got {type(scene).__name__}")
+        raise GlshadeError(
+            f"scene: must be a glshade Scene or the path of a scene file, got {type(scene).__name__}"
+        )
     settings = settings or MetricSettings()
     if not isinstance(settings, MetricSettings):
         raise GlshadeError(f"settings: must be a MetricSettings, got {type(settings).__name__}")
-    settings.phases(scene.emitter.period)  # a step longer than the period is refused before rendering
+    settings.phases(
+        scene.emitter.period
+    )  # a step longer than the period is refused before rendering
     if overlay is not None:
         check_output(overlay, "overlay", (".png",))
     if renderer is not None:

@@ -95,7 +95,15 @@ def laws(scene: Scene) -> Laws:
     # SPEC's leading term, times the first correction: the flank of steepest slope lies
     # σ_z cos θ farther from the emitter, and its depth moves the hit point along the ray
     # by as much again (docs/physics.md)
-    flat_deflection = 2.0 * depth * math.exp(-0.5) / sigma_z * de / ((dc + de) * delta) * (1.0 + 2.0 * sigma_z * cos_t / de)
+    flat_deflection = (
+        2.0
+        * depth
+        * math.exp(-0.5)
+        / sigma_z
+        * de
+        / ((dc + de) * delta)
+        * (1.0 + 2.0 * sigma_z * cos_t / de)
+    )
     deflection = flat_deflection / m if m > 0 else math.nan
     dent_curvature = depth * inv_zz * (1.0 if defect.dmax > 0 else 2.0 * math.exp(-1.5))
     ratio = lever * (dent_curvature + tangential)
@@ -108,8 +116,15 @@ def laws(scene: Scene) -> Laws:
         visible = _fold_cap(flat_deflection, b, m, saddle)
     elif folds:
         visible = math.nan
-    return Laws(magnification=m, fold_ratio=ratio, folds=folds, deflection_px=deflection, dent_extent_px=b,
-                saddle_rows=saddle, visibility_px=visible)
+    return Laws(
+        magnification=m,
+        fold_ratio=ratio,
+        folds=folds,
+        deflection_px=deflection,
+        dent_extent_px=b,
+        saddle_rows=saddle,
+        visibility_px=visible,
+    )
 
 
 def _saddle_rows(x_s2, sagittal, m, dc, de, sin_t, cos_t, delta) -> float:
@@ -126,6 +141,7 @@ def _fold_cap(flat_deflection: float, b: float, m: float, saddle: float) -> floa
     ``D φ(t1) / m`` with ``t1 >= 1`` the root of ``D φ(t) - m b t = saddle``, or the whole
     deflection when ``D - m b <= saddle`` (no island cuts it off). Bisection: the left
     side decreases from ``D - m b`` at ``t = 1`` towards ``-inf``."""
+
     def level(t: float) -> float:
         return flat_deflection * t * math.exp(0.5 * (1.0 - t * t)) - m * b * t
 

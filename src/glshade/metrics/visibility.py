@@ -80,27 +80,41 @@ class MetricSettings:
 
     def __post_init__(self) -> None:
         if self.level_from not in LEVEL_SOURCES:
-            raise GlshadeError(f"level_from: must be one of {', '.join(LEVEL_SOURCES)}, got {self.level_from!r}")
+            raise GlshadeError(
+                f"level_from: must be one of {', '.join(LEVEL_SOURCES)}, got {self.level_from!r}"
+            )
         if not (math.isfinite(self.threshold) and 0.0 < self.threshold < 1.0):
-            raise GlshadeError(f"threshold: must be in (0, 1) of the emitter peak, got {self.threshold}")
+            raise GlshadeError(
+                f"threshold: must be in (0, 1) of the emitter peak, got {self.threshold}"
+            )
         if not (math.isfinite(self.keep_fraction) and 0.0 < self.keep_fraction <= 1.0):
             raise GlshadeError(f"keep_fraction: must be in (0, 1], got {self.keep_fraction}")
         if not (math.isfinite(self.step_mm) and self.step_mm > 0.0):
             raise GlshadeError(f"step: must be a number of mm > 0, got {self.step_mm}")
         if not (math.isfinite(self.min_period_px) and self.min_period_px >= 0.0):
-            raise GlshadeError(f"min_period_px: must be a number of pixels >= 0, got {self.min_period_px}")
+            raise GlshadeError(
+                f"min_period_px: must be a number of pixels >= 0, got {self.min_period_px}"
+            )
         if not 0 <= self.max_offset_px <= 64:
-            raise GlshadeError(f"max_offset_px: must be an integer in [0, 64], got {self.max_offset_px}")
+            raise GlshadeError(
+                f"max_offset_px: must be an integer in [0, 64], got {self.max_offset_px}"
+            )
         if not 1 <= self.limit_upsample <= 32:
-            raise GlshadeError(f"limit_upsample: must be an integer in [1, 32], got {self.limit_upsample}")
+            raise GlshadeError(
+                f"limit_upsample: must be an integer in [1, 32], got {self.limit_upsample}"
+            )
         if not 4 <= self.limit_phases <= 1024:
-            raise GlshadeError(f"limit_phases: must be an integer in [4, 1024], got {self.limit_phases}")
+            raise GlshadeError(
+                f"limit_phases: must be an integer in [4, 1024], got {self.limit_phases}"
+            )
 
     def phases(self, period_mm: float) -> np.ndarray:
         """Phase shifts of the sweep: 0, step, 2 step, … below one period (a shift of a
         whole period reproduces phase 0). A step larger than the period is an error."""
         if self.step_mm > period_mm:
-            raise GlshadeError(f"step: must be at most one stripe period ({period_mm:g} mm), got {self.step_mm:g} mm")
+            raise GlshadeError(
+                f"step: must be at most one stripe period ({period_mm:g} mm), got {self.step_mm:g} mm"
+            )
         count = max(1, math.ceil(period_mm / self.step_mm - 1e-9))
         if count > MAX_PHASES:
             raise GlshadeError(
@@ -190,7 +204,9 @@ def resolved_mask(v0: np.ndarray, period_mm: float, min_period_px: float) -> np.
     return np.isfinite(local_period) & (local_period >= min_period_px)
 
 
-def binarize_v(v: np.ndarray, emitter: Emitter, phase_mm: float, half_width_mm: float) -> np.ndarray:
+def binarize_v(
+    v: np.ndarray, emitter: Emitter, phase_mm: float, half_width_mm: float
+) -> np.ndarray:
     """``L(v) > threshold`` from the uv map, given :func:`stripe_half_width` (bool)."""
     w = (v - phase_mm) / emitter.period
     with np.errstate(invalid="ignore"):
@@ -390,7 +406,9 @@ class Baseline:
         self.valid = self.resolved[:, self.columns]
         self.edge = ct.border_pixels(self.valid)
         seen = np.isfinite(self.v0[:, self.columns])
-        self.unresolved_fraction = float((seen & ~self.valid).sum() / seen.sum()) if seen.any() else 0.0
+        self.unresolved_fraction = (
+            float((seen & ~self.valid).sum() / seen.sum()) if seen.any() else 0.0
+        )
         self._v0_cut = self.v0[:, self.columns]
         #: The binarisation level of rendered images (None: ``settings.threshold``).
         self.level: float | None = None
@@ -398,11 +416,15 @@ class Baseline:
             first = np.asarray(normal_images(float(self.phases[0])))[:, self.columns]
             self.level = image_level(first, self.valid, settings.threshold)
         self._stripes: dict[float, ct.StripeMap] = {}
-        self._locks = {float(phase): threading.Lock() for phase in self.phases}  # one analysis per phase
+        self._locks = {
+            float(phase): threading.Lock() for phase in self.phases
+        }  # one analysis per phase
         self._lock = threading.Lock()  # for phases outside the sweep (the viewer's)
 
     # ---------------------------------------------------------------- images
-    def binary(self, v: np.ndarray, phase_mm: float, images: Callable[[float], np.ndarray] | None = None) -> np.ndarray:
+    def binary(
+        self, v: np.ndarray, phase_mm: float, images: Callable[[float], np.ndarray] | None = None
+    ) -> np.ndarray:
         """The cut binary image at a phase, from an emitter map ``v`` (or the image
         ``images(phase)``), with the unresolved pixels black."""
         if images is not None:
@@ -417,16 +439,22 @@ class Baseline:
         with self._locks.get(key, self._lock):
             stripes = self._stripes.get(key)
             if stripes is None:
-                stripes = self._stripes[key] = ct.find_stripes(self.binary(self.v0, key, self.normal_images), self.edge)
+                stripes = self._stripes[key] = ct.find_stripes(
+                    self.binary(self.v0, key, self.normal_images), self.edge
+                )
         return stripes
 
     # ---------------------------------------------------------------- metrics
     def at_phase(self, v1: np.ndarray, phase_mm: float) -> ct.PhaseResult:
         """The paper's comparison at one phase (the viewer's live readout); no registration."""
-        result = ct.compare(self.normal_stripes(phase_mm), self.binary(v1, phase_mm), self.edge, float(phase_mm))
+        result = ct.compare(
+            self.normal_stripes(phase_mm), self.binary(v1, phase_mm), self.edge, float(phase_mm)
+        )
         return replace(result, shift=result.shift.in_image(self.columns.start))
 
-    def paper(self, v1: np.ndarray, defect_images: Callable[[float], np.ndarray] | None = None) -> tuple[PaperResult, float]:
+    def paper(
+        self, v1: np.ndarray, defect_images: Callable[[float], np.ndarray] | None = None
+    ) -> tuple[PaperResult, float]:
         """The paper's metric of a defect, and the seconds spent binarising."""
         shading = 0.0
 
@@ -437,29 +465,50 @@ class Baseline:
             shading += time.perf_counter() - start
             return binary
 
-        return sweep(self.phases, self.normal_stripes, defect, self.edge, self.columns, self.settings.max_offset_px), shading
+        return sweep(
+            self.phases,
+            self.normal_stripes,
+            defect,
+            self.edge,
+            self.columns,
+            self.settings.max_offset_px,
+        ), shading
 
     def moved(self, v1: np.ndarray) -> Deflection:
         """The deflection of a defect's map against this one."""
         return deflection(self.v0, v1, self.columns)
 
-    def measure(self, v1: np.ndarray, defect_images: Callable[[float], np.ndarray] | None = None) -> Visibility:
+    def measure(
+        self, v1: np.ndarray, defect_images: Callable[[float], np.ndarray] | None = None
+    ) -> Visibility:
         """All three numbers of a defect whose emitter map is ``v1`` (and whose rendered
         images are ``defect_images(phase)``, when the baseline was given images)."""
         if (defect_images is None) != (self.normal_images is None):
-            raise GlshadeError("measure: give defect images exactly when the baseline has normal images")
+            raise GlshadeError(
+                "measure: give defect images exactly when the baseline has normal images"
+            )
         v1 = np.asarray(v1)
         if v1.shape != self.v0.shape:
-            raise GlshadeError(f"measure: the defect map has shape {v1.shape}, the baseline {self.v0.shape}")
+            raise GlshadeError(
+                f"measure: the defect map has shape {v1.shape}, the baseline {self.v0.shape}"
+            )
         start = time.perf_counter()
         paper, shading = self.paper(v1, defect_images)
         contours_s = time.perf_counter() - start - shading
         start = time.perf_counter()
         moved = self.moved(v1)
-        valid = np.isfinite(self.v0) & np.isfinite(v1)  # a vanishing pixel cannot alias: no resolution mask
+        valid = np.isfinite(self.v0) & np.isfinite(
+            v1
+        )  # a vanishing pixel cannot alias: no resolution mask
         limit = visibility_limit(
-            self.v0, v1, valid, self.columns, StripeLevels(self.emitter.period, self._limit_half_width()), moved,
-            self.settings.limit_upsample, self.settings.limit_phases,
+            self.v0,
+            v1,
+            valid,
+            self.columns,
+            StripeLevels(self.emitter.period, self._limit_half_width()),
+            moved,
+            self.settings.limit_upsample,
+            self.settings.limit_phases,
         )
         continuous_s = time.perf_counter() - start
         return Visibility(
@@ -487,8 +536,13 @@ class Baseline:
         return 0.25 * self.emitter.period
 
     # ---------------------------------------------------------------- pictures
-    def stripes_at(self, v1: np.ndarray, phase_mm: float, offset_px: tuple[int, int] = (0, 0),
-                   defect_images: Callable[[float], np.ndarray] | None = None) -> tuple[ct.StripeMap, ct.StripeMap]:
+    def stripes_at(
+        self,
+        v1: np.ndarray,
+        phase_mm: float,
+        offset_px: tuple[int, int] = (0, 0),
+        defect_images: Callable[[float], np.ndarray] | None = None,
+    ) -> tuple[ct.StripeMap, ct.StripeMap]:
         """Both images' stripes at a phase, the defect image moved by ``offset_px`` (the
         registration of :meth:`measure`): what the Fig. 9 overlay shows."""
         defect = ct.shift_image(self.binary(v1, phase_mm, defect_images), *offset_px)

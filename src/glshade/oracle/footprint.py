@@ -25,10 +25,15 @@ def footprint_mm(scene, lobe_std_rad: float) -> float | None:
     from glshade.oracle.tracer import first_hit, pixel_rays
 
     cam = scene.camera
-    rows, cols = slice(cam.height // 2, cam.height // 2 + 1), slice(cam.width // 2, cam.width // 2 + 1)
+    rows, cols = (
+        slice(cam.height // 2, cam.height // 2 + 1),
+        slice(cam.width // 2, cam.width // 2 + 1),
+    )
     origin, directions = pixel_rays(cam, rows, cols)
     d = np.asarray(directions, np.float64).reshape(-1, 3)[:1]
-    _, points, normals, valid = first_hit(scene, np.asarray(origin, np.float64).reshape(-1, 3)[:1], d)
+    _, points, normals, valid = first_hit(
+        scene, np.asarray(origin, np.float64).reshape(-1, 3)[:1], d
+    )
     if not valid.reshape(-1)[0]:
         return None
     d = d / np.linalg.norm(d)
@@ -41,7 +46,11 @@ def footprint_mm(scene, lobe_std_rad: float) -> float | None:
     spread = 0.0
     for turn in (axis, np.cross(r, axis)):  # in and across the plane of incidence
         turned = np.stack([r + s * _DALPHA * np.cross(turn, r) for s in (-1.0, 1.0)])
-        _, v, ok = registry().active(scene).emitter.coordinates(scene, np.repeat(points.reshape(-1, 3)[:1], 2, 0), turned)
+        _, v, ok = (
+            registry()
+            .active(scene)
+            .emitter.coordinates(scene, np.repeat(points.reshape(-1, 3)[:1], 2, 0), turned)
+        )
         if not ok.all():
             return None
         spread = max(spread, abs(v[1] - v[0]) / (2 * _DALPHA))

@@ -111,7 +111,9 @@ _GOLDEN_ITERATIONS = 64
 
 
 # ============================================================================ the pieces
-def pixel_rays(camera: Camera, rows: slice | None = None, cols: slice | None = None, supersample: int = 1):
+def pixel_rays(
+    camera: Camera, rows: slice | None = None, cols: slice | None = None, supersample: int = 1
+):
     """Camera rays of SPEC §2: ``(origin, directions)``, float64 (the camera component's
     oracle: see its ``pixel_rays``). ``rows``/``cols`` select pixels of the full sensor
     (row 0 at the top)."""
@@ -286,7 +288,9 @@ def _hidden_dips(scene, parts, o, d, ts, g, limit, empty, bracket) -> None:
     if not len(ray_i):
         return
     k_mid = col + 1
-    t_min, g_min = _golden_minimum(scene, parts, o[ray_i], d[ray_i], ts[ray_i, k_mid - 1], ts[ray_i, k_mid + 1])
+    t_min, g_min = _golden_minimum(
+        scene, parts, o[ray_i], d[ray_i], ts[ray_i, k_mid - 1], ts[ray_i, k_mid + 1]
+    )
     neg = g_min <= 0.0
     if not neg.any():
         return
@@ -325,14 +329,20 @@ def first_hit(scene: Scene, origin, directions):
     points = o + t[:, None] * d
     normals = np.full((n, 3), np.nan)
     if valid.any():
-        normals[valid] = _normals(scene, registry().active(scene), points[valid, 0], points[valid, 2])
-    return t.reshape(shape), points.reshape(shape + (3,)), normals.reshape(shape + (3,)), valid.reshape(shape)
+        normals[valid] = _normals(
+            scene, registry().active(scene), points[valid, 0], points[valid, 2]
+        )
+    return (
+        t.reshape(shape),
+        points.reshape(shape + (3,)),
+        normals.reshape(shape + (3,)),
+        valid.reshape(shape),
+    )
 
 
 # ============================================================================ tracing
 def _reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     return d - 2.0 * np.einsum("nk,nk->n", d, n)[:, None] * n
-
 
 
 def _shade(scene: Scene, origins: np.ndarray, d: np.ndarray, want_image: bool):

@@ -53,7 +53,9 @@ class Table:
         if "__dataclass_fields__" in cls.__dict__:
             generated = cls
         else:
-            generated = _fields_class(cls, tuple(p for p in registry().table_params(cls.table) if p.stored))
+            generated = _fields_class(
+                cls, tuple(p for p in registry().table_params(cls.table) if p.stored)
+            )
         return object.__new__(generated)
 
     def __post_init__(self) -> None:
@@ -157,7 +159,9 @@ class Camera(Table):
         """
         size = registry().param("camera.width").check(size)
         height = max(1, round(self.height * size / self.width))
-        return replace(self, width=size, height=height, pixel_pitch=self.pixel_pitch * self.width / size)
+        return replace(
+            self, width=size, height=height, pixel_pitch=self.pixel_pitch * self.width / size
+        )
 
 
 class Emitter(Table):
@@ -171,7 +175,11 @@ class Emitter(Table):
         """The stripe's Gaussian width in mm (the default when ``stripe_sigma`` is unset)."""
         from glshade.components.emitter_stripes import STRIPE_SIGMA_PER_PERIOD
 
-        return self.stripe_sigma if self.stripe_sigma is not None else self.period * STRIPE_SIGMA_PER_PERIOD
+        return (
+            self.stripe_sigma
+            if self.stripe_sigma is not None
+            else self.period * STRIPE_SIGMA_PER_PERIOD
+        )
 
 
 class Surface(Table):
@@ -279,7 +287,11 @@ class Scene:
     def title(self) -> str:
         """The case in a few words, as figure titles name it (depth in µm)."""
         d = self.defect
-        shape = f"σ² {d.sigma_x2:g} mm²" if d.isotropic else f"Σ ({d.sigma_x2:g}, {d.sigma_z2:g}, {d.sigma_xz:g}) mm²"
+        shape = (
+            f"σ² {d.sigma_x2:g} mm²"
+            if d.isotropic
+            else f"Σ ({d.sigma_x2:g}, {d.sigma_z2:g}, {d.sigma_xz:g}) mm²"
+        )
         base = registry().active(self).surface.describe(self)
         return f"{base}, θ {self.camera.theta_deg:g}°, {shape}, dmax {d.dmax * 1000:g} µm"
 
@@ -335,7 +347,9 @@ class Scene:
         (and any other that differs from its default); unset values are left out and an
         isotropic defect is written as ``sigma2``."""
         tables = {table: _file_values(self, table) for table in TABLE_CLASSES}
-        return {table: values for table, values in tables.items() if values or table in PAPER_TABLES}
+        return {
+            table: values for table, values in tables.items() if values or table in PAPER_TABLES
+        }
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], base: Path | None = None) -> Scene:
@@ -347,10 +361,14 @@ class Scene:
         parts: dict[str, Any] = {}
         for table, values in data.items():
             if table not in TABLE_CLASSES:
-                raise SceneError(table, "one of the tables " + ", ".join(TABLE_CLASSES) + " (unknown table)")
+                raise SceneError(
+                    table, "one of the tables " + ", ".join(TABLE_CLASSES) + " (unknown table)"
+                )
             if not isinstance(values, dict):
                 raise SceneError(table, "a table of keys", values)
-            parts[table] = TABLE_CLASSES[table](**_read_file(table, _resolve_paths(table, dict(values), base)))
+            parts[table] = TABLE_CLASSES[table](
+                **_read_file(table, _resolve_paths(table, dict(values), base))
+            )
         return cls(**parts)
 
     @classmethod
@@ -373,10 +391,18 @@ class Scene:
 #: A scene file is a few hundred bytes; anything beyond this is not one.
 MAX_SCENE_FILE_BYTES = 1 << 20
 #: Leading bytes of files often given by mistake.
-_MAGIC = ((b"\x89PNG", "a PNG image"), (b"II*\x00", "a TIFF image"), (b"MM\x00*", "a TIFF image"),
-          (b"\xff\xd8\xff", "a JPEG image"), (b"\x93NUMPY", "a NumPy array"), (b"%PDF", "a PDF document"),
-          (b"PK\x03\x04", "a zip archive"), (b"\x1f\x8b", "a gzip archive"), (b"\xff\xfe", "UTF-16 text"),
-          (b"\xfe\xff", "UTF-16 text"))
+_MAGIC = (
+    (b"\x89PNG", "a PNG image"),
+    (b"II*\x00", "a TIFF image"),
+    (b"MM\x00*", "a TIFF image"),
+    (b"\xff\xd8\xff", "a JPEG image"),
+    (b"\x93NUMPY", "a NumPy array"),
+    (b"%PDF", "a PDF document"),
+    (b"PK\x03\x04", "a zip archive"),
+    (b"\x1f\x8b", "a gzip archive"),
+    (b"\xff\xfe", "UTF-16 text"),
+    (b"\xfe\xff", "UTF-16 text"),
+)
 _BOM = b"\xef\xbb\xbf"
 
 
@@ -397,7 +423,9 @@ def read_toml(path: Path, what: str = "scene file") -> dict[str, Any]:
     except ValueError:  # a NUL byte in the path
         raise SceneError(what, "a path without NUL bytes", str(path)) from None
     if len(raw) > MAX_SCENE_FILE_BYTES:
-        raise SceneError(field, f"a TOML file of at most {MAX_SCENE_FILE_BYTES >> 20} MiB (this one is larger)")
+        raise SceneError(
+            field, f"a TOML file of at most {MAX_SCENE_FILE_BYTES >> 20} MiB (this one is larger)"
+        )
     kind = next((name for magic, name in _MAGIC if raw.startswith(magic)), None)
     if kind is not None:
         raise SceneError(field, f"a TOML text file (this is {kind})")
@@ -406,8 +434,11 @@ def read_toml(path: Path, what: str = "scene file") -> dict[str, Any]:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         line = raw[: exc.start].count(b"\n") + 1
-        raise SceneError(field, f"UTF-8 text (byte 0x{raw[exc.start]:02x} on line {line} is not UTF-8; "
-                                "re-save the file as UTF-8)") from None
+        raise SceneError(
+            field,
+            f"UTF-8 text (byte 0x{raw[exc.start]:02x} on line {line} is not UTF-8; "
+            "re-save the file as UTF-8)",
+        ) from None
     if "\x00" in text:
         raise SceneError(field, "a TOML text file (it holds NUL bytes: binary data)")
     try:
@@ -424,7 +455,12 @@ def _resolve_paths(table: str, values: dict[str, Any], base: Path | None) -> dic
     for key, value in values.items():
         param = registry().table_params(table)
         declared = next((p for p in param if p.key == key), None)
-        if declared is not None and declared.value_type == "path" and isinstance(value, str) and value.strip():
+        if (
+            declared is not None
+            and declared.value_type == "path"
+            and isinstance(value, str)
+            and value.strip()
+        ):
             values[key] = str(base / value) if not os.path.isabs(value) else value
     return values
 
@@ -436,13 +472,17 @@ def _relative_paths(data: dict[str, dict[str, Any]], base: Path) -> dict[str, di
             value = values.get(param.key)
             if param.value_type == "path" and isinstance(value, str):
                 try:
-                    values[param.key] = str(Path(os.path.abspath(value)).relative_to(os.path.abspath(base)))
+                    values[param.key] = str(
+                        Path(os.path.abspath(value)).relative_to(os.path.abspath(base))
+                    )
                 except ValueError:
                     values[param.key] = os.path.abspath(value)
     return data
 
 
-def _read_file(table: str, values: dict[str, Any], current: dict[str, Any] | None = None) -> dict[str, Any]:
+def _read_file(
+    table: str, values: dict[str, Any], current: dict[str, Any] | None = None
+) -> dict[str, Any]:
     """Scene-file keys of one table -> its fields: the components' shorthands expanded,
     every key checked to be declared. ``current``: the values being changed, if any."""
     reg = registry()
@@ -452,7 +492,9 @@ def _read_file(table: str, values: dict[str, Any], current: dict[str, Any] | Non
     stored = {p.key for p in reg.table_params(table) if p.stored}
     for key in values:
         if key not in stored:
-            raise SceneError(f"{table}.{key}", "one of the keys " + ", ".join(declared) + " (unknown key)")
+            raise SceneError(
+                f"{table}.{key}", "one of the keys " + ", ".join(declared) + " (unknown key)"
+            )
     return values
 
 
@@ -465,11 +507,18 @@ def _file_values(scene: Scene, table: str, everything: bool = False) -> dict[str
         if not param.stored:
             continue
         value = getattr(getattr(scene, table), param.key)
-        in_use = reg.choices(param) is not None or any(owner in active for owner in reg.owners(param))
+        in_use = reg.choices(param) is not None or any(
+            owner in active for owner in reg.owners(param)
+        )
         if value is None or not (everything or in_use or value != param.default):
             continue
-        values[param.key] = (list(value) if param.value_type in ("pair", "vector") else dict(value) if param.value_type == "table"
-                             else value)
+        values[param.key] = (
+            list(value)
+            if param.value_type in ("pair", "vector")
+            else dict(value)
+            if param.value_type == "table"
+            else value
+        )
     for component in _table_components(table):
         values = component.write_file(values)
     return values
@@ -477,7 +526,9 @@ def _file_values(scene: Scene, table: str, everything: bool = False) -> dict[str
 
 def _table_components(table: str):
     reg = registry()
-    return tuple(c for slot in reg.slots() if slot.table == table for c in reg.components(slot.name))
+    return tuple(
+        c for slot in reg.slots() if slot.table == table for c in reg.components(slot.name)
+    )
 
 
 # --------------------------------------------------------------------------- paper
@@ -491,7 +542,11 @@ def paper_scene(
     """The paper's geometry (Table 1, section III): camera 175.6 mm, emitter 256 mm,
     1024² pixels of 5 µm, f = 25 mm; cylinder and sphere R = 70 mm; sphere period 10 mm."""
     if surface not in PAPER_SURFACES:
-        raise SceneError("surface.kind", "one of " + ", ".join(PAPER_SURFACES) + " (the paper's surfaces)", surface)
+        raise SceneError(
+            "surface.kind",
+            "one of " + ", ".join(PAPER_SURFACES) + " (the paper's surfaces)",
+            surface,
+        )
     period = PAPER_PERIOD_MM.get(surface, Emitter().period)
     return Scene(
         camera=Camera(theta_deg=theta_deg),

@@ -83,8 +83,14 @@ class Param:
     size: int = 0
 
     def __post_init__(self) -> None:
-        if self.value_type not in VALUE_TYPES or self.role not in ROLES or self.path.count(".") != 1:
-            raise ValueError(f"malformed parameter declaration {self.path!r} ({self.value_type}, {self.role})")
+        if (
+            self.value_type not in VALUE_TYPES
+            or self.role not in ROLES
+            or self.path.count(".") != 1
+        ):
+            raise ValueError(
+                f"malformed parameter declaration {self.path!r} ({self.value_type}, {self.role})"
+            )
 
     @property
     def table(self) -> str:
@@ -138,13 +144,25 @@ class Param:
         if self.value_type == "path":
             if isinstance(value, os.PathLike):
                 value = os.fspath(value)
-            if not isinstance(value, str) or not value.strip() or "\0" in value or len(value) > 4096:
-                raise SceneError(self.path, self.allowed(), value if isinstance(value, str) else type(value).__name__)
+            if (
+                not isinstance(value, str)
+                or not value.strip()
+                or "\0" in value
+                or len(value) > 4096
+            ):
+                raise SceneError(
+                    self.path,
+                    self.allowed(),
+                    value if isinstance(value, str) else type(value).__name__,
+                )
             return value
         if self.value_type == "text":
             if not isinstance(value, str) or not value.strip() or len(value) > MAX_TEXT:
-                raise SceneError(self.path, self.allowed(), value if isinstance(value, str) and len(value) < 80 else
-                                 type(value).__name__)
+                raise SceneError(
+                    self.path,
+                    self.allowed(),
+                    value if isinstance(value, str) and len(value) < 80 else type(value).__name__,
+                )
             return value
         if self.value_type == "table":
             return self._table(value)
@@ -154,7 +172,9 @@ class Param:
             return (self._real(value[0]), self._real(value[1]))
         if self.value_type == "vector":
             if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != self.size:
-                raise SceneError(self.path, self.allowed(), list(value) if isinstance(value, tuple) else value)
+                raise SceneError(
+                    self.path, self.allowed(), list(value) if isinstance(value, tuple) else value
+                )
             return tuple(self._finite(number) for number in value)
         return self._real(value)
 
@@ -188,7 +208,11 @@ class Param:
         for name, number in pairs:
             if not isinstance(name, str):
                 raise SceneError(self.path, self.allowed(), value)
-            if isinstance(number, bool) or not isinstance(number, (int, float)) or not math.isfinite(number):
+            if (
+                isinstance(number, bool)
+                or not isinstance(number, (int, float))
+                or not math.isfinite(number)
+            ):
                 raise SceneError(f"{self.path}.{name}", "a finite number", number)
             out.append((name, float(number)))
         return tuple(out)
@@ -207,10 +231,16 @@ class Param:
     def implausible(self, value: Any) -> str | None:
         """A warning line when an accepted ``value`` is beyond what is plausible (a dent
         50 mm deep: most likely µm meant), else None."""
-        if self.plausible_max is None or not isinstance(value, (int, float)) or abs(value) <= self.plausible_max:
+        if (
+            self.plausible_max is None
+            or not isinstance(value, (int, float))
+            or abs(value) <= self.plausible_max
+        ):
             return None
         unit = f" {self.unit}" if self.unit else ""
-        example = {"mm": ", write 5um for micrometres", "mm²": ", write 4um2 for µm²"}.get(self.unit, "")
+        example = {"mm": ", write 5um for micrometres", "mm²": ", write 4um2 for µm²"}.get(
+            self.unit, ""
+        )
         note = f"; values are in {self.unit}{example}" if self.unit else ""
         return f"{self.path} = {value:g}{unit} is beyond {self.plausible_max:g}{unit} ({self.plausible_why}){note}"
 
@@ -223,8 +253,12 @@ class Param:
         if self.value_type in ("choice", "text", "path"):
             return text
         if self.value_type == "table":
-            return tuple((name.strip(), parse_quantity(number, "", f"{self.path}.{name.strip()}"))
-                         for name, _, number in (part.partition("=") for part in text.split(",") if part.strip()))
+            return tuple(
+                (name.strip(), parse_quantity(number, "", f"{self.path}.{name.strip()}"))
+                for name, _, number in (
+                    part.partition("=") for part in text.split(",") if part.strip()
+                )
+            )
         if self.value_type in ("pair", "vector"):
             parts = [p for p in text.strip("[]()").replace(",", " ").split() if p]
             return tuple(parse_quantity(p, self.unit, self.path) for p in parts)
@@ -240,7 +274,11 @@ class Param:
         if self.value_type in ("choice", "text", "path"):
             return f'"{self.default}"'
         if self.value_type == "table":
-            return "{ " + ", ".join(f"{k} = {v:g}" for k, v in self.default) + " }" if self.default else "{}"
+            return (
+                "{ " + ", ".join(f"{k} = {v:g}" for k, v in self.default) + " }"
+                if self.default
+                else "{}"
+            )
         if self.value_type in ("pair", "vector"):
             return "[" + ", ".join(f"{number:g}" for number in self.default) + "]"
         return f"{self.default:g}"

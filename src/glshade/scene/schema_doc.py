@@ -115,13 +115,26 @@ def _row(reg: Registry, param: Param) -> str:
     used_by = ", ".join(f"{c.slot} `{c.name}`" for c in owners) or "selects the component"
     flag = f"`{param.flag}`" if param.flag else ""
     note = "" if param.stored else " (shorthand, not stored)"
-    cells = [f"`{param.key}`", param.unit or "", f"`{param.default_text()}`", _allowed(reg, param),
-             param.role, used_by, flag, param.doc + note]
+    cells = [
+        f"`{param.key}`",
+        param.unit or "",
+        f"`{param.default_text()}`",
+        _allowed(reg, param),
+        param.role,
+        used_by,
+        flag,
+        param.doc + note,
+    ]
     return "| " + " | ".join(cells) + " |"
 
 
 def _components(reg: Registry) -> list[str]:
-    lines = ["## Components", "", "| slot | table | selected by | components |", "|---|---|---|---|"]
+    lines = [
+        "## Components",
+        "",
+        "| slot | table | selected by | components |",
+        "|---|---|---|---|",
+    ]
     for slot in reg.slots():
         selector = f"`{slot.selector.path}`" if slot.selector else "(one component)"
         names = "; ".join(f"`{c.name}`: {c.doc}" for c in reg.components(slot.name))

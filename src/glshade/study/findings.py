@@ -31,18 +31,28 @@ MIN_EFFECT = 0.10
 NEAR_BEST = 0.9
 
 RULES = (
-    ("1. *Deeper is more visible*: over all (θ, σ²) of a surface, the share of cases where the 5 µm dent is strictly "
-     "more visible than the 3 µm one. **holds**: at least 90 % and never less visible; **partly holds**: at least 60 %."),
-    ("2. *Larger σ² is less visible overall* (fixed depth): the mean visibility over θ, per σ². **holds**: it falls "
-     "strictly as σ² grows; **partly holds**: Spearman ρ(σ², mean) ≤ -0.8."),
-    ("3. *Gentle dents (σ² 9, 16) gain from a low viewpoint*: per σ², Spearman ρ(θ, visibility) and the relative "
-     f"change from the highest to the lowest θ. **holds**: ρ ≤ -0.8 *and* a gain of at least {MIN_EFFECT:.0%}; "
-     "**partly holds**: ρ ≤ -0.4 and any gain, however small; both σ² must hold for the scope to hold. A ranked trend "
-     "of a few per cent is not what the paper means by \"more visible\"."),
-    ("4. *Steep dents (σ² 1, 4) lose from a low viewpoint*: the same with the signs turned (ρ ≥ 0.8 and a loss of at "
-     f"least {MIN_EFFECT:.0%})."),
-    ("5. *3 and 4 hold on flat, cylindrical and spherical surfaces alike*: **holds** when 3 and 4 hold for every "
-     "surface and depth, **partly holds** when each at least partly holds."),
+    (
+        "1. *Deeper is more visible*: over all (θ, σ²) of a surface, the share of cases where the 5 µm dent is strictly "
+        "more visible than the 3 µm one. **holds**: at least 90 % and never less visible; **partly holds**: at least 60 %."
+    ),
+    (
+        "2. *Larger σ² is less visible overall* (fixed depth): the mean visibility over θ, per σ². **holds**: it falls "
+        "strictly as σ² grows; **partly holds**: Spearman ρ(σ², mean) ≤ -0.8."
+    ),
+    (
+        "3. *Gentle dents (σ² 9, 16) gain from a low viewpoint*: per σ², Spearman ρ(θ, visibility) and the relative "
+        f"change from the highest to the lowest θ. **holds**: ρ ≤ -0.8 *and* a gain of at least {MIN_EFFECT:.0%}; "
+        "**partly holds**: ρ ≤ -0.4 and any gain, however small; both σ² must hold for the scope to hold. A ranked trend "
+        'of a few per cent is not what the paper means by "more visible".'
+    ),
+    (
+        "4. *Steep dents (σ² 1, 4) lose from a low viewpoint*: the same with the signs turned (ρ ≥ 0.8 and a loss of at "
+        f"least {MIN_EFFECT:.0%})."
+    ),
+    (
+        "5. *3 and 4 hold on flat, cylindrical and spherical surfaces alike*: **holds** when 3 and 4 hold for every "
+        "surface and depth, **partly holds** when each at least partly holds."
+    ),
 )
 
 
@@ -114,10 +124,19 @@ def evaluate(rows: list[Mapping]) -> list[Verdict]:
     a :class:`~glshade.study.store.CaseResult` or any mapping of its columns (the
     functions here read rows by column name)."""
     out: list[Verdict] = []
-    axes = [list(dict.fromkeys(r[key] for r in rows)) for key in ("surface", "dmax_mm", "sigma2_mm2", "theta_deg")]
+    axes = [
+        list(dict.fromkeys(r[key] for r in rows))
+        for key in ("surface", "dmax_mm", "sigma2_mm2", "theta_deg")
+    ]
     for metric, metric_name in METRICS.items():
-        grid = _Grid(axes[0], sorted(axes[1]), sorted(axes[2]), sorted(axes[3]), _table(rows), metric)
-        found = _deeper(grid, metric_name) + _wider(grid, metric_name) + _theta_trends(grid, metric_name)
+        grid = _Grid(
+            axes[0], sorted(axes[1]), sorted(axes[2]), sorted(axes[3]), _table(rows), metric
+        )
+        found = (
+            _deeper(grid, metric_name)
+            + _wider(grid, metric_name)
+            + _theta_trends(grid, metric_name)
+        )
         out += found + _alike(grid, metric_name, found)
     return out
 
@@ -129,16 +148,27 @@ def _deeper(g: _Grid, metric_name: str) -> list[Verdict]:
     out = []
     lo, hi = g.dmaxs[0], g.dmaxs[-1]
     for s in g.surfaces:
-        pairs = [(g.value(s, t, v, hi), g.value(s, t, v, lo)) for t in g.thetas for v in g.sigma2s
-                 if g.has(s, t, v, hi) and g.has(s, t, v, lo)]
+        pairs = [
+            (g.value(s, t, v, hi), g.value(s, t, v, lo))
+            for t in g.thetas
+            for v in g.sigma2s
+            if g.has(s, t, v, hi) and g.has(s, t, v, lo)
+        ]
         if not pairs:
             continue
         more = sum(a > b for a, b in pairs)
         less = sum(a < b for a, b in pairs)
         share = more / len(pairs)
         verdict = HOLDS if share >= 0.9 and less == 0 else PARTLY if share >= 0.6 else NOT
-        out.append(Verdict(1, s, metric_name, verdict,
-                           f"dmax {um(hi)} more visible than {um(lo)} in {more}/{len(pairs)} cases, less in {less}"))
+        out.append(
+            Verdict(
+                1,
+                s,
+                metric_name,
+                verdict,
+                f"dmax {um(hi)} more visible than {um(lo)} in {more}/{len(pairs)} cases, less in {less}",
+            )
+        )
     return out
 
 
@@ -149,13 +179,23 @@ def _wider(g: _Grid, metric_name: str) -> list[Verdict]:
     out = []
     for s in g.surfaces:
         for d in g.dmaxs:
-            means = [np.mean([g.value(s, t, v, d) for t in g.thetas if g.has(s, t, v, d)]) for v in g.sigma2s]
+            means = [
+                np.mean([g.value(s, t, v, d) for t in g.thetas if g.has(s, t, v, d)])
+                for v in g.sigma2s
+            ]
             rho = spearman(g.sigma2s, means)
             strictly = all(a > b for a, b in pairwise(means))
             verdict = HOLDS if strictly else PARTLY if rho <= -0.8 else NOT
             shown = ", ".join(f"σ² {v:g}: {m:.1f}" for v, m in zip(g.sigma2s, means))
-            out.append(Verdict(2, f"{s}, dmax {um(d)}", metric_name, verdict,
-                               f"mean over θ {shown} px; Spearman ρ = {rho:.2f}"))
+            out.append(
+                Verdict(
+                    2,
+                    f"{s}, dmax {um(d)}",
+                    metric_name,
+                    verdict,
+                    f"mean over θ {shown} px; Spearman ρ = {rho:.2f}",
+                )
+            )
     return out
 
 
@@ -169,7 +209,15 @@ def _theta_trends(g: _Grid, metric_name: str) -> list[Verdict]:
         for s in g.surfaces if present else ():
             for d in g.dmaxs:
                 parts, shown = zip(*(_trend(g, s, v, d, sign) for v in present))
-                out.append(Verdict(number, f"{s}, dmax {um(d)}", metric_name, _worst(list(parts)), "; ".join(shown)))
+                out.append(
+                    Verdict(
+                        number,
+                        f"{s}, dmax {um(d)}",
+                        metric_name,
+                        _worst(list(parts)),
+                        "; ".join(shown),
+                    )
+                )
     return out
 
 
@@ -187,7 +235,10 @@ def _trend(g: _Grid, s: str, v: float, d: float, sign: float) -> tuple[str, str]
         verdict = PARTLY
     else:
         verdict = NOT
-    return verdict, f"σ² {v:g}: ρ(θ, visibility) = {rho:+.2f}, θ {ts[-1]:g} → {ts[0]:g}: {high:.2f} → {low:.2f} px ({change:+.0%})"
+    return (
+        verdict,
+        f"σ² {v:g}: ρ(θ, visibility) = {rho:+.2f}, θ {ts[-1]:g} → {ts[0]:g}: {high:.2f} → {low:.2f} px ({change:+.0%})",
+    )
 
 
 def _alike(g: _Grid, metric_name: str, found: list[Verdict]) -> list[Verdict]:
@@ -197,7 +248,11 @@ def _alike(g: _Grid, metric_name: str, found: list[Verdict]) -> list[Verdict]:
         return []
     verdict = _worst([v.verdict for v in three_four])
     failing = sorted({v.scope for v in three_four if v.verdict != HOLDS})
-    evidence = "findings 3 and 4 hold everywhere" if not failing else "not holding in: " + "; ".join(failing)
+    evidence = (
+        "findings 3 and 4 hold everywhere"
+        if not failing
+        else "not holding in: " + "; ".join(failing)
+    )
     return [Verdict(5, ", ".join(g.surfaces), metric_name, verdict, evidence)]
 
 
@@ -236,14 +291,18 @@ def theta_ranges(chosen, plan_thetas) -> str:
     return ", ".join(f"{r[0]:g}–{r[-1]:g}°" if len(r) > 1 else f"{r[0]:g}°" for r in runs)
 
 
-def best_thetas(rows: list[Mapping], surface: str, sigma2s, dmax: float, key: str = "visibility_continuous_px") -> list[float]:
+def best_thetas(
+    rows: list[Mapping], surface: str, sigma2s, dmax: float, key: str = "visibility_continuous_px"
+) -> list[float]:
     """The θ at which every σ² of ``sigma2s`` keeps at least :data:`NEAR_BEST` of its
     largest visibility over θ (at depth ``dmax``)."""
     table = _table(rows)
     thetas = sorted({r["theta_deg"] for r in rows})
     keep = set(thetas)
     for s2 in sigma2s:
-        values = {t: table[(surface, t, s2, dmax)][key] for t in thetas if (surface, t, s2, dmax) in table}
+        values = {
+            t: table[(surface, t, s2, dmax)][key] for t in thetas if (surface, t, s2, dmax) in table
+        }
         if not values:
             continue
         top = max(values.values())
@@ -276,23 +335,39 @@ def _why(rows: list[Mapping], surface: str, sigma2s, dmaxs) -> str:
         for d in dmaxs:
             onset = physics.fold_onset_theta_deg(case_scene(surface, 45.0, s2, d))
             if onset > 0:
-                onsets.append(f"σ² {s2:g}, {um(d)}: " + ("every θ" if onset >= 90 else f"θ < {onset:.1f}°"))
-    worst = [table[k] for k in ((surface, low, s2, d) for s2 in sigma2s for d in dmaxs) if k in table]
-    worst = max(worst, key=lambda r: r["deflection_px"] - r["visibility_continuous_px"], default=None)
-    text = ("Where nothing folds the deflection 2 (dmax/σ) e^(-1/2) De f / ((Dc + De) p) does not depend on θ; a low "
-            "view adds 2-3 % (the steepest flank lies σ cos θ farther from the emitter). ")
+                onsets.append(
+                    f"σ² {s2:g}, {um(d)}: " + ("every θ" if onset >= 90 else f"θ < {onset:.1f}°")
+                )
+    worst = [
+        table[k] for k in ((surface, low, s2, d) for s2 in sigma2s for d in dmaxs) if k in table
+    ]
+    worst = max(
+        worst, key=lambda r: r["deflection_px"] - r["visibility_continuous_px"], default=None
+    )
+    text = (
+        "Where nothing folds the deflection 2 (dmax/σ) e^(-1/2) De f / ((Dc + De) p) does not depend on θ; a low "
+        "view adds 2-3 % (the steepest flank lies σ cos θ farther from the emitter). "
+    )
     if onsets:
-        text += ("The stripe map folds where sin θ < 2 κ Dc De / (Dc + De), κ = dmax/σ² (" + "; ".join(onsets) + "). "
-                 "Below that only the contours outside the band where the rays move more than their distance from "
-                 "the dent reach the cut columns, b sqrt(2 ln F) with b ∝ sin θ")
+        text += (
+            "The stripe map folds where sin θ < 2 κ Dc De / (Dc + De), κ = dmax/σ² ("
+            + "; ".join(onsets)
+            + "). "
+            "Below that only the contours outside the band where the rays move more than their distance from "
+            "the dent reach the cut columns, b sqrt(2 ln F) with b ∝ sin θ"
+        )
         if worst is not None and worst["folded"]:
-            text += (f": at θ {low:g}° the σ² {worst['sigma2_mm2']:g}, {um(worst['dmax_mm'])} dent moves the rays by "
-                     f"{worst['deflection_px']:.1f} px and its contours by {worst['visibility_continuous_px']:.1f} px")
+            text += (
+                f": at θ {low:g}° the σ² {worst['sigma2_mm2']:g}, {um(worst['dmax_mm'])} dent moves the rays by "
+                f"{worst['deflection_px']:.1f} px and its contours by {worst['visibility_continuous_px']:.1f} px"
+            )
         text += "."
         if physics.base_curvatures(case_scene(surface))[1] != 0:
-            text += (" The cylinder's curvature across the plane of incidence lifts the fold's saddles and with them "
-                     "the cap (docs/physics.md §3): a dent that folds keeps more of its shift at low views than on the "
-                     "flat plate.")
+            text += (
+                " The cylinder's curvature across the plane of incidence lifts the fold's saddles and with them "
+                "the cap (docs/physics.md §3): a dent that folds keeps more of its shift at low views than on the "
+                "flat plate."
+            )
     return text
 
 
@@ -309,18 +384,29 @@ def advice(rows: list[Mapping]) -> list[str]:
             present = [v for v in group if v in sigma2s]
             if not present:
                 continue
-            ranges = "; ".join(f"θ {theta_ranges(best_thetas(rows, surface, present, d), thetas)} ({um(d)})"
-                               for d in dmaxs)
-            lines.append(f"- **{surface}, {label}**: {ranges}. {_why(rows, surface, present, dmaxs)}")
+            ranges = "; ".join(
+                f"θ {theta_ranges(best_thetas(rows, surface, present, d), thetas)} ({um(d)})"
+                for d in dmaxs
+            )
+            lines.append(
+                f"- **{surface}, {label}**: {ranges}. {_why(rows, surface, present, dmaxs)}"
+            )
     return lines
 
 
 def law_summary(rows: list[Mapping]) -> list[str]:
     """Where the closed forms hold and where they break, per surface, in numbers."""
-    lines = [("| surface | cases | deflection: law within 3 % | worst deflection error | visible shift: law within 5 % "
-              "| worst visible error | worst case |"), "|---|---:|---:|---:|---:|---:|---|"]
+    lines = [
+        (
+            "| surface | cases | deflection: law within 3 % | worst deflection error | visible shift: law within 5 % "
+            "| worst visible error | worst case |"
+        ),
+        "|---|---:|---:|---:|---:|---:|---|",
+    ]
     for surface in dict.fromkeys(r["surface"] for r in rows):
-        pick = [r for r in rows if r["surface"] == surface and math.isfinite(r["visibility_law_px"])]
+        pick = [
+            r for r in rows if r["surface"] == surface and math.isfinite(r["visibility_law_px"])
+        ]
         if not pick:
             continue
         d_err = [r["deflection_px"] / r["deflection_law_px"] - 1 for r in pick]
@@ -338,14 +424,19 @@ def law_by_theta(rows: list[Mapping], surface: str) -> str:
     """The largest deflection error of the law at each θ on one surface."""
     parts = []
     for t in sorted({r["theta_deg"] for r in rows if r["surface"] == surface}, reverse=True):
-        errs = [abs(r["deflection_px"] / r["deflection_law_px"] - 1) for r in rows
-                if r["surface"] == surface and r["theta_deg"] == t]
+        errs = [
+            abs(r["deflection_px"] / r["deflection_law_px"] - 1)
+            for r in rows
+            if r["surface"] == surface and r["theta_deg"] == t
+        ]
         parts.append(f"θ {t:g}°: {max(errs):.0%}")
     return ", ".join(parts)
 
 
 # --------------------------------------------------------------------------- report
-def write_report(rows: list[Mapping], out_dir: Path, plan, figures: list[Path], timings=None) -> Path:
+def write_report(
+    rows: list[Mapping], out_dir: Path, plan, figures: list[Path], timings=None
+) -> Path:
     """``report.md``: the conclusion, the verdicts with their rules and numbers, the closed
     forms against the simulation, the folded cases, and the figures."""
     verdicts = evaluate(rows)
@@ -363,9 +454,11 @@ def write_report(rows: list[Mapping], out_dir: Path, plan, figures: list[Path], 
             "",
             "## Run time of this run",
             "",
-            (f"trace {timings.trace:.1f} s, shade {timings.shade:.1f} s, contours {timings.contours:.1f} s, "
-             f"continuous numbers {timings.continuous:.1f} s, I/O {timings.io:.1f} s, figures {timings.figures:.1f} s "
-             "(stage sums over worker threads; cases computed in this run only)."),
+            (
+                f"trace {timings.trace:.1f} s, shade {timings.shade:.1f} s, contours {timings.contours:.1f} s, "
+                f"continuous numbers {timings.continuous:.1f} s, I/O {timings.io:.1f} s, figures {timings.figures:.1f} s "
+                "(stage sums over worker threads; cases computed in this run only)."
+            ),
         ]
     path = Path(out_dir) / "report.md"
     atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
@@ -377,28 +470,36 @@ def _opening(rows: list[Mapping], plan) -> list[str]:
     return [
         "# glshade: the paper's study",
         "",
-        (f"{len(rows)} cases: surfaces {', '.join(plan.surfaces)}; θ {', '.join(f'{t:g}' for t in plan.thetas)}°; "
-         f"σ² {', '.join(f'{v:g}' for v in plan.sigma2s)} mm²; dmax {', '.join(um(d) for d in plan.dmaxs)}; "
-         f"{plan.size}×{plan.size} pixels (the paper's field of view); phase step {plan.metric.step_mm:g} mm; "
-         f"threshold {plan.metric.threshold:g}; central {plan.metric.keep_fraction:.0%} of the columns kept. Depths are "
-         "in µm throughout this report and in the figures' titles and file names; `results.csv` keeps `dmax_mm`."),
+        (
+            f"{len(rows)} cases: surfaces {', '.join(plan.surfaces)}; θ {', '.join(f'{t:g}' for t in plan.thetas)}°; "
+            f"σ² {', '.join(f'{v:g}' for v in plan.sigma2s)} mm²; dmax {', '.join(um(d) for d in plan.dmaxs)}; "
+            f"{plan.size}×{plan.size} pixels (the paper's field of view); phase step {plan.metric.step_mm:g} mm; "
+            f"threshold {plan.metric.threshold:g}; central {plan.metric.keep_fraction:.0%} of the columns kept. Depths are "
+            "in µm throughout this report and in the figures' titles and file names; `results.csv` keeps `dmax_mm`."
+        ),
         "",
-        ("Three numbers per case (SPEC §6, every column in `docs/results.md`): the paper's metric `visibility_px` (whole "
-         "pixels), its continuous limit `visibility_continuous_px` (what the paper's metric tends to with a finer phase "
-         "step and a finer sensor), and `deflection_px` (how far the rays move). Verdicts are given for the first two."),
+        (
+            "Three numbers per case (SPEC §6, every column in `docs/results.md`): the paper's metric `visibility_px` (whole "
+            "pixels), its continuous limit `visibility_continuous_px` (what the paper's metric tends to with a finer phase "
+            "step and a finer sensor), and `deflection_px` (how far the rays move). Verdicts are given for the first two."
+        ),
         "",
         "## What to do with it: where to put the camera",
         "",
-        (f"For each surface and class of dent: the study's elevations θ at which every dent of the class keeps at "
-         f"least {NEAR_BEST:.0%} of its best visibility (continuous limit), per depth, and the closed form that explains "
-         "it (derived in glshade's `docs/physics.md`):"),
+        (
+            f"For each surface and class of dent: the study's elevations θ at which every dent of the class keeps at "
+            f"least {NEAR_BEST:.0%} of its best visibility (continuous limit), per depth, and the closed form that explains "
+            "it (derived in glshade's `docs/physics.md`):"
+        ),
         "",
         *advice(rows),
         "",
-        ("In short: on flat and cylindrical parts a steep dent is seen best from above the angle at which it folds the "
-         "stripe map, a gentle one from anywhere, and on a strongly curved convex part (the sphere) from as high as "
-         "possible. \"Looking from just above the surface\" never helps by more than a few per cent in this model; it "
-         "hurts steep dents once they fold, and every dent on a convex part."),
+        (
+            "In short: on flat and cylindrical parts a steep dent is seen best from above the angle at which it folds the "
+            "stripe map, a gentle one from anywhere, and on a strongly curved convex part (the sphere) from as high as "
+            'possible. "Looking from just above the surface" never helps by more than a few per cent in this model; it '
+            "hurts steep dents once they fold, and every dent on a convex part."
+        ),
         "",
     ]
 
@@ -409,15 +510,28 @@ def _findings_sections(verdicts: list[Verdict]) -> list[str]:
     summary = _summary_table(verdicts)
     if summary:
         lines += ["## The paper's findings: summary", "", *summary, ""]
-    lines += ["## How the verdicts are decided", "", *[f"- {rule}" for rule in RULES], "",
-              ("\"Partly holds\" therefore means: the trend is there in rank, or in most cases, but not strong or not "
-               "everywhere enough to call it the paper's effect."), ""]
+    lines += [
+        "## How the verdicts are decided",
+        "",
+        *[f"- {rule}" for rule in RULES],
+        "",
+        (
+            '"Partly holds" therefore means: the trend is there in rank, or in most cases, but not strong or not '
+            "everywhere enough to call it the paper's effect."
+        ),
+        "",
+    ]
     for number, text in FINDING_TEXT.items():
         mine = [v for v in verdicts if v.finding == number]
         if not mine:
             lines += [f"## Finding {number}: {text}", "", f"Not evaluated: {NEEDS[number]}.", ""]
             continue
-        lines += [f"## Finding {number}: {text}", "", "| scope | metric | verdict | numbers |", "|---|---|---|---|"]
+        lines += [
+            f"## Finding {number}: {text}",
+            "",
+            "| scope | metric | verdict | numbers |",
+            "|---|---|---|---|",
+        ]
         lines += [f"| {v.scope} | {v.metric} | **{v.verdict}** | {v.evidence} |" for v in mine]
         lines.append("")
     return lines
@@ -427,22 +541,28 @@ def _laws_section(rows: list[Mapping]) -> list[str]:
     lines = [
         "## The closed forms against the simulation",
         "",
-        ("`deflection_law_px` is SPEC §6's deflection, divided by the convex base's magnification m; "
-         "`visibility_law_px` is the deflection capped by a fold at b sqrt(2 ln(F/m)) (docs/physics.md derives both); "
-         "`fold_ratio` > 1 predicts a fold. `law_vs_simulation.png` plots every case."),
+        (
+            "`deflection_law_px` is SPEC §6's deflection, divided by the convex base's magnification m; "
+            "`visibility_law_px` is the deflection capped by a fold at b sqrt(2 ln(F/m)) (docs/physics.md derives both); "
+            "`fold_ratio` > 1 predicts a fold. `law_vs_simulation.png` plots every case."
+        ),
         "",
         *law_summary(rows),
         "",
     ]
     predicted = [r for r in rows if r["fold_ratio"] > 1.0]
     agree = sum((r["fold_ratio"] > 1.0) == r["folded"] for r in rows)
-    lines.append(f"- Fold onset: the law predicts {len(predicted)} folded cases; it agrees with the `folded` flag in "
-                 f"{agree} of {len(rows)} cases.")
+    lines.append(
+        f"- Fold onset: the law predicts {len(predicted)} folded cases; it agrees with the `folded` flag in "
+        f"{agree} of {len(rows)} cases."
+    )
     for surface in [s for s in dict.fromkeys(r["surface"] for r in rows) if _magnifies(s)]:
-        lines.append(f"- Where the {surface}'s law breaks: the worst deflection error per θ is "
-                     f"{law_by_theta(rows, surface)}. At grazing views the dent's flank facing the camera is seen at "
-                     "the local elevation θ + z/R, a large change when σ/R is comparable to θ, and m (∝ 1/sin θ) is "
-                     "then far from its value at the gaze point. The law holds where σ/R ≪ θ.")
+        lines.append(
+            f"- Where the {surface}'s law breaks: the worst deflection error per θ is "
+            f"{law_by_theta(rows, surface)}. At grazing views the dent's flank facing the camera is seen at "
+            "the local elevation θ + z/R, a large change when σ/R is comparable to θ, and m (∝ 1/sin θ) is "
+            "then far from its value at the gaze point. The law holds where σ/R ≪ θ."
+        )
     lines.append("")
     return lines
 
@@ -453,9 +573,11 @@ def _folds_section(rows: list[Mapping]) -> list[str]:
     if not folded:
         return lines + ["Nowhere.", ""]
     lines += [
-        (f"{len(folded)} of {len(rows)} cases fold. There the paper's metric measures what a viewer sees, the band the "
-         "fold leaves the contours, not how far the rays move (`deflection_px`); islands cut off by the fold are counted, "
-         "not measured."),
+        (
+            f"{len(folded)} of {len(rows)} cases fold. There the paper's metric measures what a viewer sees, the band the "
+            "fold leaves the contours, not how far the rays move (`deflection_px`); islands cut off by the fold are counted, "
+            "not measured."
+        ),
         "",
         "| surface | θ | σ² | dmax | fold ratio | paper px | limit px | law px | deflection px | islands |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
@@ -476,12 +598,16 @@ def _notes(rows: list[Mapping], plan) -> list[str]:
     lines = [
         "## Notes",
         "",
-        (f"- The paper's metric counts whole pixels at {len(plan.metric.phases(2.0))} phases per 2 mm period: it differs "
-         f"from its continuous limit by at most {gap:.2f} px here. Where the limit is below a pixel (the sphere at low "
-         "θ), the paper's metric reads 1 px or 0 px and cannot rank the dents; the limit can."),
-        (f"- Pixels where the defect-free stripes span fewer than {plan.metric.min_period_px:g} px per period are left out "
-         f"of the contours (aliasing; see `glshade.metrics.visibility.resolved_mask`); at most {unresolved:.1%} of a case's "
-         "kept pixels were."),
+        (
+            f"- The paper's metric counts whole pixels at {len(plan.metric.phases(2.0))} phases per 2 mm period: it differs "
+            f"from its continuous limit by at most {gap:.2f} px here. Where the limit is below a pixel (the sphere at low "
+            "θ), the paper's metric reads 1 px or 0 px and cannot rank the dents; the limit can."
+        ),
+        (
+            f"- Pixels where the defect-free stripes span fewer than {plan.metric.min_period_px:g} px per period are left out "
+            f"of the contours (aliasing; see `glshade.metrics.visibility.resolved_mask`); at most {unresolved:.1%} of a case's "
+            "kept pixels were."
+        ),
     ]
     if mostly:
         kinds = ", ".join(sorted({r["surface"] for r in mostly}))
@@ -501,5 +627,7 @@ def _summary_table(verdicts: list[Verdict]) -> list[str]:
     lines = ["| finding | scope | paper metric | continuous limit |", "|---|---|---|---|"]
     limit = {(v.finding, v.scope): v.verdict for v in verdicts if v.metric == "continuous limit"}
     for v in paper:
-        lines.append(f"| {v.finding} | {v.scope} | {v.verdict} | {limit.get((v.finding, v.scope), '—')} |")
+        lines.append(
+            f"| {v.finding} | {v.scope} | {v.verdict} | {limit.get((v.finding, v.scope), '—')} |"
+        )
     return lines

@@ -56,24 +56,46 @@ VARIANTS: tuple[Variant, ...] = (
     Variant("mirror", "ideal mirror (the paper's model)", {}),
     Variant("eq1", "eq. (1) finish, sigma_h 0.05 um, lambda 0.55 um", {"render": FINISH}),
     Variant("lens-surface", "thin lens f/22 focused on the surface", {"camera": LENS}),
-    Variant("lens-stripes", "thin lens f/22 focused on the stripes' mirror image",
-            {"camera": {**LENS, "focus_distance": FOCUS_ON_STRIPES_MM}}),
-    Variant("fresnel", "clear coat Fresnel, n 1.5", {"render": {"fresnel": "dielectric", "ior": 1.5}}),
+    Variant(
+        "lens-stripes",
+        "thin lens f/22 focused on the stripes' mirror image",
+        {"camera": {**LENS, "focus_distance": FOCUS_ON_STRIPES_MM}},
+    ),
+    Variant(
+        "fresnel", "clear coat Fresnel, n 1.5", {"render": {"fresnel": "dielectric", "ior": 1.5}}
+    ),
     Variant("sensor", "sensor: 10 000 e- full well, 5 e- read noise, 12 bit", {"sensor": SENSOR}),
-    Variant("combined", "all of it: eq. (1), lens on the stripes, clear coat, sensor",
-            {"render": {**FINISH, "fresnel": "dielectric", "ior": 1.5},
-             "camera": {**LENS, "focus_distance": FOCUS_ON_STRIPES_MM}, "sensor": SENSOR}),
+    Variant(
+        "combined",
+        "all of it: eq. (1), lens on the stripes, clear coat, sensor",
+        {
+            "render": {**FINISH, "fresnel": "dielectric", "ior": 1.5},
+            "camera": {**LENS, "focus_distance": FOCUS_ON_STRIPES_MM},
+            "sensor": SENSOR,
+        },
+    ),
 )
 
-FIELDS = ("variant", "theta_deg", "sigma2_mm2", "dmax_mm", "visibility_px", "visibility_continuous_px",
-          "deflection_px", "noise_floor_px", "seconds")
+FIELDS = (
+    "variant",
+    "theta_deg",
+    "sigma2_mm2",
+    "dmax_mm",
+    "visibility_px",
+    "visibility_continuous_px",
+    "deflection_px",
+    "noise_floor_px",
+    "seconds",
+)
 
 
 def scene_for(variant: Variant, theta: float, sigma2: float, size: int) -> Scene:
     return paper_scene("flat", theta, sigma2, DMAX_MM).with_size(size).updated(**variant.changes)
 
 
-def run(out_dir: Path, size: int = 512, variants=VARIANTS, thetas=THETAS, sigma2s=SIGMA2S, progress=None) -> Path:
+def run(
+    out_dir: Path, size: int = 512, variants=VARIANTS, thetas=THETAS, sigma2s=SIGMA2S, progress=None
+) -> Path:
     """Measure every case and write the CSV, the figure and the report (the directory
     locked against a second writer); returns the report."""
     from glshade.study.store import study_lock
@@ -95,18 +117,29 @@ def _measure(size, variants, thetas, sigma2s, progress) -> list[dict]:
     with Renderer() as renderer:
         for variant in variants:
             for theta in thetas:
-                baseline = baseline_for(renderer, scene_for(variant, theta, sigma2s[0], size), settings)
+                baseline = baseline_for(
+                    renderer, scene_for(variant, theta, sigma2s[0], size), settings
+                )
                 for sigma2 in sigma2s:
                     start = time.perf_counter()
-                    result = measure_scene(renderer, scene_for(variant, theta, sigma2, size), settings, baseline)
-                    rows.append({
-                        "variant": variant.key, "theta_deg": theta, "sigma2_mm2": sigma2, "dmax_mm": DMAX_MM,
-                        "visibility_px": result.visibility_px,
-                        "visibility_continuous_px": round(result.visibility_continuous_px, 4),
-                        "deflection_px": round(result.deflection_px, 4),
-                        "noise_floor_px": "" if result.noise_floor_px is None else result.noise_floor_px,
-                        "seconds": round(time.perf_counter() - start, 3),
-                    })
+                    result = measure_scene(
+                        renderer, scene_for(variant, theta, sigma2, size), settings, baseline
+                    )
+                    rows.append(
+                        {
+                            "variant": variant.key,
+                            "theta_deg": theta,
+                            "sigma2_mm2": sigma2,
+                            "dmax_mm": DMAX_MM,
+                            "visibility_px": result.visibility_px,
+                            "visibility_continuous_px": round(result.visibility_continuous_px, 4),
+                            "deflection_px": round(result.deflection_px, 4),
+                            "noise_floor_px": ""
+                            if result.noise_floor_px is None
+                            else result.noise_floor_px,
+                            "seconds": round(time.perf_counter() - start, 3),
+                        }
+                    )
                     if progress is not None:
                         progress(rows[-1])
     return rows
@@ -124,16 +157,26 @@ def _write_csv(rows, path: Path) -> None:
 
 def read_rows(path: Path) -> list[dict]:
     with path.open() as fh:
-        return [{k: (v if k == "variant" else float(v) if v != "" else None) for k, v in row.items()}
-                for row in csv.DictReader(fh)]
+        return [
+            {k: (v if k == "variant" else float(v) if v != "" else None) for k, v in row.items()}
+            for row in csv.DictReader(fh)
+        ]
 
 
-def _series(rows, variant: str, sigma2: float, key: str = "visibility_px") -> tuple[np.ndarray, np.ndarray]:
-    chosen = sorted((r["theta_deg"], r[key]) for r in rows if r["variant"] == variant and r["sigma2_mm2"] == sigma2)
+def _series(
+    rows, variant: str, sigma2: float, key: str = "visibility_px"
+) -> tuple[np.ndarray, np.ndarray]:
+    chosen = sorted(
+        (r["theta_deg"], r[key])
+        for r in rows
+        if r["variant"] == variant and r["sigma2_mm2"] == sigma2
+    )
     return np.array([c[0] for c in chosen]), np.array([c[1] for c in chosen], dtype=float)
 
 
-def trend(rows, variant: str, sigma2: float, key: str = "visibility_px") -> tuple[float, float, float]:
+def trend(
+    rows, variant: str, sigma2: float, key: str = "visibility_px"
+) -> tuple[float, float, float]:
     """``(rho, low, high)``: Spearman's rho of visibility against θ (negative: it grows as
     θ falls) and the mean visibility at θ <= 25° and at θ >= 65°."""
     theta, vis = _series(rows, variant, sigma2, key)
@@ -152,8 +195,14 @@ def _figure(rows, variants, path: Path) -> None:
     for ax, sigma2 in zip(np.atleast_1d(axes), sigma2s):
         for variant in variants:
             theta, vis = _series(rows, variant.key, sigma2)
-            ax.plot(theta, vis, marker="o", ms=3, label=variant.key,
-                    lw=2.5 if variant is variants[0] else 1.2)
+            ax.plot(
+                theta,
+                vis,
+                marker="o",
+                ms=3,
+                label=variant.key,
+                lw=2.5 if variant is variants[0] else 1.2,
+            )
         ax.set_title(f"flat, σ² {sigma2:g} mm², dmax 5 µm")
         ax.set_xlabel("θ (deg)")
         ax.invert_xaxis()
@@ -177,15 +226,23 @@ def verdict_lines(rows, variants, key: str = "visibility_px") -> list[str]:
         parts = []
         for sigma2 in GENTLE:
             rho, low, high = trend(rows, variant.key, sigma2, key)
-            parts.append(f"σ² {sigma2:g}: ρ {rho:+.2f}, {high:.2f} px above 65° → {low:.2f} px below 25°")
+            parts.append(
+                f"σ² {sigma2:g}: ρ {rho:+.2f}, {high:.2f} px above 65° → {low:.2f} px below 25°"
+            )
         word = "**holds**" if finding3_holds(rows, variant.key, key) else "does not hold"
         lines.append(f"- {variant.label}: finding 3 {word} ({'; '.join(parts)})")
     return lines
 
 
 def _mean(rows, variant: str, key: str, low: bool, sigma2s=GENTLE) -> float:
-    values = [float(r[key]) for r in rows if r["variant"] == variant and r["sigma2_mm2"] in sigma2s
-              and r[key] not in (None, "") and (r["theta_deg"] <= 25.0 if low else r["theta_deg"] >= 65.0)]
+    values = [
+        float(r[key])
+        for r in rows
+        if r["variant"] == variant
+        and r["sigma2_mm2"] in sigma2s
+        and r[key] not in (None, "")
+        and (r["theta_deg"] <= 25.0 if low else r["theta_deg"] >= 65.0)
+    ]
     return float(np.mean(values)) if values else float("nan")
 
 
@@ -202,8 +259,13 @@ def answer_lines(rows, variants) -> list[str]:
             "No effect, alone or combined, makes the gentle dents' contour shift grow as the view grazes: the paper's "
             "metric stays at the same few pixels at every θ (verdicts below), and on the ideal mirror its continuous "
             f"limit moves from {high:.2f} px above 65° to {low:.2f} px below 25° ({100 * (low / high - 1):+.0f} %): "
-            "the deflection of a gentle dent hardly depends on θ (SPEC §6's closed form).")
-    noisy = [v for v in variants if any(r["variant"] == v.key and r["noise_floor_px"] not in (None, "") for r in rows)]
+            "the deflection of a gentle dent hardly depends on θ (SPEC §6's closed form)."
+        )
+    noisy = [
+        v
+        for v in variants
+        if any(r["variant"] == v.key and r["noise_floor_px"] not in (None, "") for r in rows)
+    ]
     for variant in noisy:
         floor_high = _mean(rows, variant.key, "noise_floor_px", False, SIGMA2S)
         floor_low = _mean(rows, variant.key, "noise_floor_px", True, SIGMA2S)
@@ -212,13 +274,18 @@ def answer_lines(rows, variants) -> list[str]:
         lines.append(
             f"With {variant.label}, the sensor's noise floor is {floor_high:.1f} px above 65° and {floor_low:.1f} px "
             f"below 25°; the gentle dents' visibility over it goes from {vis_high / floor_high:.1f} to "
-            f"{vis_low / floor_low:.1f}.")
-    lines += ["", "What a low viewpoint buys is margin over the noise, not a larger shift: where the image is dim",
-              "(a clear coat reflects 4 % seen from above) and partly diffuse (eq. (1)), the contours jitter by",
-              "several pixels, as much as a gentle dent moves them; seen from just above the surface the same",
-              "finish is bright and mirror-like and the jitter drops to a pixel. That is the paper's own explanation",
-              "(its eq. (1) and ref. [16]: reflectance rises at grazing angles) in numbers. Noise also inflates the",
-              "paper's metric itself (a maximum over contour distances): compare the variants' 85° columns.", ""]
+            f"{vis_low / floor_low:.1f}."
+        )
+    lines += [
+        "",
+        "What a low viewpoint buys is margin over the noise, not a larger shift: where the image is dim",
+        "(a clear coat reflects 4 % seen from above) and partly diffuse (eq. (1)), the contours jitter by",
+        "several pixels, as much as a gentle dent moves them; seen from just above the surface the same",
+        "finish is bright and mirror-like and the jitter drops to a pixel. That is the paper's own explanation",
+        "(its eq. (1) and ref. [16]: reflectance rises at grazing angles) in numbers. Noise also inflates the",
+        "paper's metric itself (a maximum over contour distances): compare the variants' 85° columns.",
+        "",
+    ]
     return lines
 
 
@@ -237,19 +304,32 @@ def margin_lines(rows, variants) -> list[str]:
     it (how far above the noise a contour shift stands), against θ."""
     lines = []
     for variant in variants:
-        floors = {r["theta_deg"]: r["noise_floor_px"] for r in rows
-                  if r["variant"] == variant.key and r["noise_floor_px"] not in (None, "")}
+        floors = {
+            r["theta_deg"]: r["noise_floor_px"]
+            for r in rows
+            if r["variant"] == variant.key and r["noise_floor_px"] not in (None, "")
+        }
         if not floors:
             continue
         thetas = sorted(floors, reverse=True)
-        lines += [f"{variant.label}:", "", "| | " + " | ".join(f"{t:g}°" for t in thetas) + " |",
-                  "|---|" + "---|" * len(thetas),
-                  "| noise floor (px) | " + " | ".join(f"{float(floors[t]):g}" for t in thetas) + " |"]
+        lines += [
+            f"{variant.label}:",
+            "",
+            "| | " + " | ".join(f"{t:g}°" for t in thetas) + " |",
+            "|---|" + "---|" * len(thetas),
+            "| noise floor (px) | " + " | ".join(f"{float(floors[t]):g}" for t in thetas) + " |",
+        ]
         for sigma2 in GENTLE:
             theta, vis = _series(rows, variant.key, sigma2)
             by_theta = dict(zip(theta, vis))
-            lines.append(f"| σ² {sigma2:g}: visibility / floor | " + " | ".join(
-                f"{by_theta[t] / float(floors[t]):.2g}" if float(floors[t]) > 0 else "∞" for t in thetas) + " |")
+            lines.append(
+                f"| σ² {sigma2:g}: visibility / floor | "
+                + " | ".join(
+                    f"{by_theta[t] / float(floors[t]):.2g}" if float(floors[t]) > 0 else "∞"
+                    for t in thetas
+                )
+                + " |"
+            )
         lines.append("")
     return lines
 
@@ -280,17 +360,26 @@ def write_report(rows, variants, size: int, path: Path) -> Path:
     ]
     thetas = sorted({r["theta_deg"] for r in rows}, reverse=True)
     for sigma2 in sorted({r["sigma2_mm2"] for r in rows}):
-        lines += [f"σ² {sigma2:g} mm²:", "", "| variant | " + " | ".join(f"{t:g}°" for t in thetas) + " |",
-                  "|---|" + "---|" * len(thetas)]
+        lines += [
+            f"σ² {sigma2:g} mm²:",
+            "",
+            "| variant | " + " | ".join(f"{t:g}°" for t in thetas) + " |",
+            "|---|" + "---|" * len(thetas),
+        ]
         for variant in variants:
             _, vis = _series(rows, variant.key, sigma2)
             lines.append(f"| {variant.key} | " + " | ".join(f"{v:g}" for v in vis[::-1]) + " |")
         lines.append("")
     margins = margin_lines(rows, variants)
     if margins:
-        lines += ["## Noise floor", "",
-                  "The paper's metric between two exposures of the dent-free plate, and the gentle dents' visibility",
-                  "over it:", "", *margins]
+        lines += [
+            "## Noise floor",
+            "",
+            "The paper's metric between two exposures of the dent-free plate, and the gentle dents' visibility",
+            "over it:",
+            "",
+            *margins,
+        ]
     lines += _explanation()
     atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
     return path
@@ -327,8 +416,15 @@ def report_section(out_dir: Path) -> list[str]:
     rows = read_rows(path)
     present = {r["variant"] for r in rows}
     variants = [v for v in VARIANTS if v.key in present]
-    return ["## Finding 3 under realistic optics", "",
-            "Does any effect the ideal mirror leaves out make gentle dents more visible from just above the",
-            "surface? (`finding3.md` has the tables and the reasons; `finding3.png` the curves.)", "",
-            *answer_lines(rows, variants)[2:], "Verdicts, the paper's metric:", "",
-            *verdict_lines(rows, variants), ""]
+    return [
+        "## Finding 3 under realistic optics",
+        "",
+        "Does any effect the ideal mirror leaves out make gentle dents more visible from just above the",
+        "surface? (`finding3.md` has the tables and the reasons; `finding3.png` the curves.)",
+        "",
+        *answer_lines(rows, variants)[2:],
+        "Verdicts, the paper's metric:",
+        "",
+        *verdict_lines(rows, variants),
+        "",
+    ]

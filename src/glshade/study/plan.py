@@ -51,7 +51,9 @@ def surface_label(surface: str) -> str:
     return Path(surface).stem if is_scene_file(surface) else surface
 
 
-def case_scene(surface: str, theta: float = 45.0, sigma2: float = 4.0, dmax: float = 0.005) -> Scene:
+def case_scene(
+    surface: str, theta: float = 45.0, sigma2: float = 4.0, dmax: float = 0.005
+) -> Scene:
     """The scene of one case: the paper's for its surfaces; for a scene file, the file's
     scene (its surface, camera and emitter) with θ, σ² and dmax of the case."""
     if is_scene_file(surface):
@@ -67,7 +69,9 @@ def _scene_file(path: str, stamp: int) -> Scene:
     return Scene.load(path)
 
 
-def _float_list(name: str, values, lo: float, hi: float, closed_hi: bool = False) -> tuple[float, ...]:
+def _float_list(
+    name: str, values, lo: float, hi: float, closed_hi: bool = False
+) -> tuple[float, ...]:
     values = tuple(float(v) for v in values)
     if not values:
         raise GlshadeError(f"{name}: must list at least one value")
@@ -75,9 +79,13 @@ def _float_list(name: str, values, lo: float, hi: float, closed_hi: bool = False
         inside = lo < v <= hi if closed_hi else lo < v < hi
         if not (math.isfinite(v) and inside):
             bracket = "]" if closed_hi else ")"
-            raise GlshadeError(f"{name}: every value must be in ({lo:g}, {hi:g}{bracket}, got {v:g}")
+            raise GlshadeError(
+                f"{name}: every value must be in ({lo:g}, {hi:g}{bracket}, got {v:g}"
+            )
     if len(set(values)) != len(values):
-        raise GlshadeError(f"{name}: values must not repeat, got {', '.join(f'{v:g}' for v in values)}")
+        raise GlshadeError(
+            f"{name}: values must not repeat, got {', '.join(f'{v:g}' for v in values)}"
+        )
     return values
 
 
@@ -97,8 +105,10 @@ class StudyPlan:
             raise GlshadeError("surfaces: must list at least one of " + ", ".join(PAPER_SURFACES))
         for s in self.surfaces:
             if s not in PAPER_SURFACES and not is_scene_file(s):
-                raise GlshadeError(f"surfaces: unknown surface {s!r}; allowed: {', '.join(PAPER_SURFACES)} or a "
-                                   "scene file (.toml) of a free-form surface")
+                raise GlshadeError(
+                    f"surfaces: unknown surface {s!r}; allowed: {', '.join(PAPER_SURFACES)} or a "
+                    "scene file (.toml) of a free-form surface"
+                )
             if is_scene_file(s):
                 case_scene(s)  # the file loads: its errors name it
         if len({surface_label(s) for s in self.surfaces}) != len(self.surfaces):
@@ -114,13 +124,21 @@ class StudyPlan:
         object.__setattr__(self, "dmaxs", _float_list("dmaxs", self.dmaxs, 0.0, math.inf))
         Camera().resampled(self.size)  # validates the size
         for surface in self.surfaces:
-            self.metric.phases(self.scene(surface, self.thetas[0], self.sigma2s[0], self.dmaxs[0]).emitter.period)
+            self.metric.phases(
+                self.scene(surface, self.thetas[0], self.sigma2s[0], self.dmaxs[0]).emitter.period
+            )
 
     def scene(self, surface: str, theta: float, sigma2: float, dmax: float) -> Scene:
         return case_scene(surface, theta, sigma2, dmax).with_size(self.size)
 
     def cases(self) -> list[Case]:
-        return [(s, t, v, d) for s in self.surfaces for t in self.thetas for v in self.sigma2s for d in self.dmaxs]
+        return [
+            (s, t, v, d)
+            for s in self.surfaces
+            for t in self.thetas
+            for v in self.sigma2s
+            for d in self.dmaxs
+        ]
 
     def geometries(self, cases: list[Case]) -> list[list[Case]]:
         """``cases`` grouped by (surface, θ): the cases sharing one defect-free trace."""

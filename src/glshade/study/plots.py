@@ -33,6 +33,8 @@ def surface_name(surface: str) -> str:
 
     scene = case_scene(surface)
     return f"{surface_label(surface)}: {registry().active(scene).surface.describe(scene)}"
+
+
 SURFACE_COLOURS = {"flat": "tab:blue", "cylinder": "tab:orange", "sphere": "tab:green"}
 #: The Fig. 9 colours (RGB 0-1) and what they mean.
 OVERLAY_LEGEND = (
@@ -63,11 +65,15 @@ def _um(dmax_mm: float) -> str:
 
 
 # --------------------------------------------------------------------------- grids
-def image_grid(rows: list[CaseResult], cases_dir: Path, surface: str, dmax: float, thetas, sigma2s, path: Path) -> bool:
+def image_grid(
+    rows: list[CaseResult], cases_dir: Path, surface: str, dmax: float, thetas, sigma2s, path: Path
+) -> bool:
     """θ across, σ² down, each the defect image at its best phase. False when a case's
     thumbnail is missing (the grid is then not written). The thumbnails are tiled into one
     mosaic (one image to draw, not one axes per case)."""
-    lookup = {(r.theta_deg, r.sigma2_mm2): r for r in rows if r.surface == surface and r.dmax_mm == dmax}
+    lookup = {
+        (r.theta_deg, r.sigma2_mm2): r for r in rows if r.surface == surface and r.dmax_mm == dmax
+    }
     tiles = []
     for s2 in sigma2s:
         line = []
@@ -88,8 +94,12 @@ def image_grid(rows: list[CaseResult], cases_dir: Path, surface: str, dmax: floa
     fig = _figure(width_in, (width_in - 1.3) * mosaic.shape[0] / mosaic.shape[1] + 1.3)
     ax = fig.subplots()
     ax.imshow(mosaic, cmap="gray", vmin=0, vmax=255, interpolation="antialiased")
-    ax.set_xticks([j * cell + side / 2 for j in range(len(thetas))], [f"θ = {t:g}°" for t in thetas])
-    ax.set_yticks([i * cell + side / 2 for i in range(len(sigma2s))], [f"σ² = {s2:g} mm²" for s2 in sigma2s])
+    ax.set_xticks(
+        [j * cell + side / 2 for j in range(len(thetas))], [f"θ = {t:g}°" for t in thetas]
+    )
+    ax.set_yticks(
+        [i * cell + side / 2 for i in range(len(sigma2s))], [f"σ² = {s2:g} mm²" for s2 in sigma2s]
+    )
     ax.xaxis.tick_top()
     ax.tick_params(length=0, labelsize=10)
     for spine in ax.spines.values():
@@ -98,11 +108,26 @@ def image_grid(rows: list[CaseResult], cases_dir: Path, surface: str, dmax: floa
         for j, t in enumerate(thetas):
             r = lookup[(t, s2)]
             fold = ", folds" if r.folded else ""
-            ax.text(j * cell + side / 2, i * cell + side + gap * 0.1, f"{r['visibility_px']:g} px (limit "
-                    f"{r['visibility_continuous_px']:.1f}){fold}", ha="center", va="top", fontsize=7.5)
-    fig.suptitle(f"{surface_name(surface)}, dmax = {_um(dmax)}: image with the dent at its best phase", fontsize=11)
-    fig.text(0.5, 0.01, "Below each image: the paper's visibility (px, whole pixels) and its continuous limit (px); "
-             "'folds': the stripe map folds.", ha="center", fontsize=8)
+            ax.text(
+                j * cell + side / 2,
+                i * cell + side + gap * 0.1,
+                f"{r['visibility_px']:g} px (limit {r['visibility_continuous_px']:.1f}){fold}",
+                ha="center",
+                va="top",
+                fontsize=7.5,
+            )
+    fig.suptitle(
+        f"{surface_name(surface)}, dmax = {_um(dmax)}: image with the dent at its best phase",
+        fontsize=11,
+    )
+    fig.text(
+        0.5,
+        0.01,
+        "Below each image: the paper's visibility (px, whole pixels) and its continuous limit (px); "
+        "'folds': the stripe map folds.",
+        ha="center",
+        fontsize=8,
+    )
     _save(fig, path)
     return True
 
@@ -131,7 +156,13 @@ def visibility_plot(rows: list[CaseResult], surface: str, dmax: float, path: Pat
             ax.plot(theta, [r[law_key] for r in line], ls="--", lw=1, color=handle.get_color())
             folded = np.array([r.folded for r in line], bool)
             if folded.any():
-                ax.scatter(theta[folded], value[folded], s=130, facecolors="none", edgecolors=handle.get_color())
+                ax.scatter(
+                    theta[folded],
+                    value[folded],
+                    s=130,
+                    facecolors="none",
+                    edgecolors=handle.get_color(),
+                )
         ax.set_title(title, fontsize=10)
         ax.set_xlabel("θ (deg)")
         ax.invert_xaxis()
@@ -139,11 +170,25 @@ def visibility_plot(rows: list[CaseResult], surface: str, dmax: float, path: Pat
     axes[0].set_ylabel("pixels of the 1024² image")
     from matplotlib.lines import Line2D
 
-    extra = [Line2D([], [], color="k", ls="--", lw=1, label="closed form"),
-             Line2D([], [], color="k", marker="o", ls="none", markerfacecolor="none", markersize=11, label="stripe map folds")]
+    extra = [
+        Line2D([], [], color="k", ls="--", lw=1, label="closed form"),
+        Line2D(
+            [],
+            [],
+            color="k",
+            marker="o",
+            ls="none",
+            markerfacecolor="none",
+            markersize=11,
+            label="stripe map folds",
+        ),
+    ]
     handles, labels = axes[0].get_legend_handles_labels()
     axes[0].legend(handles + extra, labels + [h.get_label() for h in extra], fontsize=8)
-    fig.suptitle(f"{surface_name(surface)}, dmax = {_um(dmax)}: visibility against the camera's elevation", fontsize=11)
+    fig.suptitle(
+        f"{surface_name(surface)}, dmax = {_um(dmax)}: visibility against the camera's elevation",
+        fontsize=11,
+    )
     fig.tight_layout()
     _save(fig, path)
 
@@ -153,17 +198,37 @@ def law_plot(rows: list[CaseResult], path: Path) -> None:
     visible shift (right, the continuous limit against the fold-capped law)."""
     fig = _figure(11, 5)
     axes = fig.subplots(1, 2)
-    for ax, (sim, law, title) in zip(axes, (
-        ("deflection_px", "deflection_law_px", "deflection"),
-        ("visibility_continuous_px", "visibility_law_px", "visible contour shift (continuous limit)"),
-    )):
+    for ax, (sim, law, title) in zip(
+        axes,
+        (
+            ("deflection_px", "deflection_law_px", "deflection"),
+            (
+                "visibility_continuous_px",
+                "visibility_law_px",
+                "visible contour shift (continuous limit)",
+            ),
+        ),
+    ):
         for surface, colour in SURFACE_COLOURS.items():
             for folded, marker in ((False, "o"), (True, "^")):
-                pick = [r for r in rows if r.surface == surface and r.folded == folded
-                        and math.isfinite(r[law]) and r[law] > 0 and r[sim] > 0]
+                pick = [
+                    r
+                    for r in rows
+                    if r.surface == surface
+                    and r.folded == folded
+                    and math.isfinite(r[law])
+                    and r[law] > 0
+                    and r[sim] > 0
+                ]
                 if pick:
-                    ax.scatter([r[law] for r in pick], [r[sim] for r in pick], c=colour, marker=marker, s=22,
-                               label=f"{surface_name(surface)}{', folds' if folded else ''}")
+                    ax.scatter(
+                        [r[law] for r in pick],
+                        [r[sim] for r in pick],
+                        c=colour,
+                        marker=marker,
+                        s=22,
+                        label=f"{surface_name(surface)}{', folds' if folded else ''}",
+                    )
         ax.set_xscale("log")
         ax.set_yscale("log")
         lo, hi = ax.get_xlim()
@@ -175,13 +240,17 @@ def law_plot(rows: list[CaseResult], path: Path) -> None:
         ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3, which="both")
     axes[0].legend(fontsize=7.5)
-    fig.suptitle(f"Closed forms against the simulation, all {len(rows)} cases (docs/physics.md)", fontsize=11)
+    fig.suptitle(
+        f"Closed forms against the simulation, all {len(rows)} cases (docs/physics.md)", fontsize=11
+    )
     fig.tight_layout()
     _save(fig, path)
 
 
 # --------------------------------------------------------------------------- Fig. 9
-def overlay_figure(rgb: np.ndarray, result, column_start: int, title: str, path: Path, zoom_px: int = 48) -> None:
+def overlay_figure(
+    rgb: np.ndarray, result, column_start: int, title: str, path: Path, zoom_px: int = 48
+) -> None:
     """The Fig. 9 overlay of one case at its best phase: the cut contour images merged
     (left), a magnified window around the largest distance with that distance drawn
     (right), a title naming the case and a legend for every colour.
@@ -195,7 +264,11 @@ def overlay_figure(rgb: np.ndarray, result, column_start: int, title: str, path:
     fig = _figure(12, 6.2)
     full, near = fig.subplots(1, 2, gridspec_kw={"width_ratios": (1.0, 1.0)})
     height, width = rgb.shape[:2]
-    full.imshow(rgb, interpolation="antialiased", extent=(column_start - 0.5, column_start + width - 0.5, height - 0.5, -0.5))
+    full.imshow(
+        rgb,
+        interpolation="antialiased",
+        extent=(column_start - 0.5, column_start + width - 0.5, height - 0.5, -0.5),
+    )
     full.set_title("kept columns (cut at both sides)", fontsize=9)
     full.set_xlabel("image column (px)")
     full.set_ylabel("image row (px)")
@@ -209,10 +282,20 @@ def overlay_figure(rgb: np.ndarray, result, column_start: int, title: str, path:
         near.imshow(rgb, interpolation="nearest", extent=full.images[0].get_extent())
         near.set_xlim(x0, x1)
         near.set_ylim(y1, y0)
-        near.annotate("", xy=(shift.column, rows[1]), xytext=(shift.column, rows[0]),
-                      arrowprops={"arrowstyle": "<->", "color": "yellow", "lw": 1.5})
-        near.text(shift.column + 2, centre_row, f" {shift.distance_px:g} px\n ({shift.side} contour)",
-                  color="yellow", fontsize=10, va="center")
+        near.annotate(
+            "",
+            xy=(shift.column, rows[1]),
+            xytext=(shift.column, rows[0]),
+            arrowprops={"arrowstyle": "<->", "color": "yellow", "lw": 1.5},
+        )
+        near.text(
+            shift.column + 2,
+            centre_row,
+            f" {shift.distance_px:g} px\n ({shift.side} contour)",
+            color="yellow",
+            fontsize=10,
+            va="center",
+        )
         near.set_title("magnified: the largest distance between corresponding contours", fontsize=9)
     else:
         near.set_title("no corresponding contours to compare", fontsize=9)
@@ -239,7 +322,9 @@ def figure_names(surface: str, dmax: float) -> tuple[str, str]:
 LAW_FIGURE = "law_vs_simulation.png"
 
 
-def surface_figures(rows: list[CaseResult], out_dir: Path, plan: StudyPlan, surface: str) -> list[Path]:
+def surface_figures(
+    rows: list[CaseResult], out_dir: Path, plan: StudyPlan, surface: str
+) -> list[Path]:
     """The grids and plots of one surface (from its rows); returns the paths written."""
     out_dir = Path(out_dir)
     written = []
@@ -247,7 +332,9 @@ def surface_figures(rows: list[CaseResult], out_dir: Path, plan: StudyPlan, surf
     mine = [r for r in rows if r.surface == surface]
     for dmax in plan.dmaxs:
         grid_name, plot_name = figure_names(surface, dmax)
-        if grid_thetas and image_grid(mine, out_dir / "cases", surface, dmax, grid_thetas, plan.sigma2s, out_dir / grid_name):
+        if grid_thetas and image_grid(
+            mine, out_dir / "cases", surface, dmax, grid_thetas, plan.sigma2s, out_dir / grid_name
+        ):
             written.append(out_dir / grid_name)
         if len(plan.thetas) >= 2:
             visibility_plot(mine, surface, dmax, out_dir / plot_name)
@@ -255,7 +342,9 @@ def surface_figures(rows: list[CaseResult], out_dir: Path, plan: StudyPlan, surf
     return written
 
 
-def write_figures(rows: list[CaseResult], out_dir: Path, plan, drawn: dict[str, list[Path]] | None = None) -> list[Path]:
+def write_figures(
+    rows: list[CaseResult], out_dir: Path, plan, drawn: dict[str, list[Path]] | None = None
+) -> list[Path]:
     """Every grid and plot the plan's rows allow, and the closed forms against the
     simulation; ``drawn``: surfaces whose figures were drawn already (and their paths).
     Returns the paths of all of them."""
@@ -263,7 +352,9 @@ def write_figures(rows: list[CaseResult], out_dir: Path, plan, drawn: dict[str, 
     drawn = drawn or {}
     written = []
     for surface in plan.surfaces:
-        written += drawn[surface] if surface in drawn else surface_figures(rows, out_dir, plan, surface)
+        written += (
+            drawn[surface] if surface in drawn else surface_figures(rows, out_dir, plan, surface)
+        )
     if rows:
         law_plot(rows, out_dir / LAW_FIGURE)
         written.append(out_dir / LAW_FIGURE)

@@ -69,11 +69,20 @@ class StudyResult:
 class _Progress:
     """Which cases are done, the progress bar, and the callbacks of :func:`run_study`."""
 
-    def __init__(self, plan: StudyPlan, done: dict[str, CaseResult], pending: list[Case], bar, on_case_done,
-                 on_surface_done) -> None:
+    def __init__(
+        self,
+        plan: StudyPlan,
+        done: dict[str, CaseResult],
+        pending: list[Case],
+        bar,
+        on_case_done,
+        on_surface_done,
+    ) -> None:
         self.plan, self.done, self.bar = plan, done, bar
         self.on_case_done, self.on_surface_done = on_case_done, on_surface_done
-        self.left = {surface: sum(case[0] == surface for case in pending) for surface in plan.surfaces}
+        self.left = {
+            surface: sum(case[0] == surface for case in pending) for surface in plan.surfaces
+        }
 
     def finished(self, row: CaseResult) -> None:
         self.done[case_key(*row.case)] = row
@@ -118,7 +127,9 @@ def run_study(
     out_dir = Path(out_dir)
     with study_lock(out_dir):
         prepare_out_dir(out_dir, plan.to_dict(), overwrite)
-        return _run_locked(plan, out_dir, workers, progress, renderer, on_case_done, on_surface_done)
+        return _run_locked(
+            plan, out_dir, workers, progress, renderer, on_case_done, on_surface_done
+        )
 
 
 def check_workers(workers: int) -> None:
@@ -127,7 +138,9 @@ def check_workers(workers: int) -> None:
         raise GlshadeError(f"--workers: must be an integer >= 1, got {workers}")
 
 
-def _run_locked(plan, out_dir, workers, progress, renderer, on_case_done, on_surface_done) -> StudyResult:
+def _run_locked(
+    plan, out_dir, workers, progress, renderer, on_case_done, on_surface_done
+) -> StudyResult:
     done: dict[str, CaseResult] = {}
     pending = []
     for case in plan.cases():
@@ -137,8 +150,14 @@ def _run_locked(plan, out_dir, workers, progress, renderer, on_case_done, on_sur
         else:
             pending.append(case)
     skipped = len(done)
-    state = _Progress(plan, done, pending, _progress_bar(len(plan.cases()), skipped, progress), on_case_done,
-                      on_surface_done)
+    state = _Progress(
+        plan,
+        done,
+        pending,
+        _progress_bar(len(plan.cases()), skipped, progress),
+        on_case_done,
+        on_surface_done,
+    )
     timings = Timings()
     owns = renderer is None
     renderer = renderer or Renderer()
@@ -154,7 +173,9 @@ def _run_locked(plan, out_dir, workers, progress, renderer, on_case_done, on_sur
     start = time.perf_counter()
     write_results_csv(out_dir / "results.csv", rows)
     timings.io += time.perf_counter() - start
-    return StudyResult(rows=rows, timings=timings, computed=len(rows) - skipped, skipped=skipped, out_dir=out_dir)
+    return StudyResult(
+        rows=rows, timings=timings, computed=len(rows) - skipped, skipped=skipped, out_dir=out_dir
+    )
 
 
 def _progress_bar(total: int, initial: int, enabled: bool):
@@ -165,8 +186,15 @@ def _progress_bar(total: int, initial: int, enabled: bool):
     return tqdm(total=total, initial=initial, unit="case", desc="glshade paper", dynamic_ncols=True)
 
 
-def _run_cases(plan: StudyPlan, cases: list[Case], renderer: Renderer, pool: ThreadPoolExecutor, timings: Timings,
-               out_dir: Path, finished: Callable[[CaseResult], None]) -> None:
+def _run_cases(
+    plan: StudyPlan,
+    cases: list[Case],
+    renderer: Renderer,
+    pool: ThreadPoolExecutor,
+    timings: Timings,
+    out_dir: Path,
+    finished: Callable[[CaseResult], None],
+) -> None:
     """Measure every pending case with the sweep engine (:func:`glshade.sweep.engine.measure_many`:
     one defect-free analysis per (surface, θ), tracing on this thread while the pool
     measures) and write each result as soon as it is done."""
@@ -184,14 +212,25 @@ def _figures(case: Case, scene: Scene, result: vis.Visibility, view: CaseView):
     thumbnail = overlay = None
     if case[1] in GRID_THETAS:
         image = view.best_image(scene, result)
-        thumbnail = encode_png(cv2.resize(image, (THUMBNAIL, THUMBNAIL), interpolation=cv2.INTER_AREA), bits=8)
+        thumbnail = encode_png(
+            cv2.resize(image, (THUMBNAIL, THUMBNAIL), interpolation=cv2.INTER_AREA), bits=8
+        )
     if case in OVERLAY_CASES:
-        normal, defect = view.baseline.stripes_at(view.v1, result.best_phase_mm, result.offset_px, view.images)
-        overlay = (contours.overlay_rgb(normal, defect), result, view.baseline.columns.start, scene.title())
+        normal, defect = view.baseline.stripes_at(
+            view.v1, result.best_phase_mm, result.offset_px, view.images
+        )
+        overlay = (
+            contours.overlay_rgb(normal, defect),
+            result,
+            view.baseline.columns.start,
+            scene.title(),
+        )
     return thumbnail, overlay
 
 
-def _write(row: CaseResult, thumbnail: bytes | None, overlay, timings: Timings, out_dir: Path) -> None:
+def _write(
+    row: CaseResult, thumbnail: bytes | None, overlay, timings: Timings, out_dir: Path
+) -> None:
     """A finished case on disk (its overlay figure first, when it is one of those)."""
     timings.shade += row.shade_s
     timings.contours += row.contours_s
@@ -210,15 +249,30 @@ def case_result(case: Case, scene: Scene, result: vis.Visibility, trace_s: float
     surface, theta, sigma2, dmax = case
     law = physics.laws(scene)
     summary = result.summary()
-    measured = ("visibility_px", "visibility_continuous_px", "deflection_px", "folded", "islands", "best_phase_mm",
-                "unpaired_contours", "unresolved_fraction")
+    measured = (
+        "visibility_px",
+        "visibility_continuous_px",
+        "deflection_px",
+        "folded",
+        "islands",
+        "best_phase_mm",
+        "unpaired_contours",
+        "unresolved_fraction",
+    )
     return CaseResult(
-        surface=surface, theta_deg=theta, sigma2_mm2=sigma2, dmax_mm=dmax, period_mm=scene.emitter.period,
+        surface=surface,
+        theta_deg=theta,
+        sigma2_mm2=sigma2,
+        dmax_mm=dmax,
+        period_mm=scene.emitter.period,
         **{k: summary[k] for k in measured},
-        offset_dx_px=result.offset_px[0], offset_dy_px=result.offset_px[1],
+        offset_dx_px=result.offset_px[0],
+        offset_dy_px=result.offset_px[1],
         fold_ratio=round(law.fold_ratio, 5),
         deflection_law_px=round(law.deflection_px, 4),
         visibility_law_px=round(law.visibility_px, 4),
-        trace_s=round(trace_s, 4), shade_s=round(result.seconds.shade, 4),
-        contours_s=round(result.seconds.contours, 4), continuous_s=round(result.seconds.continuous, 4),
+        trace_s=round(trace_s, 4),
+        shade_s=round(result.seconds.shade, 4),
+        contours_s=round(result.seconds.contours, 4),
+        continuous_s=round(result.seconds.continuous, 4),
     )

@@ -37,35 +37,71 @@ class CaseResult(Mapping):
     timings. The fields are the columns of ``results.csv`` (in order, with their units
     and meanings: :data:`COLUMNS`); the record also reads as a mapping of them."""
 
-    surface: str = _column("", "base surface: flat, cylinder (R 70 mm, axis in the plane of incidence), sphere (R 70 mm), "
-                                "or the scene file of a free-form surface")
+    surface: str = _column(
+        "",
+        "base surface: flat, cylinder (R 70 mm, axis in the plane of incidence), sphere (R 70 mm), "
+        "or the scene file of a free-form surface",
+    )
     theta_deg: float = _column("deg", "camera elevation θ above the surface (90 = straight down)")
     sigma2_mm2: float = _column("mm²", "variance σ² of the Gaussian dent (isotropic)")
     dmax_mm: float = _column("mm", "depth of the dent (0.003 mm = 3 µm)")
-    period_mm: float = _column("mm", "stripe period on the emitter (2 mm; 10 mm on the sphere, as in the paper)")
-    visibility_px: float = _column("px", "the paper's metric: the largest distance between corresponding stripe contours "
-                                   "over the phase sweep, whole pixels of the image (SPEC §6)")
-    visibility_continuous_px: float = _column("px", "the limit of the paper's metric for a vanishing phase step and "
-                                              "pixel size, by the same contour rules (sub-pixel)")
-    deflection_px: float = _column("px", "how far the dent moves the emitter map: the largest distance between a row r "
-                                   "and the row r0 where v0(r0) = v1(r), in a kept column; equals the continuous "
-                                   "visibility where nothing folds")
-    folded: bool = _column("", "True where the dent's emitter map runs against the defect-free one along some kept "
-                           "column (the stripe map folds)")
-    islands: int = _column("count", "the most stripe pieces the dent cuts off (touching neither a cut column nor the "
-                           "border; beyond those the defect-free image has) at any phase; never measured")
+    period_mm: float = _column(
+        "mm", "stripe period on the emitter (2 mm; 10 mm on the sphere, as in the paper)"
+    )
+    visibility_px: float = _column(
+        "px",
+        "the paper's metric: the largest distance between corresponding stripe contours "
+        "over the phase sweep, whole pixels of the image (SPEC §6)",
+    )
+    visibility_continuous_px: float = _column(
+        "px",
+        "the limit of the paper's metric for a vanishing phase step and "
+        "pixel size, by the same contour rules (sub-pixel)",
+    )
+    deflection_px: float = _column(
+        "px",
+        "how far the dent moves the emitter map: the largest distance between a row r "
+        "and the row r0 where v0(r0) = v1(r), in a kept column; equals the continuous "
+        "visibility where nothing folds",
+    )
+    folded: bool = _column(
+        "",
+        "True where the dent's emitter map runs against the defect-free one along some kept "
+        "column (the stripe map folds)",
+    )
+    islands: int = _column(
+        "count",
+        "the most stripe pieces the dent cuts off (touching neither a cut column nor the "
+        "border; beyond those the defect-free image has) at any phase; never measured",
+    )
     best_phase_mm: float = _column("mm", "stripe phase at which visibility_px was reached")
-    unpaired_contours: int = _column("count", "stripes reaching a cut column or the border that found no partner at the "
-                                     "best phase (0 in a healthy comparison)")
-    offset_dx_px: int = _column("px", "registration offset applied to the defect image, columns (0 for rendered pairs)")
-    offset_dy_px: int = _column("px", "registration offset applied to the defect image, rows (0 for rendered pairs)")
-    unresolved_fraction: float = _column("fraction", "share of the kept pixels left out because the defect-free stripes "
-                                         "span fewer than 4 px per period there (aliasing)")
-    fold_ratio: float = _column("", "closed form 2 κ Dc De / ((Dc + De) sin θ), κ the largest tangential curvature of "
-                                "base plus dent; the map folds where it exceeds 1 (docs/physics.md)")
+    unpaired_contours: int = _column(
+        "count",
+        "stripes reaching a cut column or the border that found no partner at the "
+        "best phase (0 in a healthy comparison)",
+    )
+    offset_dx_px: int = _column(
+        "px", "registration offset applied to the defect image, columns (0 for rendered pairs)"
+    )
+    offset_dy_px: int = _column(
+        "px", "registration offset applied to the defect image, rows (0 for rendered pairs)"
+    )
+    unresolved_fraction: float = _column(
+        "fraction",
+        "share of the kept pixels left out because the defect-free stripes "
+        "span fewer than 4 px per period there (aliasing)",
+    )
+    fold_ratio: float = _column(
+        "",
+        "closed form 2 κ Dc De / ((Dc + De) sin θ), κ the largest tangential curvature of "
+        "base plus dent; the map folds where it exceeds 1 (docs/physics.md)",
+    )
     deflection_law_px: float = _column("px", "closed form of deflection_px (docs/physics.md)")
-    visibility_law_px: float = _column("px", "closed form of visibility_continuous_px: the deflection, capped by a fold "
-                                       "at b sqrt(2 ln(F/m)) (docs/physics.md)")
+    visibility_law_px: float = _column(
+        "px",
+        "closed form of visibility_continuous_px: the deflection, capped by a fold "
+        "at b sqrt(2 ln(F/m)) (docs/physics.md)",
+    )
     trace_s: float = _column("s", "time to trace the dent's emitter map (GL)")
     shade_s: float = _column("s", "time to binarise the defect image at every phase")
     contours_s: float = _column("s", "time of the contour analysis over the phase sweep (OpenCV)")
@@ -114,7 +150,9 @@ class Column:
     meaning: str
 
 
-COLUMNS = tuple(Column(f.name, f.metadata["unit"], f.metadata["meaning"]) for f in fields(CaseResult))
+COLUMNS = tuple(
+    Column(f.name, f.metadata["unit"], f.metadata["meaning"]) for f in fields(CaseResult)
+)
 CSV_COLUMNS = [c.name for c in COLUMNS]
 _NAMES = frozenset(CSV_COLUMNS)
 TIMING_COLUMNS = ("trace_s", "shade_s", "contours_s", "continuous_s")
@@ -149,7 +187,9 @@ def write_case(out_dir: Path, result: CaseResult, thumbnail: bytes | None) -> No
     key = case_key(*result.case)
     if thumbnail is not None:
         atomic_write_bytes(out_dir / "cases" / f"{key}.png", thumbnail)
-    atomic_write_bytes(out_dir / "cases" / f"{key}.json", json.dumps(dict(result), indent=1).encode())
+    atomic_write_bytes(
+        out_dir / "cases" / f"{key}.json", json.dumps(dict(result), indent=1).encode()
+    )
 
 
 def write_results_csv(path: Path, rows: list[CaseResult]) -> None:
@@ -170,8 +210,14 @@ def read_results_csv(path: Path) -> list[CaseResult]:
 # --------------------------------------------------------------------------- output dir
 #: The files a study writes at the top of its directory (the case files live in
 #: ``cases/``); ``--overwrite`` removes exactly these, never anything else.
-STUDY_FILES = ("results.csv", "report.md", "grid_*.png", "visibility_*.png", "law_vs_simulation.png",
-               "fig09_contour_overlay*.png")
+STUDY_FILES = (
+    "results.csv",
+    "report.md",
+    "grid_*.png",
+    "visibility_*.png",
+    "law_vs_simulation.png",
+    "fig09_contour_overlay*.png",
+)
 LOCK_NAME = ".glshade.lock"
 OWNER_NAME = ".glshade.lock.json"
 
@@ -190,13 +236,19 @@ def study_lock(out_dir: Path, command: str = "glshade paper") -> Iterator[None]:
     try:
         lock.acquire()
     except Timeout:
-        raise GlshadeError(f"--out {out_dir}: in use by {_owner(out_dir)}; wait for it to finish, or choose another "
-                           "--out") from None
+        raise GlshadeError(
+            f"--out {out_dir}: in use by {_owner(out_dir)}; wait for it to finish, or choose another "
+            "--out"
+        ) from None
     first = lock.lock_counter == 1
     try:
         if first:
-            owner = {"pid": os.getpid(), "host": socket.gethostname(), "command": command,
-                     "since": time.strftime("%Y-%m-%d %H:%M:%S")}
+            owner = {
+                "pid": os.getpid(),
+                "host": socket.gethostname(),
+                "command": command,
+                "since": time.strftime("%Y-%m-%d %H:%M:%S"),
+            }
             atomic_write_bytes(out_dir / OWNER_NAME, json.dumps(owner).encode(), "--out")
         yield
     finally:
@@ -209,7 +261,9 @@ def study_lock(out_dir: Path, command: str = "glshade paper") -> Iterator[None]:
 def _owner(out_dir: Path) -> str:
     try:
         owner = json.loads((out_dir / OWNER_NAME).read_text())
-        return f"'{owner['command']}' (pid {owner['pid']} on {owner['host']}, since {owner['since']})"
+        return (
+            f"'{owner['command']}' (pid {owner['pid']} on {owner['host']}, since {owner['since']})"
+        )
     except (OSError, ValueError, KeyError, TypeError):
         return "another glshade run"
 
@@ -248,8 +302,11 @@ def prepare_out_dir(out_dir: Path, manifest_data: dict, overwrite: bool = False)
                 f"--out {out_dir}: holds a study with another plan ({_difference(stored, manifest_data)}); rerun "
                 "with the same settings to resume it, add --overwrite to replace it, or choose another --out"
             )
-        removed = _remove_stale(out_dir, keep_cases=_comparable(stored) == _comparable(manifest_data),
-                                cases=_plan_keys(manifest_data))
+        removed = _remove_stale(
+            out_dir,
+            keep_cases=_comparable(stored) == _comparable(manifest_data),
+            cases=_plan_keys(manifest_data),
+        )
     atomic_write_bytes(manifest, json.dumps(manifest_data, indent=2).encode(), "--out")
     return removed
 
@@ -277,7 +334,9 @@ def _read_manifest(manifest: Path) -> dict | None:
 
 def _difference(stored: dict, wanted: dict) -> str:
     keys = [k for k in sorted(set(stored) | set(wanted)) if stored.get(k) != wanted.get(k)]
-    return "; ".join(f"{k}: {_short(stored.get(k))} there, {_short(wanted.get(k))} asked" for k in keys[:3])
+    return "; ".join(
+        f"{k}: {_short(stored.get(k))} there, {_short(wanted.get(k))} asked" for k in keys[:3]
+    )
 
 
 def _short(value: object) -> str:
@@ -289,13 +348,17 @@ def _short(value: object) -> str:
 def _plan_keys(plan_dict: dict) -> set[str]:
     """The case keys of a plan as ``StudyPlan.to_dict`` wrote it."""
     lists = [plan_dict.get(k) or () for k in ("surfaces", "thetas", "sigma2s", "dmaxs")]
-    return {case_key(s, t, v, d) for s in lists[0] for t in lists[1] for v in lists[2] for d in lists[3]}
+    return {
+        case_key(s, t, v, d) for s in lists[0] for t in lists[1] for v in lists[2] for d in lists[3]
+    }
 
 
 def _remove_stale(out_dir: Path, keep_cases: bool, cases: set[str]) -> list[Path]:
     """Remove what ``--overwrite`` replaces: the old study's figures, tables and report,
     and its case files that the new plan cannot reuse."""
-    doomed = [path for pattern in STUDY_FILES for path in sorted(out_dir.glob(pattern)) if path.is_file()]
+    doomed = [
+        path for pattern in STUDY_FILES for path in sorted(out_dir.glob(pattern)) if path.is_file()
+    ]
     for path in sorted((out_dir / "cases").glob("*")):
         reusable = keep_cases and path.stem in cases
         if path.suffix in (".json", ".png") and path.is_file() and not reusable:

@@ -82,7 +82,7 @@ def batches(cases: list[SweepCase], size: int) -> list[list[tuple[str, object]]]
 
     out = []
     for group in grouped([(c.case_id, c.scene) for c in cases]):
-        out += [group[i:i + size] for i in range(0, len(group), size)]
+        out += [group[i : i + size] for i in range(0, len(group), size)]
     return out
 
 
@@ -93,10 +93,17 @@ def connect(scheduler: str | None, workers: int | None, timeout_s: float):
             return Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False), None
         except (OSError, TimeoutError, ValueError) as exc:
             reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise GlshadeError(f"--scheduler {scheduler}: no Dask scheduler answered within {timeout_s:g} s "
-                               f"({reason[:160]})") from None
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                           silence_logs=logging.ERROR)
+            raise GlshadeError(
+                f"--scheduler {scheduler}: no Dask scheduler answered within {timeout_s:g} s "
+                f"({reason[:160]})"
+            ) from None
+    cluster = LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        silence_logs=logging.ERROR,
+    )
     return Client(cluster, set_as_default=False), cluster
 
 
@@ -106,8 +113,9 @@ class DaskExecutor:
 
     def __init__(self, distribution) -> None:
         self.distribution = distribution
-        self.client, self.cluster = connect(distribution.scheduler, distribution.workers,
-                                            distribution.connect_timeout_s)
+        self.client, self.cluster = connect(
+            distribution.scheduler, distribution.workers, distribution.connect_timeout_s
+        )
         try:
             self.client.register_plugin(RendererPlugin(), name=PLUGIN_NAME)
         except BaseException:
@@ -120,18 +128,30 @@ class DaskExecutor:
         futures = []
         for batch in batches(cases, self.distribution.batch):
             self._submitted += 1
-            futures.append(self.client.submit(measure_batch, batch, settings, images, pure=False,
-                                              key=f"glshade-batch-{self._submitted}-{batch[0][0]}"))
+            futures.append(
+                self.client.submit(
+                    measure_batch,
+                    batch,
+                    settings,
+                    images,
+                    pure=False,
+                    key=f"glshade-batch-{self._submitted}-{batch[0][0]}",
+                )
+            )
         try:
             for future in as_completed(futures, loop=self.client.loop):
                 yield from future.result()
                 future.release()
         except KilledWorker as exc:
-            raise GlshadeError(f"a batch of cases killed its workers too often ({exc}); the finished cases are "
-                               "saved: rerun to resume") from None
+            raise GlshadeError(
+                f"a batch of cases killed its workers too often ({exc}); the finished cases are "
+                "saved: rerun to resume"
+            ) from None
         except FutureCancelledError:
-            raise GlshadeError("the Dask cluster cancelled the sweep's tasks; finished cases are saved: rerun to "
-                               "resume") from None
+            raise GlshadeError(
+                "the Dask cluster cancelled the sweep's tasks; finished cases are saved: rerun to "
+                "resume"
+            ) from None
 
     def close(self) -> None:
         self.client.close()

@@ -149,5 +149,7 @@ def _rendered(renderer, group, settings, extra) -> Iterator[Measured]:
         result = measure_scene(renderer, scene, settings, baseline, v1=v1)
         made = None
         if extra is not None:
-            made = extra(token, scene, result, CaseView(baseline, v1, phase_images(renderer, scene)))
+            made = extra(
+                token, scene, result, CaseView(baseline, v1, phase_images(renderer, scene))
+            )
         yield Measured(token, scene, result, trace_s, made)

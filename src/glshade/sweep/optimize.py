@@ -148,7 +148,10 @@ def parse_family(text: str | None, points: int = 3) -> list[dict[str, float]]:
         axes.append((key, values))
     if len({k for k, _ in axes}) != len(axes):
         raise GlshadeError("--family: a key is listed twice")
-    return [dict(zip([k for k, _ in axes], combo, strict=True)) for combo in itertools.product(*(v for _, v in axes))]
+    return [
+        dict(zip([k for k, _ in axes], combo, strict=True))
+        for combo in itertools.product(*(v for _, v in axes))
+    ]
 
 
 def _items(text: str, flag: str) -> list[str]:
@@ -164,7 +167,9 @@ def _numeric_param(key: str, flag: str) -> None:
     except SceneError as exc:
         raise GlshadeError(f"{flag}: {exc}") from None
     if param.value_type not in ("real", "integer"):
-        raise GlshadeError(f"{flag} {key}: not a number ({param.value_type}); sweep it with glshade sweep instead")
+        raise GlshadeError(
+            f"{flag} {key}: not a number ({param.value_type}); sweep it with glshade sweep instead"
+        )
 
 
 def _span(text: str, where: str, allow_equal: bool = False) -> tuple[float, float]:
@@ -173,7 +178,9 @@ def _span(text: str, where: str, allow_equal: bool = False) -> tuple[float, floa
         raise GlshadeError(f"{where}: expected a range LO..HI, got {text!r}")
     lo, hi = _float(lo_text, where), _float(hi_text, where)
     if not (lo < hi or (allow_equal and lo == hi)):
-        raise GlshadeError(f"{where}: an empty or inverted range {lo:g}..{hi:g}; LO must be below HI")
+        raise GlshadeError(
+            f"{where}: an empty or inverted range {lo:g}..{hi:g}; LO must be below HI"
+        )
     return lo, hi
 
 
@@ -193,7 +200,9 @@ def grid_axes(dimensions: Sequence[Dimension], points: int | None = None) -> lis
     if n < 2:
         raise GlshadeError(f"--grid: at least 2 points per key, got {n}")
     if n ** len(dimensions) > MAX_GRID_POINTS:
-        raise GlshadeError(f"--grid: {n}^{len(dimensions)} points is more than {MAX_GRID_POINTS}; use fewer")
+        raise GlshadeError(
+            f"--grid: {n}^{len(dimensions)} points is more than {MAX_GRID_POINTS}; use fewer"
+        )
     return [np.linspace(d.lo, d.hi, n) for d in dimensions]
 
 
@@ -201,9 +210,16 @@ def grid_axes(dimensions: Sequence[Dimension], points: int | None = None) -> lis
 Objective = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
-def search(objective: Objective, dimensions: Sequence[Dimension], *, grid_points: int | None = None,
-           refine_evaluations: int = 30, tolerance_px: float | None = None, metric: str = "continuous",
-           members: list[dict[str, float]] | None = None) -> OptimizeResult:
+def search(
+    objective: Objective,
+    dimensions: Sequence[Dimension],
+    *,
+    grid_points: int | None = None,
+    refine_evaluations: int = 30,
+    tolerance_px: float | None = None,
+    metric: str = "continuous",
+    members: list[dict[str, float]] | None = None,
+) -> OptimizeResult:
     """Maximise ``objective`` over the box of ``dimensions``: coarse grid, then bounded
     Nelder–Mead in the best grid cell (module doc). ``objective`` is called with a batch of
     points (the whole grid at once, so it may distribute it)."""
@@ -233,26 +249,48 @@ def search(objective: Objective, dimensions: Sequence[Dimension], *, grid_points
         return -seen[key]
 
     if refine_evaluations > 0:
-        simplex = np.vstack([best] + [np.clip(best + 0.5 * steps * e, cell_lo, cell_hi)
-                                      for e in np.eye(len(dimensions))])
+        simplex = np.vstack(
+            [best]
+            + [np.clip(best + 0.5 * steps * e, cell_lo, cell_hi) for e in np.eye(len(dimensions))]
+        )
         seen[tuple(np.round(best, 9))] = float(np.max(scores))
-        minimize(negative, best, method="Nelder-Mead", bounds=list(zip(cell_lo, cell_hi, strict=True)),
-                 options={"initial_simplex": simplex, "maxfev": refine_evaluations, "xatol": 1e-3 * steps.min(),
-                          "fatol": 1e-4})
+        minimize(
+            negative,
+            best,
+            method="Nelder-Mead",
+            bounds=list(zip(cell_lo, cell_hi, strict=True)),
+            options={
+                "initial_simplex": simplex,
+                "maxfev": refine_evaluations,
+                "xatol": 1e-3 * steps.min(),
+                "fatol": 1e-4,
+            },
+        )
     points_all = np.vstack(points)
     scores_all, values_all = np.concatenate(all_scores), np.concatenate(all_values)
     winner = int(np.argmax(scores_all))
-    tolerance = tolerance_px if tolerance_px is not None else (0.0 if metric == "paper" else
-                                                               0.05 * max(values_all[winner], 1e-9))
+    tolerance = (
+        tolerance_px
+        if tolerance_px is not None
+        else (0.0 if metric == "paper" else 0.05 * max(values_all[winner], 1e-9))
+    )
     near = points_all[values_all >= values_all[winner] - tolerance]
     return OptimizeResult(
         dimensions=tuple(dimensions),
         optimum={d.name: round(float(points_all[winner, i]), 4) for i, d in enumerate(dimensions)},
-        visibility_px=float(values_all[winner]), metric=metric, tolerance_px=round(float(tolerance), 4),
-        near_optimal={d.name: (round(float(near[:, i].min()), 4), round(float(near[:, i].max()), 4))
-                      for i, d in enumerate(dimensions)},
-        points=points_all, values=values_all, grid_shape=tuple(len(a) for a in axes), grid_count=len(grid),
-        members=members or [], member_values=np.vstack(all_members),
+        visibility_px=float(values_all[winner]),
+        metric=metric,
+        tolerance_px=round(float(tolerance), 4),
+        near_optimal={
+            d.name: (round(float(near[:, i].min()), 4), round(float(near[:, i].max()), 4))
+            for i, d in enumerate(dimensions)
+        },
+        points=points_all,
+        values=values_all,
+        grid_shape=tuple(len(a) for a in axes),
+        grid_count=len(grid),
+        members=members or [],
+        member_values=np.vstack(all_members),
     )
 
 
@@ -261,8 +299,15 @@ class SceneObjective:
     """The worst-case visibility over a family, measured by an executor (in-process or
     Dask: :func:`glshade.sweep.run.open_executor`); every case measured once (by id)."""
 
-    def __init__(self, base: Scene, dimensions: Sequence[Dimension], family: list[dict[str, float]],
-                 settings: MetricSettings, metric: str, executor) -> None:
+    def __init__(
+        self,
+        base: Scene,
+        dimensions: Sequence[Dimension],
+        family: list[dict[str, float]],
+        settings: MetricSettings,
+        metric: str,
+        executor,
+    ) -> None:
         if metric not in METRICS:
             raise GlshadeError(f"--metric: must be one of {', '.join(METRICS)}, got {metric!r}")
         self.base, self.dimensions, self.family = base, tuple(dimensions), family
@@ -282,12 +327,20 @@ class SceneObjective:
     def __call__(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         grid = [[self.scene(p, m) for m in self.family] for p in points]
         ids = [[case_id(s, self.settings) for s in row] for row in grid]
-        todo = {i: SweepCase(i, (), s) for row_ids, row in zip(ids, grid, strict=True)
-                for i, s in zip(row_ids, row, strict=True) if i not in self.outputs}
+        todo = {
+            i: SweepCase(i, (), s)
+            for row_ids, row in zip(ids, grid, strict=True)
+            for i, s in zip(row_ids, row, strict=True)
+            if i not in self.outputs
+        }
         for token, outputs, _, _ in self.executor.rows(list(todo.values()), self.settings, False):
             self.outputs[token] = outputs
-        paper = np.array([[self.outputs[i]["visibility_px"] for i in row] for row in ids], dtype=np.float64)
-        continuous = np.array([[self.outputs[i]["visibility_continuous_px"] for i in row] for row in ids])
+        paper = np.array(
+            [[self.outputs[i]["visibility_px"] for i in row] for row in ids], dtype=np.float64
+        )
+        continuous = np.array(
+            [[self.outputs[i]["visibility_continuous_px"] for i in row] for row in ids]
+        )
         chosen = paper if self.metric == "paper" else continuous
         score = paper + TIE * continuous if self.metric == "paper" else continuous
         return score.min(axis=1), chosen.min(axis=1), chosen
@@ -297,14 +350,28 @@ class SceneObjective:
         return len(self.outputs)
 
 
-def optimize_scene(base: Scene, dimensions: Sequence[Dimension], family: list[dict[str, float]], *,
-                   metric: str = "paper", settings: MetricSettings | None = None, executor,
-                   grid_points: int | None = None, refine_evaluations: int = 30) -> OptimizeResult:
+def optimize_scene(
+    base: Scene,
+    dimensions: Sequence[Dimension],
+    family: list[dict[str, float]],
+    *,
+    metric: str = "paper",
+    settings: MetricSettings | None = None,
+    executor,
+    grid_points: int | None = None,
+    refine_evaluations: int = 30,
+) -> OptimizeResult:
     """The viewpoint search on a real scene (module doc)."""
     settings = settings or MetricSettings()
     objective = SceneObjective(base, dimensions, family, settings, metric, executor)
-    result = search(objective, dimensions, grid_points=grid_points, refine_evaluations=refine_evaluations,
-                    metric=metric, members=family if family != [{}] else [])
+    result = search(
+        objective,
+        dimensions,
+        grid_points=grid_points,
+        refine_evaluations=refine_evaluations,
+        metric=metric,
+        members=family if family != [{}] else [],
+    )
     return replace(result, cases=objective.cases)
 
 
@@ -326,16 +393,32 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
     if len(dims) == 2:
         fig, ax = plt.subplots(figsize=(6.4, 5.0))
         shape = result.grid_shape
-        mesh = ax.pcolormesh(grid[:, 1].reshape(shape), grid[:, 0].reshape(shape), values.reshape(shape),
-                             shading="nearest", cmap="viridis")
+        mesh = ax.pcolormesh(
+            grid[:, 1].reshape(shape),
+            grid[:, 0].reshape(shape),
+            values.reshape(shape),
+            shading="nearest",
+            cmap="viridis",
+        )
         fig.colorbar(mesh, ax=ax, label=ylabel)
-        ax.plot(result.points[n:, 1], result.points[n:, 0], ".", color="white", ms=3, label="refinement")
-        ax.plot(result.optimum[dims[1].name], result.optimum[dims[0].name], "*", color="red", ms=14, label="optimum")
+        ax.plot(
+            result.points[n:, 1], result.points[n:, 0], ".", color="white", ms=3, label="refinement"
+        )
+        ax.plot(
+            result.optimum[dims[1].name],
+            result.optimum[dims[0].name],
+            "*",
+            color="red",
+            ms=14,
+            label="optimum",
+        )
         ax.set_xlabel(dims[1].name)
         ax.set_ylabel(dims[0].name)
         ax.legend(loc="best", fontsize=8)
     else:
-        fig, axes = plt.subplots(1, len(dims), figsize=(6.4 * min(len(dims), 3), 4.4), squeeze=False)
+        fig, axes = plt.subplots(
+            1, len(dims), figsize=(6.4 * min(len(dims), 3), 4.4), squeeze=False
+        )
         best = grid[int(np.argmax(values))]
         for i, (ax, dim) in enumerate(zip(axes[0], dims, strict=True)):
             on_line = np.all(np.isclose(np.delete(grid, i, axis=1), np.delete(best, i)), axis=1)
@@ -343,20 +426,32 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
             x = grid[on_line, i][order]
             if result.member_values is not None and len(result.members) > 1:
                 for j, member in enumerate(result.members):
-                    ax.plot(x, result.member_values[:n][on_line][order, j], color="0.75", lw=0.8,
-                            label="family members" if j == 0 else None)
+                    ax.plot(
+                        x,
+                        result.member_values[:n][on_line][order, j],
+                        color="0.75",
+                        lw=0.8,
+                        label="family members" if j == 0 else None,
+                    )
             ax.plot(x, values[on_line][order], "o-", color="C0", label=f"{label}visibility")
             if len(dims) == 1:
-                ax.plot(result.points[n:, 0], result.values[n:], "x", color="C1", label="refinement")
-            ax.axvspan(*result.near_optimal[dim.name], color="C2", alpha=0.15, label=result.near_text())
+                ax.plot(
+                    result.points[n:, 0], result.values[n:], "x", color="C1", label="refinement"
+                )
+            ax.axvspan(
+                *result.near_optimal[dim.name], color="C2", alpha=0.15, label=result.near_text()
+            )
             ax.axvline(result.optimum[dim.name], color="C3", lw=1.0, label="optimum")
             ax.set_xlabel(dim.name)
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
         axes[0][0].legend(loc="best", fontsize=8)
     where = ", ".join(f"{key} = {value:g}" for key, value in result.optimum.items())
-    fig.suptitle(title or f"optimum {where}\n{label}{result.metric} visibility {result.visibility_px:.3g} px",
-                 fontsize=10)
+    fig.suptitle(
+        title
+        or f"optimum {where}\n{label}{result.metric} visibility {result.visibility_px:.3g} px",
+        fontsize=10,
+    )
     fig.tight_layout()
     import io
 

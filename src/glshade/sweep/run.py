@@ -38,13 +38,17 @@ class Distribution:
 
     def __post_init__(self) -> None:
         if self.workers is not None and self.scheduler is not None:
-            raise GlshadeError("--workers and --scheduler: give one of them (local workers, or an existing cluster)")
+            raise GlshadeError(
+                "--workers and --scheduler: give one of them (local workers, or an existing cluster)"
+            )
         if self.workers is not None and not 1 <= self.workers <= 256:
             raise GlshadeError(f"--workers: must be an integer in [1, 256], got {self.workers}")
         if self.threads < 1:
             raise GlshadeError(f"--threads: must be an integer >= 1, got {self.threads}")
         if not 0 < self.connect_timeout_s <= 600:
-            raise GlshadeError(f"--connect-timeout: must be in (0, 600] seconds, got {self.connect_timeout_s:g}")
+            raise GlshadeError(
+                f"--connect-timeout: must be in (0, 600] seconds, got {self.connect_timeout_s:g}"
+            )
         if not 1 <= self.batch <= 4096:
             raise GlshadeError(f"--batch: must be an integer in [1, 4096], got {self.batch}")
 
@@ -65,8 +69,10 @@ class SweepResult:
 def check_size(spec: SweepSpec, yes: bool) -> None:
     """A grid beyond :data:`MAX_CASES_UNCONFIRMED` cases runs only when confirmed."""
     if spec.count > MAX_CASES_UNCONFIRMED and not yes:
-        raise GlshadeError(f"{spec.source}: the grid has {spec.count} cases (more than {MAX_CASES_UNCONFIRMED}); "
-                           "add --yes to run it")
+        raise GlshadeError(
+            f"{spec.source}: the grid has {spec.count} cases (more than {MAX_CASES_UNCONFIRMED}); "
+            "add --yes to run it"
+        )
 
 
 def run_sweep(
@@ -108,10 +114,14 @@ def run_sweep(
                 bar.close()
         rows = store.table_rows(spec, cases, done)
         store.write_tables(out_dir, spec, rows)
-        return SweepResult(rows, len(pending), len(records) - len(pending), time.perf_counter() - start, out_dir)
+        return SweepResult(
+            rows, len(pending), len(records) - len(pending), time.perf_counter() - start, out_dir
+        )
 
 
-def _rows(spec: SweepSpec, pending: list[SweepCase], distribution: Distribution, renderer) -> Iterator[Row]:
+def _rows(
+    spec: SweepSpec, pending: list[SweepCase], distribution: Distribution, renderer
+) -> Iterator[Row]:
     if not pending:
         return
     with open_executor(distribution, renderer) as executor:
@@ -141,7 +151,9 @@ class LocalExecutor:
 
             self.renderer = Renderer()
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
-            yield from measure_rows(self.renderer, [(c.case_id, c.scene) for c in cases], settings, images, pool)
+            yield from measure_rows(
+                self.renderer, [(c.case_id, c.scene) for c in cases], settings, images, pool
+            )
 
     def close(self) -> None:
         if self._owns and self.renderer is not None:
@@ -162,9 +174,18 @@ def measure_rows(renderer, items, settings, images: bool, pool=None) -> Iterator
     extra = _best_image_png if images else None
     for measured in measure_many(renderer, items, settings, pool=pool, extra=extra):
         spent = measured.result.seconds
-        seconds = {"trace_s": round(measured.trace_s, 4), "shade_s": round(spent.shade, 4),
-                   "contours_s": round(spent.contours, 4), "continuous_s": round(spent.continuous, 4)}
-        yield measured.token, store.case_outputs(measured.scene, measured.result), seconds, measured.extra
+        seconds = {
+            "trace_s": round(measured.trace_s, 4),
+            "shade_s": round(spent.shade, 4),
+            "contours_s": round(spent.contours, 4),
+            "continuous_s": round(spent.continuous, 4),
+        }
+        yield (
+            measured.token,
+            store.case_outputs(measured.scene, measured.result),
+            seconds,
+            measured.extra,
+        )
 
 
 def _best_image_png(token, scene, result, view) -> bytes:

@@ -52,6 +52,8 @@ KEY_ALIASES = {"rig.azimuth_deg": "camera.azimuth_deg"}
 def canonical_key(key: str) -> str:
     """A key as the scene spells it (an alias replaced)."""
     return KEY_ALIASES.get(key.strip(), key.strip())
+
+
 _TOP_KEYS = ("base", "size", "grid", "metric", "output")
 _OUTPUT_KEYS = ("images",)
 
@@ -140,13 +142,18 @@ class SweepSpec:
         the base scene and size, the metric settings (a grid may grow between runs)."""
         from glshade import __version__
 
-        return json.loads(json.dumps({
-            "glshade_version": __version__,
-            "metric_version": METRIC_VERSION,
-            "base_scene": self.base.to_dict(),
-            "size": self.size,
-            "metric": asdict(self.settings),
-        }, default=str))
+        return json.loads(
+            json.dumps(
+                {
+                    "glshade_version": __version__,
+                    "metric_version": METRIC_VERSION,
+                    "base_scene": self.base.to_dict(),
+                    "size": self.size,
+                    "metric": asdict(self.settings),
+                },
+                default=str,
+            )
+        )
 
 
 def with_values(base: Scene, pairs: Iterable[tuple[str, Any]]) -> Scene:
@@ -169,8 +176,11 @@ def _column_value(scene: Scene, key: str) -> Any:
 def case_id(scene: Scene, settings: MetricSettings) -> str:
     """The case's identity: sha256 of its full scene (SPEC §8 layout), the metric's
     settings and version; 16 hex digits."""
-    text = json.dumps({"scene": scene.to_dict(), "metric": asdict(settings), "metric_version": METRIC_VERSION},
-                      sort_keys=True, default=str)
+    text = json.dumps(
+        {"scene": scene.to_dict(), "metric": asdict(settings), "metric_version": METRIC_VERSION},
+        sort_keys=True,
+        default=str,
+    )
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -183,16 +193,21 @@ def load_spec(path: str | Path, size: int | None = None) -> SweepSpec:
     return spec_from_dict(data, path.parent, source=str(path), size=size)
 
 
-def spec_from_dict(data: dict, directory: Path = Path("."), source: str = "<sweep>",
-                   size: int | None = None) -> SweepSpec:
+def spec_from_dict(
+    data: dict, directory: Path = Path("."), source: str = "<sweep>", size: int | None = None
+) -> SweepSpec:
     unknown = sorted(set(data) - set(_TOP_KEYS))
     if unknown:
-        raise GlshadeError(f"{source}: unknown key {unknown[0]!r}; a sweep file has {', '.join(_TOP_KEYS)}")
+        raise GlshadeError(
+            f"{source}: unknown key {unknown[0]!r}; a sweep file has {', '.join(_TOP_KEYS)}"
+        )
     base = _base_scene(data.get("base"), directory, source)
     size = _size(size if size is not None else data.get("size"), f"{source}: size")
     grid = data.get("grid", {})
     if not isinstance(grid, dict) or not grid:
-        raise GlshadeError(f"{source}: [grid] must hold at least one axis, e.g. \"camera.theta_deg\" = [85, 45, 5]")
+        raise GlshadeError(
+            f'{source}: [grid] must hold at least one axis, e.g. "camera.theta_deg" = [85, 45, 5]'
+        )
     axes = tuple(_axis(name, value, source) for name, value in grid.items())
     settings = _settings(data.get("metric", {}), source)
     output = data.get("output", {})
@@ -203,7 +218,9 @@ def spec_from_dict(data: dict, directory: Path = Path("."), source: str = "<swee
         raise GlshadeError(f"{source}: output.images must be true or false, got {images!r}")
     spec = SweepSpec(base, axes, size, settings, images, source)
     if spec.count > MAX_CASES:
-        raise GlshadeError(f"{source}: the grid has {spec.count} cases; at most {MAX_CASES} are allowed")
+        raise GlshadeError(
+            f"{source}: the grid has {spec.count} cases; at most {MAX_CASES} are allowed"
+        )
     _check_keys_apart(axes, source)
     for axis in axes:  # every value applies to the base (the others at their first entry)
         for i in range(len(axis.entries)):
@@ -238,7 +255,9 @@ def _settings(table, source: str) -> MetricSettings:
         raise GlshadeError(f"{source}: [metric] must be a table of {', '.join(names)}")
     unknown = sorted(set(table) - set(names))
     if unknown:
-        raise GlshadeError(f"{source}: metric.{unknown[0]}: unknown setting; allowed: {', '.join(names)}")
+        raise GlshadeError(
+            f"{source}: metric.{unknown[0]}: unknown setting; allowed: {', '.join(names)}"
+        )
     try:
         return MetricSettings(**table)
     except GlshadeError as exc:
@@ -257,8 +276,12 @@ def _axis(name: str, value, source: str) -> Axis:
             label = entry.pop("label", i)
             if not entry:
                 raise GlshadeError(f"{where}[{i}]: a linked entry must set at least one dotted key")
-            entries.append(tuple((canonical_key(key), _value(canonical_key(key), v, f"{where}[{i}].{key}"))
-                                 for key, v in entry.items()))
+            entries.append(
+                tuple(
+                    (canonical_key(key), _value(canonical_key(key), v, f"{where}[{i}].{key}"))
+                    for key, v in entry.items()
+                )
+            )
             labels.append(str(label))
         if len(set(map(str, labels))) != len(labels):
             raise GlshadeError(f"{where}: the entries' labels must differ")
@@ -279,8 +302,10 @@ def _values(value, where: str) -> list:
     if isinstance(value, dict):
         keys = set(value)
         if keys not in ({"start", "stop", "num"}, {"start", "stop", "step"}):
-            raise GlshadeError(f"{where}: a range is {{start, stop, num}} or {{start, stop, step}}, got "
-                               f"{{{', '.join(sorted(keys))}}}")
+            raise GlshadeError(
+                f"{where}: a range is {{start, stop, num}} or {{start, stop, step}}, got "
+                f"{{{', '.join(sorted(keys))}}}"
+            )
         start, stop = (_number(value[k], f"{where}.{k}") for k in ("start", "stop"))
         if "num" in value:
             num = value["num"]
@@ -292,8 +317,10 @@ def _values(value, where: str) -> list:
                 raise GlshadeError(f"{where}.step: must be > 0, got {step:g}")
             num = math.floor((stop - start) / step + 1e-9) + 1
         if not (start < stop or (start == stop and num == 1)):
-            raise GlshadeError(f"{where}: an inverted or empty range (start {start:g}, stop {stop:g}); "
-                               "start must be below stop (list the values to sweep downwards)")
+            raise GlshadeError(
+                f"{where}: an inverted or empty range (start {start:g}, stop {stop:g}); "
+                "start must be below stop (list the values to sweep downwards)"
+            )
         if num > MAX_CASES:
             raise GlshadeError(f"{where}.num: at most {MAX_CASES}, got {num}")
         if "step" in value:
@@ -314,8 +341,10 @@ def _value(key: str, value, where: str):
     if key == SIZE_KEY:
         return _size(value, where)
     if "." not in key:
-        raise GlshadeError(f"{where}: unknown key {key!r}; expected a dotted scene key such as camera.theta_deg, "
-                           "'size', or a list of tables (a linked axis)")
+        raise GlshadeError(
+            f"{where}: unknown key {key!r}; expected a dotted scene key such as camera.theta_deg, "
+            "'size', or a list of tables (a linked axis)"
+        )
     try:
         param = registry().param(key)
         if isinstance(value, str) and param.value_type not in ("choice", "text", "path"):
@@ -332,5 +361,7 @@ def _check_keys_apart(axes: tuple[Axis, ...], source: str) -> None:
     for axis in axes:
         for key in axis.keys:
             if key in seen:
-                raise GlshadeError(f"{source}: {key} is set by two axes ({seen[key]} and {axis.name})")
+                raise GlshadeError(
+                    f"{source}: {key} is set by two axes ({seen[key]} and {axis.name})"
+                )
             seen[key] = axis.name

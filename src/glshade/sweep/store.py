@@ -37,20 +37,38 @@ class Output:
 
 
 OUTPUTS = (
-    Output("visibility_px", "px", "the paper's metric (SPEC §6): largest shift of corresponding contours, whole pixels"),
-    Output("visibility_continuous_px", "px", "its limit for a vanishing phase step and pixel size (sub-pixel)"),
+    Output(
+        "visibility_px",
+        "px",
+        "the paper's metric (SPEC §6): largest shift of corresponding contours, whole pixels",
+    ),
+    Output(
+        "visibility_continuous_px",
+        "px",
+        "its limit for a vanishing phase step and pixel size (sub-pixel)",
+    ),
     Output("deflection_px", "px", "largest displacement of the emitter map in the kept columns"),
     Output("folded", "", "the dent's stripe map folds (rows reverse order along a kept column)"),
     Output("islands", "count", "stripe pieces the dent cuts off (never measured)"),
     Output("best_phase_mm", "mm", "stripe phase at which visibility_px was reached"),
     Output("unpaired_contours", "count", "stripes that found no partner at the best phase"),
-    Output("unresolved_fraction", "fraction", "share of kept pixels left out (fewer than 4 px per stripe period)"),
+    Output(
+        "unresolved_fraction",
+        "fraction",
+        "share of kept pixels left out (fewer than 4 px per stripe period)",
+    ),
     Output("offset_dx_px", "px", "registration offset, columns (0 for rendered pairs)"),
     Output("offset_dy_px", "px", "registration offset, rows (0 for rendered pairs)"),
-    Output("noise_floor_px", "px", "the metric between two noisy defect-free exposures (sensor on; else empty)"),
+    Output(
+        "noise_floor_px",
+        "px",
+        "the metric between two noisy defect-free exposures (sensor on; else empty)",
+    ),
     Output("fold_ratio", "", "closed form: the map folds where it exceeds 1 (docs/physics.md)"),
     Output("deflection_law_px", "px", "closed form of deflection_px"),
-    Output("visibility_law_px", "px", "closed form of visibility_continuous_px (fold cap included)"),
+    Output(
+        "visibility_law_px", "px", "closed form of visibility_continuous_px (fold cap included)"
+    ),
 )
 OUTPUT_NAMES = tuple(o.name for o in OUTPUTS)
 MANIFEST = "sweep.json"
@@ -65,9 +83,14 @@ def case_outputs(scene: Scene, result: Visibility) -> dict[str, Any]:
     summary = result.summary()
     law = physics.laws(scene)
     outputs = {name: summary[name] for name in OUTPUT_NAMES[:8]}
-    outputs.update(offset_dx_px=int(result.offset_px[0]), offset_dy_px=int(result.offset_px[1]),
-                   noise_floor_px=summary.get("noise_floor_px"), fold_ratio=_finite(law.fold_ratio, 5),
-                   deflection_law_px=_finite(law.deflection_px, 4), visibility_law_px=_finite(law.visibility_px, 4))
+    outputs.update(
+        offset_dx_px=int(result.offset_px[0]),
+        offset_dy_px=int(result.offset_px[1]),
+        noise_floor_px=summary.get("noise_floor_px"),
+        fold_ratio=_finite(law.fold_ratio, 5),
+        deflection_law_px=_finite(law.deflection_px, 4),
+        visibility_law_px=_finite(law.visibility_px, 4),
+    )
     return outputs
 
 
@@ -80,8 +103,13 @@ def case_path(out_dir: Path, case_id: str) -> Path:
     return Path(out_dir) / "cases" / f"{case_id}.json"
 
 
-def write_case(out_dir: Path, case_id: str, outputs: Mapping[str, Any], seconds: Mapping[str, float],
-               image_png: bytes | None = None) -> None:
+def write_case(
+    out_dir: Path,
+    case_id: str,
+    outputs: Mapping[str, Any],
+    seconds: Mapping[str, float],
+    image_png: bytes | None = None,
+) -> None:
     """A finished case on disk: its image first, its JSON last (the "done" mark)."""
     if image_png is not None:
         atomic_write_bytes(Path(out_dir) / "images" / f"{case_id}.png", image_png, "--out")
@@ -113,8 +141,10 @@ def prepare(out_dir: Path, spec: SweepSpec, overwrite: bool = False) -> None:
     stored = _stored_manifest(out_dir)
     if stored is not None and stored != wanted:
         if not overwrite:
-            raise GlshadeError(f"--out {out_dir}: holds a sweep of {_difference(stored, wanted)}; rerun the same sweep "
-                               "to resume it, add --overwrite to replace it, or choose another --out")
+            raise GlshadeError(
+                f"--out {out_dir}: holds a sweep of {_difference(stored, wanted)}; rerun the same sweep "
+                "to resume it, add --overwrite to replace it, or choose another --out"
+            )
         _remove(out_dir)
     (out_dir / "cases").mkdir(parents=True, exist_ok=True)
     if spec.images:
@@ -149,8 +179,13 @@ def table_manifest(path: Path) -> dict:
 
 
 def _difference(stored: dict, wanted: dict) -> str:
-    names = {"glshade_version": "another glshade version", "metric_version": "another metric version",
-             "base_scene": "another base scene", "size": "another size", "metric": "other metric settings"}
+    names = {
+        "glshade_version": "another glshade version",
+        "metric_version": "another metric version",
+        "base_scene": "another base scene",
+        "size": "another size",
+        "metric": "other metric settings",
+    }
     differing = [key for key in names if stored.get(key) != wanted.get(key)]
     if not differing:
         return "unknown origin (no readable manifest)"
@@ -163,14 +198,18 @@ def _difference(stored: dict, wanted: dict) -> str:
 
 def _remove(out_dir: Path) -> None:
     doomed = [out_dir / name for name in (*SWEEP_FILES, MANIFEST)]
-    doomed += sorted((out_dir / "cases").glob("*.json")) + sorted((out_dir / "images").glob("*.png"))
+    doomed += sorted((out_dir / "cases").glob("*.json")) + sorted(
+        (out_dir / "images").glob("*.png")
+    )
     for path in doomed:
         if path.is_file():
             path.unlink()
 
 
 # --------------------------------------------------------------------------- tables
-def table_rows(spec: SweepSpec, cases: list[SweepCase], records: Mapping[str, dict]) -> list[dict[str, Any]]:
+def table_rows(
+    spec: SweepSpec, cases: list[SweepCase], records: Mapping[str, dict]
+) -> list[dict[str, Any]]:
     """One row per case of the grid that has a record: its id, swept columns, outputs."""
     rows = []
     for case in cases:
@@ -186,8 +225,10 @@ def write_tables(out_dir: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> 
     import pyarrow.parquet as pq
 
     columns = ["case_id", *spec.columns, *OUTPUT_NAMES]
-    table = pa.Table.from_pylist([{name: _cell(row.get(name)) for name in columns} for row in rows],
-                                 schema=_schema(columns, rows))
+    table = pa.Table.from_pylist(
+        [{name: _cell(row.get(name)) for name in columns} for row in rows],
+        schema=_schema(columns, rows),
+    )
     table = table.replace_schema_metadata({b"glshade": json.dumps(spec.manifest()).encode()})
     buffer = io.BytesIO()
     pq.write_table(table, buffer)

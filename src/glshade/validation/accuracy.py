@@ -66,7 +66,12 @@ def default_scenes(size: int = SIZE, surfaces=ALL_SURFACES) -> list[tuple[str, S
     for surface in surfaces:
         for theta in (85.0, 45.0, 15.0, 5.0):
             for kind, sigma2, dmax in (("steep", 1.0, 0.005), ("gentle", 16.0, 0.003)):
-                out.append((f"{surface} θ{theta:g} {kind}", paper_scene(surface, theta, sigma2, dmax).with_size(size)))
+                out.append(
+                    (
+                        f"{surface} θ{theta:g} {kind}",
+                        paper_scene(surface, theta, sigma2, dmax).with_size(size),
+                    )
+                )
     return out
 
 
@@ -100,14 +105,35 @@ def _frame_settings() -> list[tuple[str, str, Callable[[Scene], Scene], RootSolv
     """Every per-frame knob: (knob, label, scene transform, root solver, is the default)."""
     settings: list[tuple[str, str, Callable[[Scene], Scene], RootSolver, bool]] = [
         ("precision", "fp32", lambda s: s, RootSolver(), True),
-        ("precision", "fp64", lambda s: s.updated(render={"precision": "fp64"}), RootSolver(), False),
+        (
+            "precision",
+            "fp64",
+            lambda s: s.updated(render={"precision": "fp64"}),
+            RootSolver(),
+            False,
+        ),
     ]
     for tol in (1e-3, 1e-5, 1e-7):
         for steps in (4, 16, 48):
-            settings.append(("root solve", f"tol {tol:g} mm, {steps} steps", lambda s: s,
-                             RootSolver(march_steps=steps, tolerance_mm=tol), tol == 1e-7 and steps == 48))
+            settings.append(
+                (
+                    "root solve",
+                    f"tol {tol:g} mm, {steps} steps",
+                    lambda s: s,
+                    RootSolver(march_steps=steps, tolerance_mm=tol),
+                    tol == 1e-7 and steps == 48,
+                )
+            )
     for n in (1, 2, 4, 8):
-        settings.append(("supersampling", f"{n}x{n}", lambda s, n=n: s.updated(render={"supersample": n}), RootSolver(), n == 1))
+        settings.append(
+            (
+                "supersampling",
+                f"{n}x{n}",
+                lambda s, n=n: s.updated(render={"supersample": n}),
+                RootSolver(),
+                n == 1,
+            )
+        )
     return settings
 
 
@@ -147,7 +173,9 @@ def frame_knobs(renderer: Renderer, scenes, repeats: int, log) -> tuple[list[Poi
         for name, scene in scenes:
             ref64 = scene.updated(render={"precision": "fp64"})
             ref = converged.render(ref64, outputs)
-            ref_ss = converged.render(ref64.updated(render={"supersample": 16}), ("image",)).image.astype(np.float64)
+            ref_ss = converged.render(
+                ref64.updated(render={"supersample": 16}), ("image",)
+            ).image.astype(np.float64)
             crosscheck.append(_oracle_gap(ref64, ref))
             for knob, label, transform, solver, is_default in settings:
                 r = renderers.get(solver)
@@ -167,9 +195,16 @@ def frame_knobs(renderer: Renderer, scenes, repeats: int, log) -> tuple[list[Poi
         for r in renderers.values():
             r.release()
         converged.release()
-    points = [Point(k, l, statistics.median(times[(k, l)]), worst[(k, l)], defaults[(k, l)]) for k, l in worst]
-    lines = [(f"converged reference vs NumPy fp64 tracer (16x16 window at the centre of each scene): max uv gap "
-              f"{max(crosscheck):.1e} mm over {len(crosscheck)} scenes")]
+    points = [
+        Point(k, l, statistics.median(times[(k, l)]), worst[(k, l)], defaults[(k, l)])
+        for k, l in worst
+    ]
+    lines = [
+        (
+            f"converged reference vs NumPy fp64 tracer (16x16 window at the centre of each scene): max uv gap "
+            f"{max(crosscheck):.1e} mm over {len(crosscheck)} scenes"
+        )
+    ]
     return points, lines
 
 
@@ -183,28 +218,53 @@ def visibility_knobs(renderer: Renderer, repeats: int, log, surfaces=ALL_SURFACE
     settings = vis.MetricSettings()
     truth = {}
     for scene in cases:
-        truth[id(scene)] = measure_scene(renderer, scene.with_size(2048), settings).visibility_continuous_px * 1024 / 2048
+        truth[id(scene)] = (
+            measure_scene(renderer, scene.with_size(2048), settings).visibility_continuous_px
+            * 1024
+            / 2048
+        )
     points = []
     for size in (256, 512, 1024, 2048):
         paper_err, limit_err, seconds = 0.0, 0.0, []
         for scene in cases:
             s = scene.with_size(size)
-            t, result = _median_time(lambda s=s: measure_scene(renderer, s, settings), max(1, repeats // 2))
+            t, result = _median_time(
+                lambda s=s: measure_scene(renderer, s, settings), max(1, repeats // 2)
+            )
             scale = 1024 / size
             paper_err = max(paper_err, abs(result.visibility_px * scale - truth[id(scene)]))
-            limit_err = max(limit_err, abs(result.visibility_continuous_px * scale - truth[id(scene)]))
+            limit_err = max(
+                limit_err, abs(result.visibility_continuous_px * scale - truth[id(scene)])
+            )
             seconds.append(t)
-        points.append(Point("resolution", f"{size}²", statistics.median(seconds),
-                            {"visibility": paper_err, "visibility_continuous": limit_err}, size == 1024))
+        points.append(
+            Point(
+                "resolution",
+                f"{size}²",
+                statistics.median(seconds),
+                {"visibility": paper_err, "visibility_continuous": limit_err},
+                size == 1024,
+            )
+        )
         log(f"visibility: resolution {size}")
     for step in (1.0, 0.5, 0.25, 0.125):
         err, seconds = 0.0, []
         metric = replace(settings, step_mm=step)
         for scene in cases:
-            t, result = _median_time(lambda scene=scene, metric=metric: measure_scene(renderer, scene, metric), 1)
+            t, result = _median_time(
+                lambda scene=scene, metric=metric: measure_scene(renderer, scene, metric), 1
+            )
             err = max(err, abs(result.visibility_px - result.visibility_continuous_px))
             seconds.append(t)
-        points.append(Point("phase step", f"{step:g} mm", statistics.median(seconds), {"visibility": err}, step == 0.25))
+        points.append(
+            Point(
+                "phase step",
+                f"{step:g} mm",
+                statistics.median(seconds),
+                {"visibility": err},
+                step == 0.25,
+            )
+        )
         log(f"visibility: phase step {step:g}")
     return points
 
@@ -231,11 +291,17 @@ def blinn_phong_monte_carlo(scene: Scene, samples: int, seed: int = 1) -> np.nda
         cos_t = u1 ** (1.0 / (n_exp + 1.0))  # pdf ∝ cos^N θ_h dω_h
         sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t**2))
         phi = 2 * np.pi * u2
-        h = (np.cos(phi) * sin_t)[:, None] * e1 + (np.sin(phi) * sin_t)[:, None] * e2 + cos_t[:, None] * n
+        h = (
+            (np.cos(phi) * sin_t)[:, None] * e1
+            + (np.sin(phi) * sin_t)[:, None] * e2
+            + cos_t[:, None] * n
+        )
         wo_h = h @ wo
         l = 2 * wo_h[:, None] * h - wo
         weight = 4 * np.clip(wo_h, 0.0, None)
-        _, v, valid = reference.emitter_coordinates(scene, np.repeat(points[i][None], samples, 0), l)
+        _, v, valid = reference.emitter_coordinates(
+            scene, np.repeat(points[i][None], samples, 0), l
+        )
         radiance = np.where(valid, reference.radiance(scene.emitter, np.nan_to_num(v)), 0.0)
         out[i] = float((weight * radiance).sum() / weight.sum()) if weight.sum() > 0 else 0.0
     return out.reshape(directions.shape[:2])
@@ -246,12 +312,24 @@ def blinn_phong_monte_carlo(scene: Scene, samples: int, seed: int = 1) -> np.nda
 EDGE_MARGIN_MM = 5.0
 
 
-def blinn_phong_knob(renderer: Renderer, repeats: int, log, surfaces=("flat", "sphere")) -> list[Point]:
-    scenes = [paper_scene(s, 45.0, 4.0, 0.005).with_size(24).updated(render={"reflection": "blinn-phong", "shininess": 1e5})
-              for s in surfaces]
+def blinn_phong_knob(
+    renderer: Renderer, repeats: int, log, surfaces=("flat", "sphere")
+) -> list[Point]:
+    scenes = [
+        paper_scene(s, 45.0, 4.0, 0.005)
+        .with_size(24)
+        .updated(render={"reflection": "blinn-phong", "shininess": 1e5})
+        for s in surfaces
+    ]
     truths = [reference.trace(s, ("image", "uv", "mask")) for s in scenes]
-    inside = [t.mask & (np.nan_to_num(np.abs(t.uv), nan=np.inf).max(axis=-1) <= np.array(s.emitter.half_size).min() - EDGE_MARGIN_MM)
-              for s, t in zip(scenes, truths)]
+    inside = [
+        t.mask
+        & (
+            np.nan_to_num(np.abs(t.uv), nan=np.inf).max(axis=-1)
+            <= np.array(s.emitter.half_size).min() - EDGE_MARGIN_MM
+        )
+        for s, t in zip(scenes, truths)
+    ]
 
     def point(label, images, seconds, default=False):
         errors = {"image": 0.0, "image_rms": 0.0, "image_edge": 0.0}
@@ -259,7 +337,9 @@ def blinn_phong_knob(renderer: Renderer, repeats: int, log, surfaces=("flat", "s
             peak, rms = _image_errors(image, truth.image, away)
             errors["image"] = max(errors["image"], peak)
             errors["image_rms"] = max(errors["image_rms"], rms)
-            errors["image_edge"] = max(errors["image_edge"], _image_errors(image, truth.image, truth.mask)[0])
+            errors["image_edge"] = max(
+                errors["image_edge"], _image_errors(image, truth.image, truth.mask)[0]
+            )
         return Point("Blinn-Phong", label, statistics.median(seconds), errors, default)
 
     images, seconds = [], []
@@ -289,8 +369,10 @@ MICROFACET_REFERENCE_SAMPLES = 1 << 18
 
 def microfacet_window(size: int) -> tuple[slice, slice]:
     """The pixels the Monte-Carlo reference covers: 8 rows x 8 columns around the dent."""
-    return (slice(size // 2 - size // 16, size // 2 + size // 16, max(1, size // 64)),
-            slice(size * 3 // 8, size * 5 // 8, max(1, size // 32)))
+    return (
+        slice(size // 2 - size // 16, size // 2 + size // 16, max(1, size // 64)),
+        slice(size * 3 // 8, size * 5 // 8, max(1, size // 32)),
+    )
 
 
 def microfacet_knob(renderer: Renderer, repeats: int, log, size: int = SIZE) -> list[Point]:
@@ -304,8 +386,11 @@ def microfacet_knob(renderer: Renderer, repeats: int, log, size: int = SIZE) -> 
     samples = MICROFACET_REFERENCE_SAMPLES if size >= 128 else 1 << 12
     cases = []
     for lobe, theta in MICROFACET_CASES:
-        scene = paper_scene("flat", theta, 4.0, 0.005).with_size(size).updated(
-            render={"reflection": lobe, "roughness": MICROFACET_ALPHA})
+        scene = (
+            paper_scene("flat", theta, 4.0, 0.005)
+            .with_size(size)
+            .updated(render={"reflection": lobe, "roughness": MICROFACET_ALPHA})
+        )
         parts = registry().active(scene)
         origins, dirs = parts.camera.sample_rays(scene, rows, cols, 1)
         o, d = np.ascontiguousarray(origins.reshape(-1, 3)), dirs.reshape(-1, 3)
@@ -314,9 +399,14 @@ def microfacet_knob(renderer: Renderer, repeats: int, log, size: int = SIZE) -> 
         n = _normals(scene, parts, p[:, 0], p[:, 2])
         truth, error = parts.reflection._monte_carlo(scene, p, d, n, samples, 5)
         cases.append((scene, truth, float(error.max())))
-        log(f"microfacet: reference {lobe} theta {theta:g} (MC standard error <= {error.max():.1e})")
-    settings = [("closed", 1, True)] + [("lattice", k, False) for k in (16, 64, 256, 1024)] + [
-        ("sampling", k, False) for k in (16, 64, 256, 1024)]
+        log(
+            f"microfacet: reference {lobe} theta {theta:g} (MC standard error <= {error.max():.1e})"
+        )
+    settings = (
+        [("closed", 1, True)]
+        + [("lattice", k, False) for k in (16, 64, 256, 1024)]
+        + [("sampling", k, False) for k in (16, 64, 256, 1024)]
+    )
     points = []
     for method, samples, default in settings:
         worst, seconds = 0.0, []
@@ -326,11 +416,21 @@ def microfacet_knob(renderer: Renderer, repeats: int, log, size: int = SIZE) -> 
             t, image = _median_time(lambda chosen=chosen: renderer.render(chosen).image, repeats)
             worst = max(worst, float(np.abs(image[rows, cols].ravel() - truth).max()))
             seconds.append(t)
-        label = "closed form (1 evaluation)" if method == "closed" else f"{method} {samples} samples"
-        points.append(Point("microfacet lobe", label, statistics.median(seconds), {"image": worst}, default))
+        label = (
+            "closed form (1 evaluation)" if method == "closed" else f"{method} {samples} samples"
+        )
+        points.append(
+            Point("microfacet lobe", label, statistics.median(seconds), {"image": worst}, default)
+        )
         log(f"microfacet: {label}")
-    points.append(Point("microfacet lobe", "reference noise (MC standard error, max)", float("nan"),
-                        {"image": max(c[2] for c in cases)}))
+    points.append(
+        Point(
+            "microfacet lobe",
+            "reference noise (MC standard error, max)",
+            float("nan"),
+            {"image": max(c[2] for c in cases)},
+        )
+    )
     return points
 
 
@@ -339,14 +439,22 @@ MAP_SPACINGS = (1.0, 0.5, 0.25, 0.125, 0.0625)
 MAP_EXTENT = (30.0, 50.0)
 
 
-def heightmap_knob(renderer: Renderer, repeats: int, log, directory: Path, size: int = SIZE) -> list[Point]:
+def heightmap_knob(
+    renderer: Renderer, repeats: int, log, directory: Path, size: int = SIZE
+) -> list[Point]:
     """The paper's sphere and cylinder sampled into height maps: the uv error of the
     interpolated map against the analytic surface (fp64 shader of each, on the pixels both
     hit) and the time per frame, against the spacing."""
     from glshade.components.registry import registry
 
-    scenes = [paper_scene(kind, theta, 4.0, 0.005).with_size(size) for kind in ("sphere", "cylinder") for theta in (45.0, 15.0)]
-    truths = [renderer.render(s.updated(render={"precision": "fp64"}), ("uv", "mask")) for s in scenes]
+    scenes = [
+        paper_scene(kind, theta, 4.0, 0.005).with_size(size)
+        for kind in ("sphere", "cylinder")
+        for theta in (45.0, 15.0)
+    ]
+    truths = [
+        renderer.render(s.updated(render={"precision": "fp64"}), ("uv", "mask")) for s in scenes
+    ]
     x = np.arange(-MAP_EXTENT[0], MAP_EXTENT[0] + 1e-9, 1.0)
     points = []
     for spacing in MAP_SPACINGS:
@@ -359,15 +467,25 @@ def heightmap_knob(renderer: Renderer, repeats: int, log, directory: Path, size:
                 path = directory / f"map_{index}_{spacing:g}.npy"
                 if not path.exists():
                     np.save(path, registry().active(scene).surface.height(scene, xx, zz))
-                mapped = scene.updated(surface={"kind": "heightmap", "file": str(path), "spacing": (spacing, spacing)},
-                                       render={"precision": precision})
+                mapped = scene.updated(
+                    surface={"kind": "heightmap", "file": str(path), "spacing": (spacing, spacing)},
+                    render={"precision": precision},
+                )
                 renderer.render(mapped, ("uv", "mask"))
-                t, frame = _median_time(lambda mapped=mapped: renderer.render(mapped, ("uv", "mask")), repeats)
+                t, frame = _median_time(
+                    lambda mapped=mapped: renderer.render(mapped, ("uv", "mask")), repeats
+                )
                 both = truth.mask & frame.mask
                 worst = max(worst, float(np.abs(frame.uv - truth.uv)[both].max()))
                 seconds.append(t)
-            points.append(Point("height-map spacing", f"{spacing:g} mm, {precision} ({len(x)}x{len(z)})",
-                                statistics.median(seconds), {"uv": worst}))
+            points.append(
+                Point(
+                    "height-map spacing",
+                    f"{spacing:g} mm, {precision} ({len(x)}x{len(z)})",
+                    statistics.median(seconds),
+                    {"uv": worst},
+                )
+            )
         log(f"height map: {spacing:g} mm")
     return points
 
@@ -388,7 +506,10 @@ def pareto(points: list[Point], currency: str) -> list[Point]:
     """The points no other point beats, by more than the timing noise, in time or error
     without losing in the other."""
     have = [p for p in points if currency in p.errors]
-    return sorted((p for p in have if not any(_dominates(q, p, currency) for q in have)), key=lambda p: p.seconds)
+    return sorted(
+        (p for p in have if not any(_dominates(q, p, currency) for q in have)),
+        key=lambda p: p.seconds,
+    )
 
 
 def plot(points: list[Point], currency: str, title: str, unit: str, path: Path) -> None:
@@ -406,19 +527,46 @@ def plot(points: list[Point], currency: str, title: str, unit: str, path: Path) 
     labelled = {id(p) for p in front} | {id(p) for p in have if p.default}
     for knob, marker in zip(knobs, markers):
         sel = [p for p in have if p.knob == knob]
-        ax.scatter([p.seconds * 1e3 for p in sel], [max(p.errors[currency], floor / 10) for p in sel], marker=marker, s=40, label=knob)
+        ax.scatter(
+            [p.seconds * 1e3 for p in sel],
+            [max(p.errors[currency], floor / 10) for p in sel],
+            marker=marker,
+            s=40,
+            label=knob,
+        )
     for k, p in enumerate(sorted((p for p in have if id(p) in labelled), key=lambda p: p.seconds)):
-        ax.annotate(p.label + (" (default)" if p.default else ""), (p.seconds * 1e3, max(p.errors[currency], floor / 10)),
-                    fontsize=7, xytext=(4, 4 + 9 * (k % 3)), textcoords="offset points")
-    ax.plot([p.seconds * 1e3 for p in front], [max(p.errors[currency], floor / 10) for p in front], "k--", lw=1, label="Pareto front")
+        ax.annotate(
+            p.label + (" (default)" if p.default else ""),
+            (p.seconds * 1e3, max(p.errors[currency], floor / 10)),
+            fontsize=7,
+            xytext=(4, 4 + 9 * (k % 3)),
+            textcoords="offset points",
+        )
+    ax.plot(
+        [p.seconds * 1e3 for p in front],
+        [max(p.errors[currency], floor / 10) for p in front],
+        "k--",
+        lw=1,
+        label="Pareto front",
+    )
     for p in have:
         if p.default:
-            ax.scatter([p.seconds * 1e3], [max(p.errors[currency], floor / 10)], s=160, facecolors="none", edgecolors="red")
+            ax.scatter(
+                [p.seconds * 1e3],
+                [max(p.errors[currency], floor / 10)],
+                s=160,
+                facecolors="none",
+                edgecolors="red",
+            )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("median time per frame or case (ms)")
     ax.set_ylabel(f"worst error ({unit})")
-    ax.set_title(title + "\n(red ring: shipped default; labels: the Pareto front; every setting in the table)", fontsize=9)
+    ax.set_title(
+        title
+        + "\n(red ring: shipped default; labels: the Pareto front; every setting in the table)",
+        fontsize=9,
+    )
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
     buffer = io.BytesIO()
@@ -428,14 +576,20 @@ def plot(points: list[Point], currency: str, title: str, unit: str, path: Path) 
 
 
 def _table(points: list[Point], currencies: list[tuple[str, str]]) -> list[str]:
-    head = "| knob | setting | ms | " + " | ".join(name for _, name in currencies) + " | on the Pareto front |"
+    head = (
+        "| knob | setting | ms | "
+        + " | ".join(name for _, name in currencies)
+        + " | on the Pareto front |"
+    )
     lines = [head, "|" + "---|" * (4 + len(currencies))]
     fronts = {c: {id(p) for p in pareto(points, c)} for c, _ in currencies}
     for p in points:
         cells = [f"{p.errors[c]:.2e}" if c in p.errors else "—" for c, _ in currencies]
         on = ", ".join(name for c, name in currencies if id(p) in fronts[c]) or "no"
         label = f"**{p.label}** (default)" if p.default else p.label
-        lines.append(f"| {p.knob} | {label} | {p.seconds * 1e3:.1f} | " + " | ".join(cells) + f" | {on} |")
+        lines.append(
+            f"| {p.knob} | {label} | {p.seconds * 1e3:.1f} | " + " | ".join(cells) + f" | {on} |"
+        )
     return lines
 
 
@@ -459,43 +613,87 @@ def stability_table(renderer: Renderer, log) -> tuple[list[str], dict[str, int]]
     return lines, histogram
 
 
-def run(out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=ALL_SURFACES) -> Path:
+def run(
+    out_dir: Path, repeats: int = 5, size: int = SIZE, log=print, surfaces=ALL_SURFACES
+) -> Path:
     """Measure everything and write ``out_dir/accuracy.md`` and its figures; ``surfaces``
     restricts the knobs' scenes (the stability matrix always runs whole)."""
     from glshade.errors import GlshadeError
 
     surfaces = tuple(surfaces)
     if not surfaces or any(s not in ALL_SURFACES for s in surfaces):
-        raise GlshadeError(f"--scenes: must list surface kinds among {', '.join(ALL_SURFACES)}, got {', '.join(surfaces) or 'none'}")
+        raise GlshadeError(
+            f"--scenes: must list surface kinds among {', '.join(ALL_SURFACES)}, got {', '.join(surfaces) or 'none'}"
+        )
     out_dir = Path(out_dir)
     figures = out_dir / "figures"
     figures.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     with Renderer() as renderer:
         gl = renderer.context.info().renderer
-        frame_points, crosscheck = frame_knobs(renderer, default_scenes(size, surfaces), repeats, log)
+        frame_points, crosscheck = frame_knobs(
+            renderer, default_scenes(size, surfaces), repeats, log
+        )
         vis_points = visibility_knobs(renderer, repeats, log, surfaces)
-        bp_points = blinn_phong_knob(renderer, repeats, log, [s for s in surfaces if s in BLINN_PHONG_SURFACES] or ["flat"])
+        bp_points = blinn_phong_knob(
+            renderer, repeats, log, [s for s in surfaces if s in BLINN_PHONG_SURFACES] or ["flat"]
+        )
         lobe_points = microfacet_knob(renderer, repeats, log, size)
         with tempfile.TemporaryDirectory() as maps:
             map_points = heightmap_knob(renderer, repeats, log, Path(maps), size)
         stab_lines, histogram = stability_table(renderer, log)
     frame_and_bp = frame_points + bp_points
-    plot(frame_points, "uv", "uv error against time per frame", "mm on the emitter", figures / "accuracy_uv.png")
-    plot(frame_and_bp, "image", "image error against time per frame", "emitter peak, max", figures / "accuracy_image.png")
-    plot(frame_points, "pixel_image", "pixel-averaging error against time per frame (supersampling)", "emitter peak, max",
-         figures / "accuracy_supersampling.png")
+    plot(
+        frame_points,
+        "uv",
+        "uv error against time per frame",
+        "mm on the emitter",
+        figures / "accuracy_uv.png",
+    )
+    plot(
+        frame_and_bp,
+        "image",
+        "image error against time per frame",
+        "emitter peak, max",
+        figures / "accuracy_image.png",
+    )
+    plot(
+        frame_points,
+        "pixel_image",
+        "pixel-averaging error against time per frame (supersampling)",
+        "emitter peak, max",
+        figures / "accuracy_supersampling.png",
+    )
     timed_lobes = [p for p in lobe_points if np.isfinite(p.seconds)]
-    plot(timed_lobes, "image", "microfacet lobe: image error against time per frame", "emitter peak, max",
-         figures / "accuracy_microfacet.png")
-    plot(vis_points, "visibility", "paper-metric visibility error against time per case", "paper px", figures / "accuracy_visibility.png")
-    plot(map_points, "uv", "height map: uv error against time per frame", "mm on the emitter", figures / "accuracy_heightmap.png")
+    plot(
+        timed_lobes,
+        "image",
+        "microfacet lobe: image error against time per frame",
+        "emitter peak, max",
+        figures / "accuracy_microfacet.png",
+    )
+    plot(
+        vis_points,
+        "visibility",
+        "paper-metric visibility error against time per case",
+        "paper px",
+        figures / "accuracy_visibility.png",
+    )
+    plot(
+        map_points,
+        "uv",
+        "height map: uv error against time per frame",
+        "mm on the emitter",
+        figures / "accuracy_heightmap.png",
+    )
 
     lines = [
         "# Accuracy against run time, and stability",
         "",
-        (f"Generated by `glshade accuracy --out {out_dir}` in {time.perf_counter() - started:.0f} s on "
-         f"{gl} ({platform.machine()}, {repeats} repeats per timing). Method: `glshade.validation.accuracy`'s docstring."),
+        (
+            f"Generated by `glshade accuracy --out {out_dir}` in {time.perf_counter() - started:.0f} s on "
+            f"{gl} ({platform.machine()}, {repeats} repeats per timing). Method: `glshade.validation.accuracy`'s docstring."
+        ),
         "",
         *_frame_section(frame_points, crosscheck, size, surfaces),
         *_visibility_section(vis_points, surfaces),
@@ -517,14 +715,27 @@ def _frame_section(frame_points, crosscheck, size, surfaces) -> list[str]:
     return [
         "## The converged reference",
         "",
-        (f"fp64 shader, root tolerance 1e-14 mm, up to 4096 march steps; 16x16 supersampling for the "
-         f"supersampling knob. {crosscheck[0]}."),
+        (
+            f"fp64 shader, root tolerance 1e-14 mm, up to 4096 march steps; 16x16 supersampling for the "
+            f"supersampling knob. {crosscheck[0]}."
+        ),
         "",
-        (f"## Per frame: precision, root solve, supersampling ({len(default_scenes(size, surfaces))} paper scenes at {size}²: "
-         f"{', '.join(surfaces)}; θ 85, 45, 15, 5; steep σ² 1 / dmax 5 µm and gentle σ² 16 / dmax 3 µm; worst over the scenes)"),
+        (
+            f"## Per frame: precision, root solve, supersampling ({len(default_scenes(size, surfaces))} paper scenes at {size}²: "
+            f"{', '.join(surfaces)}; θ 85, 45, 15, 5; steep σ² 1 / dmax 5 µm and gentle σ² 16 / dmax 3 µm; worst over the scenes)"
+        ),
         "",
-        *_table(frame_points, [("uv", "uv max (mm)"), ("uv_edge", "uv max incl. silhouette pixels"), ("image", "image max"),
-                               ("image_rms", "image RMS"), ("pixel_image", "image max vs 16x16"), ("pixel_image_rms", "image RMS vs 16x16")]),
+        *_table(
+            frame_points,
+            [
+                ("uv", "uv max (mm)"),
+                ("uv_edge", "uv max incl. silhouette pixels"),
+                ("image", "image max"),
+                ("image_rms", "image RMS"),
+                ("pixel_image", "image max vs 16x16"),
+                ("pixel_image_rms", "image RMS vs 16x16"),
+            ],
+        ),
         "",
         "![uv error against time](figures/accuracy_uv.png)",
         "",
@@ -550,12 +761,21 @@ def _visibility_section(vis_points, surfaces) -> list[str]:
         "the truth there is the fold's cap, not the deflection). Phase step: the paper's metric against the limit",
         "at 1024². The paper's metric counts whole pixels of contour shift, so neither a finer step nor a larger",
         "image brings it much closer than half a pixel of the sensor: its error is quantisation. The limit is",
-        "computed with sub-pixel contours and converges (" + " → ".join(
-            f"{p.errors['visibility_continuous']:.2g}" for p in vis_points
-            if p.knob == "resolution" and p.label != "2048²")
+        "computed with sub-pixel contours and converges ("
+        + " → ".join(
+            f"{p.errors['visibility_continuous']:.2g}"
+            for p in vis_points
+            if p.knob == "resolution" and p.label != "2048²"
+        )
         + " px from 256² to 1024²; docs/metric_convergence.md goes to 4096²).",
         "",
-        *_table(vis_points, [("visibility", "paper metric error (px)"), ("visibility_continuous", "continuous limit error (px)")]),
+        *_table(
+            vis_points,
+            [
+                ("visibility", "paper metric error (px)"),
+                ("visibility_continuous", "continuous limit error (px)"),
+            ],
+        ),
         "",
         "![visibility error against time](figures/accuracy_visibility.png)",
         "",
@@ -572,7 +792,14 @@ def _blinn_phong_section(bp_points) -> list[str]:
         f"lands at least {EDGE_MARGIN_MM:g} mm inside the emitter, and (last column) over all: the closed form does",
         "not see a lobe that straddles the emitter's edge, which the sphere's image shows.",
         "",
-        *_table(bp_points, [("image", "image max"), ("image_rms", "image RMS"), ("image_edge", "image max incl. the edge")]),
+        *_table(
+            bp_points,
+            [
+                ("image", "image max"),
+                ("image_rms", "image RMS"),
+                ("image_edge", "image max incl. the edge"),
+            ],
+        ),
         "",
     ]
 
@@ -607,13 +834,15 @@ def _heightmap_section(map_points, size) -> list[str]:
     return [
         "## Height maps: the spacing to choose",
         "",
-        (f"The paper's sphere and cylinder (R 70 mm) at θ 45 and 15, {size}², sampled on a ±{MAP_EXTENT[0]:g} × "
-         f"±{MAP_EXTENT[1]:g} mm grid and rendered as height maps (bicubic Catmull-Rom), against the analytic surface "
-         "(fp64 shader) on the pixels both hit; worst over the four scenes, median time per frame. The interpolant's "
-         f"slope error falls as the spacing squared: in fp64 by {ratios} per halving. In fp32 it stops falling at "
-         f"about {min(fp32):.1g} mm, the spline's float arithmetic at the grazing view (the analytic sphere's fp32 "
-         "shader errs by about 1.4e-4 mm on the same pixels): below the spacing where the two meet, a finer map costs "
-         "memory and buys nothing in fp32, and fp64 is the way to a closer match."),
+        (
+            f"The paper's sphere and cylinder (R 70 mm) at θ 45 and 15, {size}², sampled on a ±{MAP_EXTENT[0]:g} × "
+            f"±{MAP_EXTENT[1]:g} mm grid and rendered as height maps (bicubic Catmull-Rom), against the analytic surface "
+            "(fp64 shader) on the pixels both hit; worst over the four scenes, median time per frame. The interpolant's "
+            f"slope error falls as the spacing squared: in fp64 by {ratios} per halving. In fp32 it stops falling at "
+            f"about {min(fp32):.1g} mm, the spline's float arithmetic at the grazing view (the analytic sphere's fp32 "
+            "shader errs by about 1.4e-4 mm on the same pixels): below the spacing where the two meet, a finer map costs "
+            "memory and buys nothing in fp32, and fp64 is the way to a closer match."
+        ),
         "",
         *_table(map_points, [("uv", "uv max (mm)")]),
         "",
@@ -654,7 +883,9 @@ def defaults_section(frame_points, vis_points, bp_points) -> list[str]:
         for p in points:
             if p.default and currency in p.errors:
                 where = "on the Pareto front" if id(p) in front else "not on the Pareto front"
-                out.append(f"- {p.knob}: **{p.label}** ({what}): {p.errors[currency]:.2e} in {p.seconds * 1e3:.1f} ms, {where}.")
+                out.append(
+                    f"- {p.knob}: **{p.label}** ({what}): {p.errors[currency]:.2e} in {p.seconds * 1e3:.1f} ms, {where}."
+                )
     out += [
         "- fp32 is the default: it meets issue 2's 5e-4 mm uv goal on the paper's scenes at about 60 % of",
         "  fp64's time; fp64 is the reference, six orders of magnitude closer, for the extreme cases below.",

@@ -69,14 +69,18 @@ def run(
     return timings, gl_renderer
 
 
-def report(timings: list[Timing], gl_renderer: str, size: int, theta_deg: float, repeats: int) -> str:
+def report(
+    timings: list[Timing], gl_renderer: str, size: int, theta_deg: float, repeats: int
+) -> str:
     """A markdown table with the ratios the issue asks for."""
     reference = timings[-1].seconds
     fp32 = timings[0].seconds
     lines = [
         f"Scene: paper flat, theta {theta_deg:g} deg, sigma2 4 mm², dmax 0.005 mm, {size}x{size}, image only.",
-        (f"GL renderer: {gl_renderer}; CPU: {platform.processor() or platform.machine()}; "
-         f"median of {repeats} frames after a warm-up."),
+        (
+            f"GL renderer: {gl_renderer}; CPU: {platform.processor() or platform.machine()}; "
+            f"median of {repeats} frames after a warm-up."
+        ),
         "",
         "| renderer | ms / frame | Mpixel/s | vs NumPy reference | vs shader fp32 |",
         "|---|---:|---:|---:|---:|",

@@ -56,31 +56,114 @@ def cases() -> list[Case]:
     for theta in (0.5, 1.0, 2.0, 89.0, 89.9):
         out.append(Case(f"flat theta {theta:g}", "view", flat.updated(camera={"theta_deg": theta})))
     out.append(Case("sphere theta 1", "view", sphere.updated(camera={"theta_deg": 1.0})))
-    for sigma2, dmax in ((0.01, 0.005), (0.01, 0.5), (400.0, 0.005), (400.0, 0.5), (4.0, 1e-6), (4.0, 0.5), (1.0, 0.02)):
-        out.append(Case(f"flat sigma2 {sigma2:g} dmax {dmax:g}", "dent", flat.updated(defect={"sigma2": sigma2, "dmax": dmax})))
-    out.append(Case("flat bump dmax -0.5 sigma2 1", "dent", flat.updated(defect={"sigma2": 1.0, "dmax": -0.5})))
-    out.append(Case("flat bump dmax -1e-6", "dent", flat.updated(defect={"sigma2": 4.0, "dmax": -1e-6})))
-    out.append(Case("grazing steep bump", "dent", flat.updated(camera={"theta_deg": 2.0}, defect={"sigma2": 0.25, "dmax": -0.05}),
-                    "the ray can skim over the bump's top"))
-    out.append(Case("folding: steep dent at 5 deg", "dent", flat.updated(camera={"theta_deg": 5.0}, defect={"sigma2": 0.05, "dmax": 0.02})))
+    for sigma2, dmax in (
+        (0.01, 0.005),
+        (0.01, 0.5),
+        (400.0, 0.005),
+        (400.0, 0.5),
+        (4.0, 1e-6),
+        (4.0, 0.5),
+        (1.0, 0.02),
+    ):
+        out.append(
+            Case(
+                f"flat sigma2 {sigma2:g} dmax {dmax:g}",
+                "dent",
+                flat.updated(defect={"sigma2": sigma2, "dmax": dmax}),
+            )
+        )
+    out.append(
+        Case(
+            "flat bump dmax -0.5 sigma2 1",
+            "dent",
+            flat.updated(defect={"sigma2": 1.0, "dmax": -0.5}),
+        )
+    )
+    out.append(
+        Case("flat bump dmax -1e-6", "dent", flat.updated(defect={"sigma2": 4.0, "dmax": -1e-6}))
+    )
+    out.append(
+        Case(
+            "grazing steep bump",
+            "dent",
+            flat.updated(camera={"theta_deg": 2.0}, defect={"sigma2": 0.25, "dmax": -0.05}),
+            "the ray can skim over the bump's top",
+        )
+    )
+    out.append(
+        Case(
+            "folding: steep dent at 5 deg",
+            "dent",
+            flat.updated(camera={"theta_deg": 5.0}, defect={"sigma2": 0.05, "dmax": 0.02}),
+        )
+    )
     near_singular = Defect(dmax=0.005, sigma_x2=1.0, sigma_z2=1.0, sigma_xz=1.0 - 1e-6)
-    out.append(Case("covariance condition 1e6", "covariance", _with(flat, defect=near_singular),
-                    "a ridge 1.4 µm wide with slope 3.5: 1e-7 mm of fp32 position error tilts the normal by "
-                    "2.5e-4 rad; use fp64", uv_tolerance_fp32=2e-2))
-    out.append(Case("defect far off axis", "covariance", flat.updated(defect={"x0": 12.0, "z0": -9.0}),
-                    "the centre view shows only the defect's far tail"))
-    out.append(Case("sphere, defect far off axis", "covariance", sphere.updated(defect={"x0": 10.0, "z0": 8.0})))
+    out.append(
+        Case(
+            "covariance condition 1e6",
+            "covariance",
+            _with(flat, defect=near_singular),
+            "a ridge 1.4 µm wide with slope 3.5: 1e-7 mm of fp32 position error tilts the normal by "
+            "2.5e-4 rad; use fp64",
+            uv_tolerance_fp32=2e-2,
+        )
+    )
+    out.append(
+        Case(
+            "defect far off axis",
+            "covariance",
+            flat.updated(defect={"x0": 12.0, "z0": -9.0}),
+            "the centre view shows only the defect's far tail",
+        )
+    )
+    out.append(
+        Case(
+            "sphere, defect far off axis",
+            "covariance",
+            sphere.updated(defect={"x0": 10.0, "z0": 8.0}),
+        )
+    )
     for radius in (5.0, -5.0, 1e5, -1e5):
-        out.append(Case(f"sphere R {radius:g}", "radius", sphere.updated(surface={"radius": radius})))
-        out.append(Case(f"cylinder R {radius:g}", "radius", cylinder.updated(surface={"radius": radius})))
-    out.append(Case("cylinder x-axis R 5 at 15 deg", "radius", cylinder.updated(surface={"radius": 5.0, "axis": "x"}, camera={"theta_deg": 15.0})))
-    out.append(Case("sphere R 20 at 5 deg (silhouette)", "silhouette", sphere.updated(surface={"radius": 20.0}, camera={"theta_deg": 5.0}),
-                    "rays graze the silhouette: the hit moves ~1/cos(incidence) per unit of ray error",
-                    uv_tolerance_fp32=2e-3))
-    out.append(Case("concave bowl R -20 at 30 deg", "silhouette", sphere.updated(surface={"radius": -20.0}, camera={"theta_deg": 30.0})))
-    out.append(Case("tiny emitter 0.5 mm", "emitter", flat.updated(emitter={"half_size": [0.5, 0.5]})))
-    out.append(Case("emitter edge-on (sphere R 5 at 85 deg)", "emitter", sphere.updated(surface={"radius": 5.0}, camera={"theta_deg": 85.0}),
-                    "reflected rays sweep past the emitter's plane"))
+        out.append(
+            Case(f"sphere R {radius:g}", "radius", sphere.updated(surface={"radius": radius}))
+        )
+        out.append(
+            Case(f"cylinder R {radius:g}", "radius", cylinder.updated(surface={"radius": radius}))
+        )
+    out.append(
+        Case(
+            "cylinder x-axis R 5 at 15 deg",
+            "radius",
+            cylinder.updated(surface={"radius": 5.0, "axis": "x"}, camera={"theta_deg": 15.0}),
+        )
+    )
+    out.append(
+        Case(
+            "sphere R 20 at 5 deg (silhouette)",
+            "silhouette",
+            sphere.updated(surface={"radius": 20.0}, camera={"theta_deg": 5.0}),
+            "rays graze the silhouette: the hit moves ~1/cos(incidence) per unit of ray error",
+            uv_tolerance_fp32=2e-3,
+        )
+    )
+    out.append(
+        Case(
+            "concave bowl R -20 at 30 deg",
+            "silhouette",
+            sphere.updated(surface={"radius": -20.0}, camera={"theta_deg": 30.0}),
+        )
+    )
+    out.append(
+        Case("tiny emitter 0.5 mm", "emitter", flat.updated(emitter={"half_size": [0.5, 0.5]}))
+    )
+    out.append(
+        Case(
+            "emitter edge-on (sphere R 5 at 85 deg)",
+            "emitter",
+            sphere.updated(surface={"radius": 5.0}, camera={"theta_deg": 85.0}),
+            "reflected rays sweep past the emitter's plane",
+        )
+    )
     return out
 
 
@@ -100,12 +183,12 @@ class Check:
     precision: str
     pixels: int
     emitter_pixels: int
-    nonfinite: int            # NaN/Inf inside the mask, or in the image anywhere
-    mask_mismatch: int        # pixels whose emitter hit disagrees with the oracle
-    surface_mismatch: int     # pixels whose surface hit disagrees with the oracle
-    distance_error: float     # max |distance - oracle t| / t where both reach the emitter
-    distance_error_all: float # the same over every pixel where both hit the surface
-    uv_error_mm: float        # max over pixels both reach the emitter
+    nonfinite: int  # NaN/Inf inside the mask, or in the image anywhere
+    mask_mismatch: int  # pixels whose emitter hit disagrees with the oracle
+    surface_mismatch: int  # pixels whose surface hit disagrees with the oracle
+    distance_error: float  # max |distance - oracle t| / t where both reach the emitter
+    distance_error_all: float  # the same over every pixel where both hit the surface
+    uv_error_mm: float  # max over pixels both reach the emitter
     image_error: float
     max_iterations: int
     iteration_histogram: tuple[int, ...]
@@ -114,7 +197,9 @@ class Check:
 OUTPUTS = ("image", "uv", "mask", "distance", "iterations")
 
 
-def check(renderer: Renderer, case: Case, view: str, precision: str, scene: Scene | None = None) -> Check:
+def check(
+    renderer: Renderer, case: Case, view: str, precision: str, scene: Scene | None = None
+) -> Check:
     scene = (scene or views(case.scene)[view]).updated(render={"precision": precision})
     frame: Frame = renderer.render(scene, OUTPUTS)
     expected = reference.trace(scene, ("image", "uv", "mask"))
@@ -141,7 +226,9 @@ def check(renderer: Renderer, case: Case, view: str, precision: str, scene: Scen
         distance_error=_relative(frame.distance, t, both_hit & both),
         distance_error_all=_relative(frame.distance, t, both_hit),
         uv_error_mm=float(np.abs(frame.uv[both] - expected.uv[both]).max()) if both.any() else 0.0,
-        image_error=float(np.abs(frame.image[both] - expected.image[both]).max()) if both.any() else 0.0,
+        image_error=float(np.abs(frame.image[both] - expected.image[both]).max())
+        if both.any()
+        else 0.0,
         max_iterations=int(iterations.max()),
         iteration_histogram=tuple(np.bincount(iterations.ravel()).tolist()),
     )

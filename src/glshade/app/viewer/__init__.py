@@ -45,7 +45,9 @@ def run(options: ViewerOptions) -> dict:
         import moderngl_window  # noqa: F401
         from imgui_bundle import imgui  # noqa: F401
     except ImportError as exc:
-        raise GlshadeError(f"the viewer needs the viewer extra ({exc.name} is missing): pip install \"glshade[viewer]\"") from None
+        raise GlshadeError(
+            f'the viewer needs the viewer extra ({exc.name} is missing): pip install "glshade[viewer]"'
+        ) from None
     _check_display()
     from glshade.app.viewer import window
 
@@ -53,14 +55,18 @@ def run(options: ViewerOptions) -> dict:
         return window.run(options)
     except Exception as exc:  # pyglet's display errors have no common importable base
         if type(exc).__name__ in _DISPLAY_ERRORS:
-            raise GlshadeError(f"the viewer cannot open a window ({' '.join(str(exc).split())}); {_NO_DISPLAY_HINT}") from None
+            raise GlshadeError(
+                f"the viewer cannot open a window ({' '.join(str(exc).split())}); {_NO_DISPLAY_HINT}"
+            ) from None
         raise
 
 
 #: pyglet's exceptions for "no display" and "no usable GL configuration on it".
 _DISPLAY_ERRORS = ("NoSuchDisplayException", "NoSuchConfigException", "NoSuchScreenModeException")
-_NO_DISPLAY_HINT = ("run it on a desktop, or under a virtual display: xvfb-run -a glshade view … "
-                    "(Debian: apt-get install xvfb xauth)")
+_NO_DISPLAY_HINT = (
+    "run it on a desktop, or under a virtual display: xvfb-run -a glshade view … "
+    "(Debian: apt-get install xvfb xauth)"
+)
 
 
 def _check_display() -> None:
@@ -68,8 +74,12 @@ def _check_display() -> None:
     import os
     import sys
 
-    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise GlshadeError(f"the viewer needs a display and none is set (DISPLAY is empty); {_NO_DISPLAY_HINT}")
+    if sys.platform.startswith("linux") and not (
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    ):
+        raise GlshadeError(
+            f"the viewer needs a display and none is set (DISPLAY is empty); {_NO_DISPLAY_HINT}"
+        )
 
 
 __all__ = [

@@ -98,7 +98,9 @@ def apply_setting(scene: Scene, name: str, value, slider: bool = False) -> Scene
     control = by_name(name)
     if control is None:
         allowed = [*controls(), *choices(), "concave"]
-        raise GlshadeError(f"--set {name}: unknown setting; allowed: {', '.join(allowed)} or a dotted path")
+        raise GlshadeError(
+            f"--set {name}: unknown setting; allowed: {', '.join(allowed)} or a dotted path"
+        )
     path = control.param.path
     if isinstance(control, Choice):
         if value not in control.allowed:

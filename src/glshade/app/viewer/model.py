@@ -24,16 +24,16 @@ class Readout:
     current phase, and the whole case (SPEC §6) measured by the same pipeline as
     ``glshade paper`` and ``glshade measure``."""
 
-    at_phase_px: float | None = None       # the paper's metric at the phase shown
+    at_phase_px: float | None = None  # the paper's metric at the phase shown
     at_phase_islands: int | None = None
-    visibility_px: float | None = None     # the paper's metric over the phase sweep
+    visibility_px: float | None = None  # the paper's metric over the phase sweep
     best_phase_mm: float | None = None
-    continuous_px: float | None = None     # its continuous limit
+    continuous_px: float | None = None  # its continuous limit
     deflection_px: float | None = None
     folded: bool | None = None
     islands: int | None = None
     phase_for: tuple | None = None
-    error: str | None = None               # why this geometry cannot be measured
+    error: str | None = None  # why this geometry cannot be measured
 
 
 def readout_lines(r: Readout) -> list[str]:
@@ -90,7 +90,7 @@ class ViewerModel:
     animate: bool = False
     phase_speed_periods: float = 0.5  # periods per second when animating
     settings: vis.MetricSettings = field(default_factory=vis.MetricSettings)  # as glshade paper
-    v0: np.ndarray | None = None      # traced emitter maps (v only), defect-free and defect
+    v0: np.ndarray | None = None  # traced emitter maps (v only), defect-free and defect
     v1: np.ndarray | None = None
     uv1: np.ndarray | None = None
     displacement: np.ndarray | None = None
@@ -131,14 +131,20 @@ class ViewerModel:
     def reset(self) -> None:
         cam = self.scene.camera
         kind = self.scene.surface.kind
-        scene = paper_scene(kind) if kind in PAPER_SURFACES else paper_scene().with_value("surface.kind", kind)
+        scene = (
+            paper_scene(kind)
+            if kind in PAPER_SURFACES
+            else paper_scene().with_value("surface.kind", kind)
+        )
         self.scene = scene.with_size(cam.width)
         self.view, self.animate = "image", False
 
     def advance(self, seconds: float) -> None:
         if self.animate:
             period = self.scene.emitter.period
-            self.scene = self.scene.with_phase((self.scene.emitter.phase + self.phase_speed_periods * period * seconds) % period)
+            self.scene = self.scene.with_phase(
+                (self.scene.emitter.phase + self.phase_speed_periods * period * seconds) % period
+            )
 
     @property
     def needs_trace(self) -> bool:
@@ -229,7 +235,10 @@ class ViewerModel:
             elif trace == self.traces:
                 r = self.readout
                 r.visibility_px, r.best_phase_mm = result.visibility_px, result.best_phase_mm
-                r.continuous_px, r.deflection_px = result.visibility_continuous_px, result.deflection_px
+                r.continuous_px, r.deflection_px = (
+                    result.visibility_continuous_px,
+                    result.deflection_px,
+                )
                 r.folded, r.islands = result.folded, result.islands
                 self.displacement = result.displacement_px
                 self._case_done = True
@@ -240,7 +249,10 @@ class ViewerModel:
                 self.readout.error = error
                 self.readout.phase_for = key
             elif key[0] == self.traces:
-                self.readout.at_phase_px, self.readout.at_phase_islands = result.distance_px, result.islands
+                self.readout.at_phase_px, self.readout.at_phase_islands = (
+                    result.distance_px,
+                    result.islands,
+                )
                 self.readout.phase_for = key
 
     def start_metrics(self) -> None:
@@ -257,7 +269,9 @@ class ViewerModel:
         key = (trace, self.scene.emitter.phase)
         if self._phase_job is None and self.readout.phase_for != key:
             phase = self.scene.emitter.phase
-            self._phase_job = self._pool.submit(_attempt, key, lambda: baseline.get().at_phase(v1, phase))
+            self._phase_job = self._pool.submit(
+                _attempt, key, lambda: baseline.get().at_phase(v1, phase)
+            )
 
     def wait_for_metrics(self, timeout_s: float = 60.0) -> None:
         """Block until the jobs in flight are done and collected (tests, scripted runs)."""

@@ -25,7 +25,9 @@ def draw_panel(model: ViewerModel, left: int, height: int, status: dict) -> None
     imgui.new_frame()
     imgui.set_next_window_pos(imgui.ImVec2(left, 0))
     imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, height))
-    flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+    flags = (
+        imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+    )
     imgui.begin("glshade", flags=flags)
     params = panel_params(model.scene)
     for table in PANEL_TABLES:
@@ -47,8 +49,14 @@ def _parameter(model: ViewerModel, param: Param) -> None:
     elif param.value_type == "choice":
         _combo(model, param.flag.lstrip("-") if param.flag else param.key, scene.value(param.path))
     elif param.path == "emitter.phase":
-        changed, value = imgui.slider_float("phase", float(scene.emitter.phase), 0.0, float(scene.emitter.period),
-                                            "%.3f mm", imgui.SliderFlags_.always_clamp)
+        changed, value = imgui.slider_float(
+            "phase",
+            float(scene.emitter.phase),
+            0.0,
+            float(scene.emitter.period),
+            "%.3f mm",
+            imgui.SliderFlags_.always_clamp,
+        )
         if changed:
             model.set("phase", value)
         _, model.animate = imgui.checkbox("animate phase", model.animate)
@@ -66,7 +74,9 @@ def _parameter(model: ViewerModel, param: Param) -> None:
 def _text_field(model: ViewerModel, param: Param) -> None:
     """A formula or a file path: edited in place, applied on Enter (refusals are shown)."""
     value = model.scene.value(param.path) or ""
-    changed, text = imgui.input_text(param.key, str(value), imgui.InputTextFlags_.enter_returns_true)
+    changed, text = imgui.input_text(
+        param.key, str(value), imgui.InputTextFlags_.enter_returns_true
+    )
     if changed and text != value:
         model.set_value(param.path, text)
 
@@ -92,7 +102,9 @@ def _slider(model: ViewerModel, name: str, value) -> None:
     if c.param.value_type == "integer":
         changed, new = imgui.slider_int(name, int(value), int(c.lo), int(c.hi), "%d", flags)
     else:
-        changed, new = imgui.slider_float(name, float(value), float(c.lo), float(c.hi), c.fmt, flags)
+        changed, new = imgui.slider_float(
+            name, float(value), float(c.lo), float(c.hi), c.fmt, flags
+        )
     if changed:
         model.set(name, new, slider=True)
 
@@ -112,8 +124,10 @@ def _view_and_readout(model: ViewerModel, status: dict) -> None:
     for line in readout_lines(model.readout):
         imgui.text(line)
     if model.readout.folded:
-        imgui.text_colored(imgui.ImVec4(1.0, 0.6, 0.2, 1.0),
-                           f"the stripe map folds: {model.readout.islands} islands (not measured)")
+        imgui.text_colored(
+            imgui.ImVec4(1.0, 0.6, 0.2, 1.0),
+            f"the stripe map folds: {model.readout.islands} islands (not measured)",
+        )
     if model.view == "displacement":
         imgui.text(f"colour scale: 0 (dark) to {status['scale_top']:.2f} px (yellow)")
     imgui.text_wrapped(status["hover"] or "hover over the image")

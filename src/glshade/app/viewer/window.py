@@ -39,7 +39,9 @@ class ViewerWindow(mglw.WindowConfig):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.model = ViewerModel(self.options.scene, view=self.options.view, animate=self.options.animate)
+        self.model = ViewerModel(
+            self.options.scene, view=self.options.view, animate=self.options.animate
+        )
         self.renderer = Renderer(GLContext.wrap(self.ctx))
         self.program = self.ctx.program(
             vertex_shader=render_template("viewer_display.vert.glsl"),
@@ -59,8 +61,8 @@ class ViewerWindow(mglw.WindowConfig):
     def _textures(self) -> None:
         cam = self.options.scene.camera
         w, h = cam.width, cam.height
-        self.tex_uv = self.ctx.texture((w, h), 2, dtype="f4")       # the scene's uv map
-        self.tex_uv0 = self.ctx.texture((w, h), 2, dtype="f4")      # its defect-free twin's
+        self.tex_uv = self.ctx.texture((w, h), 2, dtype="f4")  # the scene's uv map
+        self.tex_uv0 = self.ctx.texture((w, h), 2, dtype="f4")  # its defect-free twin's
         self.tex_gray = self.ctx.texture((w, h), 1, dtype="f4")
         self.tex_rgba = self.ctx.texture((w, h), 4, dtype="f1")
         self.shown_uv = self.tex_uv
@@ -93,7 +95,9 @@ class ViewerWindow(mglw.WindowConfig):
             self.shown_uv = self.tex_uv if m.view == "image" else self.tex_uv0
             m.reshades += 1
             return 0
-        image = self.renderer.render(scene).image  # Blinn-Phong, supersampling, or the defect-free view
+        image = self.renderer.render(
+            scene
+        ).image  # Blinn-Phong, supersampling, or the defect-free view
         self.wnd.fbo.use()
         self.tex_gray.write(np.ascontiguousarray(image).tobytes())
         return 1
@@ -128,8 +132,15 @@ class ViewerWindow(mglw.WindowConfig):
         self.wnd.fbo.use()
         self.ctx.clear(0.12, 0.12, 0.12)
         self.ctx.viewport = (0, self.wnd.buffer_size[1] - cam.height, cam.width, cam.height)
-        values = (("u_mode", self.mode), ("u_period", emitter.period), ("u_stripe_sigma", emitter.sigma_mm),
-                  ("u_phase", emitter.phase), ("u_uv", 0), ("u_gray", 1), ("u_rgba", 2))
+        values = (
+            ("u_mode", self.mode),
+            ("u_period", emitter.period),
+            ("u_stripe_sigma", emitter.sigma_mm),
+            ("u_phase", emitter.phase),
+            ("u_uv", 0),
+            ("u_gray", 1),
+            ("u_rgba", 2),
+        )
         self.shown_uv.use(0)
         self.tex_gray.use(1)
         self.tex_rgba.use(2)
@@ -146,7 +157,9 @@ class ViewerWindow(mglw.WindowConfig):
     def on_key_event(self, key, action, modifiers):
         if self.gui is not None:
             self.gui.key_event(key, action, modifiers)
-        if action != self.wnd.keys.ACTION_PRESS or (self.gui is not None and imgui.get_io().want_capture_keyboard):
+        if action != self.wnd.keys.ACTION_PRESS or (
+            self.gui is not None and imgui.get_io().want_capture_keyboard
+        ):
             return
         keys, out_dir = self.wnd.keys, self.options.out_dir
         if key in (keys.S, keys.T):
@@ -198,7 +211,9 @@ class ViewerWindow(mglw.WindowConfig):
     # ------------------------------------------------------------ end
     def screenshot(self, path: Path) -> Path:
         width, height = self.wnd.buffer_size
-        pixels = np.frombuffer(self.wnd.fbo.read(viewport=(0, 0, width, height), components=3), np.uint8)
+        pixels = np.frombuffer(
+            self.wnd.fbo.read(viewport=(0, 0, width, height), components=3), np.uint8
+        )
         write_png(path, np.ascontiguousarray(pixels.reshape(height, width, 3)[::-1]))
         return Path(path)
 
@@ -233,8 +248,12 @@ def make_app(options: ViewerOptions) -> tuple[type[ViewerWindow], dict]:
     panel_width = PANEL_WIDTH if options.panel else 0
     stats: dict = {"frames": 0, "seconds": 0.0, "traces": 0, "reshades": 0}
     size = (cam.width + panel_width, max(cam.height, 560 if panel_width else 0))
-    attributes = {"options": options, "stats": stats, "window_size": size,
-                  "log_level": logging.WARNING}  # moderngl-window's INFO lines are not the user's business
+    attributes = {
+        "options": options,
+        "stats": stats,
+        "window_size": size,
+        "log_level": logging.WARNING,
+    }  # moderngl-window's INFO lines are not the user's business
     return type("ViewerApp", (ViewerWindow,), attributes), stats
 
 
