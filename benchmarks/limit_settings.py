@@ -16,7 +16,7 @@ import numpy as np
 
 from glshade.gpu.renderer import Renderer
 from glshade.metrics.continuous import StripeLevels, visibility_limit
-from glshade.metrics.measurement import emitter_map
+from glshade.measure.single import emitter_map
 from glshade.metrics.visibility import Baseline
 from glshade.scene import paper_scene
 

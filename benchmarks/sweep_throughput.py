@@ -25,8 +25,9 @@ import time
 from pathlib import Path
 
 from glshade.process import reuse_freed_memory
-from glshade.sweep.distributed import DaskExecutor
-from glshade.sweep.run import Distribution, LocalExecutor, run_sweep
+from glshade.measure.cluster import DaskExecutor
+from glshade.measure.executors import Distribution, LocalExecutor
+from glshade.sweep.run import run_sweep
 from glshade.sweep.spec import load_spec, spec_from_dict
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "paper_study.toml"

@@ -1,10 +1,14 @@
 #version 450
-// glshade fragment shader: one camera pixel per fragment (SPEC §5). Composed per scene
-// from the files under shaders/; only the code the scene needs is in it. The active
-// components (glshade.components) name the files: "preamble" (precision) and "stages"
-// (camera, surface, defect and first hit, emitter, reflection), in that order.
+// glshade fragment shader: one camera pixel per fragment. Composed per scene from the
+// files the active components name, and nothing else: the preamble (the render slot's
+// precision), then each slot's header (shaders/slots: what its component must define)
+// followed by its component's files (camera, surface, defect and first hit, emitter,
+// reflection, Fresnel), in that order; the shared library (shaders/lib) where they use it.
 {$ for file in preamble $}
 {$ include file $}
+{$ endfor $}
+{$ for header in preamble_headers $}
+{$ include header $}
 {$ endfor $}
 
 {$ for name in outputs $}
@@ -23,8 +27,13 @@ layout(location = {{ loop.index0 }}) out float out_iterations; // evaluations of
 {$ endif $}
 {$ endfor $}
 
-{$ for file in stages $}
+{$ for stage in stages $}
+{$ if stage.header $}
+{$ include stage.header $}
+{$ endif $}
+{$ for file in stage.files $}
 {$ include file $}
+{$ endfor $}
 {$ endfor $}
 
 {$ if "distance" in outputs $}
@@ -61,7 +70,7 @@ bool trace(real col, real row, int k, out float radiance, out real2 uv) {
 }
 
 {$ if supersample $}
-uniform int u_supersample;                   // rays per pixel side
+uniform int u_render_supersample;            // rays per pixel side
 {$ endif $}
 
 void main() {
@@ -83,7 +92,7 @@ void main() {
     // samples); radiance averages all, uv the ones that reach the emitter.
     int hits = 0;
 {$ if supersample $}
-    int side = u_supersample;
+    int side = u_render_supersample;
 {$ else $}
     const int side = 1;
 {$ endif $}

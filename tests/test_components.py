@@ -26,11 +26,11 @@ import numpy as np
 import pytest
 from tests.plugins.surface_tilted import Tilted
 
-from glshade.app import cli
-from glshade.components.base import UniformFrame
+from glshade.app import args, cli
+from glshade.components.base import UniformContext
 from glshade.components.registry import registry
 from glshade.frame import OUTPUTS
-from glshade.gpu.compose import ShaderFeatures, component_files, compose, shader_dir
+from glshade.gpu.compose import ShaderFeatures, compose, glsl_sources, stages
 from glshade.gpu.renderer import RootSolver, scene_uniforms
 from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
@@ -106,8 +106,10 @@ def check_uniforms(renderer, component) -> None:
             assert active <= set(provided), (
                 f"{features.selected()}: not provided {active - set(provided)}"
             )
-            frame = UniformFrame(scene.local_origin(), features.template_variables(), RootSolver())
-            own = set(component.uniforms(scene, frame))
+            context = UniformContext(
+                scene.local_origin(), features.template_variables(), RootSolver()
+            )
+            own = set(component.uniforms(scene, context))
             assert own <= active, (
                 f"{component!r} provides uniforms its GLSL does not use: {own - active}"
             )
@@ -141,7 +143,7 @@ def check_oracle(renderer, component, precision: str, seed: int = 7) -> None:
         assert inner.sum() > 50, f"too few rays reach the emitter: {scene.title()}"
         error = np.abs(shader.uv - oracle.uv).max(axis=-1)[inner].max()
         assert error <= UV_TOL[precision], f"{scene.title()}: uv error {error:.3g} mm"
-        if registry().active(scene).reflection.shades_from_v:
+        if scene.active.reflection.mirror_only:
             assert (
                 np.abs(shader.image - oracle.image)[inner].max()
                 <= {"fp32": 2e-3, "fp64": 1e-5}[precision]
@@ -195,19 +197,19 @@ def check_round_trip(component, tmp_path) -> None:
         path = tmp_path / f"{param.table}-{param.key}.toml"
         scene.save(path)
         assert Scene.load(path) == scene, param.path
-        parsed_path, parsed = cli.parse_setting(f"{param.path}={_as_text(value)}")
+        parsed_path, parsed = args.parse_setting(f"{param.path}={_as_text(value)}")
         assert base.with_value(parsed_path, parsed) == scene, param.path
 
 
-def _unique_lines(directories=()) -> dict[str, set[str]]:
-    """Per GLSL file (under shaders/ and ``directories``): its code lines no other file has."""
-    paths = [p for d in (shader_dir(), *map(Path, directories)) for p in sorted(d.glob("*.glsl"))]
-    files = {p.name: p.read_text() for p in paths}
+def _unique_lines() -> dict[str, set[str]]:
+    """Per GLSL file the composer can use (the template's, the library's, the slot
+    headers' and every registered component's): its code lines no other file has."""
+    files = {name: path.read_text() for name, path in glsl_sources().items()}
     lines = {
         name: {
             ln.strip()
             for ln in text.splitlines()
-            if len(ln.strip()) > 12 and not ln.strip().startswith(("//", "{$"))
+            if len(ln.strip()) > 12 and not ln.strip().startswith(("//", "{$", "{#"))
         }
         for name, text in files.items()
     }
@@ -219,18 +221,19 @@ def _unique_lines(directories=()) -> dict[str, set[str]]:
 
 def check_absent_code(scene: Scene, outputs) -> None:
     features = ShaderFeatures.from_scene(scene, outputs)
-    preamble, stages, directories = component_files(features)
+    parts = stages(features)
     source = {line.strip() for line in compose(features)[1].splitlines()}
-    named = set(preamble) | set(stages)
-    for name, unique in _unique_lines(directories).items():
-        if name.startswith(("deflectometry.", "fullscreen.", "viewer_")) or not unique:
+    named = {f for s in parts for f in (*s.files, *((s.header,) if s.header else ()))}
+    for name, unique in _unique_lines().items():
+        if name.startswith(("deflectometry.", "fullscreen.", "viewer_", "slots/")) or not unique:
             continue
         found = unique & source
         if name in named:
             assert found, f"{name} is named for {features.selected()} but absent"
         else:
             assert not found, (
-                f"{name} is not needed by {features.selected()} but in its source: {sorted(found)[:2]}"
+                f"{name} is not needed by {features.selected()} but in its source: "
+                f"{sorted(found)[:2]}"
             )
 
 
@@ -273,12 +276,12 @@ def test_a_missing_uniform_is_an_error_not_a_zero(renderer):
     class Forgetful(Tilted):
         name = "forgetful"
 
-        def uniforms(self, scene, frame):
-            return {"u_tilt_slope": 0.0}  # u_tilt_z0 forgotten
+        def uniforms(self, scene, context):
+            return {"u_surface_slope": 0.0}  # u_surface_z0 forgotten
 
     with registry().registered(Forgetful()):
         scene = paper_scene().with_size(8).with_value("surface.kind", "forgetful")
-        with pytest.raises(Exception, match="u_tilt_z0"):
+        with pytest.raises(Exception, match="u_surface_z0"):
             renderer.render(scene)
 
 
@@ -357,9 +360,10 @@ def test_a_toy_surface_plugs_in_without_touching_glshade(renderer, tmp_path):
 
 
 def test_sweeps_group_cases_by_program():
-    """A sweep over θ, σ², dmax and the surface needs one program per surface and defect
-    variant, whatever the number of cases."""
-    from glshade.gpu.compose import group_by_program
+    """A sweep over θ, σ², dmax and the surface: the engine measures the cases of one
+    geometry together (one defect-free analysis each) and the geometries of one program
+    next to each other (the program compiled once), whatever the number of cases."""
+    from glshade.measure.engine import Case, geometry_key, grouped, program_key
 
     scenes = [
         paper_scene(surface, theta, sigma2, dmax)
@@ -368,17 +372,20 @@ def test_sweeps_group_cases_by_program():
         for sigma2 in (1.0, 4.0)
         for dmax in (0.0, 0.003, 0.005)
     ]
-    groups = group_by_program(scenes, ("uv",))
-    assert len(groups) == 4  # (flat, sphere) x (no defect, isotropic dent)
-    assert sorted(i for members in groups.values() for i in members) == list(range(len(scenes)))
-    for features, members in groups.items():
-        assert {ShaderFeatures.from_scene(scenes[i], ("uv",)) for i in members} == {features}
+    groups = grouped([Case(i, scene) for i, scene in enumerate(scenes)])
+    assert len(groups) == 8  # (flat, sphere) x θ x σ²: the defect-free scene keeps σ²
+    assert sorted(c.key for group in groups for c in group) == list(range(len(scenes)))
+    for group in groups:
+        assert len({geometry_key(c.scene) for c in group}) == 1
+    order = [program_key(group[0].scene) for group in groups]
+    runs = [key for i, key in enumerate(order) if i == 0 or key != order[i - 1]]
+    assert len(runs) == len(set(runs)) == 2  # one run of geometries per surface's program
 
 
 def test_metrics_and_plans_import_without_gl():
     """Only glshade.gpu and glshade.app load moderngl."""
     code = (
-        "import sys, glshade, glshade.metrics.visibility, glshade.metrics.measurement, glshade.oracle.tracer, "
+        "import sys, glshade, glshade.metrics.visibility, glshade.measure.single, glshade.oracle.tracer, "
         "glshade.scene.schema_doc, glshade.metrics.physics, glshade.study.plan, glshade.study.store, "
         "glshade.study.findings, glshade.components.registry; glshade.components.registry.registry(); "
         "print('moderngl' in sys.modules)"

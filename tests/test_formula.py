@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from glshade.components.registry import registry
 from glshade.errors import SceneError
-from glshade.formula import (
+from glshade.components.surface.formula.grammar import (
     MAX_LENGTH,
     FormulaError,
     check_parameter_name,
@@ -210,13 +210,13 @@ def test_random_text_is_refused_or_prints_only_safe_glsl(text):
     for code in formula.glsl():
         assert re.fullmatch(r"[A-Za-z0-9_ .()*/+\-,?:<>=!]*", code), code
         words = set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", re.sub(r"\d+\.?\d*e[+-]?\d+", "", code)))
-        assert words <= _GLSL_WORDS | {"p_a", "p_b"}, words
+        assert words <= _GLSL_WORDS | {"u_surface_p_a", "u_surface_p_b"}, words
 
 
 _PROGRAM = """
 #version 450
-uniform float p_a;
-uniform float p_b;
+uniform float u_surface_p_a;
+uniform float u_surface_p_b;
 uniform vec4 u_box;   // x0, z0, dx, dz
 out vec4 value;
 void main() {
@@ -243,7 +243,7 @@ def test_the_printed_glsl_compiles_and_agrees_with_numpy(gl_context, text):
     formula = parse_formula(text, {"a": 0.002, "b": 5.0})
     with gl_context.current() as ctx:
         program = ctx.program(vertex_shader=_VERTEX, fragment_shader=_PROGRAM % formula.glsl())
-        for name, value in (("p_a", 0.002), ("p_b", 5.0)):
+        for name, value in (("u_surface_p_a", 0.002), ("u_surface_p_b", 5.0)):
             if name in program:
                 program[name].value = value
         program["u_box"].value = (-3.1, -2.9, 0.37, 0.41)

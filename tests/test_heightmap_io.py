@@ -13,9 +13,9 @@ import pytest
 import tifffile
 import x3pio
 
-from glshade import heightmap_io
+from glshade.components.surface.heightmap import readers as heightmap_io
 from glshade.errors import SceneError
-from glshade.heightmap_io import (
+from glshade.components.surface.heightmap.readers import (
     HeightMap,
     cached_height_map,
     load_height_map,

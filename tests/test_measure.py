@@ -14,7 +14,7 @@ import glshade
 from glshade.app.viewer import ViewerModel
 from glshade.files import read_png
 from glshade.gpu.renderer import Renderer
-from glshade.metrics.measurement import measure_scene
+from glshade.measure.single import measure_scene
 from glshade.scene import paper_scene
 
 KEYS = (

@@ -20,10 +20,10 @@ import numpy as np
 import pytest
 from tests.test_components import check_absent_code
 
-from glshade.components.camera_model import distort, undistort
+from glshade.components.camera.perspective.optics import distort, undistort
 from glshade.components.registry import registry
 from glshade.errors import SceneError
-from glshade.metrics.measurement import measure_scene, shades_from_map
+from glshade.measure.single import measure_scene, shades_from_map
 from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
 
@@ -384,7 +384,7 @@ def test_each_feature_brings_its_code_and_nothing_else(renderer, name):
 
 # ------------------------------------------------------------------ the finding-3 study
 def test_finding3_study_writes_its_report_and_the_study_quotes_it(tmp_path):
-    from glshade.study import optics
+    from glshade.study import finding3 as optics
 
     chosen = (optics.VARIANTS[0], optics.VARIANTS[4], optics.VARIANTS[5])  # mirror, Fresnel, sensor
     report = optics.run(

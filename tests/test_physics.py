@@ -8,7 +8,7 @@ import pytest
 
 from glshade.metrics import physics
 from glshade.metrics.continuous import deflection, fold_columns
-from glshade.metrics.measurement import emitter_map, measure_scene
+from glshade.measure.single import emitter_map, measure_scene
 from glshade.metrics.visibility import kept_columns
 from glshade.scene import paper_scene
 from glshade.study.plan import PAPER_DMAXS, PAPER_SIGMA2S, PAPER_THETAS
@@ -144,8 +144,8 @@ def test_results_columns_are_documented():
     """docs/results.md holds the table generated from the study's column schema."""
     from pathlib import Path
 
-    from glshade.study.store import CSV_COLUMNS, columns_markdown
+    from glshade.study.store import CSV_COLUMNS, results_markdown
 
     doc = (Path(__file__).parents[1] / "docs" / "results.md").read_text()
-    assert columns_markdown() in doc
+    assert results_markdown() in doc
     assert all(f"| `{name}` |" in doc for name in CSV_COLUMNS)

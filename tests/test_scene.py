@@ -46,20 +46,33 @@ def test_geometry_follows_spec():
     assert frame.centre @ frame.e_v == pytest.approx(0.0, abs=1e-12)
 
 
-def test_view_matrix_matches_basis():
+def test_the_rig_pose_agrees_with_a_look_at_matrix():
+    """The camera's pose from the rig (:mod:`glshade.rig`) against pyrr's look-at view
+    matrix built from its position alone: its columns hold right, up and -forward."""
     import numpy as np
+    import pyrr
 
-    cam = Camera(theta_deg=20.0)
-    forward, right, up = cam.basis()
-    view = cam.view_matrix()
-    np.testing.assert_allclose(view[:3, 0], right, atol=1e-12)
-    np.testing.assert_allclose(view[:3, 1], up, atol=1e-12)
-    np.testing.assert_allclose(view[:3, 2], -forward, atol=1e-12)
-    # the principal point maps to the camera origin, the gazing point onto the axis
-    np.testing.assert_allclose(np.append(cam.position(), 1.0) @ view, [0, 0, 0, 1], atol=1e-9)
-    np.testing.assert_allclose(
-        (np.array([0.0, 0.0, 0.0, 1.0]) @ view)[:3], [0, 0, -cam.distance], atol=1e-9
-    )
+    for azimuth in (0.0, 30.0, -120.0):
+        cam = Camera(theta_deg=20.0, azimuth_deg=azimuth)
+        forward, right, up = cam.basis()
+        view = np.asarray(pyrr.matrix44.create_look_at(cam.position(), np.zeros(3), [0, 1, 0]))
+        np.testing.assert_allclose(view[:3, 0], right, atol=1e-12)
+        np.testing.assert_allclose(view[:3, 1], up, atol=1e-12)
+        np.testing.assert_allclose(view[:3, 2], -forward, atol=1e-12)
+        # the principal point maps to the camera origin, the gazing point onto the axis
+        np.testing.assert_allclose(np.append(cam.position(), 1.0) @ view, [0, 0, 0, 1], atol=1e-9)
+        gaze = (np.array([0.0, 0.0, 0.0, 1.0]) @ view)[:3]
+        np.testing.assert_allclose(gaze, [0, 0, -cam.distance], atol=1e-9)
+
+
+def test_the_orbit_raises_and_turns_the_rig_within_its_range():
+    from glshade.rig import ORBIT_THETA_DEG, orbit
+
+    assert orbit(45.0, 0.0, 0.0, -40.0) == (55.0, 0.0)  # dragged up 40 px: 10 deg higher
+    assert orbit(45.0, 170.0, 80.0, 0.0) == (45.0, -170.0)  # wraps into (-180, 180]
+    assert orbit(45.0, -170.0, -40.0, 0.0) == (45.0, 180.0)
+    assert orbit(5.0, 0.0, 0.0, 1000.0)[0] == ORBIT_THETA_DEG[0]
+    assert orbit(85.0, 0.0, 0.0, -1000.0)[0] == ORBIT_THETA_DEG[1]
 
 
 def test_resampling_keeps_field_of_view():

@@ -25,17 +25,23 @@ from glshade.scene import Defect, RenderSettings, paper_scene
 MARKERS = {
     "flat": ["real base_height(real3 p) { return 0.0; }"],
     "curved": ["first_crossing("],
-    "sphere": ["sphere_xz", "u_axis_xz"],
-    "cylinder": ["cyl_across", "u_axis_off"],
-    "cylinder_z": ["return p.x + u_axis_off"],
-    "cylinder_x": ["return p.z + u_axis_off"],
-    "dent": ["u_dmax", "surface_gap", "u_newton_iterations", "u_march_steps", "real dent("],
-    "isotropic": ["u_inv_sigma2"],
-    "full": ["u_cov_axis", "u_inv_var"],
-    "blinn_phong": ["u_shininess", "Blinn-Phong"],
+    "sphere": ["sphere_xz", "u_surface_axis_xz"],
+    "cylinder": ["cyl_across", "u_surface_axis_off"],
+    "cylinder_z": ["return p.x + u_surface_axis_off"],
+    "cylinder_x": ["return p.z + u_surface_axis_off"],
+    "dent": [
+        "u_defect_dmax",
+        "surface_gap",
+        "u_defect_newton_iterations",
+        "u_defect_march_steps",
+        "real dent(",
+    ],
+    "isotropic": ["u_defect_inv_sigma2"],
+    "full": ["u_defect_axis", "u_defect_inv_var"],
+    "blinn_phong": ["u_reflection_shininess", "Blinn-Phong"],
     "fp64": ["double", "dvec3", "lf"],
-    "supersample": ["u_supersample"],
-    "image": ["out_image", "float shade(", "float stripes(", "u_stripe_sigma"],
+    "supersample": ["u_render_supersample"],
+    "image": ["out_image", "float shade(", "float stripes(", "u_emitter_sigma"],
     "uv": ["out_uv"],
     "mask": ["out_mask"],
     "distance": ["out_distance", "hit_distance"],
@@ -59,7 +65,7 @@ def test_flat_scene_has_no_curved_surface_code():
     src = source(paper_scene("flat"))
     assert present(src, "flat")
     assert absent(src, "sphere") and absent(src, "cylinder") and absent(src, "curved")
-    assert "u_radius" not in src
+    assert "u_surface_radius" not in src
 
 
 def test_sphere_scene_has_no_cylinder_or_flat_code():
@@ -141,13 +147,13 @@ def test_features_come_from_scene_values():
     f = ShaderFeatures.from_scene(paper_scene("cylinder", 5.0, 9.0, -0.002), ("uv", "image"))
     assert f.selected() == {
         "render": "sampling",
-        "camera": "camera",
+        "camera": "perspective",
         "surface": "cylinder",
         "defect": "gaussian",
         "emitter": "stripes",
         "reflection": "mirror",
         "fresnel": "none",
-        "sensor": "sensor",
+        "sensor": "linear",
     }
     assert dict(f.variables) == {
         "cylinder_axis": "z",
@@ -157,6 +163,8 @@ def test_features_come_from_scene_values():
         "aperture": False,
         "distortion": False,
         "coherence": False,
+        "blur": "none",
+        "diffuse": False,
         "fresnel": False,
     }
     assert f.outputs == ("image", "uv")

@@ -9,7 +9,7 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
-from glshade.metrics.measurement import measure_scene
+from glshade.measure.single import measure_scene
 from glshade.study import findings
 from glshade.study.plan import StudyPlan
 from glshade.study.run import run_study

@@ -11,8 +11,8 @@ import sys
 import numpy as np
 import pytest
 
-from glshade.components.surface_heightmap import catmull_rom, map_bounds
-from glshade.metrics.measurement import measure_scene
+from glshade.components.surface.heightmap import catmull_rom, map_bounds
+from glshade.measure.single import measure_scene
 from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
 

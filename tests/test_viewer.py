@@ -24,7 +24,7 @@ from glshade.app.viewer import (
 from glshade.errors import GlshadeError, SceneError
 from glshade.files import read_png
 from glshade.gpu.renderer import render
-from glshade.metrics.measurement import measure
+from glshade.measure.single import measure
 from glshade.metrics.visibility import Visibility
 from glshade.scene import paper_scene
 

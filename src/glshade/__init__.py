@@ -9,14 +9,14 @@ in degrees. Start with :func:`paper_scene`, :class:`Renderer` and :func:`measure
     result = glshade.measure(glshade.paper_scene("flat", theta_deg=5, sigma2=1.0, dmax=0.005))
     result.visibility_px, result.visibility_continuous_px, result.deflection_px
 
-Importing ``glshade`` (or its ``scene``, ``metrics``, ``oracle`` and ``study`` planning
-modules) needs no GL: :class:`Renderer` and :func:`measure` load ``glshade.gpu`` (and
-moderngl) on first use.
+Importing ``glshade`` or ``glshade.scene`` and building scenes needs neither OpenGL nor
+OpenCV; the ``metrics``, ``oracle`` and ``study`` planning modules need no GL.
+:class:`Renderer` and :func:`measure` load ``glshade.gpu`` (and moderngl) on first use,
+:class:`MetricSettings` and :class:`Visibility` the metric (and OpenCV).
 """
 
 from glshade.errors import ContextError, GlshadeError, SceneError, ShaderCompileError
 from glshade.frame import Frame
-from glshade.metrics.visibility import MetricSettings, Visibility
 from glshade.scene import (
     Camera,
     Defect,
@@ -31,12 +31,18 @@ __version__ = "0.1.0"
 
 _LAZY = {
     "Renderer": ("glshade.gpu.renderer", "Renderer"),
-    "measure": ("glshade.metrics.measurement", "measure"),
+    "MetricSettings": ("glshade.metrics.visibility", "MetricSettings"),
+    "Visibility": ("glshade.metrics.visibility", "Visibility"),
 }
 
 
 def __getattr__(name: str):
-    """``Renderer`` and ``measure`` on first use (they need moderngl)."""
+    """``Renderer`` and ``measure`` on first use (they need moderngl): ``measure`` is the
+    measuring package, callable as ``glshade.measure(scene)``."""
+    if name == "measure":
+        import importlib
+
+        return importlib.import_module("glshade.measure")
     if name in _LAZY:
         import importlib
 

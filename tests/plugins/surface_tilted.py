@@ -1,38 +1,41 @@
-"""A toy surface component, written the way a contributor adds one: this module and one
-GLSL file (``surface_tilted.glsl`` beside it). The plane ``y = tan(tilt) z``."""
+"""A toy surface component, written the way a contributor adds one: this module (its
+parameters as a table dataclass, its uniforms, its oracle) and one GLSL file
+(``surface_tilted.glsl`` beside it, defining what ``shaders/slots/surface.glsl``
+declares). The plane ``y = tan(tilt) z``."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from glshade.components.base import SurfaceComponent
-from glshade.scene.params import Control, Param
+from glshade.params import Control, Table, param
 
-TILT = Param(
-    "surface.tilt_deg",
-    "deg",
-    0.0,
-    "tilt of the plane about the x axis (toy)",
-    lo=-30.0,
-    hi=30.0,
-    control=Control("tilt", -10.0, 10.0, fmt="%.2f deg"),
-)
+
+@dataclass(frozen=True)
+class TiltedTable(Table):
+    table = "surface"
+
+    tilt_deg: float = param(
+        "surface.tilt_deg", "deg", 0.0, "tilt of the plane about the x axis (toy)",
+        lo=-30.0, hi=30.0, control=Control("tilt", -10.0, 10.0, fmt="%.2f deg"),
+    )  # fmt: skip
 
 
 class Tilted(SurfaceComponent):
     name = "tilted"
     doc = "the plane y = tan(tilt) z (a test plug-in)"
-    params = (TILT,)
+    table = TiltedTable
     glsl_dir = Path(__file__).parent
 
     def glsl(self, variables):
         return ("surface_tilted.glsl",)
 
-    def uniforms(self, scene, frame):
-        return {"u_tilt_slope": self._slope(scene), "u_tilt_z0": float(frame.origin[2])}
+    def uniforms(self, scene, context):
+        return {"u_surface_slope": self._slope(scene), "u_surface_z0": float(context.origin[2])}
 
     @staticmethod
     def _slope(scene) -> float:

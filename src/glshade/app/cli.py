@@ -16,146 +16,27 @@ import time
 from pathlib import Path
 
 from glshade import __version__
-from glshade.components.registry import registry
-from glshade.errors import GlshadeError, ShaderCompileError, printable
+from glshade.app.args import (
+    EXIT_USAGE,
+    Parser,
+    add_metric_flags,
+    add_scene_flags,
+    metric_settings,
+    one_line,
+    path_arg,
+    quantity_list,
+    scene_from_args,
+    warn,
+)
+from glshade.app.cli_sweep import add_optimize, add_sweep
+from glshade.errors import GlshadeError, ShaderCompileError
 from glshade.files import atomic_write_bytes, check_output
+from glshade.oracle.advice import scene_warnings
 from glshade.process import reuse_freed_memory
-from glshade.scene import PAPER_SURFACES, Camera, Scene, paper_scene
-from glshade.scene.advice import scene_warnings
-from glshade.scene.params import Param
+from glshade.scene import Camera, Scene, paper_scene
 
-EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 SCENE_FORMAT = "docs/scene-format.md"
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse that reports a usage error as one line (exit 2), like every other error."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(EXIT_USAGE, f"glshade: error: {one_line(message)} (see '{self.prog} --help')\n")
-
-
-def _add_scene_flags(p: argparse.ArgumentParser) -> None:
-    """The scene file and the flags that override it (render and measure): a short flag
-    for each parameter that declares one, ``--set PATH=VALUE`` for any parameter."""
-    p.add_argument("scene", nargs="?", type=_path, help="scene file (TOML)")
-    for param in registry().params():
-        if param.flag is not None:
-            p.add_argument(param.flag, dest=_flag_dest(param), **_flag_options(param))
-    p.add_argument(
-        "--set",
-        dest="settings",
-        action="append",
-        default=[],
-        metavar="PATH=VALUE",
-        help="set any scene parameter by its dotted path, e.g. --set camera.theta_deg=15 "
-        "(see docs/scene-format.md); applied after the short flags",
-    )
-    p.add_argument("--size", type=int, metavar="N", help="N pixels across, same field of view")
-    p.add_argument(
-        "--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)"
-    )
-
-
-def _path(text: str) -> Path:
-    """argparse type of a path: an empty one is refused (``Path("")`` would silently be
-    the current directory)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError("expected a path, got an empty string")
-    return Path(text)
-
-
-def _flag_dest(param: Param) -> str:
-    return "flag_" + param.flag.lstrip("-").replace("-", "_")
-
-
-def _flag_options(param: Param) -> dict[str, object]:
-    """argparse options of a parameter's short flag, from its declaration."""
-    unit = (
-        f" ({param.unit}, or a value with its unit: 5um)"
-        if param.unit == "mm"
-        else (f" ({param.unit})" if param.unit else "")
-    )
-    options: dict[str, object] = {"help": f"{param.path}: {param.doc}{unit}"}
-    if param.value_type == "choice":
-        options["choices"] = registry().choices(param) or param.choices
-    elif param.value_type == "integer":
-        options.update(type=_param_type(param), metavar="N")
-    elif param.value_type == "real":
-        options.update(
-            type=_param_type(param), metavar=(param.unit or "X").upper().replace("²", "2")
-        )
-    elif param.value_type in ("pair", "vector"):
-        count = 2 if param.value_type == "pair" else param.size
-        options.update(type=_param_type(param), metavar=",".join(["X"] * count))
-    return options
-
-
-def _argument_type(name: str, parse):
-    """An argparse type from a glshade parser: its GlshadeError becomes argparse's usage
-    error (one line, exit 2); ``name`` is what argparse calls the type."""
-
-    def parsed(text: str):
-        try:
-            return parse(text)
-        except GlshadeError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
-
-    parsed.__name__ = name
-    return parsed
-
-
-def _param_type(param: Param):
-    """argparse type of a parameter: its text parsed by the declaration (units allowed)."""
-    return _argument_type(param.path, param.parse)
-
-
-def _quantity_list(path: str):
-    """argparse type of a comma-separated list of one parameter's values (units allowed)."""
-    return _argument_type(
-        path,
-        lambda text: [
-            registry().param(path).parse(part) for part in text.split(",") if part.strip()
-        ],
-    )
-
-
-def _length_mm(text: str) -> float:
-    from glshade.units import parse_quantity
-
-    return parse_quantity(text, "mm", "length")
-
-
-def _add_metric_flags(p: argparse.ArgumentParser) -> None:
-    """How visibility is measured (paper and measure)."""
-    p.add_argument(
-        "--step",
-        type=_argument_type("length", _length_mm),
-        default=0.25,
-        metavar="MM",
-        help="phase step of the metric, mm or with a unit (default 0.25)",
-    )
-    p.add_argument(
-        "--threshold",
-        type=float,
-        default=0.5,
-        help="binarisation threshold, fraction of the peak (default 0.5)",
-    )
-    p.add_argument(
-        "--keep-fraction",
-        type=float,
-        default=0.5,
-        help="central fraction of the columns kept (default 0.5)",
-    )
-
-
-def _metric_settings(args: argparse.Namespace):
-    from glshade.metrics.visibility import MetricSettings
-
-    return MetricSettings(
-        threshold=args.threshold, keep_fraction=args.keep_fraction, step_mm=args.step
-    )
 
 
 def _add_render(sub: argparse._SubParsersAction) -> None:
@@ -166,11 +47,11 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
         "or, without one, the paper's scene (flat, theta 45, sigma2 4 mm², dmax 5 µm, 1024²). Flags override "
         "the file; lengths are in mm unless they carry a unit (--dmax 5um).",
     )
-    _add_scene_flags(p)
+    add_scene_flags(p)
     p.add_argument(
         "-o",
         "--output",
-        type=_path,
+        type=path_arg,
         default=Path("render.png"),
         help="image, PNG or TIFF by its extension (default render.png); lossy formats are refused",
     )
@@ -183,13 +64,13 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--uv",
-        type=_path,
+        type=path_arg,
         metavar="UV.npy",
         help="also write the uv map (float32 H×W×2, mm, NaN = no hit)",
     )
     p.add_argument(
         "--save-scene",
-        type=_path,
+        type=path_arg,
         metavar="SCENE.toml",
         help="also write the effective scene as TOML",
     )
@@ -205,12 +86,12 @@ def _add_measure(sub: argparse._SubParsersAction) -> None:
         "(deflection_px), whether the stripe map folds, its islands and the best phase, beside the closed forms "
         "(docs/physics.md). Scene and flags as for render.",
     )
-    _add_scene_flags(p)
-    _add_metric_flags(p)
+    add_scene_flags(p)
+    add_metric_flags(p)
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     p.add_argument(
         "--overlay",
-        type=_path,
+        type=path_arg,
         metavar="PNG",
         help="also write the Fig. 9 contour overlay at the best phase",
     )
@@ -222,17 +103,16 @@ def _cmd_measure(args: argparse.Namespace) -> int:
 
     from glshade.gpu.context import GLContext
     from glshade.gpu.renderer import Renderer
-    from glshade.metrics import physics
-    from glshade.metrics.measurement import measure_scene
+    from glshade.measure.record import Measurement
+    from glshade.measure.single import measure_scene
 
     scene = scene_from_args(args)
-    settings = _metric_settings(args)
-    settings.phases(
-        scene.emitter.period
-    )  # a step longer than the period is refused before rendering
+    settings = metric_settings(args)
+    # a step longer than the period is refused before rendering
+    settings.phases(scene.active.emitter.pattern(scene).period_mm)
     if args.overlay is not None:
         check_output(args.overlay, "--overlay", (".png",))
-    _warn(scene_warnings(scene))
+    warn(scene_warnings(scene))
     start = time.perf_counter()
     with (
         GLContext(device_index=args.device) as context,
@@ -240,49 +120,46 @@ def _cmd_measure(args: argparse.Namespace) -> int:
     ):
         result = measure_scene(renderer, scene, settings, overlay=args.overlay)
     seconds = time.perf_counter() - start
-    law = physics.laws(scene)
+    record = Measurement.of(scene, result)
     if args.json:
-        out = {
-            **result.summary(),
-            "scene": scene.title(),
-            "size": [scene.camera.width, scene.camera.height],
-            "laws": {
-                "deflection_px": _finite(law.deflection_px),
-                "visibility_px": _finite(law.visibility_px),
-                "fold_ratio": _finite(law.fold_ratio),
-                "magnification": _finite(law.magnification),
-            },
-            "seconds": round(seconds, 3),
-        }
+        size = [scene.camera.width, scene.camera.height]
+        out = {**record.outputs(), "scene": scene.title(), "size": size, "seconds": round(seconds, 3)}
         print(json.dumps(out))
         return 0
-    cam = scene.camera
-    print(
-        f"{scene.title()} ({cam.width}x{cam.height}, {scene.render.precision}, {scene.render.reflection})"
-    )
-    print(
-        f"  visibility_px             {result.visibility_px:g}  (the paper's metric, best phase {result.best_phase_mm:g} mm)"
-    )
-    print(
-        f"  visibility_continuous_px  {result.visibility_continuous_px:.2f}  (its limit: finer phase step and pixels)"
-    )
-    print(f"  deflection_px             {result.deflection_px:.2f}  (how far the rays move)")
-    fold = f"yes, {result.islands} islands at most" if result.folded else "no"
-    print(f"  folded                    {fold}")
-    print(
-        f"  closed forms              deflection {law.deflection_px:.2f} px, visible {law.visibility_px:.2f} px, "
-        f"fold ratio {law.fold_ratio:.2f} (folds above 1)"
-    )
+    _print_measurement(scene, record)
     if args.overlay is not None:
         print(f"  wrote {args.overlay}")
     return 0
 
 
-def _finite(value: float) -> float | None:
-    """JSON has no NaN: a number, or null."""
-    import math
+def _print_measurement(scene: Scene, record) -> None:
+    """The record as a small table, each number with what it means."""
+    cam = scene.camera
+    print(
+        f"{scene.title()} ({cam.width}x{cam.height}, {scene.render.precision}, "
+        f"{scene.render.reflection})"
+    )
+    print(
+        f"  visibility_px             {record.visibility_px:g}  (the paper's metric, best phase "
+        f"{record.best_phase_mm:g} mm)"
+    )
+    print(
+        f"  visibility_continuous_px  {record.visibility_continuous_px:.2f}  (its limit: finer "
+        "phase step and pixels)"
+    )
+    print(f"  deflection_px             {record.deflection_px:.2f}  (how far the rays move)")
+    fold = f"yes, {record.islands} islands at most" if record.folded else "no"
+    print(f"  folded                    {fold}")
+    laws = [
+        f"deflection {_number(record.deflection_law_px)} px",
+        f"visible {_number(record.visibility_law_px)} px",
+        f"fold ratio {_number(record.fold_ratio)} (folds above 1)",
+    ]
+    print(f"  closed forms              {', '.join(laws)}")
 
-    return round(value, 5) if math.isfinite(value) else None
+
+def _number(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.2f}"
 
 
 def _add_info(sub: argparse._SubParsersAction) -> None:
@@ -309,7 +186,7 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--out",
-        type=_path,
+        type=path_arg,
         default=Path("paper_study"),
         metavar="DIR",
         help="output directory (default paper_study)",
@@ -322,19 +199,19 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--thetas",
-        type=_quantity_list("camera.theta_deg"),
+        type=quantity_list("camera.theta_deg"),
         metavar="LIST",
         help="camera elevations, degrees, strictly decreasing (default 85,75,…,5)",
     )
     p.add_argument(
         "--sigma2s",
-        type=_quantity_list("defect.sigma2"),
+        type=quantity_list("defect.sigma2"),
         metavar="LIST",
         help="defect variances, mm² or with a unit (default 1,4,9,16)",
     )
     p.add_argument(
         "--dmaxs",
-        type=_quantity_list("defect.dmax"),
+        type=quantity_list("defect.dmax"),
         metavar="LIST",
         help="defect depths, mm or with a unit: 0.003,0.005 or 3um,5um (the default)",
     )
@@ -345,7 +222,7 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
         metavar="N",
         help="pixels across, the paper's field of view (default 1024)",
     )
-    _add_metric_flags(p)
+    add_metric_flags(p)
     p.add_argument(
         "--workers",
         type=int,
@@ -361,10 +238,10 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
 def _cmd_paper(args: argparse.Namespace) -> int:
     from glshade.study import plan as study
     from glshade.study.run import check_workers
-    from glshade.study.store import study_lock
+    from glshade.measure.locks import run_lock
 
     check_workers(args.workers)  # before --out is touched
-    metric = _metric_settings(args)
+    metric = metric_settings(args)
     surfaces = tuple(part.strip() for part in args.surfaces.split(",") if part.strip())
     plan = study.StudyPlan(
         surfaces=surfaces,
@@ -374,7 +251,7 @@ def _cmd_paper(args: argparse.Namespace) -> int:
         size=args.size,
         metric=metric,
     )
-    _warn(
+    warn(
         tuple(
             line
             for sigma2 in plan.sigma2s
@@ -382,7 +259,7 @@ def _cmd_paper(args: argparse.Namespace) -> int:
             for line in scene_warnings(plan.scene(plan.surfaces[0], plan.thetas[0], sigma2, dmax))
         )
     )
-    with study_lock(args.out):
+    with run_lock(args.out):
         return _run_paper(args, plan)
 
 
@@ -442,7 +319,7 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
         "Scripted mode: --frames N [--screenshot out.png] [--set theta=5 ...].",
     )
     p.add_argument(
-        "scene", nargs="?", type=_path, help="scene file (TOML); default: the paper's scene"
+        "scene", nargs="?", type=path_arg, help="scene file (TOML); default: the paper's scene"
     )
     p.add_argument(
         "--size",
@@ -460,7 +337,7 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--frames", type=int, metavar="N", help="draw N frames, then exit")
     p.add_argument(
-        "--screenshot", type=_path, metavar="PNG", help="with --frames: save the last frame"
+        "--screenshot", type=path_arg, metavar="PNG", help="with --frames: save the last frame"
     )
     p.add_argument(
         "--benchmark",
@@ -485,7 +362,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
         raise GlshadeError("--screenshot and --benchmark need --frames N")
     if args.screenshot is not None:
         check_output(args.screenshot, "--screenshot", (".png",))
-    _warn(scene_warnings(scene))
+    warn(scene_warnings(scene))
     options = viewer.ViewerOptions(
         scene=scene,
         view=extra.get("view", "image"),
@@ -521,7 +398,7 @@ def _add_accuracy(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--out",
-        type=_path,
+        type=path_arg,
         default=Path("accuracy"),
         metavar="DIR",
         help="output directory (default accuracy)",
@@ -576,7 +453,7 @@ def _add_finding3(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--out",
-        type=_path,
+        type=path_arg,
         default=Path("paper_study"),
         metavar="DIR",
         help="output directory (default paper_study)",
@@ -586,7 +463,7 @@ def _add_finding3(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_finding3(args: argparse.Namespace) -> int:
-    from glshade.study import optics
+    from glshade.study import finding3
 
     if args.out.exists() and not args.out.is_dir():
         raise GlshadeError(f"--out {args.out}: is not a directory")
@@ -595,7 +472,7 @@ def _cmd_finding3(args: argparse.Namespace) -> int:
         raise GlshadeError(
             f"--size: must be at least 256 (the stripes need 4 pixels a period), got {args.size}"
         )
-    path = optics.run(
+    path = finding3.run(
         args.out,
         size=args.size,
         progress=lambda row: print(
@@ -630,12 +507,12 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
+    parser = Parser(
         prog="glshade",
         description="GPU deflectometry simulator (stripe reflections on glossy surfaces).",
     )
     parser.add_argument("--version", action="version", version=f"glshade {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     _add_render(sub)
     _add_measure(sub)
     _add_info(sub)
@@ -644,48 +521,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_accuracy(sub)
     _add_finding3(sub)
     _add_bench(sub)
-    from glshade.app.cli_sweep import add_optimize, add_sweep
-
     add_sweep(sub)
     add_optimize(sub)
     return parser
-
-
-def scene_from_args(args: argparse.Namespace) -> Scene:
-    """The scene a ``render``/``measure`` call describes: the file (or the paper's scene),
-    then the short flags, then ``--set PATH=VALUE`` in order, then ``--size``."""
-    surface = getattr(args, _flag_dest(registry().param("surface.kind")), None)
-    if args.scene is not None:
-        scene = Scene.load(args.scene)
-    else:  # the paper's scene, of the surface asked for when it is one of the paper's
-        scene = paper_scene(surface if surface in PAPER_SURFACES else "flat")
-    tables: dict[str, dict[str, object]] = {}
-    for param in registry().params():
-        value = getattr(args, _flag_dest(param), None) if param.flag is not None else None
-        if value is not None:
-            tables.setdefault(param.table, {})[param.key] = value
-    for item in args.settings:  # later settings win; all are applied at once, so values that
-        path, value = parse_setting(
-            item
-        )  # only make sense together (a kind and its file) can be given
-        table, _, key = path.partition(".")
-        tables.setdefault(table, {})[key] = value
-    scene = scene.updated(**tables)
-    if args.size is not None:
-        scene = scene.with_size(args.size)
-    return scene
-
-
-def parse_setting(item: str) -> tuple[str, object]:
-    """``PATH=VALUE`` -> the parameter's path and its value parsed by its declaration (a
-    SceneError names an unknown path, and the value is checked when it is applied)."""
-    path, sep, text = item.partition("=")
-    path = path.strip()
-    if not sep or "." not in path:
-        raise GlshadeError(
-            f"--set {item!r}: expected PATH=VALUE with a dotted path such as camera.theta_deg=15"
-        )
-    return path, registry().param(path).parse(text)
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
@@ -699,7 +537,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
         check_output(args.uv, "--uv", (".npy",))
     if args.save_scene is not None:
         check_output(args.save_scene, "--save-scene", (".toml",))
-    _warn(scene_warnings(scene))
+    warn(scene_warnings(scene))
     outputs = ("image", "uv") if args.uv is not None else ("image",)
     with (
         GLContext(device_index=args.device) as context,
@@ -719,12 +557,6 @@ def _cmd_render(args: argparse.Namespace) -> int:
         f"{scene.render.precision}, {seconds * 1e3:.0f} ms)"
     )
     return 0
-
-
-def _warn(lines) -> None:
-    """Print each warning once, as one line on stderr."""
-    for line in dict.fromkeys(lines):
-        print(f"glshade: warning: {line}", file=sys.stderr)
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
@@ -784,12 +616,6 @@ def main(argv: list[str] | None = None) -> int:
 def _error(message: str) -> int:
     print(f"glshade: error: {one_line(message)}", file=sys.stderr)
     return EXIT_USAGE
-
-
-def one_line(message: str) -> str:
-    """``message`` on one line: line breaks become spaces, and any other control character
-    (from a file name or an argument) is shown escaped (``\\r``)."""
-    return printable(" ".join(part.strip() for part in message.split("\n") if part.strip()))
 
 
 if __name__ == "__main__":  # pragma: no cover

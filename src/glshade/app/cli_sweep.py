@@ -9,18 +9,19 @@ import sys
 import time
 from pathlib import Path
 
-from glshade.app.cli import (
-    _add_metric_flags,
-    _add_scene_flags,
-    _metric_settings,
-    _path,
-    _warn,
+from glshade.app.args import (
+    add_metric_flags,
+    add_scene_flags,
+    metric_settings,
+    path_arg,
     scene_from_args,
+    warn,
 )
 from glshade.errors import GlshadeError
 from glshade.files import check_output
+from glshade.measure.executors import Distribution, open_executor
+from glshade.oracle.advice import scene_warnings
 from glshade.process import reuse_freed_memory
-from glshade.scene.advice import scene_warnings
 
 #: Pixels across of the optimiser's scenes unless --size says otherwise.
 OPTIMIZE_SIZE = 256
@@ -58,9 +59,7 @@ def _add_distribution_flags(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _distribution(args: argparse.Namespace):
-    from glshade.sweep.run import Distribution
-
+def _distribution(args: argparse.Namespace) -> Distribution:
     return Distribution(
         workers=args.workers,
         scheduler=args.scheduler,
@@ -80,9 +79,9 @@ def add_sweep(sub: argparse._SubParsersAction) -> None:
         "default, on local Dask workers with --workers, or on a cluster with --scheduler; the table is the same. "
         "Rerunning resumes: a case already measured (by the hash of its scene and metric) is never measured again.",
     )
-    p.add_argument("file", type=_path, metavar="FILE.toml", help="the sweep file")
+    p.add_argument("file", type=path_arg, metavar="FILE.toml", help="the sweep file")
     p.add_argument(
-        "--out", type=_path, metavar="DIR", help="output directory (default sweep_<file stem>)"
+        "--out", type=path_arg, metavar="DIR", help="output directory (default sweep_<file stem>)"
     )
     p.add_argument(
         "--size", type=int, metavar="N", help="pixels across, overriding the file's size"
@@ -107,7 +106,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     spec = load_spec(args.file, size=args.size)
     distribution = _distribution(args)
     out = args.out if args.out is not None else Path(f"sweep_{args.file.stem}")
-    _warn(line for case in spec.cases()[:1] for line in scene_warnings(case.scene))
+    warn(line for case in spec.cases()[:1] for line in scene_warnings(case.scene))
     reuse_freed_memory()
     result = run_sweep(
         spec,
@@ -139,7 +138,7 @@ def add_optimize(sub: argparse._SubParsersAction) -> None:
         "machinery, then a bounded Nelder-Mead refinement (docs/sweeps.md). Prints the optimum, its visibility, "
         f"how flat it is; --plot draws the objective. Scenes are rendered at --size (default {OPTIMIZE_SIZE}).",
     )
-    _add_scene_flags(p)
+    add_scene_flags(p)
     p.add_argument(
         "--over",
         required=True,
@@ -179,9 +178,9 @@ def add_optimize(sub: argparse._SubParsersAction) -> None:
         metavar="K",
         help="most refinement evaluations (default 30; 0: none)",
     )
-    p.add_argument("--plot", type=_path, metavar="PNG", help="write the objective's curve or map")
+    p.add_argument("--plot", type=path_arg, metavar="PNG", help="write the objective's curve or map")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    _add_metric_flags(p)
+    add_metric_flags(p)
     _add_distribution_flags(p)
     p.set_defaults(run=_cmd_optimize)
 
@@ -193,8 +192,6 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         parse_family,
         parse_over,
     )
-    from glshade.sweep.run import open_executor
-
     if args.size is None:
         args.size = OPTIMIZE_SIZE
     scene = scene_from_args(args)
@@ -208,9 +205,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     family = parse_family(args.family, args.family_points)
     if args.plot is not None:
         check_output(args.plot, "--plot", (".png",))
-    settings = _metric_settings(args)
+    settings = metric_settings(args)
     distribution = _distribution(args)
-    _warn(scene_warnings(scene))
+    warn(scene_warnings(scene))
     reuse_freed_memory()
     start = time.perf_counter()
     with open_executor(distribution) as executor:

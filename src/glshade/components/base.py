@@ -2,34 +2,44 @@
 
 A component is one kind of one *slot* of the scene: the ``cylinder`` of the ``surface``
 slot, the ``blinn-phong`` of the ``reflection`` slot. In the spirit of Mitsuba 3's
-plugins, it owns, in one module plus its GLSL file(s) under ``shaders/``:
+plugins, it is one folder (``components/<slot>/<name>/``) that owns:
 
-- ``params``: its :class:`~glshade.scene.params.Param` declarations (and ``checks`` over
-  several of them);
+- ``table``: its parameters, a frozen dataclass whose fields are declared with
+  :func:`glshade.params.param` (unit, default, range, role); ``params`` lists them;
 - ``features(scene)``: the template variables its GLSL needs (the key of the program);
-- ``glsl(variables)``: the files it puts into the composed shader, in order;
-- ``uniforms(scene, frame)``: every uniform its GLSL declares, computed in float64;
-- its NumPy float64 oracle: the functions the reference tracer
-  (:mod:`glshade.oracle.tracer`) calls for its slot (listed on each slot's base class
-  below).
+- ``glsl(variables)``: its GLSL files (beside its module; ``lib/...``: the shared
+  library under ``shaders/lib``), which define what its slot's header under
+  ``shaders/slots`` declares;
+- ``uniforms(scene, context)``: every uniform its GLSL declares, computed in float64,
+  each named ``u_<slot>_...`` (its slot's namespace);
+- its NumPy float64 oracle: the methods its slot's base class below lists;
+- ``docs.md`` (optional): its paragraph of ``docs/scene-format.md``.
 
-The renderer, the composer and the tracer loop over the active components of a scene
-(:meth:`glshade.components.registry.Registry.active`); none of them knows a kind by name.
+The renderer, the composer and the tracer ask a scene's :class:`Active` components (the
+scene resolves them once, ``scene.active``); none of them knows a kind by name.
 """
 
 from __future__ import annotations
 
-from collections.abc import Hashable, Mapping
+import inspect
+from collections.abc import Hashable, Iterator, Mapping
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
-from glshade.scene.params import Param, TableCheck
+from glshade.params import Param, Table, declared_params
+from glshade.rig import EmitterPlane
 
-if TYPE_CHECKING:
-    from glshade.scene.model import Scene
+if TYPE_CHECKING:  # the scene's tables, as the components that own them declare them
+    from glshade.components.camera.perspective.table import Camera
+    from glshade.components.defect.gaussian.table import Defect
+    from glshade.components.emitter.stripes.table import Emitter
+    from glshade.components.render.table import RenderTable
+    from glshade.components.sensor.linear.table import Sensor
+    from glshade.components.surface.table import SurfaceTable
 
 
 @dataclass(frozen=True)
@@ -39,7 +49,8 @@ class Slot:
     ``table``: the scene table holding its parameters; ``selector``: the parameter whose
     value names the component (``surface.kind``), or None when the slot has one
     component; ``preamble``: its GLSL goes before the outputs' declarations (precision);
-    ``oracle``: the base class whose methods the NumPy tracer calls.
+    ``header``: the file under ``shaders/slots`` that declares what its component's GLSL
+    must define (None: no GLSL).
     """
 
     name: str
@@ -47,10 +58,21 @@ class Slot:
     selector: Param | None
     preamble: bool
     doc: str
+    header: str | None = None
+
+    @property
+    def uniform_prefix(self) -> str:
+        """Every uniform of the slot's components is named ``u_<slot>_...``."""
+        return f"u_{self.name}_"
+
+    @property
+    def texture_prefix(self) -> str:
+        """Every texture (sampler) of the slot's components is named ``t_<slot>_...``."""
+        return f"t_{self.name}_"
 
 
 @dataclass(frozen=True)
-class UniformFrame:
+class UniformContext:
     """What every component's uniforms are computed in: the local frame centred on the
     dent (``origin``, world mm, float64), the composed program's ``variables`` and the
     renderer's dent solver (``march_steps``, ``newton_iterations``, ``tolerance_for``)."""
@@ -60,59 +82,118 @@ class UniformFrame:
     solver: Any
 
 
+class SceneView(Protocol):
+    """What a component reads of a scene: its tables, the emitter's plane, the local
+    frame's origin, the scene as a file writes it and its active components."""
+
+    @property
+    def camera(self) -> Camera: ...
+    @property
+    def emitter(self) -> Emitter: ...
+    @property
+    def surface(self) -> SurfaceTable: ...
+    @property
+    def defect(self) -> Defect: ...
+    @property
+    def render(self) -> RenderTable: ...
+    @property
+    def sensor(self) -> Sensor: ...
+    @property
+    def active(self) -> Active: ...
+
+    def emitter_frame(self) -> EmitterPlane: ...
+
+    def local_origin(self) -> np.ndarray: ...
+
+    def to_dict(self) -> dict[str, dict[str, Any]]: ...
+
+
 class Component:
-    """Base of every component; a subclass sets ``slot`` and ``name`` and overrides what
-    it needs. Instances hold no scene state (one instance serves every scene)."""
+    """Base of every component; a subclass sets ``slot``, ``name`` and (when it has
+    parameters) ``table``, and overrides what it needs. Instances hold no scene state
+    (one instance serves every scene)."""
 
     slot: ClassVar[str]
     name: ClassVar[str]
     doc: ClassVar[str] = ""
-    params: ClassVar[tuple[Param, ...]] = ()
-    checks: ClassVar[tuple[TableCheck, ...]] = ()
-    #: Where its GLSL files are when they are not under ``shaders/`` (a plug-in's own).
+    #: Its place among its slot's components (in lists of names, docs and flags).
+    rank: ClassVar[int] = 100
+    #: Its parameters: a :class:`~glshade.params.Table` dataclass (None: none).
+    table: ClassVar[type[Table] | None] = None
+    #: Scene-file keys that are not fields but set some (``defect.sigma2``), each with the
+    #: field it is listed before.
+    shorthands: ClassVar[tuple[tuple[Param, str], ...]] = ()
+    #: Where its GLSL files are (default: its module's folder).
     glsl_dir: ClassVar[Path | None] = None
 
-    def features(self, scene: Scene) -> dict[str, Hashable]:
+    @classmethod
+    def declared(cls) -> tuple[Param, ...]:
+        """Every parameter it declares: its table's fields, each shorthand before the
+        field it names."""
+        out: list[Param] = []
+        for field in declared_params(cls.table) if cls.table is not None else ():
+            out += [short for short, before in cls.shorthands if before == field.key]
+            out.append(field)
+        return tuple(out)
+
+    @cached_property
+    def params(self) -> tuple[Param, ...]:
+        return self.declared()
+
+    def glsl_folder(self) -> Path:
+        """The folder its GLSL file names are relative to."""
+        return self.glsl_dir if self.glsl_dir is not None else Path(inspect.getfile(type(self))).parent
+
+    def docs(self) -> str:
+        """Its paragraph of ``docs/scene-format.md``: ``docs.md`` beside its module, if any."""
+        path = self.glsl_folder() / "docs.md"
+        return path.read_text(encoding="utf-8").strip() if path.is_file() else ""
+
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
         """Template variables its GLSL needs; equal features share one program."""
         return {}
 
     def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
-        """The files under ``shaders/`` it contributes, in composition order."""
+        """Its GLSL files, in composition order: names relative to :meth:`glsl_folder`,
+        or ``lib/...`` for the shared library."""
         return ()
 
-    def uniforms(self, scene: Scene, frame: UniformFrame) -> dict[str, object]:
-        """Every uniform its GLSL (for this scene's features) declares, float64 values."""
+    def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
+        """Every uniform its GLSL (for this scene's features) declares, float64 values,
+        named in its slot's namespace (``u_<slot>_...``)."""
         return {}
 
-    def textures(self, scene: Scene) -> dict[str, np.ndarray]:
-        """Sampler uniform name (``t_…``) -> a float32 array (rows, columns[, channels])
-        its GLSL reads with ``texelFetch`` (row = texel y, column = texel x); none by default. The renderer
-        uploads each array once (keyed by the array object) and binds it."""
+    def textures(self, scene: SceneView) -> dict[str, np.ndarray]:
+        """Sampler uniform name (``t_<slot>_...``) -> a float32 array (rows, columns[,
+        channels]) its GLSL reads with ``texelFetch`` (row = texel y, column = texel x);
+        none by default. The renderer uploads each array once (keyed by the array
+        object) and binds it."""
         return {}
 
-    def warnings(self, scene: Scene) -> tuple[str, ...]:
+    def warnings(self, scene: SceneView) -> tuple[str, ...]:
         """Lines about accepted values that will probably not give what was meant (each
         names the field); none by default. Printed by every front end, never fatal."""
         return ()
 
-    def image_from_v(self, scene: Scene) -> bool:
-        """True when, as far as this component goes, a pixel's value is the stripe
-        radiance at its one mirror ray's ``v``: the metric may then shade every phase from
-        the uv map instead of rendering images (a lens, a lobe, Fresnel or a sensor say no)."""
+    def shades_from_emitter_map(self, scene: SceneView) -> bool:
+        """True when, as far as this component goes, a pixel's value is the emitter's
+        radiance where its one mirror ray lands: the metric may then shade every phase
+        from the emitter map instead of rendering images (a lens, a lobe, Fresnel or a
+        sensor say no)."""
         return True
 
-    def keeps_emitter_scale(self, scene: Scene) -> bool:
-        """True when this component leaves the stripes' peak at the emitter's radiance 1,
-        so the metric's threshold is a fraction of the emitter peak (SPEC §6); False when
-        it scales or mixes the radiance (Fresnel, a microfacet lobe, eq. (1)), and the
-        threshold is then taken between the defect-free image's dark and bright levels."""
+    def keeps_emitter_scale(self, scene: SceneView) -> bool:
+        """True when this component leaves the pattern's peak at the emitter's radiance,
+        so the metric's threshold is a fraction of the emitter peak; False when it scales
+        or mixes the radiance (Fresnel, a microfacet lobe, eq. (1)), and the threshold is
+        then taken between the defect-free image's dark and bright levels."""
         return True
 
-    def work_factor(self, scene: Scene) -> int:
+    def work_factor(self, scene: SceneView) -> int:
         """Rays this component traces per pixel sample (the work budget counts them)."""
         return 1
 
-    def develop(self, scene: Scene, image: np.ndarray, exposure: int = 0) -> np.ndarray:
+    def develop(self, scene: SceneView, image: np.ndarray, exposure: int = 0) -> np.ndarray:
         """What the sensor makes of a rendered radiance image (float32, in place or new);
         the identity but for the sensor. ``exposure`` numbers independent exposures of
         the same scene (their noise differs)."""
@@ -135,77 +216,13 @@ class Component:
 
 
 # ------------------------------------------------------------------ slot interfaces
-class SurfaceComponent(Component):
-    """A base surface ``y = f(x, z)`` (SPEC §4). Oracle, all lengths mm, arrays float64:"""
+class RenderComponent(Component):
+    """How a frame is computed (precision, rays per pixel): the program's preamble."""
 
-    slot = "surface"
+    slot = "render"
 
-    def domain(self, scene: Scene, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``[t_in, t_out]`` where rays ``o + t d`` ((N, 3) each) are over the domain;
-        ``±inf`` when unbounded, NaN when empty."""
-        n = len(d)
-        return np.full(n, -np.inf), np.full(n, np.inf)
-
-    def band_roots(
-        self, scene: Scene, o: np.ndarray, d: np.ndarray, shift: float
-    ) -> list[np.ndarray]:
-        """Ray parameters where ``y - f = shift`` (every root; spurious ones only add
-        breakpoints to the search)."""
-        raise NotImplementedError
-
-    def height(self, scene: Scene, x: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """``f(x, z)``, clipped to the domain's edge outside it."""
-        raise NotImplementedError
-
-    def outside(self, scene: Scene, x: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """True where the surface does not exist (its height is NaN)."""
-        return np.zeros(np.broadcast(x, z).shape, dtype=bool)
-
-    def normal(
-        self, scene: Scene, x: np.ndarray, z: np.ndarray, dx: np.ndarray, dz: np.ndarray
-    ) -> np.ndarray:
-        """Unnormalised normal (…, 3) of ``f + D`` given the defect's gradient
-        ``(D_x, D_z)``; finite wherever the surface exists."""
-        raise NotImplementedError
-
-    def second_derivatives(self, scene: Scene) -> tuple[float, float]:
-        """``(f_zz, f_xx)`` at the gaze point (1/mm): along the plane of incidence and
-        across it; convex is negative (:func:`glshade.metrics.physics.base_curvatures`)."""
-        return 0.0, 0.0
-
-    def describe(self, scene: Scene) -> str:
-        """The surface in a few words, for figure titles."""
-        return self.name
-
-
-class DefectComponent(Component):
-    """A defect ``D(x, z)`` added to the base surface. Oracle:"""
-
-    slot = "defect"
-
-    def present(self, scene: Scene) -> bool:
-        return True
-
-    def band(self, scene: Scene) -> tuple[float, float]:
-        """``(lo, hi)``: ``D`` lies between them everywhere (mm)."""
-        raise NotImplementedError
-
-    def depth(self, scene: Scene, x: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """``D(x, z)`` (mm)."""
-        raise NotImplementedError
-
-    def gradient(self, scene: Scene, x: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(D_x, D_z)``."""
-        raise NotImplementedError
-
-    def breakpoints(self, scene: Scene, o: np.ndarray, d: np.ndarray) -> list[np.ndarray]:
-        """Ray parameters where the defect changes character (the search samples each
-        stretch between breakpoints densely)."""
-        return []
-
-    def centre(self, scene: Scene) -> np.ndarray:
-        """The defect's centre ``(x0, 0, z0)`` (world mm): the origin of the local frame."""
-        return np.zeros(3)
+    def shades_from_emitter_map(self, scene: SceneView) -> bool:
+        return scene.render.supersample == 1
 
 
 class CameraComponent(Component):
@@ -215,19 +232,19 @@ class CameraComponent(Component):
     slot = "camera"
 
     def pixel_rays(
-        self, scene: Scene, rows, cols, supersample: int
+        self, scene: SceneView, rows: Any, cols: Any, supersample: int
     ) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
 
-    def samples(self, scene: Scene) -> int:
+    def samples(self, scene: SceneView) -> int:
         """Rays per pixel sample (a lens's aperture samples); 1 for a pinhole."""
         return 1
 
-    def work_factor(self, scene: Scene) -> int:
+    def work_factor(self, scene: SceneView) -> int:
         return self.samples(scene)
 
     def sample_rays(
-        self, scene: Scene, rows, cols, supersample: int
+        self, scene: SceneView, rows: Any, cols: Any, supersample: int
     ) -> tuple[np.ndarray, np.ndarray]:
         """``(origins, directions)``, (h, w, S, 3) each: every ray of each pixel."""
         origin, d = self.pixel_rays(scene, rows, cols, supersample)
@@ -236,16 +253,104 @@ class CameraComponent(Component):
         return np.broadcast_to(origin, d.shape), d
 
 
+class SurfaceComponent(Component):
+    """A base surface ``y = f(x, z)``. Oracle, all lengths mm, arrays float64:"""
+
+    slot = "surface"
+
+    def domain(
+        self, scene: SceneView, o: np.ndarray, d: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``[t_in, t_out]`` where rays ``o + t d`` ((N, 3) each) are over the domain;
+        ``±inf`` when unbounded, NaN when empty."""
+        n = len(d)
+        return np.full(n, -np.inf), np.full(n, np.inf)
+
+    def band_roots(
+        self, scene: SceneView, o: np.ndarray, d: np.ndarray, shift: float
+    ) -> list[np.ndarray]:
+        """Ray parameters where ``y - f = shift`` (every root; spurious ones only add
+        breakpoints to the search)."""
+        raise NotImplementedError
+
+    def height(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """``f(x, z)``, clipped to the domain's edge outside it."""
+        raise NotImplementedError
+
+    def outside(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """True where the surface does not exist (its height is NaN)."""
+        return np.zeros(np.broadcast(x, z).shape, dtype=bool)
+
+    def normal(
+        self, scene: SceneView, x: np.ndarray, z: np.ndarray, dx: np.ndarray, dz: np.ndarray
+    ) -> np.ndarray:
+        """Unnormalised normal (…, 3) of ``f + D`` given the defect's gradient
+        ``(D_x, D_z)``; finite wherever the surface exists."""
+        raise NotImplementedError
+
+    def second_derivatives(self, scene: SceneView) -> tuple[float, float]:
+        """``(f_zz, f_xx)`` at the gaze point (1/mm): along the plane of incidence and
+        across it; convex is negative (:func:`glshade.metrics.physics.base_curvatures`)."""
+        return 0.0, 0.0
+
+    def describe(self, scene: SceneView) -> str:
+        """The surface in a few words, for figure titles."""
+        return self.name
+
+
+class DefectComponent(Component):
+    """A defect ``D(x, z)`` added to the base surface. Oracle:"""
+
+    slot = "defect"
+
+    def present(self, scene: SceneView) -> bool:
+        return True
+
+    def band(self, scene: SceneView) -> tuple[float, float]:
+        """``(lo, hi)``: ``D`` lies between them everywhere (mm)."""
+        raise NotImplementedError
+
+    def depth(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """``D(x, z)`` (mm)."""
+        raise NotImplementedError
+
+    def gradient(
+        self, scene: SceneView, x: np.ndarray, z: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``(D_x, D_z)``."""
+        raise NotImplementedError
+
+    def breakpoints(self, scene: SceneView, o: np.ndarray, d: np.ndarray) -> list[np.ndarray]:
+        """Ray parameters where the defect changes character (the search samples each
+        stretch between breakpoints densely)."""
+        return []
+
+    def centre(self, scene: SceneView) -> np.ndarray:
+        """The defect's centre ``(x0, 0, z0)`` (world mm): the origin of the local frame."""
+        return np.zeros(3)
+
+
 class EmitterComponent(Component):
     """The light source. Oracle: ``coordinates`` (where reflected rays land) and
-    ``radiance`` (what they see there)."""
+    ``radiance`` (what they see there); ``pattern`` is what the visibility metric and
+    the reflection models' oracles ask for radiance, binarisation level and scale."""
 
     slot = "emitter"
 
-    def coordinates(self, scene: Scene, points, directions):
+    def coordinates(
+        self, scene: SceneView, points: np.ndarray, directions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise NotImplementedError
 
-    def radiance(self, scene: Scene, v) -> np.ndarray:
+    def radiance(self, scene: SceneView, v: np.ndarray) -> np.ndarray:
+        """The radiance (float64) where rays land at screen coordinate ``v`` (mm)."""
+        return self.pattern(scene).radiance(v)
+
+    def pattern(self, scene: SceneView) -> Any:
+        """The pattern shown: ``period_mm``, ``phase_mm``, ``feature_mm`` (the finest
+        length over which it changes), ``radiance(v, phase_mm=None)``,
+        ``binary_half_width(threshold)``, ``mean_radiance()`` (see
+        :class:`glshade.metrics.visibility.Pattern`)."""
         raise NotImplementedError
 
 
@@ -256,49 +361,98 @@ class ReflectionComponent(Component):
 
     slot = "reflection"
     #: The pixel is the emitter's radiance at the mirror ray's ``v``: a picture can be
-    #: shaded from the uv map alone (the metric's fast path, the viewer's re-shading).
-    shades_from_v: ClassVar[bool] = False
+    #: shaded from the emitter map alone (the metric's fast path, the viewer's re-shading).
+    mirror_only: ClassVar[bool] = False
 
-    def image_from_v(self, scene: Scene) -> bool:
-        return self.shades_from_v
+    def shades_from_emitter_map(self, scene: SceneView) -> bool:
+        return self.mirror_only
 
-    def shade(self, scene: Scene, p, d, n, v, ok) -> np.ndarray:
+    def shade(
+        self,
+        scene: SceneView,
+        p: np.ndarray,
+        d: np.ndarray,
+        n: np.ndarray,
+        v: np.ndarray,
+        ok: np.ndarray,
+    ) -> np.ndarray:
         raise NotImplementedError
 
-    def lobe_std_rad(self, scene: Scene) -> float | None:
+    def lobe_std_rad(self, scene: SceneView) -> float | None:
         """The angular standard deviation of the reflected direction (rad), or None for
-        a perfect mirror. A lobe wider than the stripes can resolve is warned about."""
+        a perfect mirror. A lobe wider than the stripes can resolve is warned about
+        (:func:`glshade.oracle.advice.scene_warnings`)."""
         return None
 
-    def warnings(self, scene: Scene) -> tuple[str, ...]:
-        """A lobe whose footprint on the emitter exceeds half a stripe period washes
-        the stripes out (:mod:`glshade.oracle.footprint`)."""
-        std = self.lobe_std_rad(scene)
-        if std is None:
-            return ()
-        from glshade.oracle.footprint import footprint_mm
-
-        width = footprint_mm(scene, std)
-        period = scene.emitter.period
-        if width is None or width <= 0.5 * period:
-            return ()
-        hint = self.sharpen_hint(scene, width / (0.5 * period))
-        line = (
-            f"render.reflection = {self.name}: the lobe spreads each point over {width:.3g} mm of the emitter, "
-            f"more than half the {period:g} mm stripe period, so the stripes wash out; use {hint} "
-            "(docs/physics.md, 'Glossy lobes and stripes')"
-        )
-        return (line,)
-
-    def sharpen_hint(self, scene: Scene, ratio: float) -> str:
+    def sharpen_hint(self, scene: SceneView, ratio: float) -> str:
         """What would narrow the lobe ``ratio`` times (for the lobe warning)."""
         return f"a lobe {ratio:.3g} times narrower"
 
 
-class RenderComponent(Component):
-    """How a frame is computed (precision, rays per pixel): the program's preamble."""
+class FresnelComponent(Component):
+    """How much the surface reflects by the angle of incidence. Oracle: ``reflectance``."""
 
-    slot = "render"
+    slot = "fresnel"
 
-    def image_from_v(self, scene: Scene) -> bool:
-        return scene.render.supersample == 1
+    def reflectance(self, scene: SceneView, cos_i: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+class SensorComponent(Component):
+    """What the camera's sensor makes of the radiance (NumPy only: :meth:`develop`)."""
+
+    slot = "sensor"
+
+
+# ------------------------------------------------------------------ a scene's components
+@dataclass(frozen=True)
+class Active:
+    """The components filling a scene's slots, in composition order (a scene resolves
+    them once: ``scene.active``); ``active.surface`` is the surface component. The
+    questions every front end asks of all of them are answered here."""
+
+    components: tuple[Component, ...]
+
+    def __getattr__(self, slot: str) -> Any:
+        for component in self.components:
+            if component.slot == slot:
+                return component
+        raise AttributeError(f"no active component in slot {slot!r}")
+
+    def __iter__(self) -> Iterator[Component]:
+        return iter(self.components)
+
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
+        """Every component's template variables (a name set twice is an error)."""
+        variables: dict[str, Hashable] = {}
+        for component in self.components:
+            for name, value in component.features(scene).items():
+                if variables.setdefault(name, value) != value:
+                    raise ValueError(f"template variable {name!r} set twice ({component!r})")
+        return variables
+
+    def shades_from_emitter_map(self, scene: SceneView) -> bool:
+        """The picture is a function of the emitter map: every component says so (a
+        mirror, one ray per pixel through a pinhole, no Fresnel, no sensor)."""
+        return all(c.shades_from_emitter_map(scene) for c in self.components)
+
+    def keeps_emitter_scale(self, scene: SceneView) -> bool:
+        return all(c.keeps_emitter_scale(scene) for c in self.components)
+
+    def work_factor(self, scene: SceneView) -> int:
+        """Rays per pixel sample, all components together."""
+        factor = 1
+        for component in self.components:
+            factor *= component.work_factor(scene)
+        return factor
+
+    def textures(self, scene: SceneView) -> dict[str, np.ndarray]:
+        textures: dict[str, np.ndarray] = {}
+        for component in self.components:
+            textures.update(component.textures(scene))
+        return textures
+
+    def develop(self, scene: SceneView, image: np.ndarray, exposure: int = 0) -> np.ndarray:
+        for component in self.components:
+            image = component.develop(scene, image, exposure)
+        return image

@@ -1,120 +1,57 @@
 """The registry: which components exist, which one fills each slot of a scene, and the
 one parameter schema they declare together.
 
-In the spirit of Mitsuba 3's plugin registry and pygfx's render-function registry: a
-component registers by its slot and name (:meth:`Registry.register`); everything else
+In the spirit of Mitsuba 3's plugin registry and pytest's plug-ins: every component,
+built-in or installed, is found through one entry-point group, ``glshade.components``
+(an entry point names a component class, or a module whose ``COMPONENTS`` lists
+several); :meth:`Registry.register` adds one by hand (a test's toy). Everything else
 (scene tables, validation, TOML, CLI flags, viewer controls, shader composition,
 uniforms, the NumPy tracer, ``docs/scene-format.md``) asks the registry. The default
-registry, :func:`registry`, is built on first use (nothing happens at import) with the
-built-in components; a test or a plug-in adds its own with :meth:`Registry.registered`.
+registry, :func:`registry`, is built on first use (nothing happens at import); a broken
+plug-in names itself in the error.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import importlib
-from collections.abc import Iterator
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+import pkgutil
+from collections.abc import Iterable, Iterator
+from importlib.metadata import entry_points
+from types import ModuleType
+from typing import Any
 
-from glshade.components.base import Component, Slot
-from glshade.errors import SceneError
-from glshade.scene.params import Param, TableCheck
+from glshade.components.base import Active, Component, SceneView, Slot
+from glshade.components.fresnel.table import FresnelChoice
+from glshade.components.reflection.table import ReflectionChoice
+from glshade.components.surface.table import SurfaceTable
+from glshade.errors import GlshadeError, SceneError
+from glshade.params import Param, Table, TableCheck
 
-if TYPE_CHECKING:
-    from glshade.scene.model import Scene
-
+#: The entry-point group of components (built-in and third-party).
+ENTRY_POINT_GROUP = "glshade.components"
 #: The scene's tables, in the order scene files list them.
 TABLES: tuple[str, ...] = ("camera", "emitter", "surface", "defect", "render", "sensor")
 
-SURFACE_KIND = Param(
-    "surface.kind",
-    "",
-    "flat",
-    "the base surface: which surface component",
-    value_type="choice",
-    role="feature",
-    flag="--surface",
-)
-FRESNEL = Param(
-    "render.fresnel",
-    "",
-    "none",
-    "the Fresnel reflectance: which Fresnel component",
-    value_type="choice",
-    role="feature",
-    flag="--fresnel",
-)
-REFLECTION = Param(
-    "render.reflection",
-    "",
-    "mirror",
-    "the reflection model: which reflection component",
-    value_type="choice",
-    role="feature",
-    flag="--reflection",
-)
-
 #: The slots, in the order their GLSL is composed.
 SLOTS: tuple[Slot, ...] = (
-    Slot("render", "render", None, True, "precision and rays per pixel: the program's preamble"),
-    Slot("camera", "camera", None, False, "pixels to rays"),
-    Slot(
-        "surface", "surface", SURFACE_KIND, False, "the base surface y = f(x, z) and its first hit"
-    ),
-    Slot(
-        "defect", "defect", None, False, "the defect D(x, z) on the surface, and the hit it needs"
-    ),
-    Slot("emitter", "emitter", None, False, "the light source the rays land on"),
-    Slot("reflection", "render", REFLECTION, False, "how the surface reflects"),
-    Slot("fresnel", "render", FRESNEL, False, "how much it reflects, by the angle of incidence"),
-    Slot(
-        "sensor",
-        "sensor",
-        None,
-        False,
-        "what the camera's sensor makes of the radiance (noise, quantisation)",
-    ),
-)
-
-#: The built-in components: module, class.
-BUILTINS: tuple[tuple[str, str], ...] = (
-    ("glshade.components.render", "Sampling"),
-    ("glshade.components.camera_model", "CameraModel"),
-    ("glshade.components.surface_flat", "Flat"),
-    ("glshade.components.surface_cylinder", "Cylinder"),
-    ("glshade.components.surface_sphere", "Sphere"),
-    ("glshade.components.surface_formula", "Formula"),
-    ("glshade.components.surface_heightmap", "HeightMap"),
-    ("glshade.components.defect_gaussian", "Gaussian"),
-    ("glshade.components.emitter_stripes", "Stripes"),
-    ("glshade.components.reflection_mirror", "Mirror"),
-    ("glshade.components.reflection_blinn_phong", "BlinnPhong"),
-    ("glshade.components.reflection_microfacet", "Beckmann"),
-    ("glshade.components.reflection_microfacet", "GGX"),
-    ("glshade.components.fresnel", "NoFresnel"),
-    ("glshade.components.fresnel", "Dielectric"),
-    ("glshade.components.fresnel", "Conductor"),
-    ("glshade.components.sensor", "Sensor"),
-)
-
-
-@dataclass(frozen=True)
-class Active:
-    """The components filling a scene's slots, in composition order; ``active.surface``
-    is the surface component."""
-
-    components: tuple[Component, ...]
-
-    def __getattr__(self, slot: str) -> Component:
-        for component in self.components:
-            if component.slot == slot:
-                return component
-        raise AttributeError(f"no active component in slot {slot!r}")
-
-    def __iter__(self) -> Iterator[Component]:
-        return iter(self.components)
+    Slot("render", "render", None, True, "precision and rays per pixel: the program's preamble",
+         "render.glsl"),
+    Slot("camera", "camera", None, False, "pixels to rays", "camera.glsl"),
+    Slot("surface", "surface", SurfaceTable.declaration("kind"), False,
+         "the base surface y = f(x, z) and its first hit", "surface.glsl"),
+    Slot("defect", "defect", None, False,
+         "the defect D(x, z) on the surface, and the hit it needs", "defect.glsl"),
+    Slot("emitter", "emitter", None, False, "the light source the rays land on", "emitter.glsl"),
+    Slot("reflection", "render", ReflectionChoice.declaration("reflection"), False,
+         "how the surface reflects", "reflection.glsl"),
+    Slot("fresnel", "render", FresnelChoice.declaration("fresnel"), False,
+         "how much it reflects, by the angle of incidence", "fresnel.glsl"),
+    Slot("sensor", "sensor", None, False,
+         "what the camera's sensor makes of the radiance (noise, quantisation)"),
+)  # fmt: skip
 
 
 class Registry:
@@ -124,15 +61,14 @@ class Registry:
         self._slots = {slot.name: slot for slot in slots}
         self._tables = tables
         self._components: dict[str, dict[str, Component]] = {slot.name: {} for slot in slots}
-        self._schema: dict[
-            str | None, tuple[Param, ...]
-        ] = {}  # params() (key None) and per table, until the next change
+        #: params() (key None) and per table, until the next change
+        self._schema: dict[str | None, tuple[Param, ...]] = {}
 
     # ------------------------------------------------------------------ changes
     def register(self, component: Component) -> Component:
         """Add a component; its parameters join the schema. A parameter path that another
-        component already declares must be the very same declaration."""
-        slot = self._slots.get(getattr(component, "slot", None))
+        component already declares must be the very same declaration (a shared table)."""
+        slot = self._slots.get(getattr(component, "slot", ""))
         if slot is None:
             raise ValueError(f"{component!r}: unknown slot; slots are {', '.join(self._slots)}")
         if component.name in self._components[slot.name]:
@@ -146,17 +82,16 @@ class Registry:
                     f"{component!r} declares {param.path} outside its table {slot.table!r}"
                 )
             if param.path in known and known[param.path] is not param:
-                raise ValueError(f"{param.path} is declared twice ({component!r}); share one Param")
+                raise ValueError(
+                    f"{param.path} is declared twice ({component!r}); share one declaration"
+                )
         self._components[slot.name][component.name] = component
-        self._changed()
+        self._schema = {}
         return component
-
-    def _changed(self) -> None:
-        self._schema = {}  # the parameter list is collected again on next use
 
     def unregister(self, slot: str, name: str) -> None:
         del self._components[slot][name]
-        self._changed()
+        self._schema = {}
 
     @contextlib.contextmanager
     def registered(self, component: Component) -> Iterator[Component]:
@@ -171,6 +106,9 @@ class Registry:
     def slots(self) -> tuple[Slot, ...]:
         return tuple(self._slots.values())
 
+    def slot(self, name: str) -> Slot:
+        return self._slots[name]
+
     def tables(self) -> tuple[str, ...]:
         return self._tables
 
@@ -183,9 +121,8 @@ class Registry:
             return self._components[slot][name]
         except KeyError:
             selector = self._slots[slot].selector
-            raise SceneError(
-                selector.path if selector else slot, self.allowed_names(slot), name
-            ) from None
+            field = selector.path if selector else slot
+            raise SceneError(field, self.allowed_names(slot), name) from None
 
     def names(self, slot: str) -> tuple[str, ...]:
         return tuple(self._components[slot])
@@ -193,8 +130,9 @@ class Registry:
     def allowed_names(self, slot: str) -> str:
         return "one of " + ", ".join(self.names(slot))
 
-    def active(self, scene: Scene) -> Active:
-        """The component filling each slot of ``scene``, in composition order."""
+    def active(self, scene: SceneView) -> Active:
+        """The component filling each slot of ``scene``, in composition order (a scene
+        asks once: ``scene.active``)."""
         chosen = []
         for slot in self._slots.values():
             if slot.selector is None:
@@ -252,23 +190,129 @@ class Registry:
 
     def checks(self, table: str) -> tuple[TableCheck, ...]:
         """Checks over several values of ``table``, from every component declaring one."""
-        return tuple(
-            check
-            for slot in self._slots.values()
-            if slot.table == table
-            for component in self._components[slot.name].values()
-            for check in component.checks
-        )
+        found: dict[TableCheck, None] = {}
+        for component in self.table_components(table):
+            if component.table is not None:
+                found.update(dict.fromkeys(component.table.checks()))
+        return tuple(found)
 
     def owners(self, param: Param) -> tuple[Component, ...]:
         """The components declaring ``param`` (none for a slot's selector)."""
         return tuple(c for c in self.components() if any(p is param for p in c.params))
 
+    def table_components(self, table: str) -> tuple[Component, ...]:
+        """Every registered component whose parameters live in ``table``."""
+        return tuple(
+            c for slot in self._slots.values() if slot.table == table for c in self.components(slot.name)
+        )
+
+    def table_class(self, base: type[Table]) -> type[Table]:
+        """``base`` (a scene's table class: its own fields) joined with the tables of
+        every registered component of its table: a frozen dataclass whose fields are all
+        their declarations, whose selectors accept the registered names. One class per
+        set of parts, so tables made before and after a plug-in came and went compare
+        equal."""
+        parts = [c.table for c in self.table_components(base.table) if c.table is not None]
+        choices = tuple(
+            (slot.selector.key, self.names(slot.name))
+            for slot in self._slots.values()
+            if slot.table == base.table and slot.selector is not None
+        )
+        return _joined(base, _most_derived(parts), choices)
+
+
+def _most_derived(classes: Iterable[type]) -> tuple[type, ...]:
+    """``classes`` without repeats and without any that another one derives from (a
+    valid list of bases)."""
+    unique = list(dict.fromkeys(classes))
+    return tuple(c for c in unique if not any(o is not c and issubclass(o, c) for o in unique))
+
+
+@functools.lru_cache(maxsize=64)
+def _joined(
+    base: type[Table], parts: tuple[type, ...], choices: tuple[tuple[str, tuple[str, ...]], ...]
+) -> type[Table]:
+    parts = tuple(p for p in parts if not issubclass(base, p))
+    joined = dataclasses.make_dataclass(
+        base.__name__,
+        [],
+        bases=(*reversed(parts), base),
+        frozen=True,
+        namespace={"selector_choices": dict(choices)},
+    )
+    joined.__module__ = base.__module__
+    joined.__qualname__ = base.__qualname__
+    joined.__doc__ = base.__doc__
+    return joined
+
+
+# --------------------------------------------------------------------------- discovery
+def discovered() -> list[Component]:
+    """One instance of every component the ``glshade.components`` entry points name:
+    glshade's own first, then each plug-in's; by slot, and within a slot by ``rank``
+    (then name). A plug-in that does not load names itself."""
+    points = sorted(entry_points(group=ENTRY_POINT_GROUP), key=_entry_order)
+    found: list[Component] = []
+    for point in points:
+        try:
+            loaded = point.load()
+            found.extend(_instances(loaded, point.name))
+        except GlshadeError:
+            raise
+        except Exception as exc:  # a broken plug-in: say which
+            raise GlshadeError(
+                f"glshade plug-in {point.name!r} ({point.value}) does not load: "
+                f"{type(exc).__name__}: {exc}"
+            ) from None
+    order = {slot.name: index for index, slot in enumerate(SLOTS)}
+    return sorted(found, key=lambda c: (order.get(getattr(c, "slot", ""), len(order)), c.rank))
+
+
+def _entry_order(point: Any) -> tuple[bool, str, str]:
+    distribution = getattr(getattr(point, "dist", None), "name", "") or ""
+    return distribution != "glshade", distribution, point.name
+
+
+def _instances(loaded: Any, name: str) -> list[Component]:
+    """The components an entry point names: a component class, a module's
+    ``COMPONENTS``, or a function returning components."""
+    if isinstance(loaded, ModuleType):
+        loaded = getattr(loaded, "COMPONENTS", ())
+    elif callable(loaded) and not isinstance(loaded, type):
+        loaded = loaded()
+    items = loaded if isinstance(loaded, (list, tuple)) else (loaded,)
+    out = []
+    for item in items:
+        if isinstance(item, type) and issubclass(item, Component):
+            item = item()
+        if not isinstance(item, Component):
+            raise GlshadeError(f"glshade plug-in {name!r} names {item!r}, not a component")
+        out.append(item)
+    return out
+
+
+def builtin_components() -> list[Component]:
+    """glshade's own components (its entry point): every folder
+    ``glshade/components/<slot>/<name>/`` lists its classes in ``COMPONENTS``, so a new
+    built-in component is a new folder and nothing else."""
+    found: list[Component] = []
+    for slot in SLOTS:
+        package = importlib.import_module(f"{__package__}.{slot.name}")
+        for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda m: m.name):
+            if info.ispkg:
+                module = importlib.import_module(f"{package.__name__}.{info.name}")
+                found.extend(_instances(module, info.name))
+    return found
+
 
 @functools.cache
 def registry() -> Registry:
-    """The default registry with the built-in components (built on first use)."""
+    """The default registry with every component the entry points name (built on first
+    use)."""
     built = Registry()
-    for module, name in BUILTINS:
-        built.register(getattr(importlib.import_module(module), name)())
+    for component in discovered():
+        try:
+            built.register(component)
+        except ValueError as exc:
+            raise GlshadeError(f"glshade plug-in {component!r} does not fit: {exc}") from None
     return built

@@ -1,15 +1,21 @@
 """Shader composition: a scene's features pick the GLSL files that go into its program.
 
-The sources live under ``shaders/`` (shipped inside the wheel as ``glshade/shaders``).
-A Jinja2 environment with delimiters that cannot clash with GLSL (``{$ … $}`` for blocks,
-``{{ … }}`` for values) composes one fragment shader per :class:`ShaderFeatures`;
-conditional includes keep unused code out of the source itself, and an undefined
-template variable is an error, never a silent default. Composition needs no GPU and is
-cached by feature set; the GL program cache (in the renderer) uses the same key.
+The sources: the fragment template and the shared library (``lib/``) and slot headers
+(``slots/``) under ``shaders/`` (shipped inside the wheel as ``glshade/shaders``), and
+each component's own files in its folder. A Jinja2 environment with delimiters that
+cannot clash with GLSL (``{$ … $}`` for blocks, ``{{ … }}`` for values) composes one
+fragment shader per :class:`ShaderFeatures`; conditional includes keep unused code out
+of the source itself, and an undefined template variable is an error, never a silent
+default. Each component's files are found under a namespace of their own
+(``<slot>.<name>/file.glsl``), so a plug-in's file never shadows a built-in one.
 
-Which files go in is the active components' choice (:mod:`glshade.components`): the
-composer loops over them and knows no component by name. Everything that changes
-continuously (θ, the phase, radii, dmax, σ²) is a uniform, so sweeping it never
+A slot's header (``slots/<slot>.glsl``) declares what its component must define; the
+composer checks that the component's files define every function it declares and that
+every uniform it provides is in its slot's namespace, each with one clear error naming
+the component. Composition needs no GPU and is cached by feature set; the GL program
+cache (in the renderer) uses the same key. Which files go in is the active components'
+choice: the composer loops over them and knows no component by name. Everything that
+changes continuously (θ, the phase, radii, dmax, σ²) is a uniform, so sweeping it never
 recompiles.
 """
 
@@ -17,49 +23,46 @@ from __future__ import annotations
 
 import functools
 import re
-from collections.abc import Hashable
+from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 import jinja2
 
+from glshade.components.base import Component, Slot, UniformContext
 from glshade.components.registry import registry
-from glshade.errors import ShaderCompileError
+from glshade.errors import GlshadeError, ShaderCompileError
 from glshade.frame import OUTPUTS, normalize_outputs
 from glshade.scene import Scene
 
 VERTEX_TEMPLATE = "fullscreen.vert.glsl"
 FRAGMENT_TEMPLATE = "deflectometry.frag.glsl"
+#: Names of shared library files start with this.
+LIBRARY = "lib/"
 
 
 @dataclass(frozen=True)
 class ShaderFeatures:
     """What a program must contain; the key of the composition and program caches.
 
-    ``components``: ``(slot, name)`` of the component filling each slot, in composition
-    order; ``variables``: the template variables they ask for (``(name, value)``, sorted:
+    ``components``: the component filling each slot, in composition order;
+    ``variables``: the template variables they ask for (``(name, value)``, sorted:
     ``precision``, ``supersample``, ``defect``, ``cylinder_axis``, …); ``outputs``: the
     render targets, in canonical order. Two scenes with equal features share a program:
     everything else they differ in is a uniform.
     """
 
-    components: tuple[tuple[str, str], ...]
+    components: tuple[Component, ...]
     variables: tuple[tuple[str, Hashable], ...]
     outputs: tuple[str, ...]
 
     @classmethod
     def from_scene(cls, scene: Scene, outputs=("image",)) -> ShaderFeatures:
         wanted = normalize_outputs(outputs)
-        variables: dict[str, Hashable] = {}
-        active = registry().active(scene)
-        for component in active:
-            for name, value in component.features(scene).items():
-                if variables.setdefault(name, value) != value:
-                    raise ValueError(f"template variable {name!r} set twice ({component!r})")
         return cls(
-            components=tuple((c.slot, c.name) for c in active),
-            variables=tuple(sorted(variables.items())),
+            components=scene.active.components,
+            variables=tuple(sorted(scene.active.features(scene).items())),
             outputs=tuple(name for name in OUTPUTS if name in wanted),
         )
 
@@ -69,25 +72,16 @@ class ShaderFeatures:
 
     @property
     def precision(self) -> str:
-        return dict(self.variables)["precision"]
+        return str(dict(self.variables)["precision"])
 
     def selected(self) -> dict[str, str]:
         """Slot -> component name."""
-        return dict(self.components)
-
-
-def group_by_program(scenes, outputs=("image",)) -> dict[ShaderFeatures, list[int]]:
-    """The indices of ``scenes`` grouped by the program they need (in first-seen order):
-    a sweep worker that renders one group after another compiles each program once.
-    Needs no GL context."""
-    groups: dict[ShaderFeatures, list[int]] = {}
-    for index, scene in enumerate(scenes):
-        groups.setdefault(ShaderFeatures.from_scene(scene, outputs), []).append(index)
-    return groups
+        return {c.slot: c.name for c in self.components}
 
 
 def shader_dir() -> Path:
-    """The GLSL sources: inside the installed package, else ``shaders/`` of a checkout."""
+    """The template, library and headers: inside the installed package, else
+    ``shaders/`` of a checkout."""
     packaged = Path(str(resources.files("glshade"))) / "shaders"
     if packaged.is_dir():
         return packaged
@@ -99,10 +93,26 @@ def shader_dir() -> Path:
     )
 
 
-@functools.cache
-def _environment(directories: tuple[str, ...]) -> jinja2.Environment:
+def namespace(component: Component) -> str:
+    """The prefix under which a component's own GLSL files are found."""
+    return f"{component.slot}.{component.name}"
+
+
+def qualified(component: Component, name: str) -> str:
+    """A file a component names, as the composer's loader finds it."""
+    return name if name.startswith(LIBRARY) else f"{namespace(component)}/{name}"
+
+
+@functools.lru_cache(maxsize=16)
+def _environment(folders: tuple[tuple[str, str], ...]) -> jinja2.Environment:
+    """The environment whose loader finds the shaders directory's files and each
+    component's under its namespace (``folders``: namespace, folder)."""
+    mapping = {prefix: jinja2.FileSystemLoader(folder) for prefix, folder in folders}
+    loader = jinja2.ChoiceLoader(
+        [jinja2.FileSystemLoader(str(shader_dir())), jinja2.PrefixLoader(mapping, delimiter="/")]
+    )
     return jinja2.Environment(
-        loader=jinja2.FileSystemLoader(list(directories)),
+        loader=loader,
         block_start_string="{$",
         block_end_string="$}",
         variable_start_string="{{",
@@ -117,47 +127,176 @@ def _environment(directories: tuple[str, ...]) -> jinja2.Environment:
     )
 
 
-def render_template(name: str, directories: tuple[str, ...] = (), **variables: object) -> str:
-    """Compose one template (looked up in ``shaders/``, then ``directories``); a variable
-    the template uses but was not given raises."""
-    return _environment((str(shader_dir()), *directories)).get_template(name).render(**variables)
+def environment_for(components) -> jinja2.Environment:
+    folders = tuple(sorted({(namespace(c), str(c.glsl_folder())) for c in components}))
+    return _environment(folders)
 
 
-def component_files(
-    features: ShaderFeatures,
-) -> tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]:
-    """``(preamble, stages, directories)``: the GLSL files the active components name, in
-    composition order (a file two of them name comes once), and where plug-ins keep theirs."""
+def render_template(name: str, components=(), **variables: object) -> str:
+    """Compose one template (looked up in ``shaders/`` or a component's namespace); a
+    variable the template uses but was not given raises."""
+    return environment_for(components).get_template(name).render(**variables)
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One slot's part of the composed shader: its header and its component's files."""
+
+    slot: Slot
+    component: Component
+    header: str | None
+    files: tuple[str, ...]
+
+
+def stages(features: ShaderFeatures) -> tuple[Stage, ...]:
+    """Every slot's stage, in composition order; a file two components name (a library
+    file) comes once, with the first."""
     variables = features.template_variables()
-    reg = registry()
-    preambles = {slot.name for slot in reg.slots() if slot.preamble}
-    preamble: list[str] = []
-    stages: list[str] = []
-    directories: list[str] = []
-    for slot, name in features.components:
-        component = reg.get(slot, name)
-        if component.glsl_dir is not None and str(component.glsl_dir) not in directories:
-            directories.append(str(component.glsl_dir))
-        target = preamble if slot in preambles else stages
-        target.extend(f for f in component.glsl(variables) if f not in target)
-    return tuple(preamble), tuple(stages), tuple(directories)
+    seen: set[str] = set()
+    out = []
+    for component in features.components:
+        slot = registry().slot(component.slot)
+        files = []
+        for name in component.glsl(variables):
+            path = qualified(component, name)
+            if path not in seen:
+                seen.add(path)
+                files.append(path)
+        header = f"slots/{slot.header}" if slot.header else None
+        out.append(Stage(slot, component, header, tuple(files)))
+    return tuple(out)
 
 
 @functools.lru_cache(maxsize=64)
 def compose(features: ShaderFeatures) -> tuple[str, str]:
     """``(vertex_source, fragment_source)`` for a feature set (cached): the fragment
-    template with the files the active components name, nothing else."""
-    preamble, stages, directories = component_files(features)
+    template with the headers and files the active components name, nothing else. A
+    component whose files do not define what its slot's header declares is an error."""
+    parts = stages(features)
+    check_contracts(features, parts)
+    variables = features.template_variables()
     fragment = render_template(
         FRAGMENT_TEMPLATE,
-        directories,
-        preamble=preamble,
-        stages=stages,
-        **features.template_variables(),
+        features.components,
+        preamble=[f for s in parts if s.slot.preamble for f in s.files],
+        preamble_headers=[s.header for s in parts if s.slot.preamble and s.header],
+        stages=[s for s in parts if not s.slot.preamble],
+        **variables,
     )
     # Blank lines left by removed blocks carry no meaning: squeeze runs of them.
     fragment = re.sub(r"\n{3,}", "\n\n", fragment)
     return render_template(VERTEX_TEMPLATE), fragment
+
+
+# --------------------------------------------------------------------------- the viewer
+#: What the viewer's display pass shades: the emitter's radiance at a traced map, in fp32.
+DISPLAY_VARIABLES: dict[str, Hashable] = {
+    "blur": "none",
+    "diffuse": False,
+    "precision": "fp32",
+    "supersample": False,
+}
+
+
+def display_features(scene: Scene) -> ShaderFeatures:
+    """The viewer's display pass for ``scene``: the render slot's preamble and the
+    emitter's GLSL for the image (its ``emitter_radiance``)."""
+    active = scene.active
+    variables = {**active.emitter.features(scene), **DISPLAY_VARIABLES}
+    return ShaderFeatures((active.render, active.emitter), tuple(sorted(variables.items())), ("image",))
+
+
+@functools.lru_cache(maxsize=8)
+def compose_display(features: ShaderFeatures) -> tuple[str, str]:
+    """``(vertex_source, fragment_source)`` of the viewer's display pass."""
+    parts = stages(features)
+    check_contracts(features, parts)
+    fragment = render_template(
+        "viewer_display.frag.glsl",
+        features.components,
+        preamble=[f for s in parts if s.slot.preamble for f in s.files],
+        stages=[s for s in parts if not s.slot.preamble],
+        **features.template_variables(),
+    )
+    return render_template("viewer_display.vert.glsl"), fragment
+
+
+def display_uniforms(scene: Scene, features: ShaderFeatures) -> dict[str, object]:
+    """The emitter's uniforms of the display pass (float64 values)."""
+    context = UniformContext(scene.local_origin(), features.template_variables(), None)
+    return component_uniforms(scene, features, context)
+
+
+# --------------------------------------------------------------------------- contracts
+_PROTOTYPE = re.compile(r"^\s*\w+\s+(\w+)\s*\([^)]*\)\s*;", re.MULTILINE)
+
+
+def required_functions(header: str, features: ShaderFeatures) -> tuple[str, ...]:
+    """The functions a slot's header declares for these features."""
+    text = render_template(header, features.components, **features.template_variables())
+    return tuple(_PROTOTYPE.findall(text))
+
+
+def check_contracts(features: ShaderFeatures, parts: tuple[Stage, ...]) -> None:
+    """Every component's files define the functions its slot's header declares."""
+    variables = features.template_variables()
+    for stage in parts:
+        if stage.header is None:
+            continue
+        source = "\n".join(
+            render_template(f, features.components, **variables) for f in stage.files
+        )
+        missing = [
+            name
+            for name in required_functions(stage.header, features)
+            if not re.search(rf"\b\w+\s+{name}\s*\([^;{{]*\)\s*\{{", source)
+        ]
+        if missing:
+            raise GlshadeError(
+                f"{stage.slot.name} component {stage.component.name!r}: its GLSL "
+                f"({', '.join(stage.files) or 'none'}) must define {', '.join(missing)}, "
+                f"as shaders/{stage.header} declares"
+            )
+
+
+def check_uniform_names(component: Component, values: Mapping[str, object], slot: Slot) -> None:
+    """Every uniform (and texture) a component provides is in its slot's namespace."""
+    for name in values:
+        if not name.startswith((slot.uniform_prefix, slot.texture_prefix)):
+            raise GlshadeError(
+                f"{slot.name} component {component.name!r} provides uniform {name}, outside "
+                f"its slot's namespace {slot.uniform_prefix}* (textures {slot.texture_prefix}*)"
+            )
+
+
+def component_uniforms(
+    scene: Scene, features: ShaderFeatures, context: UniformContext
+) -> dict[str, object]:
+    """Every uniform the active components provide for ``features`` (float64 values):
+    each in its component's namespace, none provided twice."""
+    values: dict[str, object] = {}
+    for component in features.components:
+        provided = component.uniforms(scene, context)
+        check_uniform_names(component, provided, registry().slot(component.slot))
+        for name, value in provided.items():
+            if name in values:
+                raise ValueError(f"uniform {name} provided twice ({component!r})")
+            values[name] = value
+    return values
+
+
+def glsl_sources(features: ShaderFeatures | None = None) -> dict[str, Path]:
+    """Every GLSL file the composer can use: template name -> path (the shaders
+    directory's, and each registered component's folder under its namespace)."""
+    found = {
+        path.relative_to(shader_dir()).as_posix(): path for path in shader_dir().rglob("*.glsl")
+    }
+    components = features.components if features is not None else registry().components()
+    for component in components:
+        folder = component.glsl_folder()
+        for path in sorted(folder.glob("*.glsl")):
+            found[f"{namespace(component)}/{path.name}"] = path
+    return found
 
 
 # --------------------------------------------------------------------------- errors

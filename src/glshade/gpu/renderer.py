@@ -30,11 +30,10 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from glshade.components.base import UniformFrame
-from glshade.components.registry import registry
+from glshade.components.base import UniformContext
 from glshade.errors import ContextError, GlshadeError, SceneError
 from glshade.frame import Frame, normalize_outputs
-from glshade.gpu.compose import ShaderFeatures, compile_error, compose
+from glshade.gpu.compose import ShaderFeatures, compile_error, component_uniforms, compose
 from glshade.gpu.context import GLContext
 from glshade.scene import Scene
 
@@ -131,9 +130,7 @@ def frame_rays(scene: Scene) -> int:
     """Rays one frame traces: pixels x ``render.supersample``² x what the components
     multiply each by (a lens's aperture samples, a lobe's samples)."""
     rays = scene.camera.width * scene.camera.height * scene.render.supersample**2
-    for component in registry().active(scene):
-        rays *= component.work_factor(scene)
-    return rays
+    return rays * scene.active.work_factor(scene)
 
 
 def check_work_budget(scene: Scene, max_rays: int) -> None:
@@ -180,22 +177,8 @@ def scene_uniforms(
     The local frame is the world shifted by the dent centre ``O`` (``Scene.local_origin``).
     """
     features = features or ShaderFeatures.from_scene(scene)
-    frame = UniformFrame(scene.local_origin(), features.template_variables(), solver)
-    values: dict[str, object] = {}
-    for component in registry().active(scene):
-        for name, value in component.uniforms(scene, frame).items():
-            if name in values:
-                raise ValueError(f"uniform {name} provided twice ({component!r})")
-            values[name] = value
-    return values
-
-
-def scene_textures(scene: Scene) -> dict[str, np.ndarray]:
-    """Every texture the active components give their GLSL (sampler name -> 2-D array)."""
-    textures: dict[str, np.ndarray] = {}
-    for component in registry().active(scene):
-        textures.update(component.textures(scene))
-    return textures
+    context = UniformContext(scene.local_origin(), features.template_variables(), solver)
+    return component_uniforms(scene, features, context)
 
 
 class _Targets:
@@ -358,9 +341,7 @@ class Renderer:
         with self.context.current():
             frame = self._draw(scene, features, out)
         if frame.image is not None:
-            image = frame.image
-            for component in registry().active(scene):
-                image = component.develop(scene, image, exposure)
+            image = scene.active.develop(scene, frame.image, exposure)
             if image is not frame.image:
                 frame.image[...] = image
         return frame
@@ -369,7 +350,7 @@ class Renderer:
         width, height = scene.camera.width, scene.camera.height
         program, vao = self._program(features)
         uniforms = scene_uniforms(scene, self.root_solver, features)
-        textures = scene_textures(scene)
+        textures = scene.active.textures(scene)
         for unit, (name, array) in enumerate(textures.items()):
             self._texture(array).use(location=unit)
             uniforms[name] = unit

@@ -30,7 +30,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from glshade.components.registry import registry
 from glshade.scene import Scene
 
 
@@ -64,7 +63,7 @@ def base_curvatures(scene: Scene) -> tuple[float, float]:
     (``camera.azimuth_deg`` φ) sees ``f_zz cos² φ + f_xx sin² φ`` along its plane (the
     surfaces' mixed derivative at the gaze point is 0 for the analytic kinds; a free-form
     surface's is neglected here)."""
-    f_zz, f_xx = registry().active(scene).surface.second_derivatives(scene)
+    f_zz, f_xx = scene.active.surface.second_derivatives(scene)
     c2, s2 = math.cos(scene.camera.azimuth_rad) ** 2, math.sin(scene.camera.azimuth_rad) ** 2
     return f_zz * c2 + f_xx * s2, f_xx * c2 + f_zz * s2
 

@@ -34,6 +34,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -47,7 +48,6 @@ from glshade.metrics.continuous import (
     deflection,
     visibility_limit,
 )
-from glshade.scene import Emitter
 
 
 @dataclass(frozen=True)
@@ -125,6 +125,9 @@ class MetricSettings:
         return np.arange(count) * self.step_mm
 
 
+#: Changes whenever the metric's definition changes: results of another version are never
+#: mixed into a study or a sweep.
+METRIC_VERSION = 2
 #: What a binarisation threshold may be a fraction of (:class:`MetricSettings`).
 LEVEL_SOURCES = ("auto", "emitter", "image")
 #: Percentiles of the defect-free image taken as its dark and bright levels.
@@ -143,49 +146,31 @@ def kept_columns(width: int, keep_fraction: float) -> slice:
 
 
 # --------------------------------------------------------------------------- shading
-def stripe_radiance(v: np.ndarray, emitter: Emitter, phase_mm: float) -> np.ndarray:
-    """Mirror radiance ``L(v)`` of SPEC §3 (float32; 0 where ``v`` is NaN).
+class Pattern(Protocol):
+    """What the metric asks of the emitter (its component's ``pattern(scene)``): a
+    pattern repeating along ``v`` every ``period_mm``, its radiance, and the half-width
+    of the region a threshold keeps around each stripe (None: not a single interval)."""
 
-    The same sum as the shader: every stripe within 10 σ of ``v``.
-    """
-    period, sigma = emitter.period, emitter.sigma_mm
-    w = (np.asarray(v, np.float64) - phase_mm) / period
-    w -= np.round(w)
-    reach = math.ceil(10.0 * sigma / period) + 1
-    total = np.zeros(w.shape)
-    scale = period / sigma
-    for k in range(-reach, reach + 1):
-        total += np.exp(-0.5 * ((w - k) * scale) ** 2)
-    return np.nan_to_num(total, nan=0.0).astype(np.float32)
+    @property
+    def period_mm(self) -> float: ...
+
+    def radiance(self, v: np.ndarray, phase_mm: float | None = None) -> np.ndarray: ...
+
+    def binary_half_width(self, threshold: float) -> float | None: ...
 
 
-def stripe_half_width(emitter: Emitter, threshold: float) -> float | None:
-    """Half-width ``w*`` (mm) of the region ``L > threshold`` around a stripe centre.
+def stripe_radiance(v: np.ndarray, pattern: Pattern, phase_mm: float) -> np.ndarray:
+    """The pattern's radiance at ``v`` (mm) shifted by ``phase_mm``, as a float32 image
+    holds it (0 where ``v`` is NaN): the mirror's picture, shaded from an emitter map."""
+    return np.nan_to_num(pattern.radiance(v, phase_mm), nan=0.0).astype(np.float32)
 
-    ``L`` is periodic and even; when it decreases monotonically from a stripe's centre
-    to the middle between stripes (true for every stripe narrower than about a third of
-    the period), ``L(v) > threshold`` is exactly ``|v - phase - k period| < w*`` for the
-    nearest ``k``: a binarisation without evaluating a single exponential. Returns
-    ``None`` when that does not hold (use :func:`stripe_radiance`), ``0`` when no point
-    is above the threshold and ``period / 2`` when every point is.
-    """
-    period = emitter.period
-    grid = np.linspace(0.0, 0.5 * period, 2049)
-    level = stripe_radiance(grid, emitter, 0.0).astype(np.float64)
-    if np.any(np.diff(level) > 1e-12):
-        return None
-    if level[0] <= threshold:
-        return 0.0
-    if level[-1] > threshold:
-        return 0.5 * period
-    lo, hi = 0.0, 0.5 * period
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        if float(stripe_radiance(np.array([mid]), emitter, 0.0)[0]) > threshold:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
+
+def stripe_half_width(pattern: Pattern, threshold: float) -> float | None:
+    """Half-width ``w*`` (mm) of the region ``L > threshold`` around a stripe's centre:
+    ``L(v) > threshold`` is then exactly ``|v - phase - k period| < w*`` for the nearest
+    ``k``, a binarisation without evaluating a single exponential (None when the pattern
+    is not like that: use :func:`stripe_radiance`)."""
+    return pattern.binary_half_width(threshold)
 
 
 def resolved_mask(v0: np.ndarray, period_mm: float, min_period_px: float) -> np.ndarray:
@@ -205,13 +190,13 @@ def resolved_mask(v0: np.ndarray, period_mm: float, min_period_px: float) -> np.
 
 
 def binarize_v(
-    v: np.ndarray, emitter: Emitter, phase_mm: float, half_width_mm: float
+    v: np.ndarray, pattern: Pattern, phase_mm: float, half_width_mm: float
 ) -> np.ndarray:
     """``L(v) > threshold`` from the uv map, given :func:`stripe_half_width` (bool)."""
-    w = (v - phase_mm) / emitter.period
+    w = (v - phase_mm) / pattern.period_mm
     with np.errstate(invalid="ignore"):
         w -= np.round(w)
-        return np.abs(w) < half_width_mm / emitter.period
+        return np.abs(w) < half_width_mm / pattern.period_mm
 
 
 def binarize(image: np.ndarray, settings: MetricSettings, level: float | None = None) -> np.ndarray:
@@ -372,7 +357,8 @@ class Visibility:
 class Baseline:
     """The defect-free half of the metric for one scene geometry (see the module doc).
 
-    ``v0``: the defect-free emitter map (mm, NaN = no hit); ``emitter``: its stripes;
+    ``v0``: the defect-free emitter map (mm, NaN = no hit); ``pattern``: the emitter's
+    stripes (:class:`Pattern`, what its component's ``pattern(scene)`` returns);
     ``normal_images(phase)`` (optional): rendered defect-free images, for shading that is
     not a function of ``v`` (Blinn-Phong, supersampling). Thread-safe: the study measures
     several defects against one baseline from worker threads.
@@ -381,17 +367,17 @@ class Baseline:
     def __init__(
         self,
         v0: np.ndarray,
-        emitter: Emitter,
+        pattern: Pattern,
         settings: MetricSettings = MetricSettings(),
         normal_images: Callable[[float], np.ndarray] | None = None,
         image_levels: bool = False,
     ) -> None:
         self.v0 = np.asarray(v0)
-        self.emitter = emitter
+        self.pattern = pattern
         self.settings = settings
         self.normal_images = normal_images
-        self.phases = settings.phases(emitter.period)
-        self.half_width_mm = stripe_half_width(emitter, settings.threshold)
+        self.phases = settings.phases(pattern.period_mm)
+        self.half_width_mm = stripe_half_width(pattern, settings.threshold)
         if normal_images is None and (self.half_width_mm is None or settings.otsu):
             raise GlshadeError(
                 "the metric shades the phases from the emitter map, which needs a fixed threshold and stripes "
@@ -400,7 +386,7 @@ class Baseline:
         height, width = self.v0.shape
         self.columns = kept_columns(width, settings.keep_fraction)
         if settings.min_period_px > 0:
-            self.resolved = resolved_mask(self.v0, emitter.period, settings.min_period_px)
+            self.resolved = resolved_mask(self.v0, pattern.period_mm, settings.min_period_px)
         else:
             self.resolved = np.isfinite(self.v0)
         self.valid = self.resolved[:, self.columns]
@@ -430,7 +416,7 @@ class Baseline:
         if images is not None:
             binary = binarize(images(phase_mm), self.settings, self.level)[:, self.columns]
         else:
-            binary = binarize_v(v[:, self.columns], self.emitter, phase_mm, self.half_width_mm)
+            binary = binarize_v(v[:, self.columns], self.pattern, phase_mm, self.half_width_mm)
         return binary & self.valid
 
     def normal_stripes(self, phase_mm: float) -> ct.StripeMap:
@@ -505,7 +491,7 @@ class Baseline:
             v1,
             valid,
             self.columns,
-            StripeLevels(self.emitter.period, self._limit_half_width()),
+            StripeLevels(self.pattern.period_mm, self._limit_half_width()),
             moved,
             self.settings.limit_upsample,
             self.settings.limit_phases,
@@ -533,7 +519,7 @@ class Baseline:
         threshold's (with images, the same fixed-threshold width of the mirror)."""
         if self.half_width_mm is not None:
             return self.half_width_mm
-        return 0.25 * self.emitter.period
+        return 0.25 * self.pattern.period_mm
 
     # ---------------------------------------------------------------- pictures
     def stripes_at(

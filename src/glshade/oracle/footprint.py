@@ -13,23 +13,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from glshade.components.registry import registry
+from glshade.oracle.tracer import first_hit
+from glshade.scene import Scene
 
 #: Small rotation of the mirror ray used to differentiate ``v`` (rad).
 _DALPHA = 1e-5
 
 
-def footprint_mm(scene, lobe_std_rad: float) -> float | None:
+def footprint_mm(scene: Scene, lobe_std_rad: float) -> float | None:
     """The lobe's ±1σ width along ``v`` on the emitter (mm) for the image's centre pixel,
     or None where the centre ray misses the surface or the emitter."""
-    from glshade.oracle.tracer import first_hit, pixel_rays
-
     cam = scene.camera
     rows, cols = (
         slice(cam.height // 2, cam.height // 2 + 1),
         slice(cam.width // 2, cam.width // 2 + 1),
     )
-    origin, directions = pixel_rays(cam, rows, cols)
+    origin, directions = cam.pixel_rays(rows, cols)
     d = np.asarray(directions, np.float64).reshape(-1, 3)[:1]
     _, points, normals, valid = first_hit(
         scene, np.asarray(origin, np.float64).reshape(-1, 3)[:1], d
@@ -46,11 +45,8 @@ def footprint_mm(scene, lobe_std_rad: float) -> float | None:
     spread = 0.0
     for turn in (axis, np.cross(r, axis)):  # in and across the plane of incidence
         turned = np.stack([r + s * _DALPHA * np.cross(turn, r) for s in (-1.0, 1.0)])
-        _, v, ok = (
-            registry()
-            .active(scene)
-            .emitter.coordinates(scene, np.repeat(points.reshape(-1, 3)[:1], 2, 0), turned)
-        )
+        start = np.repeat(points.reshape(-1, 3)[:1], 2, 0)
+        _, v, ok = scene.active.emitter.coordinates(scene, start, turned)
         if not ok.all():
             return None
         spread = max(spread, abs(v[1] - v[0]) / (2 * _DALPHA))

@@ -95,8 +95,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from glshade.components.reflection_blinn_phong import MIN_SHININESS
-from glshade.components.registry import Active, registry
+from glshade.components.base import Active
 from glshade.frame import Frame, normalize_outputs
 from glshade.scene import Camera, Defect, Emitter, Scene, Surface
 
@@ -114,30 +113,30 @@ _GOLDEN_ITERATIONS = 64
 def pixel_rays(
     camera: Camera, rows: slice | None = None, cols: slice | None = None, supersample: int = 1
 ):
-    """Camera rays of SPEC §2: ``(origin, directions)``, float64 (the camera component's
-    oracle: see its ``pixel_rays``). ``rows``/``cols`` select pixels of the full sensor
-    (row 0 at the top)."""
+    """Camera rays: ``(origin, directions)``, float64 (the camera's chief rays:
+    :meth:`Camera.pixel_rays`). ``rows``/``cols`` select pixels of the full sensor (row 0
+    at the top)."""
     scene = Scene(camera=camera)
-    return registry().active(scene).camera.pixel_rays(scene, rows, cols, supersample)
+    return scene.active.camera.pixel_rays(scene, rows, cols, supersample)
 
 
 def radiance(emitter: Emitter, v) -> np.ndarray:
     """The emitter's radiance at ``v`` (mm): the emitter component's oracle."""
     scene = Scene(emitter=emitter)
-    return registry().active(scene).emitter.radiance(scene, v)
+    return scene.active.emitter.radiance(scene, v)
 
 
 def emitter_coordinates(scene: Scene, points, directions):
     """Where rays ``points + t r`` (mm) meet the emitter: ``(u, v, valid)``, NaN where not
     valid (the emitter component's oracle)."""
-    return registry().active(scene).emitter.coordinates(scene, points, directions)
+    return scene.active.emitter.coordinates(scene, points, directions)
 
 
 def surface_height(surface: Surface, defect: Defect, x, z) -> np.ndarray:
     """Height ``y = f(x, z) + D(x, z)`` (mm) of the surface at ``(x, z)`` (mm); NaN where
     the base surface does not exist."""
     scene = Scene(surface=surface, defect=defect)
-    parts = registry().active(scene)
+    parts = scene.active
     x = np.asarray(x, dtype=np.float64)
     z = np.asarray(z, dtype=np.float64)
     d = parts.defect.depth(scene, x, z)
@@ -214,7 +213,7 @@ def _golden_minimum(scene, parts, o, d, a, b):
 def _first_hit_rays(scene: Scene, o: np.ndarray, d: np.ndarray):
     """First crossing from above for rays ``o + t d`` (``o, d``: (N, 3), ``|d| = 1``).
     Returns ``(t, valid)``; ``t`` in mm, NaN where invalid."""
-    parts = registry().active(scene)
+    parts = scene.active
     bp, t_stop, empty = _breakpoints(scene, parts, o, d)
     k = _SAMPLES_PER_SEGMENT
     frac = np.arange(k, dtype=np.float64) / k
@@ -330,7 +329,7 @@ def first_hit(scene: Scene, origin, directions):
     normals = np.full((n, 3), np.nan)
     if valid.any():
         normals[valid] = _normals(
-            scene, registry().active(scene), points[valid, 0], points[valid, 2]
+            scene, scene.active, points[valid, 0], points[valid, 2]
         )
     return (
         t.reshape(shape),
@@ -348,7 +347,7 @@ def _reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
 def _shade(scene: Scene, origins: np.ndarray, d: np.ndarray, want_image: bool):
     """Per-ray ``(value, u, v, reaches_emitter)`` for rays from ``origins`` along unit
     directions ``d`` (N, 3 each)."""
-    parts = registry().active(scene)
+    parts = scene.active
     n = len(d)
     value = np.zeros(n)
     u = np.full(n, np.nan)
@@ -386,7 +385,7 @@ def trace(
     ignored (always float64). With Blinn-Phong, ``uv``/``mask`` are the mirror ray's."""
     wanted = normalize_outputs(outputs if isinstance(outputs, str) else tuple(outputs))
     n = scene.render.supersample
-    origins, dirs = registry().active(scene).camera.sample_rays(scene, rows, cols, n)
+    origins, dirs = scene.active.camera.sample_rays(scene, rows, cols, n)
     h, w, samples = dirs.shape[:3]
     value, u, v, ok = _shade(scene, origins.reshape(-1, 3), dirs.reshape(-1, 3), "image" in wanted)
     value = value.reshape(h, w, samples)
@@ -395,8 +394,7 @@ def trace(
     image = uv = mask = None
     if "image" in wanted:
         image = value.mean(axis=2)
-        for component in registry().active(scene):
-            image = component.develop(scene, image)
+        image = scene.active.develop(scene, image)
     if "uv" in wanted:
         uv_s = np.stack([u, v], axis=-1).reshape(h, w, samples, 2)
         total = np.where(ok[..., None], uv_s, 0.0).sum(axis=2)
@@ -408,7 +406,6 @@ def trace(
 
 
 __all__ = [
-    "MIN_SHININESS",
     "emitter_coordinates",
     "first_hit",
     "pixel_rays",

@@ -1,11 +1,11 @@
 """The scene: what the camera sees, as tables of the parameters the components declare.
 
-:mod:`glshade.scene.params` declares what a parameter is; :mod:`glshade.scene.model`
-builds the tables and the :class:`Scene` from the registered declarations.
+:mod:`glshade.scene.model` composes the tables and the :class:`Scene`;
+:mod:`glshade.scene.paper` builds the paper's scenes. Importing it needs neither OpenCV
+nor an OpenGL context.
 """
 
 from glshade.scene.model import (
-    PAPER_SURFACES,
     Camera,
     Defect,
     Emitter,
@@ -13,9 +13,8 @@ from glshade.scene.model import (
     Scene,
     Sensor,
     Surface,
-    Table,
-    paper_scene,
 )
+from glshade.scene.paper import PAPER_SURFACES, paper_scene
 
 __all__ = [
     "PAPER_SURFACES",
@@ -26,6 +25,5 @@ __all__ = [
     "Scene",
     "Sensor",
     "Surface",
-    "Table",
     "paper_scene",
 ]

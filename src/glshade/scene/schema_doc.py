@@ -7,7 +7,7 @@ keeps the file identical to what this module writes.
 from __future__ import annotations
 
 from glshade.components.registry import Registry, registry
-from glshade.scene.params import Param
+from glshade.params import Param
 
 _INTRO = """# Scene files and parameters
 
@@ -52,42 +52,6 @@ beyond* of the allowed column: a dent deeper than 0.1 mm, a variance beyond 10�
 likely typed in the wrong unit) and a reflection lobe too wide for the stripes (see
 `docs/physics.md`, *Glossy lobes and stripes*) print a `glshade: warning:` line, and the
 run goes on.
-
-## Free-form surfaces (paper eq. 3)
-
-Besides the paper's plane, cylinder and sphere, `surface.kind` may be a formula or a
-height map; the Gaussian defect adds on top of either, as on the analytic ones.
-
-**Formulas** (`kind = "formula"`): `expression` is `f(x, z)` in mm of `x` and `z` in mm
-and the names of `parameters`, e.g. `expression = "0.0005*x^2 - 0.0002*z^2 + a*sin(z/b)"`
-with `parameters = { a = 0.002, b = 5.0 }`. The grammar: numbers, `x`, `z`, the declared
-parameters, `+ - * /`, `**` or `^` (power), unary `-`, parentheses, and `sqrt exp log sin
-cos tan abs min max` (at most 2000 characters). Anything else is refused with the
-offending token and its column. The text is parsed by Python's `ast` and rebuilt node by
-node in SymPy, which differentiates it exactly and prints the GLSL; no user text reaches
-the shader compiler or Python's evaluator. `fp64` formulas may use only what GLSL has in
-double precision (`+ - * /`, integer and half-integer powers, `sqrt abs min max`).
-
-**Height maps** (`kind = "heightmap"`): `file` (relative to the scene file) holds
-`heights[row, column]`, rows along +z and columns along +x: a `.npy` array, an `.x3p`
-(ISO 25178-72; spacing and units from the file), a float `.tif`/`.tiff` or a 16-bit
-greyscale `.png`. `spacing = [dx, dz]` mm (required unless the file carries it),
-`origin = [x, z]` of sample [0, 0] (default: the map centred on the origin), `scale` mm of
-height per stored unit, `outside = "curtain"` (no surface beyond the map: those rays are
-black) or `"flat"` (the plane y = 0). Between samples the surface is the bicubic
-Catmull-Rom spline: it passes through every sample and its slopes are continuous.
-
-**The first hit** on a free-form surface is a march along the ray that cannot pass the
-first crossing: its steps are bounded by a bound `K` on the surface's curvature along the
-ray, inside the slab `lo <= y - D <= hi` that holds the surface. For a height map `lo`,
-`hi` and `K` are rigorous bounds of the spline (from the samples' range and their second
-and mixed differences). For a formula they come from `f` and its exact Hessian sampled on a
-129 × 129 grid over the region the camera sees (with a 1.5× margin on `K`): a formula with
-features finer than that grid, or curvature far larger outside it, can break them. Where
-the bound fails, or where a ray skims the surface for longer than the march's 256 steps,
-the pixel is reported as a miss (black, outside the mask), never as a wrong hit. Where a
-formula is undefined (`sqrt` of a negative number) there is no surface, and a ray that
-reaches such a region ends there as a miss.
 
 *Role*: `feature` parameters pick shader code (a change may compile another program, once
 per feature set); `uniform` parameters reach the shader as uniforms (a change never
@@ -142,10 +106,20 @@ def _components(reg: Registry) -> list[str]:
     return lines + [""]
 
 
+def _component_docs(reg: Registry) -> list[str]:
+    """Each component's own paragraph (its folder's ``docs.md``), by slot."""
+    lines = []
+    for component in reg.components():
+        text = component.docs()
+        if text:
+            lines += [f"### {component.slot} `{component.name}`", "", text, ""]
+    return ["## Components in detail", "", *lines] if lines else []
+
+
 def scene_format_markdown(reg: Registry | None = None) -> str:
     """The whole page, from ``reg`` (default: the registry with the built-in components)."""
     reg = reg or registry()
-    lines = [_INTRO, *_components(reg)]
+    lines = [_INTRO, *_components(reg), *_component_docs(reg)]
     header = "| key | unit | default | allowed | role | used by | short flag | meaning |"
     for table in reg.tables():
         lines += [f"## `[{table}]`", "", header, "|---|---|---|---|---|---|---|---|"]

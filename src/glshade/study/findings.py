@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from glshade.study.stats import spearman
 from glshade.files import atomic_write_bytes
 from glshade.metrics import physics
 from glshade.study.plan import case_scene
@@ -54,25 +55,6 @@ RULES = (
         "surface and depth, **partly holds** when each at least partly holds."
     ),
 )
-
-
-def spearman(x, y) -> float:
-    """Spearman's rank correlation (average ranks for ties); 0 when either is constant."""
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    if len(x) < 2 or np.ptp(x) == 0 or np.ptp(y) == 0:
-        return 0.0
-    rx, ry = _ranks(x), _ranks(y)
-    return float(np.corrcoef(rx, ry)[0, 1])
-
-
-def _ranks(values: np.ndarray) -> np.ndarray:
-    order = np.argsort(values, kind="mergesort")
-    ranks = np.empty(len(values))
-    ranks[order] = np.arange(len(values), dtype=float)
-    for v in np.unique(values):
-        same = values == v
-        ranks[same] = ranks[same].mean()
-    return ranks
 
 
 def um(dmax_mm: float) -> str:
@@ -405,7 +387,11 @@ def law_summary(rows: list[Mapping]) -> list[str]:
     ]
     for surface in dict.fromkeys(r["surface"] for r in rows):
         pick = [
-            r for r in rows if r["surface"] == surface and math.isfinite(r["visibility_law_px"])
+            r
+            for r in rows
+            if r["surface"] == surface
+            and r["visibility_law_px"] is not None
+            and math.isfinite(r["visibility_law_px"])
         ]
         if not pick:
             continue
@@ -443,7 +429,7 @@ def write_report(
     lines = _opening(rows, plan) + _findings_sections(verdicts)
     lines += _laws_section(rows)
     lines += _folds_section(rows)
-    from glshade.study.optics import report_section
+    from glshade.study.finding3 import report_section
 
     lines += report_section(Path(out_dir))
     lines += _notes(rows, plan)
@@ -550,8 +536,8 @@ def _laws_section(rows: list[Mapping]) -> list[str]:
         *law_summary(rows),
         "",
     ]
-    predicted = [r for r in rows if r["fold_ratio"] > 1.0]
-    agree = sum((r["fold_ratio"] > 1.0) == r["folded"] for r in rows)
+    predicted = [r for r in rows if (r["fold_ratio"] or 0.0) > 1.0]
+    agree = sum(((r["fold_ratio"] or 0.0) > 1.0) == r["folded"] for r in rows)
     lines.append(
         f"- Fold onset: the law predicts {len(predicted)} folded cases; it agrees with the `folded` flag in "
         f"{agree} of {len(rows)} cases."

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from glshade.errors import GlshadeError
 from glshade.metrics import visibility as vis
+from glshade.metrics.visibility import METRIC_VERSION
 from glshade.scene import PAPER_SURFACES, Camera, Scene, paper_scene
 
 PAPER_THETAS = (85.0, 75.0, 65.0, 55.0, 45.0, 35.0, 25.0, 15.0, 5.0)
@@ -26,12 +27,9 @@ OVERLAY_CASES = {
     ("flat", 45.0, 4.0, 0.005): "fig09_contour_overlay.png",
     ("flat", 5.0, 1.0, 0.005): "fig09_contour_overlay_fold.png",
 }
-#: Changes whenever the metric's definition changes: case files of another version are
-#: never mixed into a study.
-METRIC_VERSION = 2
 
-#: A case: (surface, θ in degrees, σ² in mm², dmax in mm).
-Case = tuple[str, float, float, float]
+#: A point of the plan: (surface, θ in degrees, σ² in mm², dmax in mm).
+PlanPoint = tuple[str, float, float, float]
 
 
 def case_key(surface: str, theta: float, sigma2: float, dmax: float) -> str:
@@ -131,7 +129,7 @@ class StudyPlan:
     def scene(self, surface: str, theta: float, sigma2: float, dmax: float) -> Scene:
         return case_scene(surface, theta, sigma2, dmax).with_size(self.size)
 
-    def cases(self) -> list[Case]:
+    def cases(self) -> list[PlanPoint]:
         return [
             (s, t, v, d)
             for s in self.surfaces
@@ -139,13 +137,6 @@ class StudyPlan:
             for v in self.sigma2s
             for d in self.dmaxs
         ]
-
-    def geometries(self, cases: list[Case]) -> list[list[Case]]:
-        """``cases`` grouped by (surface, θ): the cases sharing one defect-free trace."""
-        groups: dict[tuple[str, float], list[Case]] = {}
-        for case in cases:
-            groups.setdefault(case[:2], []).append(case)
-        return list(groups.values())
 
     def to_dict(self) -> dict:
         data = asdict(self)

@@ -10,13 +10,14 @@ thread. Every file is written atomically. Depths are shown in µm, as the titles
 
 from __future__ import annotations
 
-import io
 import math
 from pathlib import Path
 
 import numpy as np
 
-from glshade.files import atomic_write_bytes, read_png
+from glshade.files import read_png
+from glshade.measure.figures import new_figure as _figure
+from glshade.measure.figures import save_figure as _save
 from glshade.study.plan import GRID_THETAS, StudyPlan, case_key, surface_label
 from glshade.study.store import CaseResult
 
@@ -28,36 +29,13 @@ def surface_name(surface: str) -> str:
     scene file and what the surface is."""
     if surface in SURFACE_NAMES:
         return SURFACE_NAMES[surface]
-    from glshade.components.registry import registry
     from glshade.study.plan import case_scene
 
     scene = case_scene(surface)
-    return f"{surface_label(surface)}: {registry().active(scene).surface.describe(scene)}"
+    return f"{surface_label(surface)}: {scene.active.surface.describe(scene)}"
 
 
 SURFACE_COLOURS = {"flat": "tab:blue", "cylinder": "tab:orange", "sphere": "tab:green"}
-#: The Fig. 9 colours (RGB 0-1) and what they mean.
-OVERLAY_LEGEND = (
-    ((0.0, 0.0, 1.0), "contour, defect-free image"),
-    ((1.0, 0.0, 0.0), "contour, image with the dent"),
-    ((1.0, 0.0, 1.0), "both (contours coincide)"),
-    ((1.0, 150 / 255, 0.0), "island of a fold (not measured)"),
-)
-
-
-def _figure(width_in: float, height_in: float):
-    from matplotlib.figure import Figure
-
-    return Figure(figsize=(width_in, height_in))
-
-
-def _save(fig, path: Path) -> None:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    FigureCanvasAgg(fig)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight")
-    atomic_write_bytes(Path(path), buffer.getvalue())
 
 
 def _um(dmax_mm: float) -> str:
@@ -216,6 +194,7 @@ def law_plot(rows: list[CaseResult], path: Path) -> None:
                     for r in rows
                     if r.surface == surface
                     and r.folded == folded
+                    and r[law] is not None
                     and math.isfinite(r[law])
                     and r[law] > 0
                     and r[sim] > 0
@@ -248,71 +227,6 @@ def law_plot(rows: list[CaseResult], path: Path) -> None:
 
 
 # --------------------------------------------------------------------------- Fig. 9
-def overlay_figure(
-    rgb: np.ndarray, result, column_start: int, title: str, path: Path, zoom_px: int = 48
-) -> None:
-    """The Fig. 9 overlay of one case at its best phase: the cut contour images merged
-    (left), a magnified window around the largest distance with that distance drawn
-    (right), a title naming the case and a legend for every colour.
-
-    ``rgb``: :func:`glshade.metrics.contours.overlay_rgb` of the kept columns; ``result``: the
-    case's :class:`glshade.metrics.visibility.Visibility`; ``column_start``: the first kept column.
-    """
-    from matplotlib.patches import Patch, Rectangle
-
-    shift = result.shift
-    fig = _figure(12, 6.2)
-    full, near = fig.subplots(1, 2, gridspec_kw={"width_ratios": (1.0, 1.0)})
-    height, width = rgb.shape[:2]
-    full.imshow(
-        rgb,
-        interpolation="antialiased",
-        extent=(column_start - 0.5, column_start + width - 0.5, height - 0.5, -0.5),
-    )
-    full.set_title("kept columns (cut at both sides)", fontsize=9)
-    full.set_xlabel("image column (px)")
-    full.set_ylabel("image row (px)")
-    if shift.column >= 0:
-        rows = (shift.normal_row, shift.defect_row)
-        centre_row = 0.5 * (rows[0] + rows[1])
-        half = max(zoom_px, abs(rows[0] - rows[1]) * 0.75 + 8)
-        x0, x1 = shift.column - half, shift.column + half
-        y0, y1 = centre_row - half, centre_row + half
-        full.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="yellow", lw=1))
-        near.imshow(rgb, interpolation="nearest", extent=full.images[0].get_extent())
-        near.set_xlim(x0, x1)
-        near.set_ylim(y1, y0)
-        near.annotate(
-            "",
-            xy=(shift.column, rows[1]),
-            xytext=(shift.column, rows[0]),
-            arrowprops={"arrowstyle": "<->", "color": "yellow", "lw": 1.5},
-        )
-        near.text(
-            shift.column + 2,
-            centre_row,
-            f" {shift.distance_px:g} px\n ({shift.side} contour)",
-            color="yellow",
-            fontsize=10,
-            va="center",
-        )
-        near.set_title("magnified: the largest distance between corresponding contours", fontsize=9)
-    else:
-        near.set_title("no corresponding contours to compare", fontsize=9)
-    near.set_xlabel("image column (px)")
-    handles = [Patch(color=c, label=text) for c, text in OVERLAY_LEGEND]
-    handles.append(Patch(color="yellow", label="measured distance"))
-    fig.legend(handles=handles, loc="lower center", ncol=5, fontsize=8.5)
-    fig.suptitle(
-        f"Fig. 9 overlay: {title}; phase {result.best_phase_mm:g} mm\n"
-        f"visibility {result.visibility_px:g} px (limit {result.visibility_continuous_px:.2f} px, "
-        f"deflection {result.deflection_px:.2f} px, {result.islands} islands)",
-        fontsize=10.5,
-    )
-    fig.tight_layout(rect=(0, 0.06, 1, 1))
-    _save(fig, path)
-
-
 def figure_names(surface: str, dmax: float) -> tuple[str, str]:
     """File names of the grid and the plot of one (surface, depth); depth in µm."""
     tag = f"{surface_label(surface)}_dmax{dmax * 1000:g}um"

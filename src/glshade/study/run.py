@@ -5,7 +5,7 @@ for every (surface, θ) the defect-free scene is traced once and its analysis is
 the 8 (σ², dmax) cases of that geometry, which changes no number (a case is a pure
 function of its scene and the metric settings; ``tests/test_study.py`` checks the rows
 against :func:`glshade.measure`). The cases run through the sweep engine
-(:mod:`glshade.sweep.engine`, the machinery of ``glshade sweep``): the GL work stays on
+(:mod:`glshade.measure.engine`, the machinery of ``glshade sweep`` too): the GL work stays on
 the calling thread; the analysis runs in ``workers`` threads. What is swept is :mod:`glshade.study.plan`; what is written,
 and resumed from, :mod:`glshade.study.store`.
 """
@@ -23,14 +23,15 @@ import cv2
 from glshade.errors import GlshadeError
 from glshade.files import encode_png
 from glshade.gpu.renderer import Renderer
-from glshade.metrics import contours, physics
+from glshade.measure.engine import Case, CaseView, Measured, measure_many
+from glshade.measure.locks import run_lock
+from glshade.metrics import contours
 from glshade.metrics import visibility as vis
-from glshade.scene import Scene
 from glshade.study.plan import (
     GRID_THETAS,
     OVERLAY_CASES,
     THUMBNAIL,
-    Case,
+    PlanPoint,
     StudyPlan,
     case_key,
 )
@@ -38,11 +39,9 @@ from glshade.study.store import (
     CaseResult,
     load_case,
     prepare_out_dir,
-    study_lock,
     write_case,
     write_results_csv,
 )
-from glshade.sweep.engine import CaseView, measure_many
 
 
 @dataclass
@@ -73,7 +72,7 @@ class _Progress:
         self,
         plan: StudyPlan,
         done: dict[str, CaseResult],
-        pending: list[Case],
+        pending: list[PlanPoint],
         bar,
         on_case_done,
         on_surface_done,
@@ -113,7 +112,7 @@ def run_study(
 ) -> StudyResult:
     """Run (or resume) the study into ``out_dir``; returns every case's record.
 
-    The directory is locked for the run (:func:`store.study_lock`: a second run on it is
+    The directory is locked for the run (:func:`glshade.measure.locks.run_lock`: a second run on it is
     refused); a directory holding another plan is refused unless ``overwrite``, which
     removes the old study's files first (:func:`store.prepare_out_dir`).
 
@@ -125,7 +124,7 @@ def run_study(
     """
     check_workers(workers)
     out_dir = Path(out_dir)
-    with study_lock(out_dir):
+    with run_lock(out_dir):
         prepare_out_dir(out_dir, plan.to_dict(), overwrite)
         return _run_locked(
             plan, out_dir, workers, progress, renderer, on_case_done, on_surface_done
@@ -188,43 +187,40 @@ def _progress_bar(total: int, initial: int, enabled: bool):
 
 def _run_cases(
     plan: StudyPlan,
-    cases: list[Case],
+    points: list[PlanPoint],
     renderer: Renderer,
     pool: ThreadPoolExecutor,
     timings: Timings,
     out_dir: Path,
     finished: Callable[[CaseResult], None],
 ) -> None:
-    """Measure every pending case with the sweep engine (:func:`glshade.sweep.engine.measure_many`:
-    one defect-free analysis per (surface, θ), tracing on this thread while the pool
-    measures) and write each result as soon as it is done."""
-    items = [(case, plan.scene(*case)) for case in cases]
-    for measured in measure_many(renderer, items, plan.metric, pool=pool, extra=_figures):
-        row = case_result(measured.token, measured.scene, measured.result, measured.trace_s)
+    """Measure every pending case with the measuring engine
+    (:func:`glshade.measure.engine.measure_many`: one defect-free analysis per (surface,
+    θ), tracing on this thread while the pool measures) and write each result as soon as
+    it is done."""
+    cases = [Case(point, plan.scene(*point)) for point in points]
+    for measured in measure_many(renderer, cases, plan.metric, pool=pool, extra=_figures):
+        row = case_result(measured)
         timings.trace += measured.trace_s
         _write(row, *measured.extra, timings, out_dir)
         finished(row)
 
 
-def _figures(case: Case, scene: Scene, result: vis.Visibility, view: CaseView):
+def _figures(case: Case, result: vis.Visibility, view: CaseView):
     """A case's thumbnail (θ of the figure grids) and Fig. 9 overlay (its cases), made
     where the case is measured."""
     thumbnail = overlay = None
-    if case[1] in GRID_THETAS:
+    point, scene = case.key, case.scene
+    if point[1] in GRID_THETAS:
         image = view.best_image(scene, result)
-        thumbnail = encode_png(
-            cv2.resize(image, (THUMBNAIL, THUMBNAIL), interpolation=cv2.INTER_AREA), bits=8
-        )
-    if case in OVERLAY_CASES:
+        small = cv2.resize(image, (THUMBNAIL, THUMBNAIL), interpolation=cv2.INTER_AREA)
+        thumbnail = encode_png(small, bits=8)
+    if point in OVERLAY_CASES:
         normal, defect = view.baseline.stripes_at(
             view.v1, result.best_phase_mm, result.offset_px, view.images
         )
-        overlay = (
-            contours.overlay_rgb(normal, defect),
-            result,
-            view.baseline.columns.start,
-            scene.title(),
-        )
+        rgb = contours.overlay_rgb(normal, defect)
+        overlay = (rgb, result, view.baseline.columns.start, scene.title())
     return thumbnail, overlay
 
 
@@ -237,42 +233,14 @@ def _write(
     timings.continuous += row.continuous_s
     start = time.perf_counter()
     if overlay is not None:
-        from glshade.study.plots import overlay_figure
+        from glshade.measure.figures import overlay_figure
 
         overlay_figure(*overlay, out_dir / OVERLAY_CASES[row.case])
     write_case(out_dir, row, thumbnail)
     timings.io += time.perf_counter() - start
 
 
-def case_result(case: Case, scene: Scene, result: vis.Visibility, trace_s: float) -> CaseResult:
-    """A case's record: its parameters, its measurement, the closed forms, the timings."""
-    surface, theta, sigma2, dmax = case
-    law = physics.laws(scene)
-    summary = result.summary()
-    measured = (
-        "visibility_px",
-        "visibility_continuous_px",
-        "deflection_px",
-        "folded",
-        "islands",
-        "best_phase_mm",
-        "unpaired_contours",
-        "unresolved_fraction",
-    )
-    return CaseResult(
-        surface=surface,
-        theta_deg=theta,
-        sigma2_mm2=sigma2,
-        dmax_mm=dmax,
-        period_mm=scene.emitter.period,
-        **{k: summary[k] for k in measured},
-        offset_dx_px=result.offset_px[0],
-        offset_dy_px=result.offset_px[1],
-        fold_ratio=round(law.fold_ratio, 5),
-        deflection_law_px=round(law.deflection_px, 4),
-        visibility_law_px=round(law.visibility_px, 4),
-        trace_s=round(trace_s, 4),
-        shade_s=round(result.seconds.shade, 4),
-        contours_s=round(result.seconds.contours, 4),
-        continuous_s=round(result.seconds.continuous, 4),
-    )
+def case_result(measured: Measured) -> CaseResult:
+    """A case's row: its point of the plan and its measurement's record."""
+    case = measured.case
+    return CaseResult.of(case.key, case.scene.emitter.period, measured.record)

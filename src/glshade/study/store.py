@@ -1,6 +1,7 @@
-"""What a study writes and reads back: the typed record of one case (:class:`CaseResult`,
-whose fields are the columns of ``results.csv``), the case files, ``results.csv`` and the
-output directory's manifest. No GL here: a planner or a Dask client reads results with it.
+"""What a study writes and reads back: the typed row of one case (:class:`CaseResult`:
+the case's point of the plan, then the measurement's record, whose fields are the
+columns of ``results.csv``), the case files, ``results.csv`` and the output directory's
+manifest. No GL here: a planner or a Dask client reads results with it.
 
 Each finished case is written as ``cases/<key>.json`` (plus a thumbnail of its image at
 the best phase for the figure grids) atomically, so an interrupted run loses nothing and
@@ -13,103 +14,59 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
-import socket
-import time
 from collections.abc import Iterator, Mapping
-from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 from glshade.errors import GlshadeError
 from glshade.files import atomic_write_bytes
-from glshade.study.plan import Case, case_key
+from glshade.measure.locks import make_out_dir
+from glshade.measure.record import PARSE, Column, Measurement, columns_markdown
+from glshade.measure.record import COLUMNS as RECORD_COLUMNS
+from glshade.study.plan import PlanPoint, case_key
 
 
-def _column(unit: str, meaning: str) -> Any:
-    return field(metadata={"unit": unit, "meaning": meaning})
+def _point(unit: str, meaning: str) -> Any:
+    return field(metadata={"unit": unit, "meaning": meaning, "role": "case"})
 
 
 @dataclass(frozen=True)
-class CaseResult(Mapping):
-    """One case of the study: its parameters, the three numbers, the closed forms and the
-    timings. The fields are the columns of ``results.csv`` (in order, with their units
-    and meanings: :data:`COLUMNS`); the record also reads as a mapping of them."""
+class CaseResult(Measurement, Mapping):
+    """One case of the study: its point of the plan (surface, θ, σ², dmax, the stripe
+    period) and its :class:`~glshade.measure.record.Measurement`. Its columns, in order:
+    :data:`COLUMNS`; the row also reads as a mapping of them."""
 
-    surface: str = _column(
+    surface: str = _point(
         "",
-        "base surface: flat, cylinder (R 70 mm, axis in the plane of incidence), sphere (R 70 mm), "
-        "or the scene file of a free-form surface",
+        "base surface: flat, cylinder (R 70 mm, axis in the plane of incidence), sphere "
+        "(R 70 mm), or the scene file of a free-form surface",
     )
-    theta_deg: float = _column("deg", "camera elevation θ above the surface (90 = straight down)")
-    sigma2_mm2: float = _column("mm²", "variance σ² of the Gaussian dent (isotropic)")
-    dmax_mm: float = _column("mm", "depth of the dent (0.003 mm = 3 µm)")
-    period_mm: float = _column(
+    theta_deg: float = _point("deg", "camera elevation θ above the surface (90 = straight down)")
+    sigma2_mm2: float = _point("mm²", "variance σ² of the Gaussian dent (isotropic)")
+    dmax_mm: float = _point("mm", "depth of the dent (0.003 mm = 3 µm)")
+    period_mm: float = _point(
         "mm", "stripe period on the emitter (2 mm; 10 mm on the sphere, as in the paper)"
     )
-    visibility_px: float = _column(
-        "px",
-        "the paper's metric: the largest distance between corresponding stripe contours "
-        "over the phase sweep, whole pixels of the image (SPEC §6)",
-    )
-    visibility_continuous_px: float = _column(
-        "px",
-        "the limit of the paper's metric for a vanishing phase step and "
-        "pixel size, by the same contour rules (sub-pixel)",
-    )
-    deflection_px: float = _column(
-        "px",
-        "how far the dent moves the emitter map: the largest distance between a row r "
-        "and the row r0 where v0(r0) = v1(r), in a kept column; equals the continuous "
-        "visibility where nothing folds",
-    )
-    folded: bool = _column(
-        "",
-        "True where the dent's emitter map runs against the defect-free one along some kept "
-        "column (the stripe map folds)",
-    )
-    islands: int = _column(
-        "count",
-        "the most stripe pieces the dent cuts off (touching neither a cut column nor the "
-        "border; beyond those the defect-free image has) at any phase; never measured",
-    )
-    best_phase_mm: float = _column("mm", "stripe phase at which visibility_px was reached")
-    unpaired_contours: int = _column(
-        "count",
-        "stripes reaching a cut column or the border that found no partner at the "
-        "best phase (0 in a healthy comparison)",
-    )
-    offset_dx_px: int = _column(
-        "px", "registration offset applied to the defect image, columns (0 for rendered pairs)"
-    )
-    offset_dy_px: int = _column(
-        "px", "registration offset applied to the defect image, rows (0 for rendered pairs)"
-    )
-    unresolved_fraction: float = _column(
-        "fraction",
-        "share of the kept pixels left out because the defect-free stripes "
-        "span fewer than 4 px per period there (aliasing)",
-    )
-    fold_ratio: float = _column(
-        "",
-        "closed form 2 κ Dc De / ((Dc + De) sin θ), κ the largest tangential curvature of "
-        "base plus dent; the map folds where it exceeds 1 (docs/physics.md)",
-    )
-    deflection_law_px: float = _column("px", "closed form of deflection_px (docs/physics.md)")
-    visibility_law_px: float = _column(
-        "px",
-        "closed form of visibility_continuous_px: the deflection, capped by a fold "
-        "at b sqrt(2 ln(F/m)) (docs/physics.md)",
-    )
-    trace_s: float = _column("s", "time to trace the dent's emitter map (GL)")
-    shade_s: float = _column("s", "time to binarise the defect image at every phase")
-    contours_s: float = _column("s", "time of the contour analysis over the phase sweep (OpenCV)")
-    continuous_s: float = _column("s", "time of the deflection and the continuous limit")
 
     def __post_init__(self) -> None:
-        for f in fields(self):  # typed whatever it was read from (JSON, CSV text, NumPy)
-            object.__setattr__(self, f.name, _PARSE[f.type](getattr(self, f.name)))
+        super().__post_init__()
+        for name in POINT_NAMES:  # typed whatever it was read from (JSON, CSV text)
+            kind = self.__dataclass_fields__[name].type
+            object.__setattr__(self, name, PARSE[str(kind)](getattr(self, name)))
+
+    @classmethod
+    def of(cls, point: PlanPoint, period_mm: float, record: Measurement) -> CaseResult:
+        """A case's row: its point of the plan and its record."""
+        surface, theta, sigma2, dmax = point
+        return cls(
+            surface=surface,
+            theta_deg=theta,
+            sigma2_mm2=sigma2,
+            dmax_mm=dmax,
+            period_mm=period_mm,
+            **record.row(),
+        )
 
     @classmethod
     def from_row(cls, row: Mapping[str, Any]) -> CaseResult:
@@ -117,8 +74,8 @@ class CaseResult(Mapping):
         return cls(**{name: row[name] for name in CSV_COLUMNS})
 
     @property
-    def case(self) -> Case:
-        """``(surface, θ, σ², dmax)``: the case's place in the plan."""
+    def case(self) -> PlanPoint:
+        """``(surface, θ, σ², dmax)``: the case's point of the plan."""
         return self.surface, self.theta_deg, self.sigma2_mm2, self.dmax_mm
 
     # ------------------------------------------------------------ mapping of the columns
@@ -134,35 +91,23 @@ class CaseResult(Mapping):
         return len(CSV_COLUMNS)
 
 
-def _boolean(value: Any) -> bool:
-    return value == "True" if isinstance(value, str) else bool(value)
-
-
-_PARSE = {"str": str, "float": float, "int": int, "bool": _boolean}
-
-
-@dataclass(frozen=True)
-class Column:
-    """One column of ``results.csv``: its name, unit and meaning (docs/results.md)."""
-
-    name: str
-    unit: str
-    meaning: str
-
-
-COLUMNS = tuple(
-    Column(f.name, f.metadata["unit"], f.metadata["meaning"]) for f in fields(CaseResult)
+POINT_NAMES = ("surface", "theta_deg", "sigma2_mm2", "dmax_mm", "period_mm")
+#: The columns of ``results.csv``: the case's point of the plan, then the record's.
+COLUMNS: tuple[Column, ...] = (
+    *(
+        Column(f.name, f.metadata["unit"], f.metadata["meaning"], "case")
+        for f in fields(CaseResult)
+        if f.name in POINT_NAMES
+    ),
+    *RECORD_COLUMNS,
 )
 CSV_COLUMNS = [c.name for c in COLUMNS]
 _NAMES = frozenset(CSV_COLUMNS)
-TIMING_COLUMNS = ("trace_s", "shade_s", "contours_s", "continuous_s")
 
 
-def columns_markdown() -> str:
+def results_markdown() -> str:
     """The table of ``docs/results.md``."""
-    lines = ["| column | unit | meaning |", "|---|---|---|"]
-    lines += [f"| `{c.name}` | {c.unit or '—'} | {c.meaning} |" for c in COLUMNS]
-    return "\n".join(lines)
+    return columns_markdown(COLUMNS)
 
 
 # --------------------------------------------------------------------------- files
@@ -177,7 +122,7 @@ def load_case(path: Path) -> CaseResult | None:
         return None
     try:
         return CaseResult.from_row(row)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, KeyError):
         return None
 
 
@@ -218,69 +163,6 @@ STUDY_FILES = (
     "law_vs_simulation.png",
     "fig09_contour_overlay*.png",
 )
-LOCK_NAME = ".glshade.lock"
-OWNER_NAME = ".glshade.lock.json"
-
-
-@contextmanager
-def study_lock(out_dir: Path, command: str = "glshade paper") -> Iterator[None]:
-    """Hold the output directory for the whole run: a second run on it (in another
-    process) is refused at once with a line naming the holder (pid, host, start time,
-    command). The lock is an OS file lock (``filelock``): it dies with its process, so a
-    killed run never leaves the directory locked. Re-entrant within a process."""
-    from filelock import FileLock, Timeout
-
-    out_dir = Path(out_dir)
-    _make_dir(out_dir)
-    lock = FileLock(out_dir / LOCK_NAME, timeout=0, is_singleton=True)
-    try:
-        lock.acquire()
-    except Timeout:
-        raise GlshadeError(
-            f"--out {out_dir}: in use by {_owner(out_dir)}; wait for it to finish, or choose another "
-            "--out"
-        ) from None
-    first = lock.lock_counter == 1
-    try:
-        if first:
-            owner = {
-                "pid": os.getpid(),
-                "host": socket.gethostname(),
-                "command": command,
-                "since": time.strftime("%Y-%m-%d %H:%M:%S"),
-            }
-            atomic_write_bytes(out_dir / OWNER_NAME, json.dumps(owner).encode(), "--out")
-        yield
-    finally:
-        if first:
-            with suppress(OSError):
-                (out_dir / OWNER_NAME).unlink()
-        lock.release()
-
-
-def _owner(out_dir: Path) -> str:
-    try:
-        owner = json.loads((out_dir / OWNER_NAME).read_text())
-        return (
-            f"'{owner['command']}' (pid {owner['pid']} on {owner['host']}, since {owner['since']})"
-        )
-    except (OSError, ValueError, KeyError, TypeError):
-        return "another glshade run"
-
-
-def _make_dir(out_dir: Path) -> None:
-    if "\0" in str(out_dir):
-        raise GlshadeError(f"--out {str(out_dir)!r}: expected a directory path")
-    if out_dir.exists() and not out_dir.is_dir():
-        raise GlshadeError(f"--out {out_dir}: is not a directory")
-    try:
-        (out_dir / "cases").mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise GlshadeError(f"--out {out_dir}: cannot create it ({exc.strerror})") from None
-    if not os.access(out_dir, os.W_OK | os.X_OK):
-        raise GlshadeError(f"--out {out_dir}: not writable")
-
-
 def prepare_out_dir(out_dir: Path, manifest_data: dict, overwrite: bool = False) -> list[Path]:
     """Create (or reuse) the output directory and write its ``study.json``.
 
@@ -291,7 +173,7 @@ def prepare_out_dir(out_dir: Path, manifest_data: dict, overwrite: bool = False)
     they were measured with the same size and metric (the new plan reuses them).
     Returns the files removed."""
     out_dir = Path(out_dir)
-    _make_dir(out_dir)
+    make_out_dir(out_dir)
     manifest_data = json.loads(json.dumps(manifest_data))  # as it reads back: lists, not tuples
     manifest = out_dir / "study.json"
     stored = _with_metric_defaults(_read_manifest(manifest))

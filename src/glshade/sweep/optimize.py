@@ -35,7 +35,9 @@ from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
 from glshade.metrics.visibility import MetricSettings
 from glshade.scene import Scene
-from glshade.sweep.spec import SweepCase, canonical_key, case_id, with_values
+from glshade.measure.engine import Case
+from glshade.measure.record import Measurement
+from glshade.sweep.spec import canonical_key, case_id
 
 METRICS = ("paper", "continuous")
 #: Tie-break weight of the continuous visibility in the paper metric's score.
@@ -297,7 +299,8 @@ def search(
 # --------------------------------------------------------------------------- scenes
 class SceneObjective:
     """The worst-case visibility over a family, measured by an executor (in-process or
-    Dask: :func:`glshade.sweep.run.open_executor`); every case measured once (by id)."""
+    Dask: :func:`glshade.measure.executors.open_executor`); every case measured once (by
+    id)."""
 
     def __init__(
         self,
@@ -312,7 +315,7 @@ class SceneObjective:
             raise GlshadeError(f"--metric: must be one of {', '.join(METRICS)}, got {metric!r}")
         self.base, self.dimensions, self.family = base, tuple(dimensions), family
         self.settings, self.metric, self.executor = settings, metric, executor
-        self.outputs: dict[str, dict] = {}
+        self.records: dict[str, Measurement] = {}
         for point in (tuple(d.lo for d in dimensions), tuple(d.hi for d in dimensions)):
             for member in family:  # every corner and member is a valid scene before any work
                 settings.phases(self.scene(point, member).emitter.period)
@@ -320,7 +323,7 @@ class SceneObjective:
     def scene(self, point: Sequence[float], member: dict[str, float]) -> Scene:
         pairs = [*zip((d.key for d in self.dimensions), point, strict=True), *member.items()]
         try:
-            return with_values(self.base, [(key, float(value)) for key, value in pairs])
+            return self.base.with_values([(key, float(value)) for key, value in pairs])
         except SceneError as exc:
             raise GlshadeError(f"--over/--family: a bound gives no valid scene: {exc}") from None
 
@@ -328,18 +331,18 @@ class SceneObjective:
         grid = [[self.scene(p, m) for m in self.family] for p in points]
         ids = [[case_id(s, self.settings) for s in row] for row in grid]
         todo = {
-            i: SweepCase(i, (), s)
+            i: Case(i, s)
             for row_ids, row in zip(ids, grid, strict=True)
             for i, s in zip(row_ids, row, strict=True)
-            if i not in self.outputs
+            if i not in self.records
         }
-        for token, outputs, _, _ in self.executor.rows(list(todo.values()), self.settings, False):
-            self.outputs[token] = outputs
+        for key, record, _ in self.executor.rows(list(todo.values()), self.settings, False):
+            self.records[key] = record
         paper = np.array(
-            [[self.outputs[i]["visibility_px"] for i in row] for row in ids], dtype=np.float64
+            [[self.records[i].visibility_px for i in row] for row in ids], dtype=np.float64
         )
         continuous = np.array(
-            [[self.outputs[i]["visibility_continuous_px"] for i in row] for row in ids]
+            [[self.records[i].visibility_continuous_px for i in row] for row in ids]
         )
         chosen = paper if self.metric == "paper" else continuous
         score = paper + TIE * continuous if self.metric == "paper" else continuous
@@ -347,7 +350,7 @@ class SceneObjective:
 
     @property
     def cases(self) -> int:
-        return len(self.outputs)
+        return len(self.records)
 
 
 def optimize_scene(

@@ -1,6 +1,6 @@
-"""Running a sweep: in this process, or on Dask (:mod:`glshade.sweep.distributed`).
+"""Running a sweep: in this process, or on Dask (the executors of :mod:`glshade.measure`).
 
-Both ways measure the same cases with the same engine (:mod:`glshade.sweep.engine`) and
+Both ways measure the same cases with the same engine (:mod:`glshade.measure.engine`) and
 write through the same store (:mod:`glshade.sweep.store`), on this process only: workers
 return rows, never files. The table is therefore the same whichever way a sweep ran
 (``tests/test_sweep.py`` checks it), and a rerun computes only the cases without a case
@@ -11,50 +11,15 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Self
+from typing import Any
 
 from glshade.errors import GlshadeError
-from glshade.study.store import study_lock
+from glshade.measure.executors import Distribution, Row, open_executor
+from glshade.measure.locks import run_lock
 from glshade.sweep import store
-from glshade.sweep.spec import MAX_CASES_UNCONFIRMED, SweepCase, SweepSpec
-
-#: What every path returns per case: ``(case_id, outputs, seconds, image PNG or None)``.
-Row = tuple[str, dict[str, Any], dict[str, float], bytes | None]
-
-
-@dataclass(frozen=True)
-class Distribution:
-    """Where the cases run: ``workers`` local Dask worker processes, or the cluster at
-    ``scheduler``; neither: this process (``threads`` for the analysis)."""
-
-    workers: int | None = None
-    scheduler: str | None = None
-    threads: int = 2
-    connect_timeout_s: float = 10.0
-    batch: int = 16
-
-    def __post_init__(self) -> None:
-        if self.workers is not None and self.scheduler is not None:
-            raise GlshadeError(
-                "--workers and --scheduler: give one of them (local workers, or an existing cluster)"
-            )
-        if self.workers is not None and not 1 <= self.workers <= 256:
-            raise GlshadeError(f"--workers: must be an integer in [1, 256], got {self.workers}")
-        if self.threads < 1:
-            raise GlshadeError(f"--threads: must be an integer >= 1, got {self.threads}")
-        if not 0 < self.connect_timeout_s <= 600:
-            raise GlshadeError(
-                f"--connect-timeout: must be in (0, 600] seconds, got {self.connect_timeout_s:g}"
-            )
-        if not 1 <= self.batch <= 4096:
-            raise GlshadeError(f"--batch: must be an integer in [1, 4096], got {self.batch}")
-
-    @property
-    def on_dask(self) -> bool:
-        return self.workers is not None or self.scheduler is not None
+from glshade.sweep.spec import MAX_CASES_UNCONFIRMED, GridPoint, SweepSpec
 
 
 @dataclass
@@ -92,7 +57,7 @@ def run_sweep(
     computed case is safely on disk (tests kill a run there)."""
     check_size(spec, yes)
     out_dir = Path(out_dir)
-    with study_lock(out_dir, "glshade sweep"):
+    with run_lock(out_dir, "glshade sweep"):
         store.prepare(out_dir, spec, overwrite)
         cases = spec.cases()
         records = {c.case_id: store.load_case(out_dir, c.case_id) for c in cases}
@@ -102,9 +67,9 @@ def run_sweep(
         bar = _progress_bar(len(records), len(done), progress)
         try:
             for row in _rows(spec, pending, distribution, renderer):
-                case_id, outputs, seconds, image = row
-                store.write_case(out_dir, case_id, outputs, seconds, image)
-                done[case_id] = {"case_id": case_id, "outputs": outputs, "seconds": seconds}
+                case_id, record, image = row
+                store.write_case(out_dir, case_id, record, image)
+                done[case_id] = {"case_id": case_id, "outputs": record.outputs()}
                 if bar is not None:
                     bar.update(1)
                 if on_row is not None:
@@ -120,78 +85,12 @@ def run_sweep(
 
 
 def _rows(
-    spec: SweepSpec, pending: list[SweepCase], distribution: Distribution, renderer
+    spec: SweepSpec, pending: list[GridPoint], distribution: Distribution, renderer
 ) -> Iterator[Row]:
     if not pending:
         return
     with open_executor(distribution, renderer) as executor:
-        yield from executor.rows(pending, spec.settings, spec.images)
-
-
-def open_executor(distribution: Distribution, renderer=None):
-    """Where cases are measured: a :class:`LocalExecutor` or a Dask one
-    (:class:`glshade.sweep.distributed.DaskExecutor`); a context manager either way."""
-    if distribution.on_dask:
-        from glshade.sweep.distributed import DaskExecutor
-
-        return DaskExecutor(distribution)
-    return LocalExecutor(distribution.threads, renderer)
-
-
-class LocalExecutor:
-    """Measures cases in this process: one renderer (made on first use unless given),
-    ``threads`` analysis threads."""
-
-    def __init__(self, threads: int = 2, renderer=None) -> None:
-        self.threads, self.renderer, self._owns = threads, renderer, renderer is None
-
-    def rows(self, cases: list[SweepCase], settings, images: bool) -> Iterator[Row]:
-        if self.renderer is None:
-            from glshade.gpu.renderer import Renderer
-
-            self.renderer = Renderer()
-        with ThreadPoolExecutor(max_workers=self.threads) as pool:
-            yield from measure_rows(
-                self.renderer, [(c.case_id, c.scene) for c in cases], settings, images, pool
-            )
-
-    def close(self) -> None:
-        if self._owns and self.renderer is not None:
-            self.renderer.release()
-            self.renderer = None
-
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-
-def measure_rows(renderer, items, settings, images: bool, pool=None) -> Iterator[Row]:
-    """The engine's results as rows: what a worker returns, what this process writes."""
-    from glshade.sweep.engine import measure_many
-
-    extra = _best_image_png if images else None
-    for measured in measure_many(renderer, items, settings, pool=pool, extra=extra):
-        spent = measured.result.seconds
-        seconds = {
-            "trace_s": round(measured.trace_s, 4),
-            "shade_s": round(spent.shade, 4),
-            "contours_s": round(spent.contours, 4),
-            "continuous_s": round(spent.continuous, 4),
-        }
-        yield (
-            measured.token,
-            store.case_outputs(measured.scene, measured.result),
-            seconds,
-            measured.extra,
-        )
-
-
-def _best_image_png(token, scene, result, view) -> bytes:
-    from glshade.files import encode_png
-
-    return encode_png(view.best_image(scene, result), bits=8)
+        yield from executor.rows([point.case for point in pending], spec.settings, spec.images)
 
 
 def _progress_bar(total: int, initial: int, enabled: bool):

@@ -27,17 +27,16 @@ import hashlib
 import itertools
 import json
 import math
-from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
-from glshade.metrics.visibility import MetricSettings
+from glshade.measure.engine import Case
+from glshade.metrics.visibility import METRIC_VERSION, MetricSettings
 from glshade.scene import Scene, paper_scene
 from glshade.scene.model import read_toml
-from glshade.study.plan import METRIC_VERSION
 
 #: A grid of more cases than this needs ``--yes`` (about an hour of llvmpipe at 256 px).
 MAX_CASES_UNCONFIRMED = 5000
@@ -78,12 +77,20 @@ class Axis:
 
 
 @dataclass(frozen=True)
-class SweepCase:
-    """One case: its id, its place in the grid (an index per axis) and its scene."""
+class GridPoint:
+    """One point of the grid: its place (an index per axis) and its case (whose key is
+    the case id)."""
 
-    case_id: str
     index: tuple[int, ...]
-    scene: Scene
+    case: Case
+
+    @property
+    def case_id(self) -> str:
+        return str(self.case.key)
+
+    @property
+    def scene(self) -> Scene:
+        return self.case.scene
 
 
 @dataclass(frozen=True)
@@ -113,19 +120,19 @@ class SweepSpec:
         (all at once, so keys that only make sense together can be swept together)."""
         pairs = [pair for axis, i in zip(self.axes, index, strict=True) for pair in axis.entries[i]]
         size = next((value for key, value in reversed(pairs) if key == SIZE_KEY), self.size)
-        scene = with_values(self.base, [(key, value) for key, value in pairs if key != SIZE_KEY])
+        scene = self.base.with_values([(key, value) for key, value in pairs if key != SIZE_KEY])
         return scene.with_size(size) if size is not None else scene
 
-    def cases(self) -> list[SweepCase]:
+    def cases(self) -> list[GridPoint]:
         """Every case of the grid, first axis outermost."""
         ranges = [range(len(axis.entries)) for axis in self.axes]
         cases = []
         for index in itertools.product(*ranges):
             scene = self.scene(index)
-            cases.append(SweepCase(case_id(scene, self.settings), index, scene))
+            cases.append(GridPoint(index, Case(case_id(scene, self.settings), scene)))
         return cases
 
-    def swept_values(self, case: SweepCase) -> dict[str, Any]:
+    def swept_values(self, case: GridPoint) -> dict[str, Any]:
         """The row's swept columns: each linked axis's label, then each swept key's value
         in the case's scene."""
         values: dict[str, Any] = {}
@@ -154,16 +161,6 @@ class SweepSpec:
                 default=str,
             )
         )
-
-
-def with_values(base: Scene, pairs: Iterable[tuple[str, Any]]) -> Scene:
-    """``base`` with dotted keys set, all at once (keys that only make sense together,
-    a kind and its file, can be set together)."""
-    tables: dict[str, dict[str, Any]] = {}
-    for key, value in pairs:
-        table, _, name = key.partition(".")
-        tables.setdefault(table, {})[name] = value
-    return base.updated(**tables) if tables else base
 
 
 def _column_value(scene: Scene, key: str) -> Any:

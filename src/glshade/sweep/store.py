@@ -13,89 +13,24 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from glshade.errors import GlshadeError
 from glshade.files import atomic_write_bytes
-from glshade.metrics import physics
-from glshade.metrics.visibility import Visibility
-from glshade.scene import Scene
-from glshade.sweep.spec import SweepCase, SweepSpec
+from glshade.measure.record import COLUMNS, OUTPUT_NAMES, Measurement
+from glshade.sweep.spec import GridPoint, SweepSpec
 
 
-@dataclass(frozen=True)
-class Output:
-    """One output column of the table: its name, unit and meaning (docs/sweeps.md)."""
-
-    name: str
-    unit: str
-    meaning: str
-
-
-OUTPUTS = (
-    Output(
-        "visibility_px",
-        "px",
-        "the paper's metric (SPEC §6): largest shift of corresponding contours, whole pixels",
-    ),
-    Output(
-        "visibility_continuous_px",
-        "px",
-        "its limit for a vanishing phase step and pixel size (sub-pixel)",
-    ),
-    Output("deflection_px", "px", "largest displacement of the emitter map in the kept columns"),
-    Output("folded", "", "the dent's stripe map folds (rows reverse order along a kept column)"),
-    Output("islands", "count", "stripe pieces the dent cuts off (never measured)"),
-    Output("best_phase_mm", "mm", "stripe phase at which visibility_px was reached"),
-    Output("unpaired_contours", "count", "stripes that found no partner at the best phase"),
-    Output(
-        "unresolved_fraction",
-        "fraction",
-        "share of kept pixels left out (fewer than 4 px per stripe period)",
-    ),
-    Output("offset_dx_px", "px", "registration offset, columns (0 for rendered pairs)"),
-    Output("offset_dy_px", "px", "registration offset, rows (0 for rendered pairs)"),
-    Output(
-        "noise_floor_px",
-        "px",
-        "the metric between two noisy defect-free exposures (sensor on; else empty)",
-    ),
-    Output("fold_ratio", "", "closed form: the map folds where it exceeds 1 (docs/physics.md)"),
-    Output("deflection_law_px", "px", "closed form of deflection_px"),
-    Output(
-        "visibility_law_px", "px", "closed form of visibility_continuous_px (fold cap included)"
-    ),
-)
-OUTPUT_NAMES = tuple(o.name for o in OUTPUTS)
+#: The outputs of a case in the table: the record's measured and closed-form columns
+#: (its timings stay in the case files).
+OUTPUTS = tuple(c for c in COLUMNS if c.name in OUTPUT_NAMES)
 MANIFEST = "sweep.json"
 PARQUET = "results.parquet"
 CSV = "results.csv"
 #: What ``--overwrite`` removes: exactly these, never anything else.
 SWEEP_FILES = (PARQUET, CSV)
-
-
-def case_outputs(scene: Scene, result: Visibility) -> dict[str, Any]:
-    """A case's outputs, plain JSON values (the same wherever the case ran)."""
-    summary = result.summary()
-    law = physics.laws(scene)
-    outputs = {name: summary[name] for name in OUTPUT_NAMES[:8]}
-    outputs.update(
-        offset_dx_px=int(result.offset_px[0]),
-        offset_dy_px=int(result.offset_px[1]),
-        noise_floor_px=summary.get("noise_floor_px"),
-        fold_ratio=_finite(law.fold_ratio, 5),
-        deflection_law_px=_finite(law.deflection_px, 4),
-        visibility_law_px=_finite(law.visibility_px, 4),
-    )
-    return outputs
-
-
-def _finite(value: float, digits: int) -> float | None:
-    return round(value, digits) if math.isfinite(value) else None
 
 
 # --------------------------------------------------------------------------- case files
@@ -104,17 +39,13 @@ def case_path(out_dir: Path, case_id: str) -> Path:
 
 
 def write_case(
-    out_dir: Path,
-    case_id: str,
-    outputs: Mapping[str, Any],
-    seconds: Mapping[str, float],
-    image_png: bytes | None = None,
+    out_dir: Path, case_id: str, record: Measurement, image_png: bytes | None = None
 ) -> None:
     """A finished case on disk: its image first, its JSON last (the "done" mark)."""
     if image_png is not None:
         atomic_write_bytes(Path(out_dir) / "images" / f"{case_id}.png", image_png, "--out")
-    record = {"case_id": case_id, "outputs": dict(outputs), "seconds": dict(seconds)}
-    atomic_write_bytes(case_path(out_dir, case_id), json.dumps(record, indent=1).encode(), "--out")
+    data = {"case_id": case_id, "outputs": record.outputs(), "seconds": record.seconds()}
+    atomic_write_bytes(case_path(out_dir, case_id), json.dumps(data, indent=1).encode(), "--out")
 
 
 def load_case(out_dir: Path, case_id: str) -> dict | None:
@@ -208,7 +139,7 @@ def _remove(out_dir: Path) -> None:
 
 # --------------------------------------------------------------------------- tables
 def table_rows(
-    spec: SweepSpec, cases: list[SweepCase], records: Mapping[str, dict]
+    spec: SweepSpec, cases: list[GridPoint], records: Mapping[str, dict]
 ) -> list[dict[str, Any]]:
     """One row per case of the grid that has a record: its id, swept columns, outputs."""
     rows = []

@@ -29,11 +29,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from glshade.components.registry import registry
 from glshade.files import atomic_write_bytes
 from glshade.gpu.renderer import Renderer, RootSolver
 from glshade.metrics import visibility as vis
-from glshade.metrics.measurement import measure_scene
+from glshade.measure.single import measure_scene
 from glshade.oracle import tracer as reference
 from glshade.scene import Scene, paper_scene
 from glshade.validation import stability
@@ -391,7 +390,7 @@ def microfacet_knob(renderer: Renderer, repeats: int, log, size: int = SIZE) -> 
             .with_size(size)
             .updated(render={"reflection": lobe, "roughness": MICROFACET_ALPHA})
         )
-        parts = registry().active(scene)
+        parts = scene.active
         origins, dirs = parts.camera.sample_rays(scene, rows, cols, 1)
         o, d = np.ascontiguousarray(origins.reshape(-1, 3)), dirs.reshape(-1, 3)
         t, hit = _first_hit_rays(scene, o, d)
@@ -445,7 +444,6 @@ def heightmap_knob(
     """The paper's sphere and cylinder sampled into height maps: the uv error of the
     interpolated map against the analytic surface (fp64 shader of each, on the pixels both
     hit) and the time per frame, against the spacing."""
-    from glshade.components.registry import registry
 
     scenes = [
         paper_scene(kind, theta, 4.0, 0.005).with_size(size)
@@ -466,7 +464,7 @@ def heightmap_knob(
             for index, (scene, truth) in enumerate(zip(scenes, truths)):
                 path = directory / f"map_{index}_{spacing:g}.npy"
                 if not path.exists():
-                    np.save(path, registry().active(scene).surface.height(scene, xx, zz))
+                    np.save(path, scene.active.surface.height(scene, xx, zz))
                 mapped = scene.updated(
                     surface={"kind": "heightmap", "file": str(path), "spacing": (spacing, spacing)},
                     render={"precision": precision},

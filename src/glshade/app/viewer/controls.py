@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
 from glshade.scene import Scene
-from glshade.scene.params import Param
+from glshade.params import Param
 
 VIEWS = ("image", "defect-free", "overlay", "displacement")
 
@@ -77,14 +77,10 @@ def clamp(control: Control, value: float) -> float:
 
 
 def _constrained(scene: Scene, path: str, value: float) -> float:
-    """Keep a slider inside what the scene accepts: the covariance positive definite,
-    a stripe no wider than half a period."""
-    if path == "defect.sigma_xz":
-        bound = 0.999 * math.sqrt(scene.defect.sigma_x2 * scene.defect.sigma_z2)
-        return min(max(value, -bound), bound)
-    if path == "emitter.stripe_sigma":
-        return min(value, 0.5 * scene.emitter.period)
-    return value
+    """Keep a slider inside what the scene accepts: its table's joint constraints (a
+    covariance positive definite, a stripe no wider than half a period)."""
+    table, _, key = path.partition(".")
+    return getattr(scene, table).clamp(key, value)
 
 
 def apply_setting(scene: Scene, name: str, value, slider: bool = False) -> Scene:
@@ -93,7 +89,7 @@ def apply_setting(scene: Scene, name: str, value, slider: bool = False) -> Scene
     ``slider``: the value comes from dragging a slider, and is kept inside the slider's
     range and the scene's joint constraints (a positive definite covariance)."""
     if name == "concave":
-        radius = abs(scene.surface.radius)
+        radius = abs(scene.value("surface.radius"))
         return scene.with_value("surface.radius", -radius if bool(value) else radius)
     control = by_name(name)
     if control is None:

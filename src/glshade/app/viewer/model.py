@@ -13,6 +13,7 @@ import numpy as np
 
 from glshade.app.viewer.controls import apply_setting, geometry_key
 from glshade.errors import GlshadeError, SceneError
+from glshade.measure.single import map_baseline
 from glshade.metrics import contours
 from glshade.metrics import visibility as vis
 from glshade.scene import PAPER_SURFACES, Scene, paper_scene
@@ -141,7 +142,7 @@ class ViewerModel:
 
     def advance(self, seconds: float) -> None:
         if self.animate:
-            period = self.scene.emitter.period
+            period = self.scene.active.emitter.pattern(self.scene).period_mm
             self.scene = self.scene.with_phase(
                 (self.scene.emitter.phase + self.phase_speed_periods * period * seconds) % period
             )
@@ -153,7 +154,7 @@ class ViewerModel:
     @property
     def shades_from_uv(self) -> bool:
         """The picture is a function of the uv map (mirror, one ray per pixel)."""
-        from glshade.metrics.measurement import shades_from_map
+        from glshade.measure.single import shades_from_map
 
         return shades_from_map(self.scene)
 
@@ -165,8 +166,8 @@ class ViewerModel:
         self.traces += 1
         self.displacement = None
         self.readout = Readout()
-        v0, emitter, settings = self.v0, self.scene.emitter, self.settings
-        self._baseline = _Once(lambda: vis.Baseline(v0, emitter, settings))
+        v0, scene, settings = self.v0, self.scene, self.settings
+        self._baseline = _Once(lambda: map_baseline(scene, v0, settings))
         self._case_done = False
 
     def baseline(self) -> vis.Baseline | None:

@@ -10,7 +10,7 @@ from imgui_bundle import imgui
 
 from glshade.app.viewer.controls import VIEWS, by_name, panel_params
 from glshade.app.viewer.model import ViewerModel, readout_lines
-from glshade.scene.params import Param
+from glshade.params import Param
 
 PANEL_WIDTH = 360
 #: The panel lists the tables in this order (the surface first: it changes the most).
@@ -49,26 +49,25 @@ def _parameter(model: ViewerModel, param: Param) -> None:
     elif param.value_type == "choice":
         _combo(model, param.flag.lstrip("-") if param.flag else param.key, scene.value(param.path))
     elif param.path == "emitter.phase":
+        pattern = scene.active.emitter.pattern(scene)
         changed, value = imgui.slider_float(
             "phase",
-            float(scene.emitter.phase),
+            float(pattern.phase_mm),
             0.0,
-            float(scene.emitter.period),
+            float(pattern.period_mm),
             "%.3f mm",
             imgui.SliderFlags_.always_clamp,
         )
         if changed:
             model.set("phase", value)
         _, model.animate = imgui.checkbox("animate phase", model.animate)
-    elif param.path == "emitter.stripe_sigma":
-        _slider(model, param.control.name, scene.emitter.sigma_mm)
     elif param.control.signed:
         _slider(model, param.control.name, abs(scene.value(param.path)))
         changed, negative = imgui.checkbox("concave", scene.value(param.path) < 0)
         if changed:
             model.set("concave", negative)
     else:
-        _slider(model, param.control.name, scene.value(param.path))
+        _slider(model, param.control.name, getattr(scene, param.table).effective(param.key))
 
 
 def _text_field(model: ViewerModel, param: Param) -> None:

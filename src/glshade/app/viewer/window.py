@@ -21,9 +21,10 @@ from glshade.app.viewer.model import ViewerModel, ViewerOptions
 from glshade.app.viewer.panel import PANEL_WIDTH, draw_panel
 from glshade.errors import GlshadeError
 from glshade.files import write_png
-from glshade.gpu.compose import render_template
+from glshade.gpu.compose import compose_display, display_features, display_uniforms
 from glshade.gpu.context import GLContext
 from glshade.gpu.renderer import Renderer
+from glshade.rig import orbit
 
 
 class ViewerWindow(mglw.WindowConfig):
@@ -43,11 +44,7 @@ class ViewerWindow(mglw.WindowConfig):
             self.options.scene, view=self.options.view, animate=self.options.animate
         )
         self.renderer = Renderer(GLContext.wrap(self.ctx))
-        self.program = self.ctx.program(
-            vertex_shader=render_template("viewer_display.vert.glsl"),
-            fragment_shader=render_template("viewer_display.frag.glsl"),
-        )
-        self.quad = self.ctx.vertex_array(self.program, [])
+        self._programs: dict = {}  # the display pass, per the emitter's features
         self._textures()
         self.gui = None
         if self.options.panel:
@@ -126,28 +123,35 @@ class ViewerWindow(mglw.WindowConfig):
         if self.options.frames is not None and stats["frames"] >= self.options.frames:
             self.finish()
 
+    def display(self):
+        """The display pass's program and vertex array for the scene's emitter."""
+        features = display_features(self.model.scene)
+        if features not in self._programs:
+            vertex, fragment = compose_display(features)
+            program = self.ctx.program(vertex_shader=vertex, fragment_shader=fragment)
+            self._programs[features] = (program, self.ctx.vertex_array(program, []), features)
+        return self._programs[features]
+
     def draw(self):
-        emitter = self.model.scene.emitter
         cam = self.options.scene.camera
         self.wnd.fbo.use()
         self.ctx.clear(0.12, 0.12, 0.12)
         self.ctx.viewport = (0, self.wnd.buffer_size[1] - cam.height, cam.width, cam.height)
-        values = (
-            ("u_mode", self.mode),
-            ("u_period", emitter.period),
-            ("u_stripe_sigma", emitter.sigma_mm),
-            ("u_phase", emitter.phase),
-            ("u_uv", 0),
-            ("u_gray", 1),
-            ("u_rgba", 2),
-        )
+        program, quad, features = self.display()
+        values = {
+            **display_uniforms(self.model.scene, features),
+            "u_mode": self.mode,
+            "u_uv": 0,
+            "u_gray": 1,
+            "u_rgba": 2,
+        }
         self.shown_uv.use(0)
         self.tex_gray.use(1)
         self.tex_rgba.use(2)
-        for name, value in values:
-            if name in self.program:
-                self.program[name].value = value
-        self.quad.render(moderngl.TRIANGLES, vertices=3)
+        for name, value in values.items():
+            if name in program:
+                program[name].value = value
+        quad.render(moderngl.TRIANGLES, vertices=3)
         self.ctx.viewport = (0, 0, *self.wnd.buffer_size)
         if self.gui is not None:
             draw_panel(self.model, cam.width, self.wnd.buffer_size[1], self.status)
@@ -191,6 +195,17 @@ class ViewerWindow(mglw.WindowConfig):
     def on_mouse_drag_event(self, x, y, dx, dy):
         if self.gui is not None:
             self.gui.mouse_drag_event(x, y, dx, dy)
+            if imgui.get_io().want_capture_mouse:
+                return
+        self.orbit(dx, dy)
+
+    def orbit(self, dx: float, dy: float) -> None:
+        """A drag over the image orbits the rig: up raises the camera, right turns the
+        camera and the emitter about the surface normal (:func:`glshade.rig.orbit`)."""
+        cam = self.model.scene.camera
+        theta, azimuth = orbit(cam.theta_deg, cam.azimuth_deg, dx, dy)
+        self.model.set_value("camera.theta_deg", theta)
+        self.model.set_value("camera.azimuth_deg", azimuth)
 
     def on_mouse_scroll_event(self, x_offset, y_offset):
         if self.gui is not None:

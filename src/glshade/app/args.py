@@ -1,0 +1,195 @@
+"""What the command line's parsers share: one-line usage errors, the scene flags (a short
+flag for each parameter that declares one, ``--set PATH=VALUE`` for any), the metric's
+flags, typed values with units, and the scene a command line describes."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from glshade.components.registry import registry
+from glshade.errors import GlshadeError, printable
+from glshade.metrics.visibility import MetricSettings
+from glshade.params import Param
+from glshade.scene import PAPER_SURFACES, Scene, paper_scene
+
+EXIT_USAGE = 2
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse that reports a usage error as one line (exit 2), like every other error."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(EXIT_USAGE, f"glshade: error: {one_line(message)} (see '{self.prog} --help')\n")
+
+
+def add_scene_flags(p: argparse.ArgumentParser) -> None:
+    """The scene file and the flags that override it (render and measure): a short flag
+    for each parameter that declares one, ``--set PATH=VALUE`` for any parameter."""
+    p.add_argument("scene", nargs="?", type=path_arg, help="scene file (TOML)")
+    for param in registry().params():
+        if param.flag is not None:
+            p.add_argument(param.flag, dest=flag_dest(param), **flag_options(param))
+    p.add_argument(
+        "--set",
+        dest="settings",
+        action="append",
+        default=[],
+        metavar="PATH=VALUE",
+        help="set any scene parameter by its dotted path, e.g. --set camera.theta_deg=15 "
+        "(see docs/scene-format.md); applied after the short flags",
+    )
+    p.add_argument("--size", type=int, metavar="N", help="N pixels across, same field of view")
+    p.add_argument(
+        "--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)"
+    )
+
+
+def path_arg(text: str) -> Path:
+    """argparse type of a path: an empty one is refused (``Path("")`` would silently be
+    the current directory)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a path, got an empty string")
+    return Path(text)
+
+
+def flag_dest(param: Param) -> str:
+    return "flag_" + param.flag.lstrip("-").replace("-", "_")
+
+
+def flag_options(param: Param) -> dict[str, object]:
+    """argparse options of a parameter's short flag, from its declaration."""
+    unit = (
+        f" ({param.unit}, or a value with its unit: 5um)"
+        if param.unit == "mm"
+        else (f" ({param.unit})" if param.unit else "")
+    )
+    options: dict[str, object] = {"help": f"{param.path}: {param.doc}{unit}"}
+    if param.value_type == "choice":
+        options["choices"] = registry().choices(param) or param.choices
+    elif param.value_type == "integer":
+        options.update(type=param_type(param), metavar="N")
+    elif param.value_type == "real":
+        options.update(
+            type=param_type(param), metavar=(param.unit or "X").upper().replace("²", "2")
+        )
+    elif param.value_type in ("pair", "vector"):
+        count = 2 if param.value_type == "pair" else param.size
+        options.update(type=param_type(param), metavar=",".join(["X"] * count))
+    return options
+
+
+def argument_type(name: str, parse):
+    """An argparse type from a glshade parser: its GlshadeError becomes argparse's usage
+    error (one line, exit 2); ``name`` is what argparse calls the type."""
+
+    def parsed(text: str):
+        try:
+            return parse(text)
+        except GlshadeError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parsed.__name__ = name
+    return parsed
+
+
+def param_type(param: Param):
+    """argparse type of a parameter: its text parsed by the declaration (units allowed)."""
+    return argument_type(param.path, param.parse)
+
+
+def quantity_list(path: str):
+    """argparse type of a comma-separated list of one parameter's values (units allowed)."""
+    return argument_type(
+        path,
+        lambda text: [
+            registry().param(path).parse(part) for part in text.split(",") if part.strip()
+        ],
+    )
+
+
+def length_mm(text: str) -> float:
+    from glshade.units import parse_quantity
+
+    return parse_quantity(text, "mm", "length")
+
+
+def add_metric_flags(p: argparse.ArgumentParser) -> None:
+    """How visibility is measured (paper and measure)."""
+    p.add_argument(
+        "--step",
+        type=argument_type("length", length_mm),
+        default=0.25,
+        metavar="MM",
+        help="phase step of the metric, mm or with a unit (default 0.25)",
+    )
+    p.add_argument(
+        "--threshold",
+        type=float,
+        default=0.5,
+        help="binarisation threshold, fraction of the peak (default 0.5)",
+    )
+    p.add_argument(
+        "--keep-fraction",
+        type=float,
+        default=0.5,
+        help="central fraction of the columns kept (default 0.5)",
+    )
+
+
+def metric_settings(args: argparse.Namespace):
+    return MetricSettings(
+        threshold=args.threshold, keep_fraction=args.keep_fraction, step_mm=args.step
+    )
+
+
+def scene_from_args(args: argparse.Namespace) -> Scene:
+    """The scene a ``render``/``measure`` call describes: the file (or the paper's scene),
+    then the short flags, then ``--set PATH=VALUE`` in order, then ``--size``."""
+    surface = getattr(args, flag_dest(registry().param("surface.kind")), None)
+    if args.scene is not None:
+        scene = Scene.load(args.scene)
+    else:  # the paper's scene, of the surface asked for when it is one of the paper's
+        scene = paper_scene(surface if surface in PAPER_SURFACES else "flat")
+    tables: dict[str, dict[str, object]] = {}
+    for param in registry().params():
+        value = getattr(args, flag_dest(param), None) if param.flag is not None else None
+        if value is not None:
+            tables.setdefault(param.table, {})[param.key] = value
+    for item in args.settings:  # later settings win; all are applied at once, so values that
+        path, value = parse_setting(
+            item
+        )  # only make sense together (a kind and its file) can be given
+        table, _, key = path.partition(".")
+        tables.setdefault(table, {})[key] = value
+    scene = scene.updated(**tables)
+    if args.size is not None:
+        scene = scene.with_size(args.size)
+    return scene
+
+
+def parse_setting(item: str) -> tuple[str, object]:
+    """``PATH=VALUE`` -> the parameter's path and its value parsed by its declaration (a
+    SceneError names an unknown path, and the value is checked when it is applied)."""
+    path, sep, text = item.partition("=")
+    path = path.strip()
+    if not sep or "." not in path:
+        raise GlshadeError(
+            f"--set {item!r}: expected PATH=VALUE with a dotted path such as camera.theta_deg=15"
+        )
+    return path, registry().param(path).parse(text)
+
+
+def warn(lines) -> None:
+    """Print each warning once, as one line on stderr."""
+    for line in dict.fromkeys(lines):
+        print(f"glshade: warning: {line}", file=sys.stderr)
+
+
+def one_line(message: str) -> str:
+    """``message`` on one line: line breaks become spaces, and any other control character
+    (from a file name or an argument) is shown escaped (``\\r``)."""
+    return printable(" ".join(part.strip() for part in message.split("\n") if part.strip()))
+
+

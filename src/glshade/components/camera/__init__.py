@@ -1,0 +1,1 @@
+"""The camera slot: how pixels become rays."""

@@ -1,0 +1,115 @@
+"""The perspective camera: a pinhole, or a thin lens, with OpenCV lens distortion.
+
+- **Pinhole** (``f_number = 0``, the default): one ray per pixel (sample) through the
+  principal point.
+- **Thin lens** (``f_number > 0``): pbrt's perspective-camera model. The lens is a disc
+  of diameter ``A = focal / f_number`` centred on the principal point, perpendicular to the
+  optical axis; every ray of a pixel passes through the point where the pixel's pinhole
+  ray meets the plane at ``focus_distance`` (mm along the axis; default: the camera
+  distance, i.e. focused on the surface at the gaze point). ``aperture_samples`` points
+  of the disc per pixel sample, on Vogel's golden-angle spiral
+  (``r = R sqrt((k + 1/2)/K)``, ``φ = k · 137.5°``): deterministic and evenly spread for
+  any count. The image is their mean (a defocused pixel), the uv map the mean of the
+  samples that reach the emitter. A point ``so`` mm along a ray blurs into a disc of
+  angular diameter ``A |so - sf| / (so sf)``.
+- **Distortion** (``distortion = [k1, k2, p1, p2, k3]``, OpenCV's model on normalised
+  coordinates, ``y`` down as in OpenCV): the distorted camera's pixel ``p`` shows what
+  the ideal camera shows at ``cv2.undistortPoints(p)``; the shader and the oracle invert
+  the model by Newton's method. A distortion whose map folds inside the sensor (two
+  ideal directions would land on one pixel) is refused.
+
+Table: :class:`~glshade.components.camera.perspective.table.Camera`. GLSL: ``camera.glsl``
+(uniforms), ``lens.glsl`` and ``distortion.glsl`` when on, ``ray.glsl`` (the rays).
+Oracle: :meth:`Perspective.pixel_rays` (pinhole rays) and :meth:`Perspective.sample_rays`
+(every ray of every pixel, lens and distortion included), float64.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from glshade.components.base import CameraComponent
+from glshade.components.camera.perspective.optics import (
+    aperture_points,
+    aperture_radius,
+    focus_distance,
+)
+from glshade.components.camera.perspective.table import Camera
+
+
+class Perspective(CameraComponent):
+    name = "perspective"
+    doc = "a pinhole or a thin lens at the principal point, looking at the origin, with OpenCV distortion"
+    table = Camera
+
+    def features(self, scene):
+        cam = scene.camera
+        return {"aperture": cam.f_number > 0.0, "distortion": any(cam.distortion)}
+
+    def glsl(self, variables):
+        files = ["camera.glsl"]
+        if variables["aperture"]:
+            files.append("lens.glsl")
+        if variables["distortion"]:
+            files.append("distortion.glsl")
+        return (*files, "ray.glsl")
+
+    def uniforms(self, scene, context):
+        cam = scene.camera
+        pose = cam.pose()
+        values: dict[str, object] = {
+            "u_camera_dist": cam.distance,
+            "u_camera_local_origin": tuple(context.origin),
+            "u_camera_forward": tuple(pose.forward),
+            "u_camera_right": tuple(pose.right),
+            "u_camera_up": tuple(pose.up),
+            "u_camera_focal": cam.focal,
+            "u_camera_pitch": cam.pixel_pitch,
+            "u_camera_size": (cam.width, cam.height),
+        }
+        if context.variables["aperture"]:
+            values.update(
+                u_camera_aperture_radius=aperture_radius(cam),
+                u_camera_focus=focus_distance(cam),
+                u_camera_aperture_samples=cam.aperture_samples,
+            )
+        if context.variables["distortion"]:
+            k1, k2, p1, p2, k3 = cam.distortion
+            values.update(
+                u_camera_distortion_radial=(k1, k2, k3), u_camera_distortion_tangential=(p1, p2)
+            )
+        return values
+
+    def shades_from_emitter_map(self, scene):
+        return scene.camera.f_number == 0.0
+
+    def samples(self, scene) -> int:
+        return scene.camera.aperture_samples if scene.camera.f_number > 0.0 else 1
+
+    # ---------------------------------------------------------------- oracle
+    def pixel_rays(self, scene, rows=None, cols=None, supersample: int = 1):
+        """The chief (pinhole) rays: :meth:`Camera.pixel_rays
+        <glshade.components.camera.perspective.table.Camera.pixel_rays>`."""
+        return scene.camera.pixel_rays(rows, cols, supersample)
+
+    def sample_rays(self, scene, rows=None, cols=None, supersample: int = 1):
+        """Every ray of every pixel: ``(origins, directions)`` of shape (h, w, S, 3) with
+        ``S = supersample² x aperture samples`` (sub-pixel sample major)."""
+        camera = scene.camera
+        if camera.f_number == 0.0:
+            return super().sample_rays(scene, rows, cols, supersample)
+        origin, chief = self.pixel_rays(scene, rows, cols, supersample)
+        h, w = chief.shape[:2]
+        chief = chief.reshape(h, w, supersample * supersample, 3)
+        forward, right, up = camera.basis()
+        disc = aperture_points(camera.aperture_samples) * aperture_radius(camera)  # (K, 2) mm
+        lens = origin + disc[:, :1] * right + disc[:, 1:] * up  # (K, 3)
+        focus = origin + (focus_distance(camera) / (chief @ forward))[..., None] * chief
+        towards = focus[:, :, :, None, :] - lens[None, None, None, :, :]
+        directions = towards / np.linalg.norm(towards, axis=-1, keepdims=True)
+        origins = np.broadcast_to(lens[None, None, None], directions.shape)
+        count = directions.shape[2] * directions.shape[3]
+        return origins.reshape(h, w, count, 3), directions.reshape(h, w, count, 3)
+
+
+COMPONENTS = (Perspective,)

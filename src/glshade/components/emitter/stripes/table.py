@@ -1,0 +1,137 @@
+"""The stripe emitter's table: a plane of Gaussian stripes along ``u``, spaced along ``v``,
+and the pattern it shows (its radiance, the level a binarisation cuts it at, its mean).
+
+The radiance ``L(v) = Σ_k exp(-(v - phase - k period)² / (2 σ²))``: each stripe peaks at 1
+(its neighbours add about 3e-5 at the default width, FWHM = half a period).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from glshade.params import Control, Table, param
+
+#: FWHM of one stripe = half a period  =>  sigma = period / (4 sqrt(2 ln 2)).
+STRIPE_SIGMA_PER_PERIOD = 1.0 / (4.0 * math.sqrt(2.0 * math.log(2.0)))
+#: Beyond this many overlapping stripes the Poisson-summed series replaces the sum.
+MAX_DIRECT_TERMS = 64
+#: Bisection steps of the binarisation's half-width (to the resolution of float64).
+HALF_WIDTH_STEPS = 60
+
+
+@dataclass(frozen=True)
+class Emitter(Table):
+    """The stripe emitter (mm): ``distance`` from the origin, ``period``, ``stripe_sigma``
+    (None: FWHM = half a period), ``phase``, ``half_size``."""
+
+    table = "emitter"
+
+    distance: float = param("emitter.distance", "mm", 256.0, "origin to the emitter's centre", lo=0.0)
+    period: float = param(
+        "emitter.period", "mm", 2.0, "stripe spacing along v", lo=0.0, flag="--period",
+        control=Control("period", 0.2, 20.0, log=True, fmt="%.2f mm"),
+    )  # fmt: skip
+    stripe_sigma: float | None = param(
+        "emitter.stripe_sigma", "mm", None,
+        "Gaussian width of one stripe (unset: FWHM = half a period)", lo=0.0,
+        control=Control("stripe_sigma", 0.02, 10.0, log=True, fmt="%.3f mm"),
+    )  # fmt: skip
+    phase: float = param(
+        "emitter.phase", "mm", 0.0, "shift of the stripes along v", flag="--phase",
+        control=Control("phase", -1000.0, 1000.0, fmt="%.3f mm"),
+    )  # fmt: skip
+    half_size: tuple[float, float] = param(
+        "emitter.half_size", "mm", (150.0, 150.0), "half extents in u and v", value_type="pair"
+    )
+
+    @property
+    def sigma_mm(self) -> float:
+        """The stripe's Gaussian width in mm (the default when ``stripe_sigma`` is unset)."""
+        if self.stripe_sigma is not None:
+            return self.stripe_sigma
+        return self.period * STRIPE_SIGMA_PER_PERIOD
+
+    def effective(self, name: str):
+        return self.sigma_mm if name == "stripe_sigma" else getattr(self, name)
+
+    def clamp(self, name: str, value):
+        """A stripe no wider than half a period."""
+        return min(value, 0.5 * self.period) if name == "stripe_sigma" else value
+
+    # ---------------------------------------------------------------- the pattern
+    @property
+    def period_mm(self) -> float:
+        """The pattern repeats along ``v`` with this period (the metric's phase sweep)."""
+        return self.period
+
+    @property
+    def phase_mm(self) -> float:
+        return self.phase
+
+    @property
+    def feature_mm(self) -> float:
+        """The finest length over which the radiance changes: the stripe's width."""
+        return self.sigma_mm
+
+    def radiance(self, v: np.ndarray, phase_mm: float | None = None) -> np.ndarray:
+        """``L(v)`` (float64; NaN propagates) with the stripes shifted by ``phase_mm``
+        (default: the table's phase). Every stripe within ``10σ`` of the nearest is summed,
+        nearest first on each side (the next adds < exp(-50)); when more than
+        :data:`MAX_DIRECT_TERMS` would overlap (``σ > 3.1 period``) the identical Poisson
+        form ``(σ sqrt(2π)/period) (1 + 2 Σ_m exp(-2π² σ² m²/period²) cos(2π m x/period))``
+        is used instead."""
+        phase = self.phase if phase_mm is None else phase_mm
+        period, sigma = self.period, self.sigma_mm
+        reach = math.ceil(10.0 * sigma / period) + 1
+        if 2 * reach + 1 <= MAX_DIRECT_TERMS:
+            w = (np.asarray(v, np.float64) - phase) / period
+            w -= np.round(w)
+            total = np.zeros(w.shape)
+            scale = period / sigma
+            for k in range(-reach, reach + 1):
+                total += np.exp(-0.5 * ((w - k) * scale) ** 2)
+            return total
+        x = np.asarray(v, np.float64) - phase
+        ratio = sigma / period
+        m_max = int(math.ceil(math.sqrt(45.0 / (2.0 * math.pi**2)) / ratio)) + 1  # exp(-45)
+        angle = 2.0 * math.pi * x / period
+        series = np.ones_like(x)
+        for m in range(1, m_max + 1):
+            series += 2.0 * math.exp(-2.0 * math.pi**2 * ratio**2 * m * m) * np.cos(m * angle)
+        return ratio * math.sqrt(2.0 * math.pi) * series
+
+    def binary_half_width(self, threshold: float) -> float | None:
+        """Half-width ``w*`` (mm) of the region ``L > threshold`` around a stripe centre,
+        the radiance taken in float32 as a rendered image holds it.
+
+        ``L`` is periodic and even; when it decreases monotonically from a stripe's centre
+        to the middle between stripes (true for every stripe narrower than about a third
+        of the period), ``L(v) > threshold`` is exactly ``|v - phase - k period| < w*`` for
+        the nearest ``k``: a binarisation without evaluating a single exponential. Returns
+        None when that does not hold, 0 when no point is above the threshold and
+        ``period / 2`` when every point is.
+        """
+        period = self.period
+        grid = np.linspace(0.0, 0.5 * period, 2049)
+        level = self.radiance(grid, 0.0).astype(np.float32).astype(np.float64)
+        if np.any(np.diff(level) > 1e-12):
+            return None
+        if level[0] <= threshold:
+            return 0.0
+        if level[-1] > threshold:
+            return 0.5 * period
+        lo, hi = 0.0, 0.5 * period
+        for _ in range(HALF_WIDTH_STEPS):
+            mid = 0.5 * (lo + hi)
+            if float(np.float32(self.radiance(np.array([mid]), 0.0)[0])) > threshold:
+                lo = mid
+            else:
+                hi = mid
+        return 0.5 * (lo + hi)
+
+    def mean_radiance(self) -> float:
+        """The radiance averaged over a period: ``σ √(2π) / P``."""
+        return self.sigma_mm * math.sqrt(2.0 * math.pi) / self.period

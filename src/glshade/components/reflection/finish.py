@@ -1,0 +1,127 @@
+"""The surface finish shared by every reflection model: the paper's eq. (1).
+
+Beckmann and Spizzichino's roughness parameter ``g = (2π σ_h (cos θi + cos θr) / λ)²``
+(``σ_h``: the rms height of the finish, ``λ``: the wavelength) sets the *coherent*
+(specular) fraction of the reflected light, ``exp(-g)``. In the mirror direction
+``θr = θi``, so ``g = (4π σ_h cos θi / λ)²``: it falls as the view grazes, and a finish
+that scatters most light when seen from above is nearly a mirror seen from the side. The
+paper prints ``4π`` in front of ``(cos θi + cos θr)``; Beckmann's own form (and every
+text since) has ``2π``, which this module uses (the paper's factor amounts to a doubled
+``σ_h``; ``docs/physics.md``).
+
+The coherent part is the mirror reflection of the stripes. The incoherent remainder
+``1 - exp(-g)`` goes where the reflection model puts scattered light: into its lobe
+(Blinn-Phong, Beckmann, GGX), or, for the mirror, which has none, into a Lambertian
+(diffuse) reflection of the emitter: ``(1/π) ∫ L cos θ dω`` over the part of the
+emitter above the tangent plane, with the stripes' mean radiance ``σ √(2π) / P`` (the
+diffuse kernel spans hundreds of mm of emitter: the stripes average out).
+
+Table: :class:`FinishTable`, a base of every reflection model's table. GLSL: the library's
+``coherence.glsl`` (and, for the mirror, the emitter's diffuse reflection).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from glshade.params import Control, Table, param
+
+@dataclass(frozen=True)
+class FinishTable(Table):
+    """The finish's roughness and the light's wavelength (paper eq. (1))."""
+
+    table = "render"
+
+    height_rms_um: float = param(
+        "render.height_rms_um", "µm", 0.0,
+        "paper eq. (1): rms height sigma_h of the finish; the coherent (mirror) fraction is "
+        "exp(-(4 pi sigma_h cos(i) / lambda)^2), the rest is scattered into the model's lobe "
+        "(the mirror's: Lambertian). 0: off",
+        lo=0.0, closed=True, role="feature", flag="--height-rms",
+        control=Control("height rms", 0.0, 0.2, fmt="%.3f um"), plausible_max=5.0,
+        plausible_why="a finish this rough reflects no coherent light at any angle",
+    )  # fmt: skip
+    wavelength_um: float = param(
+        "render.wavelength_um", "µm", 0.55, "paper eq. (1): wavelength lambda of the light",
+        lo=0.0, flag="--wavelength", plausible_max=20.0, plausible_why="beyond the thermal infrared",
+    )  # fmt: skip
+
+
+def coherence_on(scene) -> bool:
+    return scene.render.height_rms_um > 0.0
+
+
+def coherence_uniforms(scene) -> dict[str, object]:
+    """``u_reflection_coherence``: ``4π σ_h / λ`` (dimensionless)."""
+    ratio = scene.render.height_rms_um / scene.render.wavelength_um
+    return {"u_reflection_coherence": 4.0 * math.pi * ratio}
+
+
+def features(scene, blur: str = "none", diffuse: bool = False) -> dict[str, object]:
+    """The template variables every reflection component declares: ``coherence`` (eq. (1)
+    is on) and what it asks of the emitter's GLSL: ``blur`` (``none``, ``gaussian``,
+    ``ggx``: the stripes seen through a lobe) and ``diffuse`` (a Lambertian reflection of
+    the emitter)."""
+    return {"coherence": coherence_on(scene), "blur": blur, "diffuse": diffuse}
+
+
+def glsl(variables, *model_files: str) -> tuple[str, ...]:
+    """A reflection model's files, after the library's ``coherence.glsl`` when eq. (1) is
+    on; none without an image output."""
+    if "image" not in variables["outputs"]:
+        return ()
+    return ("lib/coherence.glsl", *model_files) if variables["coherence"] else model_files
+
+
+def uniforms(scene, variables) -> dict[str, object]:
+    """eq. (1)'s uniform where the program has it."""
+    return (
+        coherence_uniforms(scene)
+        if "image" in variables["outputs"] and variables["coherence"]
+        else {}
+    )
+
+
+def coherent_fraction(scene, cos_i: np.ndarray) -> np.ndarray:
+    """``exp(-g)`` in the mirror direction, ``g = (4π σ_h cos θi / λ)²`` (float64)."""
+    k = 4.0 * math.pi * scene.render.height_rms_um / scene.render.wavelength_um
+    return np.exp(-((k * np.asarray(cos_i)) ** 2))
+
+
+def lambert(scene, p: np.ndarray, n: np.ndarray, points: int = 96) -> np.ndarray:
+    """Lambertian radiance at hits ``p`` (N, 3) with unit normals ``n``: the emitter pattern's
+    mean radiance times ``(1/π) ∫ cos θs cos θe / r² dA`` over the emitter, the part
+    below the tangent plane left out; by Gauss–Legendre quadrature on the rectangle
+    (``points``² nodes; the clipping kink limits it to ~1e-5), independently of the
+    shader's closed polygon formula."""
+    frame = scene.emitter_frame()
+    hu, hv = scene.emitter.half_size
+    x, w = np.polynomial.legendre.leggauss(points)
+    uu, vv = np.meshgrid(x * hu, x * hv, indexing="ij")
+    weights = np.outer(w, w).ravel() * hu * hv
+    q = frame.centre + uu.ravel()[:, None] * frame.e_u + vv.ravel()[:, None] * frame.e_v  # (M, 3)
+    out = np.empty(len(p))
+    for i in range(len(p)):
+        r = q - p[i]
+        dist2 = np.einsum("mk,mk->m", r, r)
+        cos_s = np.maximum(r @ n[i], 0.0) / np.sqrt(dist2)
+        cos_e = np.maximum(-(r @ frame.normal), 0.0) / np.sqrt(dist2)
+        out[i] = np.sum(weights * cos_s * cos_e / dist2) / math.pi
+    return out * scene.active.emitter.pattern(scene).mean_radiance()
+
+
+def mirror_radiance(scene, v: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """The emitter's radiance where mirror rays land at ``v`` (0 where not ``ok``)."""
+    radiance = scene.active.emitter.radiance(scene, np.where(ok, v, 0.0))
+    return np.where(ok, radiance, 0.0)
+
+
+def mix_coherent(scene, mirror_value, lobe_value, d, n):
+    """``exp(-g) mirror + (1 - exp(-g)) lobe`` when eq. (1) is on, else the lobe value."""
+    if not coherence_on(scene):
+        return lobe_value
+    c = coherent_fraction(scene, -np.einsum("nk,nk->n", d, n))
+    return c * mirror_value + (1.0 - c) * lobe_value

@@ -1,0 +1,47 @@
+"""The ideal mirror: a pixel sees the emitter's radiance where its mirror ray lands.
+
+With the paper's eq. (1) on (``render.height_rms_um > 0``), only the coherent fraction is
+the mirror's; the rest is reflected diffusely (:mod:`glshade.components.reflection.finish`).
+
+Table: :class:`~glshade.components.reflection.finish.FinishTable`. GLSL: ``mirror.glsl``
+(+ the library's ``coherence.glsl`` and the emitter's diffuse reflection). Oracle: the
+emitter's radiance at the mirror ray's ``v`` (and the finish's quadrature).
+"""
+
+from __future__ import annotations
+
+
+from glshade.components.base import ReflectionComponent
+from glshade.components.reflection import finish
+
+
+class Mirror(ReflectionComponent):
+    name = "mirror"
+    rank = 0
+    doc = "an ideal mirror (with eq. (1): its coherent part, the rest Lambertian)"
+    table = finish.FinishTable
+    mirror_only = True
+
+    def features(self, scene):
+        return finish.features(scene, diffuse=finish.coherence_on(scene))
+
+    def glsl(self, variables):
+        return finish.glsl(variables, "mirror.glsl")
+
+    def uniforms(self, scene, context):
+        return finish.uniforms(scene, context.variables)
+
+    def shades_from_emitter_map(self, scene):
+        return not finish.coherence_on(scene)
+
+    def keeps_emitter_scale(self, scene):
+        return not finish.coherence_on(scene)
+
+    def shade(self, scene, p, d, n, v, ok):
+        mirror = finish.mirror_radiance(scene, v, ok)
+        if not finish.coherence_on(scene):
+            return mirror
+        return finish.mix_coherent(scene, mirror, finish.lambert(scene, p, n), d, n)
+
+
+COMPONENTS = (Mirror,)

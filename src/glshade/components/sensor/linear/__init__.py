@@ -1,0 +1,68 @@
+"""The sensor (SPEC §8.2 ``[sensor]``): photon and read noise, full well, quantisation.
+
+Off unless the scene has a ``[sensor]`` table (``full_well_e`` unset: the noiseless float
+radiance of SPEC §5). When on, a rendered radiance image ``L`` (1 = the emitter's peak
+seen in a perfect mirror) becomes
+
+    electrons = Poisson(L · full_well_e) + Normal(0, read_noise_e)
+    stored    = round(clip(electrons / full_well_e, 0, 1) · (2^bits - 1)) / (2^bits - 1)
+
+in the units of the noiseless radiance (1 = full well), quantised to ``bit_depth``. The
+noise is drawn in NumPy (identical on every GPU) from ``seed``, the scene itself (every
+other parameter: two different images never share a noise pattern) and the exposure
+number (two exposures of one scene differ: what the metric's noise floor compares).
+No shader code: the sensor works on the image after read-back. Table:
+:class:`~glshade.components.sensor.linear.table.Sensor`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+
+import numpy as np
+
+from glshade.components.base import SensorComponent
+from glshade.components.sensor.linear.table import DEFAULT_FULL_WELL_E, Sensor
+
+def noise_key(scene, exposure: int) -> list[int]:
+    """The noise stream's seed: the sensor's seed, a digest of the rest of the scene and
+    the exposure number."""
+    described = json.dumps(scene.to_dict(), sort_keys=True, default=str).encode()
+    digest = int.from_bytes(hashlib.sha256(described).digest()[:8], "little")
+    return [int(scene.sensor.seed), digest, int(exposure)]
+
+
+class LinearSensor(SensorComponent):
+    name = "linear"
+    doc = "photon (Poisson) and read noise, full well and quantisation, when a [sensor] table is given"
+    table = Sensor
+
+    def read_file(self, values, current=None):
+        """A ``[sensor]`` table (or a changed key) switches the sensor on with a full well of
+        :data:`DEFAULT_FULL_WELL_E` electrons unless it gives one."""
+        if "full_well_e" not in values and (current is None or current.get("full_well_e") is None):
+            values = {**values, "full_well_e": DEFAULT_FULL_WELL_E}
+        return values
+
+    def write_file(self, values):
+        return values if values.get("full_well_e") is not None else {}
+
+    def shades_from_emitter_map(self, scene):
+        return not scene.sensor.on
+
+    def develop(self, scene, image, exposure=0):
+        sensor = scene.sensor
+        if not sensor.on:
+            return image
+        rng = np.random.default_rng(noise_key(scene, exposure))
+        radiance = np.nan_to_num(np.asarray(image, np.float64), nan=0.0)
+        electrons = rng.poisson(np.maximum(radiance, 0.0) * sensor.full_well_e).astype(np.float64)
+        if sensor.read_noise_e > 0:
+            electrons += rng.normal(0.0, sensor.read_noise_e, radiance.shape)
+        levels = float(2**sensor.bit_depth - 1)
+        counts = np.round(np.clip(electrons / sensor.full_well_e, 0.0, 1.0) * levels)
+        return (counts / levels).astype(np.float32)
+
+
+COMPONENTS = (LinearSensor,)

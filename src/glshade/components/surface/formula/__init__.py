@@ -1,0 +1,188 @@
+"""A base surface given as a formula ``y = f(x, z)`` (paper eq. 3; SPEC §8.1 ``kind =
+"formula"``, ``expression``, ``parameters``).
+
+The expression is checked and rebuilt by :mod:`.grammar` (never evaluated as text); its
+GLSL (``f``, ``f_x``, ``f_z``, printed by SymPy) is a template variable of
+``formula.glsl``, so each formula compiles one program, and its parameters are uniforms. The first hit is a march that cannot pass the first crossing (the
+library's ``freeform.glsl``), bracketed by the slab ``lo <= y - f <= hi`` and driven by a
+bound ``K`` on ``|f''|`` along horizontal directions. ``lo``, ``hi`` and ``K`` come from
+the formula and its exact Hessian sampled on a 129 x 129 grid over the region the
+camera sees (plus margins); they are sample bounds, not interval bounds (documented in
+docs/scene-format.md, *Formulas*). Oracle: the same SymPy tree through NumPy.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from glshade.components.base import SurfaceComponent
+from glshade.components.surface.formula.grammar import Formula as ParsedFormula
+from glshade.components.surface.formula.grammar import PARAMETER_PREFIX, parse_formula
+from glshade.components.surface.freeform import MARCH_GLSL, march_uniforms
+from glshade.errors import SceneError
+from glshade.params import Table, param
+
+#: Samples per side of the grid the bounds are taken on, and their safety factor.
+BOUND_SAMPLES = 129
+BOUND_SAFETY = 1.5
+def check_formula(values: dict) -> None:
+    """A formula surface's expression and parameters parse (the error names the token)."""
+    if values.get("kind") == "formula":
+        parsed(values["expression"], values.get("parameters") or ())
+
+
+@dataclass(frozen=True)
+class FormulaTable(Table):
+    """The formula ``f(x, z)`` and its named parameters."""
+
+    table = "surface"
+    table_checks = (check_formula,)
+
+    expression: str = param(
+        "surface.expression", "mm", "0.0005*x^2 - 0.0002*z^2",
+        "f(x, z) in mm, of x and z in mm and the parameters (a saddle by default; grammar: "
+        "docs/scene-format.md, Formulas)",
+        value_type="text", role="feature",
+    )  # fmt: skip
+    parameters: tuple[tuple[str, float], ...] = param(
+        "surface.parameters", "", (), "named numbers the expression uses, e.g. { a = 0.002, b = 5.0 }",
+        value_type="table",
+    )  # fmt: skip
+
+
+@functools.lru_cache(maxsize=64)
+def parsed(expression: str, parameters: tuple[tuple[str, float], ...]) -> ParsedFormula:
+    return parse_formula(expression, dict(parameters))
+
+
+def formula_of(scene) -> ParsedFormula:
+    return parsed(scene.surface.expression, scene.surface.parameters)
+
+
+class Formula(SurfaceComponent):
+    name = "formula"
+    rank = 3
+    doc = "y = f(x, z) written as a formula of x and z (paper eq. 3)"
+    table = FormulaTable
+
+    def features(self, scene):
+        formula = formula_of(scene)
+        f, fx, fz = formula.glsl(scene.render.precision)
+        return {
+            "formula_f": f,
+            "formula_fx": fx,
+            "formula_fz": fz,
+            "formula_parameters": tuple(name for name, _ in formula.parameters),
+        }
+
+    def glsl(self, variables):
+        return (*MARCH_GLSL, "formula.glsl")
+
+    def uniforms(self, scene, context):
+        lo, hi, curvature = bounds(scene)
+        values = {PARAMETER_PREFIX + name: value for name, value in formula_of(scene).parameters}
+        return {
+            **values,
+            "u_surface_origin": tuple(float(v) for v in context.origin),
+            "u_surface_lo": lo,
+            "u_surface_hi": hi,
+            "u_surface_curvature": curvature,
+            **march_uniforms(scene, context),
+        }
+
+    def second_derivatives(self, scene):
+        fxx, _, fzz = (float(h(0.0, 0.0)) for h in formula_of(scene).hessian)
+        return fzz, fxx
+
+    def describe(self, scene):
+        text = scene.surface.expression
+        return f"y = {text if len(text) <= 40 else text[:37] + '...'}"
+
+    # ------------------------------------------------------------------ oracle
+    def band_roots(self, scene, o, d, shift):
+        lo, hi, _ = bounds(scene)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return [
+                np.where(d[:, 1] != 0, (level + shift - o[:, 1]) / d[:, 1], np.nan)
+                for level in (hi, lo)
+            ]
+
+    def height(self, scene, x, z):
+        return formula_of(scene).numpy[0](x, z)
+
+    def outside(self, scene, x, z):
+        return ~np.isfinite(self.height(scene, x, z))
+
+    def normal(self, scene, x, z, dx, dz):
+        _, fx, fz = formula_of(scene).numpy
+        return np.stack(
+            [-(fx(x, z) + dx), np.ones(np.broadcast(x, z).shape), -(fz(x, z) + dz)], axis=-1
+        )
+
+
+def bounds(scene) -> tuple[float, float, float]:
+    """``(lo, hi, K)``: ``f`` lies in ``[lo, hi]`` (mm) and ``|f''|`` along any horizontal
+    unit direction is below ``K`` (1/mm) over the region the camera sees."""
+    return _bounds(formula_of(scene), _seen_box(scene))
+
+
+def _seen_box(scene) -> tuple[float, float, float, float]:
+    """``(x0, x1, z0, z1)`` (mm): where the image's border rays meet the plane y = 0, and
+    the defect's centre, with a margin of 25 % and 2 mm."""
+    return _box(scene.camera, scene.defect.x0, scene.defect.z0)
+
+
+@functools.lru_cache(maxsize=64)
+def _box(cam, x0: float, z0: float) -> tuple[float, float, float, float]:
+    edge_rows = np.unique(np.linspace(0, cam.height - 1, 9).round().astype(int))
+    edge_cols = np.unique(np.linspace(0, cam.width - 1, 9).round().astype(int))
+    points = [np.array([x0, z0])]
+    for rows, cols in ((edge_rows, [0, cam.width - 1]), ([0, cam.height - 1], edge_cols)):
+        for r in rows:
+            for c in cols:
+                o, d = cam.pixel_rays(slice(int(r), int(r) + 1), slice(int(c), int(c) + 1))
+                o, d = (
+                    np.asarray(o, float).reshape(-1, 3)[0],
+                    np.asarray(d, float).reshape(-1, 3)[0],
+                )
+                t = -o[1] / d[1] if d[1] < 0 else 1000.0 / np.linalg.norm(d)
+                points.append((o + min(t, 1000.0) * d)[[0, 2]])
+    xz = np.array(points)
+    lo, hi = xz.min(axis=0), xz.max(axis=0)
+    margin = 0.25 * (hi - lo) + 2.0
+    return (
+        float(lo[0] - margin[0]),
+        float(hi[0] + margin[0]),
+        float(lo[1] - margin[1]),
+        float(hi[1] + margin[1]),
+    )
+
+
+@functools.lru_cache(maxsize=64)
+def _bounds(
+    formula: ParsedFormula, box: tuple[float, float, float, float]
+) -> tuple[float, float, float]:
+    x = np.linspace(box[0], box[1], BOUND_SAMPLES)
+    z = np.linspace(box[2], box[3], BOUND_SAMPLES)
+    xx, zz = np.meshgrid(x, z)
+    f = formula.numpy[0](xx, zz)
+    fxx, fxz, fzz = (h(xx, zz) for h in formula.hessian)
+    finite = np.isfinite(f)
+    if not finite.any():
+        raise SceneError(
+            "surface.expression", "a formula with finite values where the camera looks"
+        )
+    spectral = np.abs(0.5 * (fxx + fzz)) + np.hypot(0.5 * (fxx - fzz), fxz)  # largest |eigenvalue|
+    curvature = (
+        float(np.nanmax(np.where(np.isfinite(spectral), spectral, 0.0))) * BOUND_SAFETY + 1e-12
+    )
+    cell = math.hypot(x[1] - x[0], z[1] - z[0])
+    slack = curvature * cell * cell / 8.0 + 1e-9 + 1e-9 * float(np.nanmax(np.abs(f[finite])))
+    return float(np.min(f[finite]) - slack), float(np.max(f[finite]) + slack), curvature
+
+
+COMPONENTS = (Formula,)

@@ -1,0 +1,170 @@
+"""Measuring many scenes on one renderer: the engine under ``glshade paper``, ``glshade
+sweep`` (in-process and on every Dask worker), ``glshade optimize`` and ``glshade finding3``.
+
+Each case is a pure function of its scene and the metric settings. The engine only saves
+work that changes no number: the cases that share a defect-free scene (the same geometry,
+another dent) share one :class:`~glshade.metrics.visibility.Baseline`, traced and analysed
+once; the geometries of one shader feature set run one after the other (one program,
+compiled once). For scenes whose picture is a function of the emitter map (a mirror, a
+pinhole, one ray per pixel) the GL thread keeps tracing while ``pool`` threads measure; the
+others (a lens, a lobe, Fresnel, a sensor) render every phase on the GL thread
+(:func:`glshade.measure.single.measure_scene`).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections import deque
+from collections.abc import Callable, Hashable, Iterator, Sequence
+from concurrent.futures import Executor
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from glshade.gpu.compose import ShaderFeatures
+from glshade.measure.record import Measurement
+from glshade.measure.single import (
+    baseline_for,
+    emitter_map,
+    map_baseline,
+    measure_scene,
+    phase_images,
+    shades_from_map,
+)
+from glshade.metrics import visibility as vis
+from glshade.scene import Scene
+
+#: Cases traced ahead of the analysis: at most this many emitter maps wait in memory
+#: (4 MiB each at 1024²).
+AHEAD = 16
+
+
+@dataclass(frozen=True)
+class Case:
+    """One scene to measure and the key its caller knows it by (a sweep's case id, the
+    study's point of its plan)."""
+
+    key: Hashable
+    scene: Scene
+
+
+@dataclass(frozen=True)
+class Measured:
+    """One measured case: the case, the metric's result, the seconds its trace took, and
+    what the caller's ``extra`` hook made of it."""
+
+    case: Case
+    result: vis.Visibility
+    trace_s: float
+    extra: Any = None
+
+    @property
+    def record(self) -> Measurement:
+        """The case's row (:class:`glshade.measure.record.Measurement`)."""
+        return Measurement.of(self.case.scene, self.result, self.trace_s)
+
+
+@dataclass(frozen=True)
+class CaseView:
+    """What an ``extra`` hook may look at besides the result: the case's defect-free
+    analysis, its emitter map ``v1`` and, for rendered shading, its phase images."""
+
+    baseline: vis.Baseline
+    v1: np.ndarray | None
+    images: Callable[[float], np.ndarray] | None
+
+    def best_image(self, scene: Scene, result: vis.Visibility) -> np.ndarray:
+        """The case's radiance image at its best phase (float, [0, 1])."""
+        if self.images is not None:
+            return self.images(result.best_phase_mm)
+        return vis.stripe_radiance(self.v1, self.baseline.pattern, result.best_phase_mm)
+
+
+#: ``extra(case, result, view) -> anything``: per-case work beside the numbers
+#: (thumbnails, overlays, images); it runs where the case is measured.
+Extra = Callable[[Case, vis.Visibility, CaseView], Any]
+
+
+def geometry_key(scene: Scene) -> str:
+    """Scenes with equal keys share their defect-free trace and analysis."""
+    return json.dumps(scene.without_defect().to_dict(), sort_keys=True, default=str)
+
+
+def program_key(scene: Scene) -> Hashable:
+    """Scenes with equal keys run one compiled program (:class:`ShaderFeatures`)."""
+    return ShaderFeatures.from_scene(scene, ("uv",))
+
+
+def grouped(cases: Sequence[Case]) -> list[list[Case]]:
+    """``cases`` by geometry (first appearance first), the geometries of one shader
+    feature set next to each other: the order the engine measures them in."""
+    geometries: dict[str, list[Case]] = {}
+    for case in cases:
+        geometries.setdefault(geometry_key(case.scene), []).append(case)
+    programs: dict[Hashable, list[list[Case]]] = {}
+    for group in geometries.values():
+        programs.setdefault(program_key(group[0].scene), []).append(group)
+    return [group for groups in programs.values() for group in groups]
+
+
+def measure_many(
+    renderer,
+    cases: Sequence[Case],
+    settings: vis.MetricSettings,
+    *,
+    pool: Executor | None = None,
+    extra: Extra | None = None,
+) -> Iterator[Measured]:
+    """Measure every case; yields one :class:`Measured` per case, geometry by geometry
+    (:func:`grouped`), as each is done. ``pool``: threads for the analysis of map-shaded
+    cases (None: this thread). GL work stays on the calling thread."""
+    for group in grouped(cases):
+        if shades_from_map(group[0].scene):
+            yield from _mapped(renderer, group, settings, pool, extra)
+        else:
+            yield from _rendered(renderer, group, settings, extra)
+
+
+def _traced(renderer, case: Case) -> tuple[np.ndarray, float]:
+    """A case's emitter map and the seconds its trace took."""
+    start = time.perf_counter()
+    v1 = emitter_map(renderer, case.scene)
+    return v1, time.perf_counter() - start
+
+
+def _mapped(renderer, group, settings, pool, extra) -> Iterator[Measured]:
+    """One geometry shaded from its emitter maps: trace here, analyse in ``pool``."""
+    normal = group[0].scene.without_defect()
+    baseline = map_baseline(normal, emitter_map(renderer, normal), settings)
+    waiting: deque = deque()
+    for case in group:
+        v1, trace_s = _traced(renderer, case)
+        if pool is None:
+            yield _analyse(case, baseline, v1, trace_s, extra)
+            continue
+        waiting.append(pool.submit(_analyse, case, baseline, v1, trace_s, extra))
+        while len(waiting) > AHEAD or (waiting and waiting[0].done()):
+            yield waiting.popleft().result()
+    while waiting:
+        yield waiting.popleft().result()
+
+
+def _analyse(case, baseline, v1, trace_s, extra) -> Measured:
+    result = baseline.measure(v1)
+    made = extra(case, result, CaseView(baseline, v1, None)) if extra is not None else None
+    return Measured(case, result, trace_s, made)
+
+
+def _rendered(renderer, group, settings, extra) -> Iterator[Measured]:
+    """One geometry whose pictures are rendered phase by phase, all on this thread."""
+    baseline = baseline_for(renderer, group[0].scene, settings)
+    for case in group:
+        v1, trace_s = _traced(renderer, case)
+        result = measure_scene(renderer, case.scene, settings, baseline, v1=v1)
+        made = None
+        if extra is not None:
+            view = CaseView(baseline, v1, phase_images(renderer, case.scene))
+            made = extra(case, result, view)
+        yield Measured(case, result, trace_s, made)

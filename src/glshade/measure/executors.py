@@ -1,0 +1,107 @@
+"""Where cases are measured: in this process (:class:`LocalExecutor`) or on a Dask
+cluster (:class:`glshade.measure.cluster.DaskExecutor`). Both measure with the same
+engine (:func:`glshade.measure.engine.measure_many`) and return the same rows, records
+and never frames; the calling process alone writes files, so a table cannot depend on
+where a case ran. An executor is a context manager with one method,
+``rows(cases, settings, images)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Any, Self
+
+from glshade.errors import GlshadeError
+from glshade.measure.engine import Case, CaseView, measure_many
+from glshade.measure.record import Measurement
+from glshade.metrics.visibility import MetricSettings, Visibility
+
+#: What every executor yields per case: its key, its record, its best-phase image as PNG
+#: bytes (when images were asked for) or None.
+Row = tuple[Any, Measurement, bytes | None]
+
+
+@dataclass(frozen=True)
+class Distribution:
+    """Where the cases run: ``workers`` local Dask worker processes, or the cluster at
+    ``scheduler``; neither: this process (``threads`` for the analysis). ``batch``: most
+    cases per Dask task; ``connect_timeout_s``: how long an unreachable scheduler is
+    waited for."""
+
+    workers: int | None = None
+    scheduler: str | None = None
+    threads: int = 2
+    connect_timeout_s: float = 10.0
+    batch: int = 16
+
+    def __post_init__(self) -> None:
+        if self.workers is not None and self.scheduler is not None:
+            raise GlshadeError(
+                "--workers and --scheduler: give one of them (local workers, or an existing cluster)"
+            )
+        if self.workers is not None and not 1 <= self.workers <= 256:
+            raise GlshadeError(f"--workers: must be an integer in [1, 256], got {self.workers}")
+        if self.threads < 1:
+            raise GlshadeError(f"--threads: must be an integer >= 1, got {self.threads}")
+        if not 0 < self.connect_timeout_s <= 600:
+            raise GlshadeError(
+                f"--connect-timeout: must be in (0, 600] seconds, got {self.connect_timeout_s:g}"
+            )
+        if not 1 <= self.batch <= 4096:
+            raise GlshadeError(f"--batch: must be an integer in [1, 4096], got {self.batch}")
+
+    @property
+    def on_dask(self) -> bool:
+        return self.workers is not None or self.scheduler is not None
+
+
+def open_executor(distribution: Distribution, renderer=None):
+    """Where cases are measured: a :class:`LocalExecutor` or a Dask one; a context
+    manager either way."""
+    if distribution.on_dask:
+        from glshade.measure.cluster import DaskExecutor
+
+        return DaskExecutor(distribution)
+    return LocalExecutor(distribution.threads, renderer)
+
+
+class LocalExecutor:
+    """Measures cases in this process: one renderer (made on first use unless given),
+    ``threads`` analysis threads."""
+
+    def __init__(self, threads: int = 2, renderer=None) -> None:
+        self.threads, self.renderer, self._owns = threads, renderer, renderer is None
+
+    def rows(self, cases: Sequence[Case], settings: MetricSettings, images: bool) -> Iterator[Row]:
+        if self.renderer is None:
+            from glshade.gpu.renderer import Renderer
+
+            self.renderer = Renderer()
+        with ThreadPoolExecutor(max_workers=self.threads) as pool:
+            yield from measure_rows(self.renderer, cases, settings, images, pool)
+
+    def close(self) -> None:
+        if self._owns and self.renderer is not None:
+            self.renderer.release()
+            self.renderer = None
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def measure_rows(renderer, cases: Sequence[Case], settings, images: bool, pool=None) -> Iterator[Row]:
+    """The engine's results as rows: what a worker returns, what the caller writes."""
+    extra = _best_image_png if images else None
+    for measured in measure_many(renderer, cases, settings, pool=pool, extra=extra):
+        yield measured.case.key, measured.record, measured.extra
+
+
+def _best_image_png(case: Case, result: Visibility, view: CaseView) -> bytes:
+    from glshade.files import encode_png
+
+    return encode_png(view.best_image(case.scene, result), bits=8)

@@ -1,0 +1,214 @@
+"""The one result record of a measured scene: its fields are the columns of ``results.csv``
+(the study's, after the case's own parameters), of a sweep's ``results.parquet`` and
+``results.csv`` (after its swept keys), the keys of ``glshade measure --json`` and the
+table of ``docs/results.md``. Declared once, here, with each column's unit and meaning.
+
+A column's ``role`` says where it goes: ``measured`` (the metric's numbers, the same
+wherever a case ran), ``law`` (the closed forms beside them, docs/physics.md) or
+``timing`` (seconds spent, which differ from run to run: the study's table has them, a
+sweep keeps them in its case files, not in its table).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+from glshade.metrics import physics
+from glshade.metrics.visibility import Visibility
+from glshade.scene import Scene
+
+ROLES = ("measured", "law", "timing")
+
+
+def column(unit: str, meaning: str, role: str = "measured") -> Any:
+    """A record field with its unit, meaning and role (as ``docs/results.md`` prints them)."""
+    return field(metadata={"unit": unit, "meaning": meaning, "role": role})
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column: its name, unit, meaning and role."""
+
+    name: str
+    unit: str
+    meaning: str
+    role: str
+
+
+def _boolean(value: Any) -> bool:
+    return value == "True" if isinstance(value, str) else bool(value)
+
+
+def _optional_float(value: Any) -> float | None:
+    if value is None or value == "":
+        return None
+    number = float(value)
+    return None if math.isnan(number) else number
+
+
+#: How a column's value is read back from JSON or CSV text, by its annotation.
+PARSE = {
+    "str": str,
+    "float": float,
+    "int": int,
+    "bool": _boolean,
+    "float | None": _optional_float,
+}
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """What was measured of one scene's defect, every length in pixels of its image."""
+
+    visibility_px: float = column(
+        "px",
+        "the paper's metric: the largest distance between corresponding stripe contours over "
+        "the phase sweep, whole pixels of the image",
+    )
+    visibility_continuous_px: float = column(
+        "px",
+        "the limit of the paper's metric for a vanishing phase step and pixel size, by the "
+        "same contour rules (sub-pixel)",
+    )
+    deflection_px: float = column(
+        "px",
+        "how far the dent moves the emitter map: the largest distance between a row r and the "
+        "row r0 where v0(r0) = v1(r), in a kept column; equals the continuous visibility where "
+        "nothing folds",
+    )
+    folded: bool = column(
+        "",
+        "True where the dent's emitter map runs against the defect-free one along some kept "
+        "column (the stripe map folds)",
+    )
+    islands: int = column(
+        "count",
+        "the most stripe pieces the dent cuts off (touching neither a cut column nor the "
+        "border; beyond those the defect-free image has) at any phase; never measured",
+    )
+    best_phase_mm: float = column("mm", "stripe phase at which visibility_px was reached")
+    unpaired_contours: int = column(
+        "count",
+        "stripes reaching a cut column or the border that found no partner at the best phase "
+        "(0 in a healthy comparison)",
+    )
+    offset_dx_px: int = column(
+        "px", "registration offset applied to the defect image, columns (0 for rendered pairs)"
+    )
+    offset_dy_px: int = column(
+        "px", "registration offset applied to the defect image, rows (0 for rendered pairs)"
+    )
+    unresolved_fraction: float = column(
+        "fraction",
+        "share of the kept pixels left out because the defect-free stripes span fewer than "
+        "4 px per period there (aliasing)",
+    )
+    noise_floor_px: float | None = column(
+        "px",
+        "with a sensor: the paper's metric between two noisy exposures of the defect-free "
+        "scene, the contour jitter noise alone makes (empty without a sensor)",
+    )
+    fold_ratio: float | None = column(
+        "",
+        "closed form 2 κ Dc De / ((Dc + De) sin θ), κ the largest tangential curvature of base "
+        "plus dent; the map folds where it exceeds 1 (docs/physics.md)",
+        "law",
+    )
+    deflection_law_px: float | None = column(
+        "px", "closed form of deflection_px (docs/physics.md)", "law"
+    )
+    visibility_law_px: float | None = column(
+        "px",
+        "closed form of visibility_continuous_px: the deflection, capped by a fold at "
+        "b sqrt(2 ln(F/m)) (docs/physics.md)",
+        "law",
+    )
+    magnification: float | None = column(
+        "",
+        "closed form of how much a convex base in the plane of incidence magnifies the "
+        "emitter (1 on the flat plate; docs/physics.md)",
+        "law",
+    )
+    trace_s: float = column("s", "time to trace the dent's emitter map (GL)", "timing")
+    shade_s: float = column("s", "time to binarise the defect image at every phase", "timing")
+    contours_s: float = column(
+        "s", "time of the contour analysis over the phase sweep (OpenCV)", "timing"
+    )
+    continuous_s: float = column(
+        "s", "time of the deflection and the continuous limit", "timing"
+    )
+
+    def __post_init__(self) -> None:
+        for item in fields(self):  # typed whatever it was read from (JSON, CSV text, NumPy)
+            if item.name in COLUMN_NAMES:
+                kind = item.type if isinstance(item.type, str) else item.type.__name__
+                object.__setattr__(self, item.name, PARSE[kind](getattr(self, item.name)))
+
+    @classmethod
+    def of(cls, scene: Scene, result: Visibility, trace_s: float = 0.0) -> Measurement:
+        """The record of ``result``, the metric's measurement of ``scene``: its numbers
+        rounded as tables show them, the closed forms beside them, the seconds spent."""
+        law = physics.laws(scene)
+        spent = result.seconds
+        return cls(
+            visibility_px=result.visibility_px,
+            visibility_continuous_px=round(result.visibility_continuous_px, 4),
+            deflection_px=round(result.deflection_px, 4),
+            folded=result.folded,
+            islands=result.islands,
+            best_phase_mm=result.best_phase_mm,
+            unpaired_contours=result.unpaired_contours,
+            offset_dx_px=int(result.offset_px[0]),
+            offset_dy_px=int(result.offset_px[1]),
+            unresolved_fraction=round(result.unresolved_fraction, 5),
+            noise_floor_px=result.noise_floor_px,
+            fold_ratio=_finite(law.fold_ratio, 5),
+            deflection_law_px=_finite(law.deflection_px, 4),
+            visibility_law_px=_finite(law.visibility_px, 4),
+            magnification=_finite(law.magnification, 5),
+            trace_s=round(trace_s, 4),
+            shade_s=round(spent.shade, 4),
+            contours_s=round(spent.contours, 4),
+            continuous_s=round(spent.continuous, 4),
+        )
+
+    @classmethod
+    def from_row(cls, row: dict[str, Any]) -> Measurement:
+        """From a case file's object or a table's row (text); other keys are ignored, a
+        missing timing reads 0."""
+        return cls(**{name: row.get(name, 0.0) if name in TIMINGS else row[name] for name in COLUMN_NAMES})
+
+    def row(self, roles: tuple[str, ...] = ROLES) -> dict[str, Any]:
+        """The columns of these roles, in order, as plain values (None stays None)."""
+        return {c.name: getattr(self, c.name) for c in COLUMNS if c.role in roles}
+
+    def outputs(self) -> dict[str, Any]:
+        """What a case measured, the same wherever it ran: the measured and law columns."""
+        return self.row(("measured", "law"))
+
+    def seconds(self) -> dict[str, float]:
+        return self.row(("timing",))
+
+
+def _finite(value: float, digits: int) -> float | None:
+    """A closed form rounded as tables show it; None where it is not finite (JSON has no
+    NaN)."""
+    return round(value, digits) if math.isfinite(value) else None
+
+
+COLUMNS: tuple[Column, ...] = tuple(
+    Column(f.name, f.metadata["unit"], f.metadata["meaning"], f.metadata["role"])
+    for f in fields(Measurement)
+)
+COLUMN_NAMES: tuple[str, ...] = tuple(c.name for c in COLUMNS)
+TIMINGS: tuple[str, ...] = tuple(c.name for c in COLUMNS if c.role == "timing")
+OUTPUT_NAMES: tuple[str, ...] = tuple(c.name for c in COLUMNS if c.role != "timing")
+
+
+def columns_markdown(columns: tuple[Column, ...] = COLUMNS) -> str:
+    """A table of columns, as ``docs/results.md`` and ``docs/sweeps.md`` print it."""
+    lines = ["| column | unit | meaning |", "|---|---|---|"]
+    lines += [f"| `{c.name}` | {c.unit or '—'} | {c.meaning} |" for c in columns]
+    return "\n".join(lines)

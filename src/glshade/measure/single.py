@@ -1,0 +1,152 @@
+"""Measuring one scene: render its emitter maps and run the visibility pipeline on them.
+
+A case is a pure function of its scene and the metric settings: :func:`measure_scene`
+renders the defect-free twin (``dmax = 0``) and the scene itself and measures one against
+the other with :class:`glshade.metrics.visibility.Baseline`. A caller that measures many
+defects on one geometry (the engine, the viewer) passes the same baseline to each; that
+saves the defect-free trace and analysis and changes no number.
+
+Where the picture is a function of the emitter map (the mirror and one ray per pixel
+through a pinhole) the images are shaded from the maps; for other shading (Blinn-Phong,
+supersampling, a lens, a sensor) the images of every phase are rendered and binarised,
+while the continuous numbers keep following the rays (the emitter maps).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from glshade.errors import GlshadeError
+from glshade.metrics.visibility import Baseline, MetricSettings, Visibility
+from glshade.scene import Scene
+
+if TYPE_CHECKING:  # the GPU is loaded only by measure() when it must make a renderer
+    from glshade.gpu.renderer import Renderer
+
+
+def emitter_map(renderer: Renderer, scene: Scene) -> np.ndarray:
+    """The scene's emitter coordinate ``v`` per pixel (mm, NaN = no hit)."""
+    return np.ascontiguousarray(renderer.render(scene, ("uv",)).uv[..., 1])
+
+
+def shades_from_map(scene: Scene) -> bool:
+    """True when the picture is a function of the emitter map: every active component
+    says so (a mirror, one ray per pixel through a pinhole, no Fresnel, no sensor)."""
+    return scene.active.shades_from_emitter_map(scene)
+
+
+def phase_images(
+    renderer: Renderer, scene: Scene, exposure: int = 0
+) -> Callable[[float], np.ndarray]:
+    """``phase -> rendered radiance image`` of a scene, for shading that needs images
+    (with a sensor: what it records in exposure number ``exposure``)."""
+    return lambda phase: renderer.render(scene.with_phase(phase), ("image",), exposure=exposure).image
+
+
+def levels_from_image(scene: Scene, settings: MetricSettings) -> bool:
+    """True when the binarisation level is taken from the defect-free image's range
+    (``settings.level_from``; ``auto``: when a component scales the radiance)."""
+    if settings.level_from != "auto":
+        return settings.level_from == "image"
+    return not scene.active.keeps_emitter_scale(scene)
+
+
+def baseline_for(
+    renderer: Renderer, scene: Scene, settings: MetricSettings = MetricSettings()
+) -> Baseline:
+    """The defect-free analysis of a scene's geometry (its defect is ignored)."""
+    normal = scene.without_defect()
+    images = None if shades_from_map(scene) else phase_images(renderer, normal)
+    pattern = scene.active.emitter.pattern(scene)
+    return Baseline(
+        emitter_map(renderer, normal),
+        pattern,
+        settings,
+        images,
+        image_levels=levels_from_image(scene, settings),
+    )
+
+
+def map_baseline(scene: Scene, v0: np.ndarray, settings: MetricSettings) -> Baseline:
+    """The defect-free analysis of ``scene``'s geometry from its traced emitter map ``v0``,
+    shaded from the map (the engine's fast path, the viewer's live readout)."""
+    return Baseline(v0, scene.active.emitter.pattern(scene), settings)
+
+
+def measure_scene(
+    renderer: Renderer,
+    scene: Scene,
+    settings: MetricSettings = MetricSettings(),
+    baseline: Baseline | None = None,
+    overlay: str | os.PathLike[str] | None = None,
+    v1: np.ndarray | None = None,
+) -> Visibility:
+    """The three numbers of a scene's defect on an existing renderer.
+
+    ``baseline``: the defect-free analysis of the same geometry and settings, when the
+    caller already has it (:func:`baseline_for`). ``overlay``: also write the Fig. 9
+    contour overlay at the best phase to this PNG path. ``v1``: the scene's emitter map,
+    when the caller has traced it already (:func:`emitter_map`).
+    """
+    if baseline is None:
+        baseline = baseline_for(renderer, scene, settings)
+    images = None if shades_from_map(scene) else phase_images(renderer, scene)
+    if v1 is None:
+        v1 = emitter_map(renderer, scene)
+    result = baseline.measure(v1, images)
+    if scene.sensor.on:
+        again = phase_images(renderer, scene.without_defect(), exposure=1)
+        floor = baseline.paper(baseline.v0, again)[0].visibility_px
+        result = dataclasses.replace(result, noise_floor_px=floor)
+    if overlay is not None:
+        from glshade.measure.figures import write_overlay
+
+        write_overlay(baseline, v1, result, images, scene.title(), Path(overlay))
+    return result
+
+
+def measure(
+    scene: Scene | str | os.PathLike[str],
+    *,
+    renderer: Renderer | None = None,
+    settings: MetricSettings | None = None,
+    overlay: str | os.PathLike[str] | None = None,
+) -> Visibility:
+    """How visible is this scene's defect? ``glshade.measure(paper_scene("flat", 5, 1.0, 0.005))``.
+
+    Returns a :class:`glshade.metrics.visibility.Visibility`: ``visibility_px`` (the paper's
+    metric), ``visibility_continuous_px`` (its limit), ``deflection_px`` (how far the
+    rays move), ``folded``, ``islands``, ``best_phase_mm``; its table row is
+    :meth:`glshade.measure.record.Measurement.of`. ``overlay``: also write the Fig. 9
+    overlay there (PNG). Creates (and releases) a renderer unless one is given. ``scene``
+    may also be the path of a scene file. Bad input (a malformed file, a value out of
+    range, an overlay path that is not a writable regular ``.png``) raises a
+    :class:`~glshade.errors.GlshadeError` with one line, before any rendering.
+    """
+    from glshade.files import check_output
+
+    if isinstance(scene, (str, os.PathLike)):
+        scene = Scene.load(scene)
+    if not isinstance(scene, Scene):
+        raise GlshadeError(
+            f"scene: must be a glshade Scene or the path of a scene file, got {type(scene).__name__}"
+        )
+    settings = settings or MetricSettings()
+    if not isinstance(settings, MetricSettings):
+        raise GlshadeError(f"settings: must be a MetricSettings, got {type(settings).__name__}")
+    # a step longer than the period is refused before rendering
+    settings.phases(scene.active.emitter.pattern(scene).period_mm)
+    if overlay is not None:
+        check_output(overlay, "overlay", (".png",))
+    if renderer is not None:
+        return measure_scene(renderer, scene, settings, overlay=overlay)
+    from glshade.gpu.renderer import Renderer
+
+    with Renderer() as own:
+        return measure_scene(own, scene, settings, overlay=overlay)

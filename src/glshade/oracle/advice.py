@@ -1,0 +1,48 @@
+"""Warnings about a scene that is valid but probably not what was meant.
+
+Each active component's parameters are checked against their plausible magnitude
+(``Param.plausible_max``: a dent 50 mm deep was most likely typed in µm), each component
+adds its own (:meth:`Component.warnings`), and a reflection lobe too wide for the
+emitter's pattern is found from the exact geometry (its footprint on the emitter,
+:mod:`glshade.oracle.footprint`). Every front end prints these lines as
+``glshade: warning: …``; none stops a run.
+"""
+
+from __future__ import annotations
+
+from glshade.oracle.footprint import footprint_mm
+from glshade.scene import Scene
+
+
+def scene_warnings(scene: Scene) -> tuple[str, ...]:
+    """The warning lines for ``scene``, each naming its field; one line per (value,
+    reason), so ``defect.sigma2`` is not repeated by the two variances it sets."""
+    lines: dict[tuple[object, str], str] = {}
+    for component in scene.active:
+        for param in component.params:
+            value = scene.value(param.path)
+            line = param.implausible(value)
+            if line is not None:
+                lines.setdefault((value, param.plausible_why), line)
+        for line in (*component.warnings(scene), *_lobe_warning(scene, component)):
+            lines.setdefault((None, line), line)
+    return tuple(lines.values())
+
+
+def _lobe_warning(scene: Scene, component) -> tuple[str, ...]:
+    """A reflection lobe whose footprint on the emitter exceeds half the pattern's period
+    washes it out (docs/physics.md, 'Glossy lobes and stripes')."""
+    lobe = getattr(component, "lobe_std_rad", None)
+    std = lobe(scene) if lobe is not None else None
+    if std is None:
+        return ()
+    width = footprint_mm(scene, std)
+    period = scene.active.emitter.pattern(scene).period_mm
+    if width is None or width <= 0.5 * period:
+        return ()
+    hint = component.sharpen_hint(scene, width / (0.5 * period))
+    return (
+        f"render.reflection = {component.name}: the lobe spreads each point over {width:.3g} mm "
+        f"of the emitter, more than half the {period:g} mm stripe period, so the stripes wash "
+        f"out; use {hint} (docs/physics.md, 'Glossy lobes and stripes')",
+    )

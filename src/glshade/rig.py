@@ -1,0 +1,94 @@
+"""The rig: where the camera and the stripe emitter stand, as transforms (pyrr).
+
+One place holds every pose of the scene's geometry (world frame of the docs: the gaze
+point at the origin, ``+y`` up, the plane of incidence ``yz``, camera on ``+z``, emitter on
+``-z``):
+
+- the rig's azimuth: a rotation about ``+y`` that turns camera and emitter together
+  (``+z`` towards ``+x``), the identity at azimuth 0;
+- the camera's pose: principal point ``C = D R (0, sin θ, cos θ)``, ``forward = -C/|C|``,
+  image up ``R (0, cos θ, -sin θ)``, right ``forward x up``;
+- the emitter's plane: centre ``E = De R (0, sin θ, -cos θ)`` (the camera's mirror
+  position), normal ``-E/|E|``, in-plane axes ``e_u = R (1, 0, 0)``, ``e_v = R (0, cos θ,
+  sin θ)``;
+- the viewer's orbit: a mouse drag turned into a new elevation and azimuth.
+
+Everything is float64 NumPy; the matrices are pyrr's (column-vector convention:
+``matrix @ vector``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pyrr
+
+#: The elevation the orbit keeps the camera within (degrees above the surface).
+ORBIT_THETA_DEG = (0.5, 89.5)
+
+
+def rig_rotation(azimuth_rad: float) -> np.ndarray:
+    """Rotation about +y by ``azimuth_rad`` (+z towards +x), float64 3x3; exactly the
+    identity at 0."""
+    if azimuth_rad == 0.0:
+        return np.eye(3)
+    return np.asarray(pyrr.matrix33.create_from_y_rotation(azimuth_rad), dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class CameraPose:
+    """The camera's principal point (mm) and unit axes, float64 (3,) each."""
+
+    position: np.ndarray
+    forward: np.ndarray
+    right: np.ndarray
+    up: np.ndarray
+
+
+def camera_pose(theta_rad: float, azimuth_rad: float, distance_mm: float) -> CameraPose:
+    """The camera at elevation ``theta_rad`` and rig azimuth ``azimuth_rad``,
+    ``distance_mm`` from the gaze point, looking at it."""
+    turn = rig_rotation(azimuth_rad)
+    sin_t, cos_t = math.sin(theta_rad), math.cos(theta_rad)
+    position = turn @ (distance_mm * np.array([0.0, sin_t, cos_t]))
+    forward = turn @ -np.array([0.0, sin_t, cos_t])
+    up = turn @ np.array([0.0, cos_t, -sin_t])
+    return CameraPose(position, forward, np.cross(forward, up), up)
+
+
+@dataclass(frozen=True)
+class EmitterPlane:
+    """The emitter's plane in world coordinates (float64): centre, unit normal (facing
+    the origin) and in-plane axes ``e_u``, ``e_v``."""
+
+    centre: np.ndarray
+    normal: np.ndarray
+    e_u: np.ndarray
+    e_v: np.ndarray
+
+
+def emitter_plane(theta_rad: float, azimuth_rad: float, distance_mm: float) -> EmitterPlane:
+    """The emitter in the camera's mirror position, ``distance_mm`` from the origin."""
+    turn = rig_rotation(azimuth_rad)
+    sin_t, cos_t = math.sin(theta_rad), math.cos(theta_rad)
+    direction = turn @ np.array([0.0, sin_t, -cos_t])
+    return EmitterPlane(
+        centre=distance_mm * direction,
+        normal=-direction,
+        e_u=turn @ np.array([1.0, 0.0, 0.0]),
+        e_v=turn @ np.array([0.0, cos_t, sin_t]),
+    )
+
+
+def orbit(
+    theta_deg: float, azimuth_deg: float, dx_px: float, dy_px: float, deg_per_px: float = 0.25
+) -> tuple[float, float]:
+    """The elevation and azimuth after a mouse drag of ``(dx_px, dy_px)`` pixels: up
+    raises the camera, right turns the rig; the elevation stays within
+    :data:`ORBIT_THETA_DEG`, the azimuth within (-180, 180]."""
+    lo, hi = ORBIT_THETA_DEG
+    theta = min(hi, max(lo, theta_deg - dy_px * deg_per_px))
+    azimuth = (azimuth_deg + dx_px * deg_per_px + 180.0) % 360.0 - 180.0
+    return theta, (180.0 if azimuth == -180.0 else azimuth)
