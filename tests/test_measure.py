@@ -14,6 +14,7 @@ import glshade
 from glshade.app.viewer import ViewerModel
 from glshade.files import read_png
 from glshade.gpu.renderer import Renderer
+from glshade.measure.record import Measurement
 from glshade.measure.single import measure_scene
 from glshade.scene import paper_scene
 
@@ -86,7 +87,7 @@ def test_python_api_gives_the_cli_numbers():
     out = as_json(cli(*FOLDING, "--size", "256", "--json"))
     result = glshade.measure(paper_scene("flat", 5.0, 1.0, 0.005).with_size(256))
     assert isinstance(result, glshade.Visibility)
-    summary = result.summary()
+    summary = Measurement.of(paper_scene("flat", 5.0, 1.0, 0.005).with_size(256), result).row()
     assert {key: summary[key] for key in KEYS} == {key: out[key] for key in KEYS}
     assert result.folded and result.visibility_px < result.deflection_px
 

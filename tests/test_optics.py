@@ -23,6 +23,7 @@ from tests.test_components import check_absent_code
 from glshade.components.camera.perspective.optics import distort, undistort
 from glshade.components.registry import registry
 from glshade.errors import SceneError
+from glshade.measure.record import Measurement
 from glshade.measure.single import measure_scene, shades_from_map
 from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
@@ -342,7 +343,7 @@ def test_sensor_noise_floor_is_reported(renderer):
     )
     result = measure_scene(renderer, scene)
     assert result.noise_floor_px is not None and 0.0 < result.noise_floor_px < result.visibility_px
-    assert "noise_floor_px" in result.summary()
+    assert Measurement.of(scene, result).noise_floor_px == result.noise_floor_px
     assert (
         measure_scene(renderer, scene.updated(sensor={"full_well_e": None})).noise_floor_px is None
     )

@@ -9,6 +9,7 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
+from glshade.measure.record import Measurement
 from glshade.measure.single import measure_scene
 from glshade.study import findings
 from glshade.study.plan import StudyPlan
@@ -245,7 +246,8 @@ def test_a_case_is_a_pure_function_of_its_scene(tmp_path, renderer):
         "best_phase_mm",
     )
     for row, case in zip(rows, plan.cases(), strict=True):
-        alone = measure_scene(renderer, plan.scene(*case), plan.metric).summary()
+        scene = plan.scene(*case)
+        alone = Measurement.of(scene, measure_scene(renderer, scene, plan.metric)).row()
         assert {k: row[k] for k in keys} == {k: alone[k] for k in keys}, case
     assert any(row["folded"] for row in rows)  # the fold case is among them
 

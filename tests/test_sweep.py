@@ -33,7 +33,8 @@ from glshade.scene import paper_scene
 from glshade.study.plan import StudyPlan
 from glshade.sweep import optimize as opt
 from glshade.sweep import store
-from glshade.measure.executors import Distribution, open_executor
+from glshade.measure.executors import Distribution
+from glshade.measure.where import open_executor
 from glshade.sweep.run import run_sweep
 from glshade.sweep.spec import MAX_CASES_UNCONFIRMED, load_spec, spec_from_dict
 

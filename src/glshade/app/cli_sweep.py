@@ -19,7 +19,8 @@ from glshade.app.args import (
 )
 from glshade.errors import GlshadeError
 from glshade.files import check_output
-from glshade.measure.executors import Distribution, open_executor
+from glshade.measure.executors import Distribution
+from glshade.measure.where import open_executor
 from glshade.oracle.advice import scene_warnings
 from glshade.process import reuse_freed_memory
 

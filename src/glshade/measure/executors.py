@@ -1,5 +1,6 @@
 """Where cases are measured: in this process (:class:`LocalExecutor`) or on a Dask
-cluster (:class:`glshade.measure.cluster.DaskExecutor`). Both measure with the same
+cluster (:class:`glshade.measure.cluster.DaskExecutor`; :func:`glshade.measure.where.
+open_executor` picks one). Both measure with the same
 engine (:func:`glshade.measure.engine.measure_many`) and return the same rows, records
 and never frames; the calling process alone writes files, so a table cannot depend on
 where a case ran. An executor is a context manager with one method,
@@ -55,16 +56,6 @@ class Distribution:
     @property
     def on_dask(self) -> bool:
         return self.workers is not None or self.scheduler is not None
-
-
-def open_executor(distribution: Distribution, renderer=None):
-    """Where cases are measured: a :class:`LocalExecutor` or a Dask one; a context
-    manager either way."""
-    if distribution.on_dask:
-        from glshade.measure.cluster import DaskExecutor
-
-        return DaskExecutor(distribution)
-    return LocalExecutor(distribution.threads, renderer)
 
 
 class LocalExecutor:

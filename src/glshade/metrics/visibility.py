@@ -320,6 +320,7 @@ class Visibility:
     ``displacement_px``: the deflection's map; ``limit``: the continuous limit's details;
     ``noise_floor_px``: with a sensor, the paper's metric between two exposures of the
     defect-free scene (the contour jitter the noise alone makes; None without a sensor).
+    Its row in every table is :meth:`glshade.measure.record.Measurement.of`.
     """
 
     visibility_px: float
@@ -337,21 +338,6 @@ class Visibility:
     limit: Limit = field(repr=False)
     seconds: StageSeconds = field(default_factory=StageSeconds, repr=False)
     noise_floor_px: float | None = None
-
-    def summary(self) -> dict:
-        """The numbers as plain JSON-able values (``glshade measure --json``)."""
-        return {
-            "visibility_px": self.visibility_px,
-            "visibility_continuous_px": round(self.visibility_continuous_px, 4),
-            "deflection_px": round(self.deflection_px, 4),
-            "folded": self.folded,
-            "islands": self.islands,
-            "best_phase_mm": self.best_phase_mm,
-            "offset_px": list(self.offset_px),
-            "unpaired_contours": self.unpaired_contours,
-            "unresolved_fraction": round(self.unresolved_fraction, 5),
-            **({"noise_floor_px": self.noise_floor_px} if self.noise_floor_px is not None else {}),
-        }
 
 
 class Baseline:

@@ -299,7 +299,7 @@ def search(
 # --------------------------------------------------------------------------- scenes
 class SceneObjective:
     """The worst-case visibility over a family, measured by an executor (in-process or
-    Dask: :func:`glshade.measure.executors.open_executor`); every case measured once (by
+    Dask: :func:`glshade.measure.where.open_executor`); every case measured once (by
     id)."""
 
     def __init__(

@@ -1,0 +1,16 @@
+"""Which executor a :class:`~glshade.measure.executors.Distribution` asks for: this
+process, or Dask (loaded only then)."""
+
+from __future__ import annotations
+
+from glshade.measure.executors import Distribution, LocalExecutor
+
+
+def open_executor(distribution: Distribution, renderer=None):
+    """Where cases are measured: a :class:`LocalExecutor` or a Dask one; a context
+    manager either way."""
+    if distribution.on_dask:
+        from glshade.measure.cluster import DaskExecutor
+
+        return DaskExecutor(distribution)
+    return LocalExecutor(distribution.threads, renderer)
