@@ -184,7 +184,7 @@ def read_png(path: str | os.PathLike[str]) -> np.ndarray:
 
 
 def write_npy(path: str | os.PathLike[str], array: np.ndarray) -> None:
-    """Write an array as ``.npy`` atomically (the uv map of SPEC §8: float32 H×W×2, mm)."""
+    """Write an array as ``.npy`` atomically (the uv map: float32 H×W×2, mm)."""
     buf = io.BytesIO()
     np.save(buf, array, allow_pickle=False)
     atomic_write_bytes(Path(path), buf.getvalue())

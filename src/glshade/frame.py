@@ -42,8 +42,16 @@ class Frame:
     def shape(self) -> tuple[int, int]:
         for array in (self.image, self.uv, self.mask, self.distance, self.iterations):
             if array is not None:
-                return array.shape[:2]
+                return (int(array.shape[0]), int(array.shape[1]))
         raise ValueError("empty frame")
+
+    def output(self, name: str) -> np.ndarray:
+        """The array of output ``name``; an error (a caller's bug) when it was not asked
+        for."""
+        array = getattr(self, name)
+        if array is None:
+            raise ValueError(f"this frame has no {name!r}: render it with outputs including {name!r}")
+        return array
 
 
 def normalize_outputs(

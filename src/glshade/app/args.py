@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
 from pathlib import Path
 
 from glshade.components.registry import registry
@@ -55,17 +56,18 @@ def path_arg(text: str) -> Path:
 
 
 def flag_dest(param: Param) -> str:
-    return "flag_" + param.flag.lstrip("-").replace("-", "_")
+    """The argparse destination of a parameter's short flag."""
+    return "flag_" + (param.flag or param.path).lstrip("-").replace("-", "_").replace(".", "_")
 
 
-def flag_options(param: Param) -> dict[str, object]:
+def flag_options(param: Param) -> dict[str, Any]:
     """argparse options of a parameter's short flag, from its declaration."""
     unit = (
         f" ({param.unit}, or a value with its unit: 5um)"
         if param.unit == "mm"
         else (f" ({param.unit})" if param.unit else "")
     )
-    options: dict[str, object] = {"help": f"{param.path}: {param.doc}{unit}"}
+    options: dict[str, Any] = {"help": f"{param.path}: {param.doc}{unit}"}
     if param.value_type == "choice":
         options["choices"] = registry().choices(param) or param.choices
     elif param.value_type == "integer":

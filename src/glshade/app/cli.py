@@ -546,9 +546,9 @@ def _cmd_render(args: argparse.Namespace) -> int:
         start = time.perf_counter()
         frame = renderer.render(scene, outputs)
         seconds = time.perf_counter() - start
-    atomic_write_bytes(args.output, encode_image(frame.image, image_path.suffix, args.bits), "-o")
+    atomic_write_bytes(args.output, encode_image(frame.output("image"), image_path.suffix, args.bits), "-o")
     if args.uv is not None:
-        write_npy(args.uv, frame.uv)
+        write_npy(args.uv, frame.output("uv"))
     if args.save_scene is not None:
         scene.save(args.save_scene)
     cam = scene.camera

@@ -1,4 +1,4 @@
-"""``glshade sweep`` and ``glshade optimize`` (SPEC §8.3): the command-line faces of
+"""``glshade sweep`` and ``glshade optimize`` (docs/sweeps.md): the command-line faces of
 :mod:`glshade.sweep`. Bad input is one line and exit code 2, as everywhere in the CLI."""
 
 from __future__ import annotations
@@ -164,7 +164,7 @@ def add_optimize(sub: argparse._SubParsersAction) -> None:
         "--metric",
         choices=("paper", "continuous"),
         default="paper",
-        help="paper: whole-pixel contour shift (SPEC §6); continuous: its sub-pixel limit (default paper)",
+        help="paper: whole-pixel contour shift (docs/study.md); continuous: its sub-pixel limit (default paper)",
     )
     p.add_argument(
         "--grid",

@@ -218,7 +218,7 @@ class Registry:
             for slot in self._slots.values()
             if slot.table == base.table and slot.selector is not None
         )
-        return _joined(base, _most_derived(parts), choices)
+        return _joined(base, _most_derived(parts), choices)  # type: ignore[arg-type]
 
 
 def _most_derived(classes: Iterable[type]) -> tuple[type, ...]:

@@ -13,6 +13,7 @@ import os
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import moderngl
 
@@ -68,7 +69,7 @@ def egl_devices(count: int, libegl: str | None = None) -> list[str]:
     context says why)."""
     names = []
     for index in range(count):
-        kwargs: dict[str, object] = {"backend": "egl", "device_index": index}
+        kwargs: dict[str, Any] = {"backend": "egl", "device_index": index}
         if libegl:
             kwargs["libegl"] = libegl
         try:
@@ -114,7 +115,7 @@ class GLContext:
         self.device_index = _device_index_from_env() if device_index is None else int(device_index)
         if self.device_index < 0:
             raise ContextError(f"device_index: must be an integer >= 0, got {self.device_index}")
-        kwargs: dict[str, object] = {"backend": "egl", "device_index": self.device_index}
+        kwargs: dict[str, Any] = {"backend": "egl", "device_index": self.device_index}
         libegl = libegl or os.environ.get("GLSHADE_LIBEGL")
         if libegl:
             kwargs["libegl"] = libegl
@@ -160,6 +161,11 @@ class GLContext:
             max_texture_size=int(ctx.info["GL_MAX_TEXTURE_SIZE"]),
             device_index=self.device_index,
         )
+
+    @property
+    def gl(self) -> moderngl.Context:
+        """The live moderngl context (an error once released)."""
+        return self._live()
 
     def _live(self) -> moderngl.Context:
         if self.ctx is None:

@@ -26,6 +26,7 @@ import math
 import os
 import time
 from dataclasses import dataclass
+from typing import cast
 
 import moderngl
 import numpy as np
@@ -235,7 +236,7 @@ class Renderer:
         self.progress = progress
         self.root_solver = root_solver
         self._programs: dict[ShaderFeatures, tuple[moderngl.Program, moderngl.VertexArray]] = {}
-        self._targets: dict[tuple[int, int, tuple[str, ...]], _Targets] = {}
+        self._targets: dict[tuple[int, int, tuple[str, ...], bool], _Targets] = {}
         self._uniform_names: dict[ShaderFeatures, tuple[str, ...]] = {}
         self._textures: dict[int, tuple[np.ndarray, moderngl.Texture]] = {}
         self._max_side = self.context.info().max_texture_size
@@ -359,7 +360,7 @@ class Renderer:
                 raise GlshadeError(
                     f"uniform {name} of {features.selected()} is provided by no active component"
                 )
-            program[name].value = uniforms[name]
+            cast(moderngl.Uniform, program[name]).value = uniforms[name]  # only uniforms kept
         targets = self._render_targets(width, height, features.outputs, features.precision)
         targets.fbo.use()
         targets.fbo.viewport = (0, 0, width, height)
@@ -399,7 +400,7 @@ class Renderer:
         data = np.ascontiguousarray(array, dtype=np.float32)
         rows, cols = data.shape[:2]
         channels = data.shape[2] if data.ndim == 3 else 1
-        texture = self.context.ctx.texture((cols, rows), channels, data=data.tobytes(), dtype="f4")
+        texture = self.context.gl.texture((cols, rows), channels, data=data.tobytes(), dtype="f4")
         texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self._textures[id(array)] = (array, texture)
         return texture
@@ -408,7 +409,7 @@ class Renderer:
         """Draw the frame as bands of rows (scissored), waiting for each, so that Python
         sees a KeyboardInterrupt between two of them; each band is sized from the last
         one's time to take about :data:`TILE_SECONDS`."""
-        ctx = self.context.ctx
+        ctx = self.context.gl
         rows = max(1, SINGLE_DRAW_WORK * height // work)
         done, start, bar = 0, time.perf_counter(), None
         try:
@@ -440,6 +441,7 @@ class Renderer:
         name: str, height: int, width: int, precision: str, out: Frame | None
     ) -> np.ndarray:
         shape = (height, width, 2) if name == "uv" else (height, width)
+        dtype: type[np.generic]
         if name == "mask":
             dtype = np.bool_
         elif name == "uv" and precision == "fp64":

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterator
-from typing import Self
+from typing import Self, cast
 
 from distributed import Client, LocalCluster, as_completed, get_worker
 from distributed.client import FutureCancelledError
@@ -29,6 +29,8 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from distributed.scheduler import KilledWorker
 
 from glshade.errors import GlshadeError
+from glshade.gpu.context import GLContext
+from glshade.gpu.renderer import Renderer
 from glshade.measure.engine import Case, grouped
 from glshade.measure.executors import Distribution, Row, measure_rows
 
@@ -42,7 +44,8 @@ class RendererPlugin(WorkerPlugin):
     name = PLUGIN_NAME
 
     def __init__(self) -> None:
-        self.context = self.renderer = None
+        self.context: GLContext | None = None
+        self.renderer: Renderer | None = None
         self.device: int | None = None
 
     def setup(self, worker) -> None:
@@ -52,12 +55,9 @@ class RendererPlugin(WorkerPlugin):
         self.device = worker_egl_device()
         reuse_freed_memory()  # the worker process measures many cases, as `glshade paper` does
 
-    def get(self):
+    def get(self) -> Renderer:
         """The worker's renderer (made on first use)."""
         if self.renderer is None:
-            from glshade.gpu.context import GLContext
-            from glshade.gpu.renderer import Renderer
-
             self.context = GLContext(device_index=self.device)
             self.renderer = Renderer(self.context)
         return self.renderer
@@ -65,13 +65,15 @@ class RendererPlugin(WorkerPlugin):
     def teardown(self, worker) -> None:
         if self.renderer is not None:
             self.renderer.release()
+        if self.context is not None:
             self.context.release()
-            self.context = self.renderer = None
+        self.context = self.renderer = None
 
 
 def measure_batch(cases: list[Case], settings, images: bool) -> list[Row]:
     """A Dask task: measure one batch with the worker's renderer; returns its rows."""
-    renderer = get_worker().plugins[PLUGIN_NAME].get()
+    plugin = cast(RendererPlugin, get_worker().plugins[PLUGIN_NAME])
+    renderer = plugin.get()
     return list(measure_rows(renderer, cases, settings, images))
 
 

@@ -72,7 +72,7 @@ class CaseView:
     analysis, its emitter map ``v1`` and, for rendered shading, its phase images."""
 
     baseline: vis.Baseline
-    v1: np.ndarray | None
+    v1: np.ndarray
     images: Callable[[float], np.ndarray] | None
 
     def best_image(self, scene: Scene, result: vis.Visibility) -> np.ndarray:

@@ -12,6 +12,7 @@ sweep keeps them in its case files, not in its table).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from typing import Any
 
@@ -49,7 +50,7 @@ def _optional_float(value: Any) -> float | None:
 
 
 #: How a column's value is read back from JSON or CSV text, by its annotation.
-PARSE = {
+PARSE: dict[str, Callable[[Any], Any]] = {
     "str": str,
     "float": float,
     "int": int,

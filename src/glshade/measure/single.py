@@ -32,7 +32,7 @@ if TYPE_CHECKING:  # the GPU is loaded only by measure() when it must make a ren
 
 def emitter_map(renderer: Renderer, scene: Scene) -> np.ndarray:
     """The scene's emitter coordinate ``v`` per pixel (mm, NaN = no hit)."""
-    return np.ascontiguousarray(renderer.render(scene, ("uv",)).uv[..., 1])
+    return np.ascontiguousarray(renderer.render(scene, ("uv",)).output("uv")[..., 1])
 
 
 def shades_from_map(scene: Scene) -> bool:
@@ -46,7 +46,12 @@ def phase_images(
 ) -> Callable[[float], np.ndarray]:
     """``phase -> rendered radiance image`` of a scene, for shading that needs images
     (with a sensor: what it records in exposure number ``exposure``)."""
-    return lambda phase: renderer.render(scene.with_phase(phase), ("image",), exposure=exposure).image
+
+    def image(phase: float) -> np.ndarray:
+        frame = renderer.render(scene.with_phase(phase), ("image",), exposure=exposure)
+        return frame.output("image")
+
+    return image
 
 
 def levels_from_image(scene: Scene, settings: MetricSettings) -> bool:

@@ -1,5 +1,5 @@
 """The metric's two continuous numbers, from the emitter maps ``v0`` (no defect) and
-``v1`` (defect) of SPEC §6, in pixels of the image.
+``v1`` (defect), in pixels of the image.
 
 - :func:`deflection`: for each pixel ``r`` of a kept column, the row ``r0`` where
   ``v0(r0) = v1(r)``; ``deflection_px`` is the largest ``|r - r0|``. It says how far the
@@ -43,7 +43,7 @@ class Deflection:
 
 
 def deflection(v0: np.ndarray, v1: np.ndarray, columns: slice) -> Deflection:
-    """The displacement map of SPEC §6 (``deflection_px``) and the folded columns.
+    """The displacement map (``deflection_px``, docs/study.md) and the folded columns.
 
     Only pixels where ``v1`` differs from ``v0`` need a search: elsewhere ``r0 = r``.
     """
@@ -182,7 +182,7 @@ def visibility_limit(
     upsample: int = 4,
     phase_samples: int = 32,
 ) -> Limit:
-    """``visibility_continuous_px`` of SPEC §6 (see the module docstring).
+    """``visibility_continuous_px`` (see the module docstring).
 
     ``valid``: pixels the contour metric may use (they see the emitter and resolve the
     stripes); ``moved``: :func:`deflection` of the same maps.

@@ -1,7 +1,7 @@
-"""The paper's contour comparison (SPEC §6 steps 3–5) for one pair of binarised images.
+"""The paper's contour comparison (steps 3–5 of docs/study.md) for one pair of binarised images.
 
 Everything here works on boolean images already cut to the kept columns: column 0 and
-the last column are the cut columns. The rules, as SPEC §6 draws them from the paper's
+the last column are the cut columns. The rules, as docs/study.md draws them from the paper's
 Figs. 8 and 9:
 
 - A **stripe** is an 8-connected white component. It is a *contour-bearing* stripe when
@@ -238,7 +238,7 @@ def _extremes(runs: Runs, group: np.ndarray, groups: int, width: int, upper: boo
 
 
 def contour_shift(normal: StripeMap, defect: StripeMap, pairs: np.ndarray) -> ContourShift:
-    """Largest vertical distance between corresponding contours (SPEC §6 step 5)."""
+    """Largest vertical distance between corresponding contours (step 5 of the metric)."""
     if len(pairs) == 0:
         return ContourShift()
     group_a, group_b, groups = _groups(pairs, normal.count + 1, defect.count + 1)
@@ -309,7 +309,7 @@ def register(
     normal_binary: np.ndarray, defect_binary: np.ndarray, max_offset_px: int = 8
 ) -> tuple[int, int]:
     """Whole-pixel offset ``(dx, dy)`` that moves the defect image onto the normal one
-    (SPEC §6 step 4): the shift within ``±max_offset_px`` that best correlates their
+    (step 4 of the metric): the shift within ``±max_offset_px`` that best correlates their
     contour images (normalised cross-correlation); among equally good shifts the
     smallest wins, so a pattern that is blind to a direction (horizontal stripes are
     blind to horizontal shifts) is not moved along it. Zero for rendered pairs.

@@ -1,4 +1,4 @@
-"""Closed forms that explain the visibility numbers (SPEC §6; derived in ``docs/physics.md``).
+"""Closed forms that explain the visibility numbers (derived in ``docs/physics.md``).
 
 Small slopes, the pinhole camera, the emitter in the mirror position, the defect at the
 gaze point. With ``Dc``, ``De`` the camera and emitter distances, ``δ = p / f`` the angle
@@ -10,7 +10,7 @@ one pixel row sees and ``θ`` the elevation:
 - A slope ``α`` along the plane of incidence turns the reflected ray by ``2 α``:
   ``deflection_px = 2 α_max De / ((Dc + De) m δ) (1 + 2 σ_z cos θ / De)``,
   ``α_max = dmax e^(-1/2) / σ_z`` (``σ_z² = 1 / (Σ⁻¹)_zz``); the last factor is the first
-  correction to SPEC's closed form (the steepest flank's distance and depth).
+  correction to the small-slope closed form (the steepest flank's distance and depth).
 - The map **folds** where ``2 κ Dc De / ((Dc + De) sin θ) > 1``, ``κ`` the largest curvature
   of base plus defect along the plane of incidence: a dent's floor (``dmax / σ_z²``) or a
   bump's flanks (``2 e^(-3/2) |dmax| / σ_z²``).
@@ -79,7 +79,7 @@ def rig_inverse_covariance(scene: Scene) -> tuple[float, float]:
 
 
 def laws(scene: Scene) -> Laws:
-    """The closed forms of SPEC §6 (and the fold cap) for ``scene``."""
+    """The closed forms of docs/physics.md (and the fold cap) for ``scene``."""
     cam, defect = scene.camera, scene.defect
     dc, de = cam.distance, scene.emitter.distance
     sin_t, cos_t = math.sin(cam.theta_rad), math.cos(cam.theta_rad)
@@ -91,7 +91,7 @@ def laws(scene: Scene) -> Laws:
     sigma_z = 1.0 / math.sqrt(inv_zz)
     b = sigma_z * sin_t / (dc * delta)
     depth = abs(defect.dmax)
-    # SPEC's leading term, times the first correction: the flank of steepest slope lies
+    # the small-slope leading term, times the first correction: the flank of steepest slope lies
     # σ_z cos θ farther from the emitter, and its depth moves the hit point along the ray
     # by as much again (docs/physics.md)
     flat_deflection = (

@@ -1,4 +1,4 @@
-"""Defect visibility (SPEC §6): one pipeline from the defect-free analysis of a scene to
+"""Defect visibility (docs/study.md): one pipeline from the defect-free analysis of a scene to
 the three numbers of any defect measured against it.
 
 :class:`Baseline` holds everything that depends only on the defect-free scene and the
@@ -62,7 +62,7 @@ class MetricSettings:
     pixels than this are left out of the contours (0 keeps every pixel);
     ``limit_upsample`` and ``limit_phases``: rows per pixel row and phases per period of
     the continuous limit's search inside a fold; ``level_from``: what ``threshold`` is a
-    fraction of: ``emitter`` (its peak radiance, 1: SPEC §6), ``image`` (the defect-free
+    fraction of: ``emitter`` (its peak radiance, 1), ``image`` (the defect-free
     image's range: ``dark + threshold (bright - dark)``, its 1st and 99th percentiles over
     the kept pixels at the first phase, as a camera's exposure would be set), ``auto``
     (``image`` when a component scales the radiance: Fresnel, a microfacet lobe, eq. (1)).
@@ -139,7 +139,7 @@ MAX_PHASES = 2000
 
 
 def kept_columns(width: int, keep_fraction: float) -> slice:
-    """The central ``keep_fraction`` of ``width`` columns (SPEC §6 step 3)."""
+    """The central ``keep_fraction`` of ``width`` columns (step 3 of the metric)."""
     keep = max(2, round(width * keep_fraction))
     start = (width - keep) // 2
     return slice(start, start + keep)
@@ -249,7 +249,7 @@ def sweep(
     columns: slice,
     max_offset_px: int,
 ) -> PaperResult:
-    """SPEC §6 steps 1–7 on cut images: ``normal_stripes(phase)`` gives the defect-free
+    """The metric's steps 1–7 (docs/study.md) on cut images: ``normal_stripes(phase)`` gives the defect-free
     analysis, ``defect_binary(phase)`` the cut defect image (bool)."""
     results = []
     offset = (0, 0)
@@ -310,7 +310,7 @@ class StageSeconds:
 
 @dataclass(frozen=True)
 class Visibility:
-    """The visibility of one defect (SPEC §6), every length in pixels of the image.
+    """The visibility of one defect (docs/study.md), every length in pixels of the image.
 
     ``visibility_px``, ``visibility_continuous_px``, ``deflection_px``, ``folded``,
     ``islands``, ``best_phase_mm``: see the module docstring; ``offset_px``: the
@@ -401,8 +401,10 @@ class Baseline:
         ``images(phase)``), with the unresolved pixels black."""
         if images is not None:
             binary = binarize(images(phase_mm), self.settings, self.level)[:, self.columns]
-        else:
+        elif self.half_width_mm is not None:  # refused at construction otherwise
             binary = binarize_v(v[:, self.columns], self.pattern, phase_mm, self.half_width_mm)
+        else:
+            raise GlshadeError("binary: this baseline shades rendered images, give them")
         return binary & self.valid
 
     def normal_stripes(self, phase_mm: float) -> ct.StripeMap:

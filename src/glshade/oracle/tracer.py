@@ -6,7 +6,7 @@ defect its depth, gradient, band and breakpoints; the camera its rays; the emitt
 rays land and its radiance; the reflection model its pixel value). What follows is the
 method as the built-in components implement it.
 
-Written from ``SPEC.md`` alone (no shader code was consulted), it traces one ray per
+Written from the scene conventions alone (no shader code was consulted), it traces one ray per
 pixel sample through the pinhole, finds the first crossing of the height field
 ``y = f(x, z) + D(x, z)`` from above, reflects about the analytic normal, intersects the
 emitter plane and evaluates the stripe radiance. Every length is in mm. Speed matters

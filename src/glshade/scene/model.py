@@ -49,9 +49,8 @@ class _Joined:
     joined from the registered components' tables (validated), and pickles by name."""
 
     def __new__(cls, *args: Any, **kwargs: Any) -> Any:
-        if cls in _SHARED:
-            cls = registry().table_class(cls)
-        return object.__new__(cls)
+        joined: type = registry().table_class(cls) if cls in _SHARED else cls  # type: ignore[arg-type]
+        return object.__new__(joined)
 
     def __reduce__(self) -> tuple[Any, ...]:
         return _rebuild_table, (self.table, self.values())  # type: ignore[attr-defined]
@@ -66,8 +65,8 @@ class Surface(_Joined, SurfaceTable):
     @property
     def concave(self) -> bool:
         """Curved upwards somewhere at the gaze point (a bowl, a trough)."""
-        component = registry().get("surface", self.kind)
-        return any(f2 > 0.0 for f2 in component.second_derivatives(Scene(surface=self)))
+        alone = Scene(surface=self)
+        return any(f2 > 0.0 for f2 in alone.active.surface.second_derivatives(alone))
 
 
 @dataclass(frozen=True)
@@ -179,7 +178,7 @@ class Scene:
 
         Keys use the scene-file names (``defect={"sigma2": 9}`` works too).
         """
-        parts = {}
+        parts: dict[str, Any] = {}
         for table, changes in tables.items():
             if table not in TABLE_CLASSES:
                 raise SceneError(table, "one of the tables " + ", ".join(TABLE_CLASSES))

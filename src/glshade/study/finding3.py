@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -50,7 +51,7 @@ FOCUS_ON_STRIPES_MM = 175.6 + 256.0
 class Variant:
     key: str
     label: str
-    changes: Mapping[str, Mapping[str, object]]
+    changes: Mapping[str, dict[str, Any]]
 
 
 VARIANTS: tuple[Variant, ...] = (
@@ -91,7 +92,7 @@ FIELDS = (
 
 
 def scene_for(variant: Variant, theta: float, sigma2: float, size: int) -> Scene:
-    return paper_scene("flat", theta, sigma2, DMAX_MM).with_size(size).updated(**variant.changes)
+    return paper_scene("flat", theta, sigma2, DMAX_MM).with_size(size).updated(**dict(variant.changes))
 
 
 def run(
@@ -255,7 +256,7 @@ def answer_lines(rows, variants) -> list[str]:
             "No effect, alone or combined, makes the gentle dents' contour shift grow as the view grazes: the paper's "
             "metric stays at the same few pixels at every θ (verdicts below), and on the ideal mirror its continuous "
             f"limit moves from {high:.2f} px above 65° to {low:.2f} px below 25° ({100 * (low / high - 1):+.0f} %): "
-            "the deflection of a gentle dent hardly depends on θ (SPEC §6's closed form)."
+            "the deflection of a gentle dent hardly depends on θ (the closed form of docs/physics.md)."
         )
     noisy = [
         v

@@ -1,4 +1,4 @@
-"""The paper's five findings (SPEC §7) checked against the study's results, advice for an
+"""The paper's five findings (its section IV) checked against the study's results, advice for an
 inspection engineer, and ``report.md``.
 
 Each finding gets a verdict per surface (and depth, where the finding is about a fixed
@@ -10,7 +10,7 @@ metric and for its continuous limit. The simulation is never tuned to agree.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
@@ -79,7 +79,7 @@ def _worst(verdicts: list[str]) -> str:
     return NOT
 
 
-def _table(rows: list[Mapping]) -> dict:
+def _table(rows: Sequence[Mapping]) -> dict:
     return {(r["surface"], r["theta_deg"], r["sigma2_mm2"], r["dmax_mm"]): r for r in rows}
 
 
@@ -101,7 +101,7 @@ class _Grid:
         return self.table[(s, t, v, d)][self.metric]
 
 
-def evaluate(rows: list[Mapping]) -> list[Verdict]:
+def evaluate(rows: Sequence[Mapping]) -> list[Verdict]:
     """Every verdict the rows support (a finding needs its σ², depths and ≥ 3 θ). A row is
     a :class:`~glshade.study.store.CaseResult` or any mapping of its columns (the
     functions here read rows by column name)."""
@@ -274,7 +274,7 @@ def theta_ranges(chosen, plan_thetas) -> str:
 
 
 def best_thetas(
-    rows: list[Mapping], surface: str, sigma2s, dmax: float, key: str = "visibility_continuous_px"
+    rows: Sequence[Mapping], surface: str, sigma2s, dmax: float, key: str = "visibility_continuous_px"
 ) -> list[float]:
     """The θ at which every σ² of ``sigma2s`` keeps at least :data:`NEAR_BEST` of its
     largest visibility over θ (at depth ``dmax``)."""
@@ -298,7 +298,7 @@ def _magnifies(surface: str) -> bool:
     return physics.base_curvatures(case_scene(surface))[0] < 0.0
 
 
-def _why(rows: list[Mapping], surface: str, sigma2s, dmaxs) -> str:
+def _why(rows: Sequence[Mapping], surface: str, sigma2s, dmaxs) -> str:
     """The closed form behind the advice for one surface and class of dent, with the
     numbers at the lowest view."""
     table = _table(rows)
@@ -320,11 +320,11 @@ def _why(rows: list[Mapping], surface: str, sigma2s, dmaxs) -> str:
                 onsets.append(
                     f"σ² {s2:g}, {um(d)}: " + ("every θ" if onset >= 90 else f"θ < {onset:.1f}°")
                 )
-    worst = [
+    candidates = [
         table[k] for k in ((surface, low, s2, d) for s2 in sigma2s for d in dmaxs) if k in table
     ]
     worst = max(
-        worst, key=lambda r: r["deflection_px"] - r["visibility_continuous_px"], default=None
+        candidates, key=lambda r: r["deflection_px"] - r["visibility_continuous_px"], default=None
     )
     text = (
         "Where nothing folds the deflection 2 (dmax/σ) e^(-1/2) De f / ((Dc + De) p) does not depend on θ; a low "
@@ -353,7 +353,7 @@ def _why(rows: list[Mapping], surface: str, sigma2s, dmaxs) -> str:
     return text
 
 
-def advice(rows: list[Mapping]) -> list[str]:
+def advice(rows: Sequence[Mapping]) -> list[str]:
     """For each surface and class of dent, the θ that keep the dent most visible, and why."""
     lines = []
     dmaxs = sorted({r["dmax_mm"] for r in rows})
@@ -376,7 +376,7 @@ def advice(rows: list[Mapping]) -> list[str]:
     return lines
 
 
-def law_summary(rows: list[Mapping]) -> list[str]:
+def law_summary(rows: Sequence[Mapping]) -> list[str]:
     """Where the closed forms hold and where they break, per surface, in numbers."""
     lines = [
         (
@@ -406,7 +406,7 @@ def law_summary(rows: list[Mapping]) -> list[str]:
     return lines
 
 
-def law_by_theta(rows: list[Mapping], surface: str) -> str:
+def law_by_theta(rows: Sequence[Mapping], surface: str) -> str:
     """The largest deflection error of the law at each θ on one surface."""
     parts = []
     for t in sorted({r["theta_deg"] for r in rows if r["surface"] == surface}, reverse=True):
@@ -421,7 +421,7 @@ def law_by_theta(rows: list[Mapping], surface: str) -> str:
 
 # --------------------------------------------------------------------------- report
 def write_report(
-    rows: list[Mapping], out_dir: Path, plan, figures: list[Path], timings=None
+    rows: Sequence[Mapping], out_dir: Path, plan, figures: list[Path], timings=None
 ) -> Path:
     """``report.md``: the conclusion, the verdicts with their rules and numbers, the closed
     forms against the simulation, the folded cases, and the figures."""
@@ -451,7 +451,7 @@ def write_report(
     return path
 
 
-def _opening(rows: list[Mapping], plan) -> list[str]:
+def _opening(rows: Sequence[Mapping], plan) -> list[str]:
     """The report's title, what was run, and the advice."""
     return [
         "# glshade: the paper's study",
@@ -465,7 +465,7 @@ def _opening(rows: list[Mapping], plan) -> list[str]:
         ),
         "",
         (
-            "Three numbers per case (SPEC §6, every column in `docs/results.md`): the paper's metric `visibility_px` (whole "
+            "Three numbers per case (docs/study.md; every column in `docs/results.md`): the paper's metric `visibility_px` (whole "
             "pixels), its continuous limit `visibility_continuous_px` (what the paper's metric tends to with a finer phase "
             "step and a finer sensor), and `deflection_px` (how far the rays move). Verdicts are given for the first two."
         ),
@@ -523,12 +523,12 @@ def _findings_sections(verdicts: list[Verdict]) -> list[str]:
     return lines
 
 
-def _laws_section(rows: list[Mapping]) -> list[str]:
+def _laws_section(rows: Sequence[Mapping]) -> list[str]:
     lines = [
         "## The closed forms against the simulation",
         "",
         (
-            "`deflection_law_px` is SPEC §6's deflection, divided by the convex base's magnification m; "
+            "`deflection_law_px` is the small-slope closed form of the deflection, divided by the convex base's magnification m; "
             "`visibility_law_px` is the deflection capped by a fold at b sqrt(2 ln(F/m)) (docs/physics.md derives both); "
             "`fold_ratio` > 1 predicts a fold. `law_vs_simulation.png` plots every case."
         ),
@@ -553,7 +553,7 @@ def _laws_section(rows: list[Mapping]) -> list[str]:
     return lines
 
 
-def _folds_section(rows: list[Mapping]) -> list[str]:
+def _folds_section(rows: Sequence[Mapping]) -> list[str]:
     folded = [r for r in rows if r["folded"]]
     lines = ["## Where the stripe map folds", ""]
     if not folded:
@@ -577,7 +577,7 @@ def _folds_section(rows: list[Mapping]) -> list[str]:
     return lines + [""]
 
 
-def _notes(rows: list[Mapping], plan) -> list[str]:
+def _notes(rows: Sequence[Mapping], plan) -> list[str]:
     unresolved = max((r["unresolved_fraction"] for r in rows), default=0.0)
     mostly = [r for r in rows if r["unresolved_fraction"] > 0.5]
     gap = max((abs(r["visibility_px"] - r["visibility_continuous_px"]) for r in rows), default=0.0)

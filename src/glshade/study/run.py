@@ -17,8 +17,10 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import cv2
+import numpy as np
 
 from glshade.errors import GlshadeError
 from glshade.files import encode_png
@@ -202,15 +204,24 @@ def _run_cases(
     for measured in measure_many(renderer, cases, plan.metric, pool=pool, extra=_figures):
         row = case_result(measured)
         timings.trace += measured.trace_s
-        _write(row, *measured.extra, timings, out_dir)
+        _write(row, measured.extra, timings, out_dir)
         finished(row)
 
 
-def _figures(case: Case, result: vis.Visibility, view: CaseView):
-    """A case's thumbnail (θ of the figure grids) and Fig. 9 overlay (its cases), made
-    where the case is measured."""
+@dataclass(frozen=True)
+class CaseFigures:
+    """What a case leaves for the study's figures: its thumbnail at the best phase (the
+    θ of the figure grids) and its Fig. 9 overlay (its cases): the overlay's colours,
+    the result, the first kept column and the case's title."""
+
+    thumbnail: bytes | None
+    overlay: tuple[np.ndarray, vis.Visibility, int, str] | None
+
+
+def _figures(case: Case, result: vis.Visibility, view: CaseView) -> CaseFigures:
+    """A case's figures, made where the case is measured."""
     thumbnail = overlay = None
-    point, scene = case.key, case.scene
+    point, scene = cast(PlanPoint, case.key), case.scene
     if point[1] in GRID_THETAS:
         image = view.best_image(scene, result)
         small = cv2.resize(image, (THUMBNAIL, THUMBNAIL), interpolation=cv2.INTER_AREA)
@@ -221,26 +232,26 @@ def _figures(case: Case, result: vis.Visibility, view: CaseView):
         )
         rgb = contours.overlay_rgb(normal, defect)
         overlay = (rgb, result, view.baseline.columns.start, scene.title())
-    return thumbnail, overlay
+    return CaseFigures(thumbnail, overlay)
 
 
-def _write(
-    row: CaseResult, thumbnail: bytes | None, overlay, timings: Timings, out_dir: Path
-) -> None:
+def _write(row: CaseResult, figures: CaseFigures, timings: Timings, out_dir: Path) -> None:
     """A finished case on disk (its overlay figure first, when it is one of those)."""
     timings.shade += row.shade_s
     timings.contours += row.contours_s
     timings.continuous += row.continuous_s
     start = time.perf_counter()
-    if overlay is not None:
+    if figures.overlay is not None:
         from glshade.measure.figures import overlay_figure
 
-        overlay_figure(*overlay, out_dir / OVERLAY_CASES[row.case])
-    write_case(out_dir, row, thumbnail)
+        rgb, result, first_column, title = figures.overlay
+        overlay_figure(rgb, result, first_column, title, out_dir / OVERLAY_CASES[row.case])
+    write_case(out_dir, row, figures.thumbnail)
     timings.io += time.perf_counter() - start
 
 
 def case_result(measured: Measured) -> CaseResult:
     """A case's row: its point of the plan and its measurement's record."""
     case = measured.case
-    return CaseResult.of(case.key, case.scene.emitter.period, measured.record)
+    point = cast(PlanPoint, case.key)
+    return CaseResult.of_point(point, case.scene.emitter.period, measured.record)

@@ -56,7 +56,7 @@ class CaseResult(Measurement, Mapping):
             object.__setattr__(self, name, PARSE[str(kind)](getattr(self, name)))
 
     @classmethod
-    def of(cls, point: PlanPoint, period_mm: float, record: Measurement) -> CaseResult:
+    def of_point(cls, point: PlanPoint, period_mm: float, record: Measurement) -> CaseResult:
         """A case's row: its point of the plan and its record."""
         surface, theta, sigma2, dmax = point
         return cls(

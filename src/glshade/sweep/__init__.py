@@ -1,1 +1,1 @@
-"""Sweeps over any scene key, in-process or on Dask, and the viewpoint optimiser (SPEC §8.3)."""
+"""Sweeps over any scene key, in-process or on Dask, and the viewpoint optimiser (docs/sweeps.md)."""

@@ -1,5 +1,5 @@
 """Where should the camera be? The viewpoint that maximises a dent's visibility, or the
-worst-case visibility over a family of dents (``glshade optimize``, SPEC §8.3).
+worst-case visibility over a family of dents (``glshade optimize``, docs/sweeps.md).
 
 1. **Coarse grid** over the ``--over`` keys (their bounds), every point measured for every
    member of the family, on the sweep machinery (in-process or on Dask: the grid is one

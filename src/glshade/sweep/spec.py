@@ -1,4 +1,4 @@
-"""A sweep file (SPEC §8.3): a base scene, a grid over dotted scene keys, the metric's
+"""A sweep file (docs/sweeps.md): a base scene, a grid over dotted scene keys, the metric's
 settings and what to write. No GL here: a sweep is planned, validated and split anywhere.
 
 ```toml
@@ -171,7 +171,7 @@ def _column_value(scene: Scene, key: str) -> Any:
 
 
 def case_id(scene: Scene, settings: MetricSettings) -> str:
-    """The case's identity: sha256 of its full scene (SPEC §8 layout), the metric's
+    """The case's identity: sha256 of its full scene (as a scene file writes it), the metric's
     settings and version; 16 hex digits."""
     text = json.dumps(
         {"scene": scene.to_dict(), "metric": asdict(settings), "metric_version": METRIC_VERSION},
@@ -283,11 +283,10 @@ def _axis(name: str, value, source: str) -> Axis:
         if len(set(map(str, labels))) != len(labels):
             raise GlshadeError(f"{where}: the entries' labels must differ")
         return Axis(name, tuple(entries), tuple(labels))
-    values = _values(value, where)
-    values = tuple(_value(name, v, where) for v in values)
-    if len({json.dumps(v, default=str) for v in values}) != len(values):
+    checked = tuple(_value(name, v, where) for v in _values(value, where))
+    if len({json.dumps(v, default=str) for v in checked}) != len(checked):
         raise GlshadeError(f"{where}: values must not repeat")
-    return Axis(name, tuple(((name, v),) for v in values), values)
+    return Axis(name, tuple(((name, v),) for v in checked), checked)
 
 
 def _values(value, where: str) -> list:

@@ -1,4 +1,4 @@
-"""What a sweep writes and reads back (SPEC §8.3): one JSON file per finished case, keyed by
+"""What a sweep writes and reads back (docs/sweeps.md): one JSON file per finished case, keyed by
 its id; ``results.parquet`` (one row per case of the grid: every swept key, every output)
 and ``results.csv`` beside it; ``images/<id>.png`` on request; ``sweep.json``, the
 manifest that ties the directory to one base scene, size, metric and glshade version.

@@ -71,6 +71,22 @@ def by_name(name: str) -> Control | Choice | None:
     return None
 
 
+def slider(name: str) -> Control:
+    """The slider called ``name`` (a KeyError when it is not one)."""
+    control = by_name(name)
+    if not isinstance(control, Control):
+        raise KeyError(f"no slider {name!r}")
+    return control
+
+
+def combo(name: str) -> Choice:
+    """The combo box called ``name`` (a KeyError when it is not one)."""
+    control = by_name(name)
+    if not isinstance(control, Choice):
+        raise KeyError(f"no combo box {name!r}")
+    return control
+
+
 def clamp(control: Control, value: float) -> float:
     value = min(max(float(value), control.lo), control.hi)
     return round(value) if control.param.value_type == "integer" else value
@@ -129,8 +145,8 @@ def parse_sets(items: list[str], scene: Scene) -> tuple[Scene, dict[str, str]]:
             scene = apply_setting(scene, name, raw.lower() in ("1", "true", "yes"))
         elif isinstance(by_name(name), Choice):
             scene = apply_setting(scene, name, raw)
-        elif by_name(name) is not None:
-            scene = apply_setting(scene, name, by_name(name).param.parse(raw))
+        elif isinstance(by_name(name), Control):
+            scene = apply_setting(scene, name, slider(name).param.parse(raw))
         elif "." in name:  # any parameter by its dotted path, as render's --set
             scene = scene.with_value(name, registry().param(name).parse(raw))
         else:

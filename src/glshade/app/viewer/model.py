@@ -22,7 +22,7 @@ from glshade.scene import PAPER_SURFACES, Scene, paper_scene
 @dataclass
 class Readout:
     """The panel's numbers, the latest the worker finished: the paper's comparison at the
-    current phase, and the whole case (SPEC §6) measured by the same pipeline as
+    current phase, and the whole case measured by the same pipeline as
     ``glshade paper`` and ``glshade measure``."""
 
     at_phase_px: float | None = None  # the paper's metric at the phase shown
@@ -176,10 +176,17 @@ class ViewerModel:
         return self._baseline.get() if self._baseline is not None else None
 
     # ---------------------------------------------------------------- pictures
+    def traced_map(self) -> np.ndarray:
+        """The scene's traced emitter map ``v`` (an error before the first trace)."""
+        if self.v1 is None:
+            raise GlshadeError("the viewer has not traced the scene yet")
+        return self.v1
+
     def overlay_rgba(self) -> np.ndarray:
         """Fig. 9 colours on the kept columns, as the metric sees them (normal blue, defect
         red, both magenta, islands orange); the columns cut off are dark grey."""
-        h, w = self.v1.shape
+        v1 = self.traced_map()
+        h, w = v1.shape
         rgba = np.zeros((h, w, 4), np.uint8)
         rgba[..., :3] = 40
         rgba[..., 3] = 255
@@ -188,7 +195,7 @@ class ViewerModel:
         except GlshadeError:  # the metric refuses this scene (the readout says why)
             baseline = None
         if baseline is not None and baseline.half_width_mm is not None:
-            normal, defect = baseline.stripes_at(self.v1, self.scene.emitter.phase)
+            normal, defect = baseline.stripes_at(v1, self.scene.emitter.phase)
             rgba[:, baseline.columns, :3] = contours.overlay_rgb(normal, defect)
         return rgba
 
@@ -197,7 +204,7 @@ class ViewerModel:
         and the value at its top end (px)."""
         from matplotlib import colormaps
 
-        h, w = self.v1.shape
+        h, w = self.traced_map().shape
         rgba = np.zeros((h, w, 4), np.uint8)
         rgba[..., 3] = 255
         if self.displacement is None:

@@ -8,7 +8,7 @@ import math
 
 from imgui_bundle import imgui
 
-from glshade.app.viewer.controls import VIEWS, by_name, panel_params
+from glshade.app.viewer.controls import VIEWS, combo, panel_params, slider
 from glshade.app.viewer.model import ViewerModel, readout_lines
 from glshade.params import Param
 
@@ -61,12 +61,12 @@ def _parameter(model: ViewerModel, param: Param) -> None:
         if changed:
             model.set("phase", value)
         _, model.animate = imgui.checkbox("animate phase", model.animate)
-    elif param.control.signed:
+    elif param.control is not None and param.control.signed:
         _slider(model, param.control.name, abs(scene.value(param.path)))
         changed, negative = imgui.checkbox("concave", scene.value(param.path) < 0)
         if changed:
             model.set("concave", negative)
-    else:
+    elif param.control is not None:
         _slider(model, param.control.name, getattr(scene, param.table).effective(param.key))
 
 
@@ -96,7 +96,7 @@ def _covariance(model: ViewerModel) -> None:
 
 
 def _slider(model: ViewerModel, name: str, value) -> None:
-    c = by_name(name)
+    c = slider(name)
     flags = imgui.SliderFlags_.always_clamp | (imgui.SliderFlags_.logarithmic if c.log else 0)
     if c.param.value_type == "integer":
         changed, new = imgui.slider_int(name, int(value), int(c.lo), int(c.hi), "%d", flags)
@@ -109,7 +109,7 @@ def _slider(model: ViewerModel, name: str, value) -> None:
 
 
 def _combo(model: ViewerModel, name: str, value) -> None:
-    allowed = by_name(name).allowed
+    allowed = combo(name).allowed
     changed, index = imgui.combo(name, allowed.index(value), list(allowed))
     if changed:
         model.set(name, allowed[index])

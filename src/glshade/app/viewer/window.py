@@ -32,7 +32,7 @@ class ViewerWindow(mglw.WindowConfig):
 
     gl_version = (4, 5)
     title = "glshade view"
-    aspect_ratio = None
+    aspect_ratio = None  # type: ignore[assignment]  # moderngl-window: None is the window's own
     resizable = False
     vsync = False
     options: ViewerOptions
@@ -71,8 +71,8 @@ class ViewerWindow(mglw.WindowConfig):
         m = self.model
         frame = self.renderer.render(m.scene, ("uv",))
         normal = self.renderer.render(m.scene.without_defect(), ("uv",))
-        uv = frame.uv.astype(np.float32)
-        m.traced(uv, np.ascontiguousarray(normal.uv[..., 1], dtype=np.float32))
+        uv = frame.output("uv").astype(np.float32)
+        m.traced(uv, np.ascontiguousarray(normal.output("uv")[..., 1], dtype=np.float32))
         self.tex_uv.write(np.ascontiguousarray(uv).tobytes())
         self.tex_uv0.write(np.ascontiguousarray(normal.uv, dtype=np.float32).tobytes())
         self.wnd.fbo.use()

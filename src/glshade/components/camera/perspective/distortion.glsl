@@ -1,4 +1,4 @@
-// OpenCV lens distortion (SPEC §8.2) on normalised coordinates (x right, y down):
+// OpenCV lens distortion on normalised coordinates (x right, y down):
 // xd = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2), yd likewise.
 // A distorted camera's pixel shows what the ideal one shows at the undistorted point,
 // found by Newton's method from the distorted one (the map does not fold inside the

@@ -1,4 +1,4 @@
-// Thin lens (SPEC §8.2, pbrt's perspective camera): a disc of radius u_camera_aperture_radius on
+// Thin lens (pbrt's perspective camera): a disc of radius u_camera_aperture_radius on
 // the principal point, perpendicular to the axis; every ray of a pixel passes through the
 // point where the pixel's chief (pinhole) ray meets the plane at u_camera_focus along the axis.
 uniform real u_camera_aperture_radius;   // mm: focal / (2 f_number)

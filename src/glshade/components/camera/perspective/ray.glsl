@@ -1,4 +1,4 @@
-// The camera's rays (SPEC §2{$ if aperture or distortion $}, §8.2{$ endif $}).
+// The camera's rays{$ if aperture or distortion $} (a thin lens, distortion){$ endif $}.
 {$ if not aperture $}
 int camera_samples() {
     return 1;                 // a pinhole: one ray per pixel sample

@@ -1,7 +1,7 @@
-"""The sensor (SPEC §8.2 ``[sensor]``): photon and read noise, full well, quantisation.
+"""The sensor (``[sensor]`` of a scene file): photon and read noise, full well, quantisation.
 
 Off unless the scene has a ``[sensor]`` table (``full_well_e`` unset: the noiseless float
-radiance of SPEC §5). When on, a rendered radiance image ``L`` (1 = the emitter's peak
+radiance). When on, a rendered radiance image ``L`` (1 = the emitter's peak
 seen in a perfect mirror) becomes
 
     electrons = Poisson(L · full_well_e) + Normal(0, read_noise_e)

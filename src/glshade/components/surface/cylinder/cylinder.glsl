@@ -1,4 +1,4 @@
-// Base surface: cylinder of signed radius R (SPEC §4; R < 0: concave trough).
+// Base surface: cylinder of signed radius R (R < 0: concave trough).
 uniform real u_surface_radius;    // signed R, mm
 uniform real u_surface_axis_off;  // local -> world offset of the coordinate across the axis, mm
 {$ if cylinder_axis == "z" $}

@@ -1,4 +1,4 @@
-"""A base surface given as a formula ``y = f(x, z)`` (paper eq. 3; SPEC §8.1 ``kind =
+"""A base surface given as a formula ``y = f(x, z)`` (paper eq. 3; ``kind =
 "formula"``, ``expression``, ``parameters``).
 
 The expression is checked and rebuilt by :mod:`.grammar` (never evaluated as text); its

@@ -1,5 +1,5 @@
 """Surface formulas ``f(x, z)`` typed by a user, made safe (the groundwork of the
-``formula`` surface kind, paper eq. 3; SPEC §8.1 ``expression`` and ``parameters``).
+``formula`` surface kind, paper eq. 3; ``expression`` and ``parameters``).
 
 The text is parsed with Python's :mod:`ast` in ``eval`` mode and only this grammar is
 accepted: numbers, ``x``, ``z``, the declared parameters, ``+ - * /``, ``**`` and ``^``
@@ -25,6 +25,7 @@ import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -253,7 +254,7 @@ class Formula:
 
     text: str
     parameters: tuple[tuple[str, float], ...]
-    tree: object = field(repr=False, compare=False)  # the SymPy expression
+    tree: Any = field(repr=False, compare=False)  # the SymPy expression
 
     @cached_property
     def symbols(self):
@@ -282,7 +283,7 @@ class Formula:
         return tuple(printer.doprint(e) for e in (self.tree, *self.derivatives))
 
     @cached_property
-    def hessian(self) -> tuple[Callable, Callable, Callable]:
+    def hessian(self) -> tuple[Callable, ...]:
         """NumPy functions ``(f_xx, f_xz, f_zz)`` of ``(x, z)``: the curvature bounds of
         the first-hit search."""
         import sympy
@@ -303,7 +304,7 @@ class Formula:
         )
 
     @cached_property
-    def numpy(self) -> tuple[Callable, Callable, Callable]:
+    def numpy(self) -> tuple[Callable, ...]:
         """NumPy functions ``(f, f_x, f_z)`` of ``(x, z)`` (float64 arrays), with the
         parameters bound: the oracle's evaluation of the same tree."""
         return self._numpy_of(self.tree, *self.derivatives)
@@ -363,7 +364,8 @@ def _check_defined(formula: Formula, field_name: str, params) -> None:
     import sympy
 
     bad = (sympy.nan, sympy.zoo, sympy.oo, -sympy.oo, sympy.I)
-    for expression in (formula.tree, *formula.derivatives):
+    expressions: tuple[Any, ...] = (formula.tree, *formula.derivatives)
+    for expression in expressions:
         if any(expression.has(b) for b in bad):
             raise _refuse(
                 field_name,
@@ -483,7 +485,7 @@ class _Builder:
         if isinstance(node, ast.UnaryOp):
             start, stop = node.col_offset, operands[0].col_offset
         else:
-            start, stop = operands[0].end_col_offset, operands[1].col_offset
+            start, stop = operands[0].end_col_offset or 0, operands[1].col_offset
         source = "".join(
             self.text[c] if c < len(self.text) else " " for c in self.columns[start:stop]
         )

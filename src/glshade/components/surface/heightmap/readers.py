@@ -1,4 +1,4 @@
-"""Reading height maps: measured topographies and sampled CAD patches (SPEC §8.1).
+"""Reading height maps: measured topographies and sampled CAD patches.
 
 Layout
     A height map is ``heights[row, column]``, float64, in mm: rows run along +z and columns

@@ -1,4 +1,4 @@
-// Base surface: sphere y = sqrt(R^2 - x^2 - z^2) - R (R < 0: concave bowl), SPEC §4.
+// Base surface: sphere y = sqrt(R^2 - x^2 - z^2) - R (R < 0: concave bowl).
 // Sag form f = -s r^2 / (|R| + w), w = sqrt(R^2 - r^2), s = sign(R): no cancellation
 // near the apex, where f is micrometres and R^2 is 4900.
 uniform real u_surface_radius;    // signed R, mm
