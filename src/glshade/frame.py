@@ -50,7 +50,9 @@ class Frame:
         for."""
         array = getattr(self, name)
         if array is None:
-            raise ValueError(f"this frame has no {name!r}: render it with outputs including {name!r}")
+            raise ValueError(
+                f"this frame has no {name!r}: render it with outputs including {name!r}"
+            )
         return array
 
 

@@ -193,5 +193,3 @@ def one_line(message: str) -> str:
     """``message`` on one line: line breaks become spaces, and any other control character
     (from a file name or an argument) is shown escaped (``\\r``)."""
     return printable(" ".join(part.strip() for part in message.split("\n") if part.strip()))
-
-

@@ -123,7 +123,12 @@ def _cmd_measure(args: argparse.Namespace) -> int:
     record = Measurement.of(scene, result)
     if args.json:
         size = [scene.camera.width, scene.camera.height]
-        out = {**record.outputs(), "scene": scene.title(), "size": size, "seconds": round(seconds, 3)}
+        out = {
+            **record.outputs(),
+            "scene": scene.title(),
+            "size": size,
+            "seconds": round(seconds, 3),
+        }
         print(json.dumps(out))
         return 0
     _print_measurement(scene, record)
@@ -546,7 +551,9 @@ def _cmd_render(args: argparse.Namespace) -> int:
         start = time.perf_counter()
         frame = renderer.render(scene, outputs)
         seconds = time.perf_counter() - start
-    atomic_write_bytes(args.output, encode_image(frame.output("image"), image_path.suffix, args.bits), "-o")
+    atomic_write_bytes(
+        args.output, encode_image(frame.output("image"), image_path.suffix, args.bits), "-o"
+    )
     if args.uv is not None:
         write_npy(args.uv, frame.output("uv"))
     if args.save_scene is not None:

@@ -179,7 +179,9 @@ def add_optimize(sub: argparse._SubParsersAction) -> None:
         metavar="K",
         help="most refinement evaluations (default 30; 0: none)",
     )
-    p.add_argument("--plot", type=path_arg, metavar="PNG", help="write the objective's curve or map")
+    p.add_argument(
+        "--plot", type=path_arg, metavar="PNG", help="write the objective's curve or map"
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     add_metric_flags(p)
     _add_distribution_flags(p)
@@ -193,6 +195,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         parse_family,
         parse_over,
     )
+
     if args.size is None:
         args.size = OPTIMIZE_SIZE
     scene = scene_from_args(args)

@@ -203,7 +203,10 @@ class Registry:
     def table_components(self, table: str) -> tuple[Component, ...]:
         """Every registered component whose parameters live in ``table``."""
         return tuple(
-            c for slot in self._slots.values() if slot.table == table for c in self.components(slot.name)
+            c
+            for slot in self._slots.values()
+            if slot.table == table
+            for c in self.components(slot.name)
         )
 
     def table_class(self, base: type[Table]) -> type[Table]:

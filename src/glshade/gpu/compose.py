@@ -203,7 +203,9 @@ def display_features(scene: Scene) -> ShaderFeatures:
     emitter's GLSL for the image (its ``emitter_radiance``)."""
     active = scene.active
     variables = {**active.emitter.features(scene), **DISPLAY_VARIABLES}
-    return ShaderFeatures((active.render, active.emitter), tuple(sorted(variables.items())), ("image",))
+    return ShaderFeatures(
+        (active.render, active.emitter), tuple(sorted(variables.items())), ("image",)
+    )
 
 
 @functools.lru_cache(maxsize=8)

@@ -85,7 +85,9 @@ class LocalExecutor:
         self.close()
 
 
-def measure_rows(renderer, cases: Sequence[Case], settings, images: bool, pool=None) -> Iterator[Row]:
+def measure_rows(
+    renderer, cases: Sequence[Case], settings, images: bool, pool=None
+) -> Iterator[Row]:
     """The engine's results as rows: what a worker returns, what the caller writes."""
     extra = _best_image_png if images else None
     for measured in measure_many(renderer, cases, settings, pool=pool, extra=extra):

@@ -109,5 +109,3 @@ def overlay_figure(
     )
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     save_figure(fig, path)
-
-

@@ -137,9 +137,7 @@ class Measurement:
     contours_s: float = column(
         "s", "time of the contour analysis over the phase sweep (OpenCV)", "timing"
     )
-    continuous_s: float = column(
-        "s", "time of the deflection and the continuous limit", "timing"
-    )
+    continuous_s: float = column("s", "time of the deflection and the continuous limit", "timing")
 
     def __post_init__(self) -> None:
         for item in fields(self):  # typed whatever it was read from (JSON, CSV text, NumPy)
@@ -179,7 +177,9 @@ class Measurement:
     def from_row(cls, row: dict[str, Any]) -> Measurement:
         """From a case file's object or a table's row (text); other keys are ignored, a
         missing timing reads 0."""
-        return cls(**{name: row.get(name, 0.0) if name in TIMINGS else row[name] for name in COLUMN_NAMES})
+        return cls(
+            **{name: row.get(name, 0.0) if name in TIMINGS else row[name] for name in COLUMN_NAMES}
+        )
 
     def row(self, roles: tuple[str, ...] = ROLES) -> dict[str, Any]:
         """The columns of these roles, in order, as plain values (None stays None)."""

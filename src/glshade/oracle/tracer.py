@@ -328,9 +328,7 @@ def first_hit(scene: Scene, origin, directions):
     points = o + t[:, None] * d
     normals = np.full((n, 3), np.nan)
     if valid.any():
-        normals[valid] = _normals(
-            scene, scene.active, points[valid, 0], points[valid, 2]
-        )
+        normals[valid] = _normals(scene, scene.active, points[valid, 0], points[valid, 2])
     return (
         t.reshape(shape),
         points.reshape(shape + (3,)),

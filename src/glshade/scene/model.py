@@ -203,9 +203,7 @@ class Scene:
         unknown tables or keys are an error. ``base``: the directory relative file paths
         (a height map's ``surface.file``) are read from."""
         if not isinstance(data, dict):
-            raise SceneError(
-                "scene", "a table of tables (" + ", ".join(TABLE_CLASSES) + ")", data
-            )
+            raise SceneError("scene", "a table of tables (" + ", ".join(TABLE_CLASSES) + ")", data)
         parts: dict[str, Any] = {}
         for table, values in data.items():
             if table not in TABLE_CLASSES:

@@ -92,7 +92,9 @@ FIELDS = (
 
 
 def scene_for(variant: Variant, theta: float, sigma2: float, size: int) -> Scene:
-    return paper_scene("flat", theta, sigma2, DMAX_MM).with_size(size).updated(**dict(variant.changes))
+    return (
+        paper_scene("flat", theta, sigma2, DMAX_MM).with_size(size).updated(**dict(variant.changes))
+    )
 
 
 def run(

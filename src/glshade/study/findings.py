@@ -274,7 +274,11 @@ def theta_ranges(chosen, plan_thetas) -> str:
 
 
 def best_thetas(
-    rows: Sequence[Mapping], surface: str, sigma2s, dmax: float, key: str = "visibility_continuous_px"
+    rows: Sequence[Mapping],
+    surface: str,
+    sigma2s,
+    dmax: float,
+    key: str = "visibility_continuous_px",
 ) -> list[float]:
     """The θ at which every σ² of ``sigma2s`` keeps at least :data:`NEAR_BEST` of its
     largest visibility over θ (at depth ``dmax``)."""

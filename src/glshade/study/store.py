@@ -163,6 +163,8 @@ STUDY_FILES = (
     "law_vs_simulation.png",
     "fig09_contour_overlay*.png",
 )
+
+
 def prepare_out_dir(out_dir: Path, manifest_data: dict, overwrite: bool = False) -> list[Path]:
     """Create (or reuse) the output directory and write its ``study.json``.
 

@@ -23,6 +23,7 @@ import numpy as np
 from glshade.components.base import FresnelComponent
 from glshade.params import Control, Table, param
 
+
 @dataclass(frozen=True)
 class IndexTable(Table):
     """The surface's refractive index."""

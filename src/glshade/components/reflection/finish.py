@@ -29,6 +29,7 @@ import numpy as np
 
 from glshade.params import Control, Table, param
 
+
 @dataclass(frozen=True)
 class FinishTable(Table):
     """The finish's roughness and the light's wavelength (paper eq. (1))."""

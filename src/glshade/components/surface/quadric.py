@@ -18,6 +18,7 @@ from glshade.components.base import SurfaceComponent
 from glshade.numerics import circle_roots
 from glshade.params import Control, Table, param
 
+
 @dataclass(frozen=True)
 class QuadricTable(Table):
     """The radius of a curved base surface."""

@@ -69,9 +69,7 @@ class Defect(Table):
     )
 
     @classmethod
-    def isotropic_dent(
-        cls, dmax: float, sigma2: float, x0: float = 0.0, z0: float = 0.0
-    ) -> Defect:
+    def isotropic_dent(cls, dmax: float, sigma2: float, x0: float = 0.0, z0: float = 0.0) -> Defect:
         return cls(dmax=dmax, sigma_x2=sigma2, sigma_z2=sigma2, sigma_xz=0.0, x0=x0, z0=z0)
 
     def clamp(self, name: str, value):

@@ -29,7 +29,9 @@ class Emitter(Table):
 
     table = "emitter"
 
-    distance: float = param("emitter.distance", "mm", 256.0, "origin to the emitter's centre", lo=0.0)
+    distance: float = param(
+        "emitter.distance", "mm", 256.0, "origin to the emitter's centre", lo=0.0
+    )
     period: float = param(
         "emitter.period", "mm", 2.0, "stripe spacing along v", lo=0.0, flag="--period",
         control=Control("period", 0.2, 20.0, log=True, fmt="%.2f mm"),

@@ -25,6 +25,7 @@ import numpy as np
 from glshade.components.base import SensorComponent
 from glshade.components.sensor.linear.table import DEFAULT_FULL_WELL_E, Sensor
 
+
 def noise_key(scene, exposure: int) -> list[int]:
     """The noise stream's seed: the sensor's seed, a digest of the rest of the scene and
     the exposure number."""

@@ -13,6 +13,7 @@ import numpy as np
 from glshade.components.surface.quadric import Quadric, QuadricTable
 from glshade.params import param
 
+
 @dataclass(frozen=True)
 class CylinderTable(QuadricTable):
     """The radius and the axis of a cylinder."""

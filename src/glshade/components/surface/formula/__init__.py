@@ -29,6 +29,8 @@ from glshade.params import Table, param
 #: Samples per side of the grid the bounds are taken on, and their safety factor.
 BOUND_SAMPLES = 129
 BOUND_SAFETY = 1.5
+
+
 def check_formula(values: dict) -> None:
     """A formula surface's expression and parameters parse (the error names the token)."""
     if values.get("kind") == "formula":
