@@ -385,9 +385,12 @@ def test_sweeps_group_cases_by_program():
 def test_metrics_and_plans_import_without_gl():
     """Only glshade.gpu and glshade.app load moderngl."""
     code = (
-        "import sys, glshade, glshade.metrics.visibility, glshade.measure.single, glshade.oracle.tracer, "
-        "glshade.scene.schema_doc, glshade.metrics.physics, glshade.study.plan, glshade.study.store, "
-        "glshade.study.findings, glshade.components.registry; glshade.components.registry.registry(); "
+        "import sys, glshade, glshade.metrics.visibility, glshade.measure.single, "
+        "glshade.oracle.tracer, "
+        "glshade.scene.schema_doc, glshade.metrics.physics, glshade.study.plan, "
+        "glshade.study.store, "
+        "glshade.study.findings, glshade.components.registry; "
+        "glshade.components.registry.registry(); "
         "print('moderngl' in sys.modules)"
     )
     result = subprocess.run(

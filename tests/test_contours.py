@@ -187,7 +187,7 @@ def test_the_limit_on_an_analytic_fold_is_the_cap_of_physics_md():
     )
 
 
-# --------------------------------------------------------------------------- more cases by construction
+# ------------------------------------------------------------------ more cases by construction
 # Small images (60×40 unless stated): each stripe spans rows [top, bottom) in every column.
 def bands(*rows, height: int = 60, width: int = 40) -> np.ndarray:
     out = np.zeros((height, width), bool)

@@ -236,7 +236,8 @@ void main() { gl_Position = vec4(vec2(gl_VertexID & 1, gl_VertexID >> 1) * 4.0 -
     [
         "0.0005*x^2 - 0.0002*z^2 + a*sin(z/b)",
         "x^3 - z^5 / 7 + x^-2 * 0.01",  # integer powers of negative numbers: products, not pow()
-        "sqrt(x^2 + z^2 + 1) * exp(-x/3) + log(z^2 + 2) + abs(x) + max(x, z) + min(x, 0.5*z) + cos(x)*tan(z/9)",
+        "sqrt(x^2 + z^2 + 1) * exp(-x/3) + log(z^2 + 2) + abs(x) + max(x, z) + min(x, 0.5*z) + "
+        "cos(x)*tan(z/9)",
     ],
 )
 def test_the_printed_glsl_compiles_and_agrees_with_numpy(gl_context, text):

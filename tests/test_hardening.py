@@ -317,7 +317,8 @@ def test_a_subset_rerun_is_refused_and_overwrite_removes_the_stale_files(tmp_pat
     err = capsys.readouterr().err.strip()
     assert (
         err.startswith(
-            f"glshade: error: --out {out}: holds a study with another plan (dmaxs: 0.003,0.005 there, "
+            f"glshade: error: --out {out}: holds a study with another plan (dmaxs: 0.003,0.005 "
+            "there, "
             "0.005 asked; thetas: 85,45,5 there, 85,45 asked)"
         )
         and "--overwrite" in err
@@ -443,11 +444,13 @@ def test_units_on_the_command_line_and_the_implausible_warning(tmp_path, capsys)
     warnings = capsys.readouterr().err.strip().splitlines()
     assert warnings == [
         (
-            "glshade: warning: defect.dmax = 50 mm is beyond 0.1 mm (deeper than the shallow dents glshade simulates); "
+            "glshade: warning: defect.dmax = 50 mm is beyond 0.1 mm (deeper than the shallow "
+            "dents glshade simulates); "
             "values are in mm, write 5um for micrometres"
         ),
         (
-            "glshade: warning: defect.sigma2 = 200000 mm² is beyond 10000 mm² (a dent over 100 mm wide); values are in "
+            "glshade: warning: defect.sigma2 = 200000 mm² is beyond 10000 mm² (a dent over 100 mm "
+            "wide); values are in "
             "mm², write 4um2 for µm²"
         ),
     ]
@@ -532,7 +535,8 @@ def test_work_budget_refuses_up_front(renderer):
     small = renderer_module.Renderer(renderer.context, max_rays=64 * 64 * 16 - 1)
     with pytest.raises(
         GlshadeError,
-        match=r"64x64 pixels x 16 rays \(x 1 aperture and lobe samples\) = 6.55e\+04 rays, more than the work budget",
+        match=r"64x64 pixels x 16 rays \(x 1 aperture and lobe samples\) = 6.55e\+04 rays, more "
+        r"than the work budget",
     ):
         small.render(scene)
     small.release()
@@ -553,7 +557,8 @@ def test_lobe_warning_and_a_default_that_shows_the_stripes(renderer):
     (line,) = scene_warnings(old)
     assert (
         line.startswith(
-            "render.reflection = blinn-phong: the lobe spreads each point over 32.4 mm of the emitter, "
+            "render.reflection = blinn-phong: the lobe spreads each point over 32.4 mm of the "
+            "emitter, "
             "more than half the 2 mm stripe period"
         )
         and "render.shininess >= 1.05e+06" in line

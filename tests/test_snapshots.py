@@ -56,7 +56,8 @@ def test_snapshot(renderer, gl_context, request, surface, theta):
         write_png(FAILURES / f"actual_{name}", image, bits=16)
         write_png(FAILURES / f"diff_{name}", np.clip(diff * 10.0, 0.0, 1.0), bits=8)
         pytest.fail(
-            f"{name}: {differing} pixels differ by more than {PIXEL_TOLERANCE} (cap {MAX_DIFFERING}), "
+            f"{name}: {differing} pixels differ by more than {PIXEL_TOLERANCE} (cap "
+            f"{MAX_DIFFERING}), "
             f"max difference {diff.max():.4f}; wrote tests/_failures/actual_{name} and diff_{name}"
         )
     # the snapshot is not blank: stripes are there

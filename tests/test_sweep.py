@@ -140,7 +140,8 @@ def test_bad_sweep_files_name_the_field(data, words):
 def test_a_big_grid_needs_yes(tmp_path, capsys):
     path = tmp_path / "big.toml"
     path.write_text(
-        f'[grid]\n"camera.theta_deg" = {{ start = 1.0, stop = 89.0, num = {MAX_CASES_UNCONFIRMED + 1} }}\n'
+        '[grid]\n"camera.theta_deg" = '
+        f"{{ start = 1.0, stop = 89.0, num = {MAX_CASES_UNCONFIRMED + 1} }}\n"
     )
     assert main(["sweep", str(path), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err

@@ -127,7 +127,8 @@ class Param:
             return f"non-zero{unit}"
         if self.lo is not None and self.hi is not None:
             left, right = ("[", "]") if self.closed else ("(", ")")
-            return f"in {left}{self.lo:g}, {self.hi:g}{right}{' degrees' if self.unit == 'deg' else unit}"
+            shown = " degrees" if self.unit == "deg" else unit
+            return f"in {left}{self.lo:g}, {self.hi:g}{right}{shown}"
         if self.lo is not None:
             return f"a finite number {'>=' if self.closed else '>'} {self.lo:g}"
         return "a finite number"
@@ -245,7 +246,10 @@ class Param:
             self.unit, ""
         )
         note = f"; values are in {self.unit}{example}" if self.unit else ""
-        return f"{self.path} = {value:g}{unit} is beyond {self.plausible_max:g}{unit} ({self.plausible_why}){note}"
+        return (
+            f"{self.path} = {value:g}{unit} is beyond {self.plausible_max:g}{unit} "
+            f"({self.plausible_why}){note}"
+        )
 
     # ------------------------------------------------------------- text
     def parse(self, text: str) -> Any:

@@ -43,8 +43,10 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "render",
         help="render one image (and its uv map)",
-        description=f"Render a scene: a TOML scene file ({SCENE_FORMAT}: every key, unit, default and range) "
-        "or, without one, the paper's scene (flat, theta 45, sigma2 4 mm², dmax 5 µm, 1024²). Flags override "
+        description=f"Render a scene: a TOML scene file ({SCENE_FORMAT}: every key, unit, default "
+        "and range) "
+        "or, without one, the paper's scene (flat, theta 45, sigma2 4 mm², dmax 5 µm, 1024²). "
+        "Flags override "
         "the file; lengths are in mm unless they carry a unit (--dmax 5um).",
     )
     add_scene_flags(p)
@@ -81,9 +83,12 @@ def _add_measure(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "measure",
         help="how visible is a scene's defect (the three numbers of docs/study.md)",
-        description="Render a scene with and without its defect and measure the defect's visibility: the "
-        "paper's metric (visibility_px), its continuous limit (visibility_continuous_px), how far the rays move "
-        "(deflection_px), whether the stripe map folds, its islands and the best phase, beside the closed forms "
+        description="Render a scene with and without its defect and measure the defect's "
+        "visibility: the "
+        "paper's metric (visibility_px), its continuous limit (visibility_continuous_px), how far "
+        "the rays move "
+        "(deflection_px), whether the stripe map folds, its islands and the best phase, beside "
+        "the closed forms "
         "(docs/physics.md). Scene and flags as for render.",
     )
     add_scene_flags(p)
@@ -179,15 +184,19 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "paper",
         help="run the paper's whole study (the main job)",
-        description="Run Table 1 of the paper (9 theta x 4 sigma2 x 2 dmax on flat, cylinder and sphere) "
-        "and write results.csv, image grids, visibility plots, the Fig. 9 contour overlay and report.md. "
-        "Rerunning with the same --out resumes: finished cases are skipped. The directory is locked while a run "
+        description="Run Table 1 of the paper (9 theta x 4 sigma2 x 2 dmax on flat, cylinder and "
+        "sphere) "
+        "and write results.csv, image grids, visibility plots, the Fig. 9 contour overlay and "
+        "report.md. "
+        "Rerunning with the same --out resumes: finished cases are skipped. The directory is "
+        "locked while a run "
         "uses it; one that holds a study with another plan is refused unless --overwrite.",
     )
     p.add_argument(
         "--overwrite",
         action="store_true",
-        help="replace a study with another plan in --out (its results, figures and report are removed)",
+        help="replace a study with another plan in --out (its results, figures and report are "
+        "removed)",
     )
     p.add_argument(
         "--out",
@@ -308,7 +317,8 @@ def _run_paper(args: argparse.Namespace, plan) -> int:
     ]
     report = findings.write_report(result.rows, args.out, plan, overlays + written, result.timings)
     print(
-        f"{result.computed} cases computed, {result.skipped} resumed; wrote {args.out / 'results.csv'}, "
+        f"{result.computed} cases computed, {result.skipped} resumed; wrote "
+        f"{args.out / 'results.csv'}, "
         f"{len(written)} figures and {report} in {time.perf_counter() - start:.1f} s"
     )
     return 0
@@ -318,9 +328,12 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "view",
         help="open the interactive viewer (needs the viewer extra)",
-        description="Open a window that renders the scene with the batch renderer's shaders, with a control "
-        "panel, four views (image, defect-free, contour overlay, displacement) and live visibility readouts. "
-        "Keys: S screenshot, T save the scene as TOML, R reset to the paper's defaults, O toggle the overlay. "
+        description="Open a window that renders the scene with the batch renderer's shaders, with "
+        "a control "
+        "panel, four views (image, defect-free, contour overlay, displacement) and live "
+        "visibility readouts. "
+        "Keys: S screenshot, T save the scene as TOML, R reset to the paper's defaults, O toggle "
+        "the overlay. "
         "Scripted mode: --frames N [--screenshot out.png] [--set theta=5 ...].",
     )
     p.add_argument(
@@ -338,7 +351,8 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
         action="append",
         default=[],
         metavar="NAME=VALUE",
-        help="a setting, e.g. theta=5, sigma2=9, surface=sphere, view=overlay, animate=1 (repeatable)",
+        help="a setting, e.g. theta=5, sigma2=9, surface=sphere, view=overlay, animate=1 "
+        "(repeatable)",
     )
     p.add_argument("--frames", type=int, metavar="N", help="draw N frames, then exit")
     p.add_argument(
@@ -382,7 +396,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
     if args.benchmark and stats["seconds"] > 0:
         cam = scene.camera
         print(
-            f"{args.benchmark} at {cam.width}x{cam.height}: {stats['frames'] / stats['seconds']:.1f} fps over "
+            f"{args.benchmark} at {cam.width}x{cam.height}: "
+            f"{stats['frames'] / stats['seconds']:.1f} fps over "
             f"{stats['frames']} frames ({stats['traces']} traces, {stats['reshades']} re-shades)"
         )
     if args.frames is not None and "readout" in stats:
@@ -396,8 +411,10 @@ def _add_accuracy(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "accuracy",
         help="measure error against run time for every knob, and the stability matrix",
-        description="Write OUT/accuracy.md and OUT/figures/accuracy_*.png: each knob's error against a "
-        "converged reference (uv, image, visibility) and its run time, the Pareto fronts, the shipped "
+        description="Write OUT/accuracy.md and OUT/figures/accuracy_*.png: each knob's error "
+        "against a "
+        "converged reference (uv, image, visibility) and its run time, the Pareto fronts, the "
+        "shipped "
         "defaults, and the stability table of the extreme cases. 'glshade accuracy --out docs' "
         "regenerates the repository's report (a few minutes).",
     )
@@ -450,10 +467,13 @@ def _cmd_accuracy(args: argparse.Namespace) -> int:
 def _add_finding3(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "finding3",
-        help="the paper's finding 3 under realistic optics (eq. (1) roughness, lens, Fresnel, sensor)",
-        description="Measure visibility against theta for the paper's gentle and steep 5 um dents on the flat "
+        help="the paper's finding 3 under realistic optics (eq. (1) roughness, lens, Fresnel, "
+        "sensor)",
+        description="Measure visibility against theta for the paper's gentle and steep 5 um dents "
+        "on the flat "
         "plate with the ideal mirror and with each realistic effect alone and combined; write "
-        "OUT/finding3.csv, finding3.png and finding3.md ('glshade paper --out OUT' then quotes the verdicts). "
+        "OUT/finding3.csv, finding3.png and finding3.md ('glshade paper --out OUT' then quotes "
+        "the verdicts). "
         "About 12 minutes at the default size on 2 CPU cores.",
     )
     p.add_argument(
@@ -560,7 +580,8 @@ def _cmd_render(args: argparse.Namespace) -> int:
         scene.save(args.save_scene)
     cam = scene.camera
     print(
-        f"wrote {args.output} ({cam.width}x{cam.height}, {scene.surface.kind}, theta {cam.theta_deg:g} deg, "
+        f"wrote {args.output} ({cam.width}x{cam.height}, {scene.surface.kind}, theta "
+        f"{cam.theta_deg:g} deg, "
         f"{scene.render.precision}, {seconds * 1e3:.0f} ms)"
     )
     return 0

@@ -75,10 +75,14 @@ def add_sweep(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "sweep",
         help="measure every case of a grid over any scene keys (results.parquet)",
-        description="Measure the visibility of every case of a sweep file's grid (docs/sweeps.md) and write "
-        "results.parquet and results.csv (one row per case: every swept key, every output). In this process by "
-        "default, on local Dask workers with --workers, or on a cluster with --scheduler; the table is the same. "
-        "Rerunning resumes: a case already measured (by the hash of its scene and metric) is never measured again.",
+        description="Measure the visibility of every case of a sweep file's grid (docs/sweeps.md) "
+        "and write "
+        "results.parquet and results.csv (one row per case: every swept key, every output). In "
+        "this process by "
+        "default, on local Dask workers with --workers, or on a cluster with --scheduler; the "
+        "table is the same. "
+        "Rerunning resumes: a case already measured (by the hash of its scene and metric) is "
+        "never measured again.",
     )
     p.add_argument("file", type=path_arg, metavar="FILE.toml", help="the sweep file")
     p.add_argument(
@@ -123,7 +127,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         else ""
     )
     print(
-        f"wrote {out / 'results.parquet'} and results.csv: {len(result.rows)} cases ({result.computed} measured, "
+        f"wrote {out / 'results.parquet'} and results.csv: {len(result.rows)} cases "
+        f"({result.computed} measured, "
         f"{result.skipped} already done) in {result.seconds:.1f} s{rate}"
     )
     return 0
@@ -134,10 +139,14 @@ def add_optimize(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "optimize",
         help="find the viewpoint that maximises (worst-case) visibility",
-        description="Find the values of the --over keys (camera elevation, rig azimuth, stripe period, ...) that "
-        "maximise the dent's visibility, or its worst case over a --family of dents: a coarse grid on the sweep "
-        "machinery, then a bounded Nelder-Mead refinement (docs/sweeps.md). Prints the optimum, its visibility, "
-        f"how flat it is; --plot draws the objective. Scenes are rendered at --size (default {OPTIMIZE_SIZE}).",
+        description="Find the values of the --over keys (camera elevation, rig azimuth, stripe "
+        "period, ...) that "
+        "maximise the dent's visibility, or its worst case over a --family of dents: a coarse "
+        "grid on the sweep "
+        "machinery, then a bounded Nelder-Mead refinement (docs/sweeps.md). Prints the optimum, "
+        "its visibility, "
+        "how flat it is; --plot draws the objective. Scenes are rendered at --size (default "
+        f"{OPTIMIZE_SIZE}).",
     )
     add_scene_flags(p)
     p.add_argument(
@@ -164,7 +173,8 @@ def add_optimize(sub: argparse._SubParsersAction) -> None:
         "--metric",
         choices=("paper", "continuous"),
         default="paper",
-        help="paper: whole-pixel contour shift (docs/study.md); continuous: its sub-pixel limit (default paper)",
+        help="paper: whole-pixel contour shift (docs/study.md); continuous: its sub-pixel limit "
+        "(default paper)",
     )
     p.add_argument(
         "--grid",
@@ -238,8 +248,8 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     for key, (lo, hi) in result.near_optimal.items():
         print(f"  {result.near_text()}: {key} in [{lo:g}, {hi:g}]")
     print(
-        f"{result.evaluations} viewpoints ({result.grid_count} on the grid), {result.cases} cases, {seconds:.1f} s"
-        + (f"; plot: {args.plot}" if args.plot is not None else ""),
+        f"{result.evaluations} viewpoints ({result.grid_count} on the grid), {result.cases} "
+        f"cases, {seconds:.1f} s" + (f"; plot: {args.plot}" if args.plot is not None else ""),
         file=sys.stdout,
     )
     return 0

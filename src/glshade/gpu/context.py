@@ -129,7 +129,8 @@ class GLContext:
                     _missing_device(self.device_index, int(found.group(1)), libegl)
                 ) from None
             raise ContextError(
-                f"no OpenGL context through EGL (device {self.device_index}): {reason}; {INSTALL_HINT}"
+                f"no OpenGL context through EGL (device {self.device_index}): {reason}; "
+                f"{INSTALL_HINT}"
             ) from None
         if self.ctx.version_code < REQUIRED_GL:
             version = self.ctx.info.get("GL_VERSION", "?")

@@ -140,9 +140,12 @@ def check_work_budget(scene: Scene, max_rays: int) -> None:
     if rays > max_rays:
         cam, n = scene.camera, scene.render.supersample
         raise GlshadeError(
-            f"camera.width x camera.height x render.supersample²: {cam.width}x{cam.height} pixels x {n * n} rays "
-            f"(x {rays // (cam.width * cam.height * n * n)} aperture and lobe samples) = {rays:.3g} rays, more than "
-            f"the work budget of {max_rays:.3g} rays per frame (GLSHADE_MAX_RAYS); use a smaller --size, "
+            f"camera.width x camera.height x render.supersample²: {cam.width}x{cam.height} pixels "
+            f"x {n * n} rays "
+            f"(x {rays // (cam.width * cam.height * n * n)} aperture and lobe samples) = "
+            f"{rays:.3g} rays, more than "
+            f"the work budget of {max_rays:.3g} rays per frame (GLSHADE_MAX_RAYS); use a smaller "
+            "--size, "
             "--supersample, --aperture-samples or --lobe-samples"
         )
 
@@ -390,7 +393,8 @@ class Renderer:
         return Frame(**arrays)
 
     def _texture(self, array: np.ndarray) -> moderngl.Texture:
-        """The texture holding ``array`` (float32; (rows, cols) or (rows, cols, channels)), uploaded once per array
+        """The texture holding ``array`` (float32; (rows, cols) or (rows, cols, channels)),
+        uploaded once per array
         object; a few are kept, the oldest released."""
         cached = self._textures.get(id(array))
         if cached is not None and cached[0] is array:

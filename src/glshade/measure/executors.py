@@ -40,7 +40,8 @@ class Distribution:
     def __post_init__(self) -> None:
         if self.workers is not None and self.scheduler is not None:
             raise GlshadeError(
-                "--workers and --scheduler: give one of them (local workers, or an existing cluster)"
+                "--workers and --scheduler: give one of them (local workers, or an existing "
+                "cluster)"
             )
         if self.workers is not None and not 1 <= self.workers <= 256:
             raise GlshadeError(f"--workers: must be an integer in [1, 256], got {self.workers}")

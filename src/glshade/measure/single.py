@@ -140,7 +140,8 @@ def measure(
         scene = Scene.load(scene)
     if not isinstance(scene, Scene):
         raise GlshadeError(
-            f"scene: must be a glshade Scene or the path of a scene file, got {type(scene).__name__}"
+            "scene: must be a glshade Scene or the path of a scene file, got "
+            f"{type(scene).__name__}"
         )
     settings = settings or MetricSettings()
     if not isinstance(settings, MetricSettings):

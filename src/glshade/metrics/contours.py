@@ -299,7 +299,8 @@ def compare(
 
 # --------------------------------------------------------------------------- registration
 def contour_image(binary: np.ndarray) -> np.ndarray:
-    """The stripe contours of a binary image: white pixels with a black 4-neighbour (uint8 0/255)."""
+    """The stripe contours of a binary image: white pixels with a black 4-neighbour
+    (uint8 0/255)."""
     white = np.asarray(binary, np.uint8)
     inner = cv2.erode(white, _CROSS, borderType=cv2.BORDER_REPLICATE)
     return ((white > 0) & (inner == 0)).astype(np.uint8) * 255

@@ -113,13 +113,16 @@ class MetricSettings:
         whole period reproduces phase 0). A step larger than the period is an error."""
         if self.step_mm > period_mm:
             raise GlshadeError(
-                f"step: must be at most one stripe period ({period_mm:g} mm), got {self.step_mm:g} mm"
+                f"step: must be at most one stripe period ({period_mm:g} mm), got "
+                f"{self.step_mm:g} mm"
             )
         count = max(1, math.ceil(period_mm / self.step_mm - 1e-9))
         if count > MAX_PHASES:
             raise GlshadeError(
-                f"step: must give at most {MAX_PHASES} phases per stripe period (a step of at least "
-                f"{period_mm / MAX_PHASES:g} mm for the {period_mm:g} mm period), got {self.step_mm:g} mm "
+                f"step: must give at most {MAX_PHASES} phases per stripe period (a step of at "
+                "least "
+                f"{period_mm / MAX_PHASES:g} mm for the {period_mm:g} mm period), got "
+                f"{self.step_mm:g} mm "
                 f"= {count} phases"
             )
         return np.arange(count) * self.step_mm
@@ -134,7 +137,8 @@ LEVEL_SOURCES = ("auto", "emitter", "image")
 LEVEL_PERCENTILES = (1.0, 99.0)
 
 #: Most phases one sweep may take (each is a shading and a contour comparison): the
-#: paper's sweep is 8 (2 mm period, 0.25 mm step), the finest in the benchmarks 160 (10 mm period, step 1/160 of it).
+#: paper's sweep is 8 (2 mm period, 0.25 mm step), the finest in the benchmarks 160 (10 mm
+#: period, step 1/160 of it).
 MAX_PHASES = 2000
 
 
@@ -249,7 +253,8 @@ def sweep(
     columns: slice,
     max_offset_px: int,
 ) -> PaperResult:
-    """The metric's steps 1–7 (docs/study.md) on cut images: ``normal_stripes(phase)`` gives the defect-free
+    """The metric's steps 1–7 (docs/study.md) on cut images: ``normal_stripes(phase)`` gives
+    the defect-free
     analysis, ``defect_binary(phase)`` the cut defect image (bool)."""
     results = []
     offset = (0, 0)
@@ -366,8 +371,10 @@ class Baseline:
         self.half_width_mm = stripe_half_width(pattern, settings.threshold)
         if normal_images is None and (self.half_width_mm is None or settings.otsu):
             raise GlshadeError(
-                "the metric shades the phases from the emitter map, which needs a fixed threshold and stripes "
-                "narrower than a third of the period (emitter.stripe_sigma); pass rendered images instead"
+                "the metric shades the phases from the emitter map, which needs a fixed threshold "
+                "and stripes "
+                "narrower than a third of the period (emitter.stripe_sigma); pass rendered images "
+                "instead"
             )
         height, width = self.v0.shape
         self.columns = kept_columns(width, settings.keep_fraction)

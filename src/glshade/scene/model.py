@@ -174,7 +174,8 @@ class Scene:
         return _file_values(self, param.table, everything=True).get(param.key)
 
     def updated(self, **tables: dict[str, Any]) -> Scene:
-        """A copy with some keys of some tables replaced: ``scene.updated(camera={"theta_deg": 5})``.
+        """A copy with some keys of some tables replaced:
+        ``scene.updated(camera={"theta_deg": 5})``.
 
         Keys use the scene-file names (``defect={"sigma2": 9}`` works too).
         """

@@ -255,10 +255,14 @@ def answer_lines(rows, variants) -> list[str]:
         high = _mean(rows, VARIANTS[0].key, "visibility_continuous_px", False)
         low = _mean(rows, VARIANTS[0].key, "visibility_continuous_px", True)
         lines.append(
-            "No effect, alone or combined, makes the gentle dents' contour shift grow as the view grazes: the paper's "
-            "metric stays at the same few pixels at every θ (verdicts below), and on the ideal mirror its continuous "
-            f"limit moves from {high:.2f} px above 65° to {low:.2f} px below 25° ({100 * (low / high - 1):+.0f} %): "
-            "the deflection of a gentle dent hardly depends on θ (the closed form of docs/physics.md)."
+            "No effect, alone or combined, makes the gentle dents' contour shift grow as the view "
+            "grazes: the paper's "
+            "metric stays at the same few pixels at every θ (verdicts below), and on the ideal "
+            "mirror its continuous "
+            f"limit moves from {high:.2f} px above 65° to {low:.2f} px below 25° "
+            f"({100 * (low / high - 1):+.0f} %): "
+            "the deflection of a gentle dent hardly depends on θ (the closed form of "
+            "docs/physics.md)."
         )
     noisy = [
         v
@@ -271,18 +275,26 @@ def answer_lines(rows, variants) -> list[str]:
         vis_high = _mean(rows, variant.key, "visibility_px", False)
         vis_low = _mean(rows, variant.key, "visibility_px", True)
         lines.append(
-            f"With {variant.label}, the sensor's noise floor is {floor_high:.1f} px above 65° and {floor_low:.1f} px "
-            f"below 25°; the gentle dents' visibility over it goes from {vis_high / floor_high:.1f} to "
+            f"With {variant.label}, the sensor's noise floor is {floor_high:.1f} px above 65° and "
+            f"{floor_low:.1f} px "
+            "below 25°; the gentle dents' visibility over it goes from "
+            f"{vis_high / floor_high:.1f} to "
             f"{vis_low / floor_low:.1f}."
         )
     lines += [
         "",
-        "What a low viewpoint buys is margin over the noise, not a larger shift: where the image is dim",
-        "(a clear coat reflects 4 % seen from above) and partly diffuse (eq. (1)), the contours jitter by",
-        "several pixels, as much as a gentle dent moves them; seen from just above the surface the same",
-        "finish is bright and mirror-like and the jitter drops to a pixel. That is the paper's own explanation",
-        "(its eq. (1) and ref. [16]: reflectance rises at grazing angles) in numbers. Noise also inflates the",
-        "paper's metric itself (a maximum over contour distances): compare the variants' 85° columns.",
+        "What a low viewpoint buys is margin over the noise, not a larger shift: where the image "
+        "is dim",
+        "(a clear coat reflects 4 % seen from above) and partly diffuse (eq. (1)), the contours "
+        "jitter by",
+        "several pixels, as much as a gentle dent moves them; seen from just above the surface "
+        "the same",
+        "finish is bright and mirror-like and the jitter drops to a pixel. That is the paper's "
+        "own explanation",
+        "(its eq. (1) and ref. [16]: reflectance rises at grazing angles) in numbers. Noise also "
+        "inflates the",
+        "paper's metric itself (a maximum over contour distances): compare the variants' 85° "
+        "columns.",
         "",
     ]
     return lines
@@ -337,20 +349,26 @@ def write_report(rows, variants, size: int, path: Path) -> Path:
     lines = [
         "# Finding 3 under realistic optics",
         "",
-        "The paper's finding 3: gentle dents (σ² 9, 16 mm²) are more visible from just above the surface. On the",
-        "ideal mirror it does not reproduce. Each effect the mirror leaves out, alone and combined, on the flat",
+        "The paper's finding 3: gentle dents (σ² 9, 16 mm²) are more visible from just above the "
+        "surface. On the",
+        "ideal mirror it does not reproduce. Each effect the mirror leaves out, alone and "
+        "combined, on the flat",
         f"plate, dmax 5 µm, θ 85° → 5°, {size}² pixels over the paper camera's field of view",
-        f"(pitch {0.005 * 1024 / size:g} mm; visibilities in pixels of this image: x{1024 / size:g} for the 1024²",
-        "camera). `glshade finding3` reproduces it; the numbers are in `finding3.csv`, the curves in",
+        f"(pitch {0.005 * 1024 / size:g} mm; visibilities in pixels of this image: "
+        f"x{1024 / size:g} for the 1024²",
+        "camera). `glshade finding3` reproduces it; the numbers are in `finding3.csv`, the "
+        "curves in",
         "`finding3.png`.",
         "",
         *answer_lines(rows, variants),
-        f"## Verdicts (the paper's metric, `visibility_px`; holds: Spearman ρ < {HOLDS_RHO:g} and the views below",
+        f"## Verdicts (the paper's metric, `visibility_px`; holds: Spearman ρ < {HOLDS_RHO:g} "
+        "and the views below",
         f"25° at least {HOLDS_GAIN:g}x those above 65°)",
         "",
         *verdict_lines(rows, variants),
         "",
-        "The same with the metric's continuous limit (`visibility_continuous_px`, free of the pixel grid):",
+        "The same with the metric's continuous limit (`visibility_continuous_px`, free of the "
+        "pixel grid):",
         "",
         *verdict_lines(rows, variants, "visibility_continuous_px"),
         "",
@@ -374,7 +392,8 @@ def write_report(rows, variants, size: int, path: Path) -> Path:
         lines += [
             "## Noise floor",
             "",
-            "The paper's metric between two exposures of the dent-free plate, and the gentle dents' visibility",
+            "The paper's metric between two exposures of the dent-free plate, and the gentle "
+            "dents' visibility",
             "over it:",
             "",
             *margins,
@@ -388,20 +407,32 @@ def _explanation() -> list[str]:
     return [
         "## Why",
         "",
-        "- *eq. (1)*: the finish scatters `1 - exp(-g)` of the light, and `g` falls as the view grazes, so the",
-        "  stripes' contrast grows from 27 % at 85° to 99 % at 5°. The metric binarises between the image's dark",
-        "  and bright levels (as an exposure would be set), so a contour sits where the stripe crosses that",
-        "  level: lower contrast moves the level but not where the dent bends the stripe. Contrast alone does not",
+        "- *eq. (1)*: the finish scatters `1 - exp(-g)` of the light, and `g` falls as the view "
+        "grazes, so the",
+        "  stripes' contrast grows from 27 % at 85° to 99 % at 5°. The metric binarises between "
+        "the image's dark",
+        "  and bright levels (as an exposure would be set), so a contour sits where the stripe "
+        "crosses that",
+        "  level: lower contrast moves the level but not where the dent bends the stripe. "
+        "Contrast alone does not",
         "  make a contour shift larger; it makes it survive noise and the diffuse background.",
-        "- *thin lens*: focused on the surface, the stripes (De further away) blur by a disc of 1.66 mm on the",
-        "  emitter, most of a period: contrast falls at every θ alike and, with the level set from the image,",
-        "  the contours stay put. Focused on the stripes, the surface blurs: each pixel averages the dent's",
-        "  slope over a 0.67 mm patch, stretched by 1/sin θ along the line of sight, so the lens smooths the",
-        "  shift most at low θ (the continuous limit of σ² 9 falls from 3.07 to 2.66 px below 25°).",
-        "- *Fresnel*: a clear coat reflects 4 % seen from 85°, 5 % from 45°, 12 % from 25° and 61 % from 5°: the",
-        "  image brightens fifteen-fold as the view grazes, but the contours follow the stripes, not their",
+        "- *thin lens*: focused on the surface, the stripes (De further away) blur by a disc of "
+        "1.66 mm on the",
+        "  emitter, most of a period: contrast falls at every θ alike and, with the level set "
+        "from the image,",
+        "  the contours stay put. Focused on the stripes, the surface blurs: each pixel averages "
+        "the dent's",
+        "  slope over a 0.67 mm patch, stretched by 1/sin θ along the line of sight, so the lens "
+        "smooths the",
+        "  shift most at low θ (the continuous limit of σ² 9 falls from 3.07 to 2.66 px below "
+        "25°).",
+        "- *Fresnel*: a clear coat reflects 4 % seen from 85°, 5 % from 45°, 12 % from 25° and "
+        "61 % from 5°: the",
+        "  image brightens fifteen-fold as the view grazes, but the contours follow the stripes, "
+        "not their",
         "  brightness (the level is set from the image's own range).",
-        "- *sensor*: photon and read noise jitter the contours by about the noise floor; it matters when little",
+        "- *sensor*: photon and read noise jitter the contours by about the noise floor; it "
+        "matters when little",
         "  light comes back (a clear coat seen from above), which is where a low view helps.",
     ]
 
@@ -418,7 +449,8 @@ def report_section(out_dir: Path) -> list[str]:
     return [
         "## Finding 3 under realistic optics",
         "",
-        "Does any effect the ideal mirror leaves out make gentle dents more visible from just above the",
+        "Does any effect the ideal mirror leaves out make gentle dents more visible from just "
+        "above the",
         "surface? (`finding3.md` has the tables and the reasons; `finding3.png` the curves.)",
         "",
         *answer_lines(rows, variants)[2:],

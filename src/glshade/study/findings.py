@@ -33,25 +33,33 @@ NEAR_BEST = 0.9
 
 RULES = (
     (
-        "1. *Deeper is more visible*: over all (θ, σ²) of a surface, the share of cases where the 5 µm dent is strictly "
-        "more visible than the 3 µm one. **holds**: at least 90 % and never less visible; **partly holds**: at least 60 %."
+        "1. *Deeper is more visible*: over all (θ, σ²) of a surface, the share of cases where the "
+        "5 µm dent is strictly "
+        "more visible than the 3 µm one. **holds**: at least 90 % and never less visible; "
+        "**partly holds**: at least 60 %."
     ),
     (
-        "2. *Larger σ² is less visible overall* (fixed depth): the mean visibility over θ, per σ². **holds**: it falls "
+        "2. *Larger σ² is less visible overall* (fixed depth): the mean visibility over θ, per "
+        "σ². **holds**: it falls "
         "strictly as σ² grows; **partly holds**: Spearman ρ(σ², mean) ≤ -0.8."
     ),
     (
-        "3. *Gentle dents (σ² 9, 16) gain from a low viewpoint*: per σ², Spearman ρ(θ, visibility) and the relative "
-        f"change from the highest to the lowest θ. **holds**: ρ ≤ -0.8 *and* a gain of at least {MIN_EFFECT:.0%}; "
-        "**partly holds**: ρ ≤ -0.4 and any gain, however small; both σ² must hold for the scope to hold. A ranked trend "
+        "3. *Gentle dents (σ² 9, 16) gain from a low viewpoint*: per σ², Spearman ρ(θ, "
+        "visibility) and the relative "
+        "change from the highest to the lowest θ. **holds**: ρ ≤ -0.8 *and* a gain of at least "
+        f"{MIN_EFFECT:.0%}; "
+        "**partly holds**: ρ ≤ -0.4 and any gain, however small; both σ² must hold for the scope "
+        "to hold. A ranked trend "
         'of a few per cent is not what the paper means by "more visible".'
     ),
     (
-        "4. *Steep dents (σ² 1, 4) lose from a low viewpoint*: the same with the signs turned (ρ ≥ 0.8 and a loss of at "
+        "4. *Steep dents (σ² 1, 4) lose from a low viewpoint*: the same with the signs turned (ρ "
+        "≥ 0.8 and a loss of at "
         f"least {MIN_EFFECT:.0%})."
     ),
     (
-        "5. *3 and 4 hold on flat, cylindrical and spherical surfaces alike*: **holds** when 3 and 4 hold for every "
+        "5. *3 and 4 hold on flat, cylindrical and spherical surfaces alike*: **holds** when 3 "
+        "and 4 hold for every "
         "surface and depth, **partly holds** when each at least partly holds."
     ),
 )
@@ -148,7 +156,8 @@ def _deeper(g: _Grid, metric_name: str) -> list[Verdict]:
                 s,
                 metric_name,
                 verdict,
-                f"dmax {um(hi)} more visible than {um(lo)} in {more}/{len(pairs)} cases, less in {less}",
+                f"dmax {um(hi)} more visible than {um(lo)} in {more}/{len(pairs)} cases, less in "
+                f"{less}",
             )
         )
     return out
@@ -219,7 +228,8 @@ def _trend(g: _Grid, s: str, v: float, d: float, sign: float) -> tuple[str, str]
         verdict = NOT
     return (
         verdict,
-        f"σ² {v:g}: ρ(θ, visibility) = {rho:+.2f}, θ {ts[-1]:g} → {ts[0]:g}: {high:.2f} → {low:.2f} px ({change:+.0%})",
+        f"σ² {v:g}: ρ(θ, visibility) = {rho:+.2f}, θ {ts[-1]:g} → {ts[0]:g}: {high:.2f} → "
+        f"{low:.2f} px ({change:+.0%})",
     )
 
 
@@ -311,9 +321,12 @@ def _why(rows: Sequence[Mapping], surface: str, sigma2s, dmaxs) -> str:
         m_high = physics.laws(case_scene(surface, max(r["theta_deg"] for r in rows))).magnification
         m_low = physics.laws(case_scene(surface, low)).magnification
         return (
-            f"The convex {surface} magnifies the stripes by m = 1 + 2 Dc De / (R sin θ (Dc + De)), from "
-            f"{m_high:.1f} at the highest view to {m_low:.0f} at θ {low:g}°, and every displacement in pixels shrinks "
-            "by m: a low view loses every dent. No dent of Table 1 folds on it (its floor curvature dmax/σ² is below "
+            f"The convex {surface} magnifies the stripes by m = 1 + 2 Dc De / (R sin θ (Dc + "
+            "De)), from "
+            f"{m_high:.1f} at the highest view to {m_low:.0f} at θ {low:g}°, and every "
+            "displacement in pixels shrinks "
+            "by m: a low view loses every dent. No dent of Table 1 folds on it (its floor "
+            "curvature dmax/σ² is below "
             "the base's 1/R)."
         )
     onsets = []
@@ -331,7 +344,8 @@ def _why(rows: Sequence[Mapping], surface: str, sigma2s, dmaxs) -> str:
         candidates, key=lambda r: r["deflection_px"] - r["visibility_continuous_px"], default=None
     )
     text = (
-        "Where nothing folds the deflection 2 (dmax/σ) e^(-1/2) De f / ((Dc + De) p) does not depend on θ; a low "
+        "Where nothing folds the deflection 2 (dmax/σ) e^(-1/2) De f / ((Dc + De) p) does not "
+        "depend on θ; a low "
         "view adds 2-3 % (the steepest flank lies σ cos θ farther from the emitter). "
     )
     if onsets:
@@ -339,19 +353,24 @@ def _why(rows: Sequence[Mapping], surface: str, sigma2s, dmaxs) -> str:
             "The stripe map folds where sin θ < 2 κ Dc De / (Dc + De), κ = dmax/σ² ("
             + "; ".join(onsets)
             + "). "
-            "Below that only the contours outside the band where the rays move more than their distance from "
+            "Below that only the contours outside the band where the rays move more than their "
+            "distance from "
             "the dent reach the cut columns, b sqrt(2 ln F) with b ∝ sin θ"
         )
         if worst is not None and worst["folded"]:
             text += (
-                f": at θ {low:g}° the σ² {worst['sigma2_mm2']:g}, {um(worst['dmax_mm'])} dent moves the rays by "
-                f"{worst['deflection_px']:.1f} px and its contours by {worst['visibility_continuous_px']:.1f} px"
+                f": at θ {low:g}° the σ² {worst['sigma2_mm2']:g}, {um(worst['dmax_mm'])} dent "
+                "moves the rays by "
+                f"{worst['deflection_px']:.1f} px and its contours by "
+                f"{worst['visibility_continuous_px']:.1f} px"
             )
         text += "."
         if physics.base_curvatures(case_scene(surface))[1] != 0:
             text += (
-                " The cylinder's curvature across the plane of incidence lifts the fold's saddles and with them "
-                "the cap (docs/physics.md §3): a dent that folds keeps more of its shift at low views than on the "
+                " The cylinder's curvature across the plane of incidence lifts the fold's saddles "
+                "and with them "
+                "the cap (docs/physics.md §3): a dent that folds keeps more of its shift at low "
+                "views than on the "
                 "flat plate."
             )
     return text
@@ -384,7 +403,8 @@ def law_summary(rows: Sequence[Mapping]) -> list[str]:
     """Where the closed forms hold and where they break, per surface, in numbers."""
     lines = [
         (
-            "| surface | cases | deflection: law within 3 % | worst deflection error | visible shift: law within 5 % "
+            "| surface | cases | deflection: law within 3 % | worst deflection error | visible "
+            "shift: law within 5 % "
             "| worst visible error | worst case |"
         ),
         "|---|---:|---:|---:|---:|---:|---|",
@@ -403,7 +423,8 @@ def law_summary(rows: Sequence[Mapping]) -> list[str]:
         v_err = [r["visibility_continuous_px"] / r["visibility_law_px"] - 1 for r in pick]
         worst = pick[int(np.argmax(np.abs(v_err)))]
         lines.append(
-            f"| {surface} | {len(pick)} | {sum(abs(e) <= 0.03 for e in d_err)} | {max(d_err, key=abs):+.1%} "
+            f"| {surface} | {len(pick)} | {sum(abs(e) <= 0.03 for e in d_err)} | "
+            f"{max(d_err, key=abs):+.1%} "
             f"| {sum(abs(e) <= 0.05 for e in v_err)} | {max(v_err, key=abs):+.1%} "
             f"| θ {worst['theta_deg']:g}°, σ² {worst['sigma2_mm2']:g}, {um(worst['dmax_mm'])} |"
         )
@@ -445,8 +466,10 @@ def write_report(
             "## Run time of this run",
             "",
             (
-                f"trace {timings.trace:.1f} s, shade {timings.shade:.1f} s, contours {timings.contours:.1f} s, "
-                f"continuous numbers {timings.continuous:.1f} s, I/O {timings.io:.1f} s, figures {timings.figures:.1f} s "
+                f"trace {timings.trace:.1f} s, shade {timings.shade:.1f} s, contours "
+                f"{timings.contours:.1f} s, "
+                f"continuous numbers {timings.continuous:.1f} s, I/O {timings.io:.1f} s, figures "
+                f"{timings.figures:.1f} s "
                 "(stage sums over worker threads; cases computed in this run only)."
             ),
         ]
@@ -461,33 +484,46 @@ def _opening(rows: Sequence[Mapping], plan) -> list[str]:
         "# glshade: the paper's study",
         "",
         (
-            f"{len(rows)} cases: surfaces {', '.join(plan.surfaces)}; θ {', '.join(f'{t:g}' for t in plan.thetas)}°; "
-            f"σ² {', '.join(f'{v:g}' for v in plan.sigma2s)} mm²; dmax {', '.join(um(d) for d in plan.dmaxs)}; "
-            f"{plan.size}×{plan.size} pixels (the paper's field of view); phase step {plan.metric.step_mm:g} mm; "
-            f"threshold {plan.metric.threshold:g}; central {plan.metric.keep_fraction:.0%} of the columns kept. Depths are "
-            "in µm throughout this report and in the figures' titles and file names; `results.csv` keeps `dmax_mm`."
+            f"{len(rows)} cases: surfaces {', '.join(plan.surfaces)}; θ "
+            f"{', '.join(f'{t:g}' for t in plan.thetas)}°; "
+            f"σ² {', '.join(f'{v:g}' for v in plan.sigma2s)} mm²; dmax "
+            f"{', '.join(um(d) for d in plan.dmaxs)}; "
+            f"{plan.size}×{plan.size} pixels (the paper's field of view); phase step "
+            f"{plan.metric.step_mm:g} mm; "
+            f"threshold {plan.metric.threshold:g}; central {plan.metric.keep_fraction:.0%} of the "
+            "columns kept. Depths are "
+            "in µm throughout this report and in the figures' titles and file names; "
+            "`results.csv` keeps `dmax_mm`."
         ),
         "",
         (
-            "Three numbers per case (docs/study.md; every column in `docs/results.md`): the paper's metric `visibility_px` (whole "
-            "pixels), its continuous limit `visibility_continuous_px` (what the paper's metric tends to with a finer phase "
-            "step and a finer sensor), and `deflection_px` (how far the rays move). Verdicts are given for the first two."
+            "Three numbers per case (docs/study.md; every column in `docs/results.md`): the "
+            "paper's metric `visibility_px` (whole "
+            "pixels), its continuous limit `visibility_continuous_px` (what the paper's metric "
+            "tends to with a finer phase "
+            "step and a finer sensor), and `deflection_px` (how far the rays move). Verdicts are "
+            "given for the first two."
         ),
         "",
         "## What to do with it: where to put the camera",
         "",
         (
-            f"For each surface and class of dent: the study's elevations θ at which every dent of the class keeps at "
-            f"least {NEAR_BEST:.0%} of its best visibility (continuous limit), per depth, and the closed form that explains "
+            "For each surface and class of dent: the study's elevations θ at which every dent of "
+            "the class keeps at "
+            f"least {NEAR_BEST:.0%} of its best visibility (continuous limit), per depth, and the "
+            "closed form that explains "
             "it (derived in glshade's `docs/physics.md`):"
         ),
         "",
         *advice(rows),
         "",
         (
-            "In short: on flat and cylindrical parts a steep dent is seen best from above the angle at which it folds the "
-            "stripe map, a gentle one from anywhere, and on a strongly curved convex part (the sphere) from as high as "
-            'possible. "Looking from just above the surface" never helps by more than a few per cent in this model; it '
+            "In short: on flat and cylindrical parts a steep dent is seen best from above the "
+            "angle at which it folds the "
+            "stripe map, a gentle one from anywhere, and on a strongly curved convex part (the "
+            "sphere) from as high as "
+            'possible. "Looking from just above the surface" never helps by more than a few '
+            "per cent in this model; it "
             "hurts steep dents once they fold, and every dent on a convex part."
         ),
         "",
@@ -506,7 +542,8 @@ def _findings_sections(verdicts: list[Verdict]) -> list[str]:
         *[f"- {rule}" for rule in RULES],
         "",
         (
-            '"Partly holds" therefore means: the trend is there in rank, or in most cases, but not strong or not '
+            '"Partly holds" therefore means: the trend is there in rank, or in most cases, but '
+            "not strong or not "
             "everywhere enough to call it the paper's effect."
         ),
         "",
@@ -532,8 +569,10 @@ def _laws_section(rows: Sequence[Mapping]) -> list[str]:
         "## The closed forms against the simulation",
         "",
         (
-            "`deflection_law_px` is the small-slope closed form of the deflection, divided by the convex base's magnification m; "
-            "`visibility_law_px` is the deflection capped by a fold at b sqrt(2 ln(F/m)) (docs/physics.md derives both); "
+            "`deflection_law_px` is the small-slope closed form of the deflection, divided by the "
+            "convex base's magnification m; "
+            "`visibility_law_px` is the deflection capped by a fold at b sqrt(2 ln(F/m)) "
+            "(docs/physics.md derives both); "
             "`fold_ratio` > 1 predicts a fold. `law_vs_simulation.png` plots every case."
         ),
         "",
@@ -543,14 +582,17 @@ def _laws_section(rows: Sequence[Mapping]) -> list[str]:
     predicted = [r for r in rows if (r["fold_ratio"] or 0.0) > 1.0]
     agree = sum(((r["fold_ratio"] or 0.0) > 1.0) == r["folded"] for r in rows)
     lines.append(
-        f"- Fold onset: the law predicts {len(predicted)} folded cases; it agrees with the `folded` flag in "
+        f"- Fold onset: the law predicts {len(predicted)} folded cases; it agrees with the "
+        "`folded` flag in "
         f"{agree} of {len(rows)} cases."
     )
     for surface in [s for s in dict.fromkeys(r["surface"] for r in rows) if _magnifies(s)]:
         lines.append(
             f"- Where the {surface}'s law breaks: the worst deflection error per θ is "
-            f"{law_by_theta(rows, surface)}. At grazing views the dent's flank facing the camera is seen at "
-            "the local elevation θ + z/R, a large change when σ/R is comparable to θ, and m (∝ 1/sin θ) is "
+            f"{law_by_theta(rows, surface)}. At grazing views the dent's flank facing the camera "
+            "is seen at "
+            "the local elevation θ + z/R, a large change when σ/R is comparable to θ, and m (∝ "
+            "1/sin θ) is "
             "then far from its value at the gaze point. The law holds where σ/R ≪ θ."
         )
     lines.append("")
@@ -564,18 +606,23 @@ def _folds_section(rows: Sequence[Mapping]) -> list[str]:
         return lines + ["Nowhere.", ""]
     lines += [
         (
-            f"{len(folded)} of {len(rows)} cases fold. There the paper's metric measures what a viewer sees, the band the "
-            "fold leaves the contours, not how far the rays move (`deflection_px`); islands cut off by the fold are counted, "
+            f"{len(folded)} of {len(rows)} cases fold. There the paper's metric measures what a "
+            "viewer sees, the band the "
+            "fold leaves the contours, not how far the rays move (`deflection_px`); islands cut "
+            "off by the fold are counted, "
             "not measured."
         ),
         "",
-        "| surface | θ | σ² | dmax | fold ratio | paper px | limit px | law px | deflection px | islands |",
+        "| surface | θ | σ² | dmax | fold ratio | paper px | limit px | law px | deflection px | "
+        "islands |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in folded:
         lines.append(
-            f"| {r['surface']} | {r['theta_deg']:g} | {r['sigma2_mm2']:g} | {um(r['dmax_mm'])} | {r['fold_ratio']:.2f} "
-            f"| {r['visibility_px']:g} | {r['visibility_continuous_px']:.2f} | {r['visibility_law_px']:.2f} "
+            f"| {r['surface']} | {r['theta_deg']:g} | {r['sigma2_mm2']:g} | {um(r['dmax_mm'])} | "
+            f"{r['fold_ratio']:.2f} "
+            f"| {r['visibility_px']:g} | {r['visibility_continuous_px']:.2f} | "
+            f"{r['visibility_law_px']:.2f} "
             f"| {r['deflection_px']:.2f} | {r['islands']} |"
         )
     return lines + [""]
@@ -589,21 +636,27 @@ def _notes(rows: Sequence[Mapping], plan) -> list[str]:
         "## Notes",
         "",
         (
-            f"- The paper's metric counts whole pixels at {len(plan.metric.phases(2.0))} phases per 2 mm period: it differs "
-            f"from its continuous limit by at most {gap:.2f} px here. Where the limit is below a pixel (the sphere at low "
+            f"- The paper's metric counts whole pixels at {len(plan.metric.phases(2.0))} phases "
+            "per 2 mm period: it differs "
+            f"from its continuous limit by at most {gap:.2f} px here. Where the limit is below a "
+            "pixel (the sphere at low "
             "θ), the paper's metric reads 1 px or 0 px and cannot rank the dents; the limit can."
         ),
         (
-            f"- Pixels where the defect-free stripes span fewer than {plan.metric.min_period_px:g} px per period are left out "
-            f"of the contours (aliasing; see `glshade.metrics.visibility.resolved_mask`); at most {unresolved:.1%} of a case's "
+            "- Pixels where the defect-free stripes span fewer than "
+            f"{plan.metric.min_period_px:g} px per period are left out "
+            "of the contours (aliasing; see `glshade.metrics.visibility.resolved_mask`); at most "
+            f"{unresolved:.1%} of a case's "
             "kept pixels were."
         ),
     ]
     if mostly:
         kinds = ", ".join(sorted({r["surface"] for r in mostly}))
         lines.append(
-            f"- **{len(mostly)} cases ({kinds}) are mostly not resolved** at {plan.size}×{plan.size}: their stripes span "
-            f"fewer than {plan.metric.min_period_px:g} px per period, so their paper metric measures next to nothing; "
+            f"- **{len(mostly)} cases ({kinds}) are mostly not resolved** at "
+            f"{plan.size}×{plan.size}: their stripes span "
+            f"fewer than {plan.metric.min_period_px:g} px per period, so their paper metric "
+            "measures next to nothing; "
             "use a larger --size (the paper's is 1024)."
         )
     lines += ["- `results.csv` holds every case; the figures below were drawn from it.", ""]

@@ -1,4 +1,5 @@
-"""What the paper's study sweeps (the paper's Table 1): the grid of cases, what a case is and its key.
+"""What the paper's study sweeps (the paper's Table 1): the grid of cases, what a case is
+and its key.
 No GL here: plans are made, validated and split anywhere (a Dask client included)."""
 
 from __future__ import annotations

@@ -101,7 +101,8 @@ def image_grid(
     fig.text(
         0.5,
         0.01,
-        "Below each image: the paper's visibility (px, whole pixels) and its continuous limit (px); "
+        "Below each image: the paper's visibility (px, whole pixels) and its continuous limit "
+        "(px); "
         "'folds': the stripe map folds.",
         ha="center",
         fontsize=8,

@@ -6,7 +6,8 @@ the 8 (σ², dmax) cases of that geometry, which changes no number (a case is a 
 function of its scene and the metric settings; ``tests/test_study.py`` checks the rows
 against :func:`glshade.measure`). The cases run through the sweep engine
 (:mod:`glshade.measure.engine`, the machinery of ``glshade sweep`` too): the GL work stays on
-the calling thread; the analysis runs in ``workers`` threads. What is swept is :mod:`glshade.study.plan`; what is written,
+the calling thread; the analysis runs in ``workers`` threads. What is swept is
+:mod:`glshade.study.plan`; what is written,
 and resumed from, :mod:`glshade.study.store`.
 """
 
@@ -114,7 +115,8 @@ def run_study(
 ) -> StudyResult:
     """Run (or resume) the study into ``out_dir``; returns every case's record.
 
-    The directory is locked for the run (:func:`glshade.measure.locks.run_lock`: a second run on it is
+    The directory is locked for the run (:func:`glshade.measure.locks.run_lock`: a second
+    run on it is
     refused); a directory holding another plan is refused unless ``overwrite``, which
     removes the old study's files first (:func:`store.prepare_out_dir`).
 

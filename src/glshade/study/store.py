@@ -183,8 +183,10 @@ def prepare_out_dir(out_dir: Path, manifest_data: dict, overwrite: bool = False)
     if stored is not None and stored != manifest_data:
         if not overwrite:
             raise GlshadeError(
-                f"--out {out_dir}: holds a study with another plan ({_difference(stored, manifest_data)}); rerun "
-                "with the same settings to resume it, add --overwrite to replace it, or choose another --out"
+                f"--out {out_dir}: holds a study with another plan "
+                f"({_difference(stored, manifest_data)}); rerun "
+                "with the same settings to resume it, add --overwrite to replace it, or choose "
+                "another --out"
             )
         removed = _remove_stale(
             out_dir,

@@ -1,1 +1,2 @@
-"""Sweeps over any scene key, in-process or on Dask, and the viewpoint optimiser (docs/sweeps.md)."""
+"""Sweeps over any scene key, in-process or on Dask, and the viewpoint optimiser
+(docs/sweeps.md)."""

@@ -9,7 +9,8 @@ size = 256                     # optional: pixels across, the base camera's fiel
 "defect.sigma2" = { start = 1.0, stop = 16.0, num = 4 }      # inclusive, start < stop
 "camera.azimuth_deg" = { start = 0.0, stop = 90.0, step = 30.0 }
 surface = [ { label = "flat", "surface.kind" = "flat" },        # a linked axis: each entry
-            { label = "sphere", "surface.kind" = "sphere", "emitter.period" = 10.0 } ]  # sets several keys
+            { label = "sphere", "surface.kind" = "sphere", "emitter.period" = 10.0 } ]
+                                                                # sets several keys
 [metric]                       # optional: MetricSettings (step_mm, threshold, ...)
 step_mm = 0.25
 [output]

@@ -73,7 +73,8 @@ def prepare(out_dir: Path, spec: SweepSpec, overwrite: bool = False) -> None:
     if stored is not None and stored != wanted:
         if not overwrite:
             raise GlshadeError(
-                f"--out {out_dir}: holds a sweep of {_difference(stored, wanted)}; rerun the same sweep "
+                f"--out {out_dir}: holds a sweep of {_difference(stored, wanted)}; rerun the same "
+                "sweep "
                 "to resume it, add --overwrite to replace it, or choose another --out"
             )
         _remove(out_dir)

@@ -76,7 +76,8 @@ def report(
     reference = timings[-1].seconds
     fp32 = timings[0].seconds
     lines = [
-        f"Scene: paper flat, theta {theta_deg:g} deg, sigma2 4 mm², dmax 0.005 mm, {size}x{size}, image only.",
+        f"Scene: paper flat, theta {theta_deg:g} deg, sigma2 4 mm², dmax 0.005 mm, "
+        f"{size}x{size}, image only.",
         (
             f"GL renderer: {gl_renderer}; CPU: {platform.processor() or platform.machine()}; "
             f"median of {repeats} frames after a warm-up."

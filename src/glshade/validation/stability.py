@@ -103,7 +103,8 @@ def cases() -> list[Case]:
             "covariance condition 1e6",
             "covariance",
             _with(flat, defect=near_singular),
-            "a ridge 1.4 µm wide with slope 3.5: 1e-7 mm of fp32 position error tilts the normal by "
+            "a ridge 1.4 µm wide with slope 3.5: 1e-7 mm of fp32 position error tilts the normal "
+            "by "
             "2.5e-4 rad; use fp64",
             uv_tolerance_fp32=2e-2,
         )

@@ -46,7 +46,8 @@ def run(options: ViewerOptions) -> dict:
         from imgui_bundle import imgui  # noqa: F401
     except ImportError as exc:
         raise GlshadeError(
-            f'the viewer needs the viewer extra ({exc.name} is missing): pip install "glshade[viewer]"'
+            f"the viewer needs the viewer extra ({exc.name} is missing): "
+            'pip install "glshade[viewer]"'
         ) from None
     _check_display()
     from glshade.app.viewer import window
@@ -56,7 +57,8 @@ def run(options: ViewerOptions) -> dict:
     except Exception as exc:  # pyglet's display errors have no common importable base
         if type(exc).__name__ in _DISPLAY_ERRORS:
             raise GlshadeError(
-                f"the viewer cannot open a window ({' '.join(str(exc).split())}); {_NO_DISPLAY_HINT}"
+                f"the viewer cannot open a window ({' '.join(str(exc).split())}); "
+                f"{_NO_DISPLAY_HINT}"
             ) from None
         raise
 

@@ -47,7 +47,8 @@ class FinishTable(Table):
     )  # fmt: skip
     wavelength_um: float = param(
         "render.wavelength_um", "µm", 0.55, "paper eq. (1): wavelength lambda of the light",
-        lo=0.0, flag="--wavelength", plausible_max=20.0, plausible_why="beyond the thermal infrared",
+        lo=0.0, flag="--wavelength", plausible_max=20.0,
+        plausible_why="beyond the thermal infrared",
     )  # fmt: skip
 
 

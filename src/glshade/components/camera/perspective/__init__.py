@@ -39,7 +39,10 @@ from glshade.components.camera.perspective.table import Camera
 
 class Perspective(CameraComponent):
     name = "perspective"
-    doc = "a pinhole or a thin lens at the principal point, looking at the origin, with OpenCV distortion"
+    doc = (
+        "a pinhole or a thin lens at the principal point, looking at the origin, with OpenCV "
+        "distortion"
+    )
     table = Camera
 
     def features(self, scene):

@@ -102,7 +102,8 @@ def check_distortion(values: dict) -> None:
         angle = math.degrees(math.atan(where))
         raise SceneError(
             "camera.distortion",
-            f"coefficients whose map does not fold inside the sensor (this one folds {angle:.1f}° off the axis, "
+            f"coefficients whose map does not fold inside the sensor (this one folds {angle:.1f}° "
+            "off the axis, "
             "where two directions would land on one pixel)",
             list(coeffs),
         )
@@ -119,7 +120,8 @@ def focus_distance(camera) -> float:
 
 
 def aperture_points(count: int) -> np.ndarray:
-    """Vogel's spiral on the unit disc: (count, 2), ``r = sqrt((k + 1/2)/count)``, ``φ = k · golden angle``."""
+    """Vogel's spiral on the unit disc: (count, 2), ``r = sqrt((k + 1/2)/count)``,
+    ``φ = k · golden angle``."""
     k = np.arange(count, dtype=np.float64)
     r = np.sqrt((k + 0.5) / count)
     phi = k * GOLDEN_ANGLE

@@ -1,5 +1,6 @@
 """A dielectric's Fresnel reflectance (a clear coat: n = 1.5): the library's
-``fresnel.glsl`` with ``k = 0``; table :class:`~glshade.components.fresnel.reflectance.IndexTable`."""
+``fresnel.glsl`` with ``k = 0``; table
+:class:`~glshade.components.fresnel.reflectance.IndexTable`."""
 
 from __future__ import annotations
 

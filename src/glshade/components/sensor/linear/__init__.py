@@ -36,7 +36,10 @@ def noise_key(scene, exposure: int) -> list[int]:
 
 class LinearSensor(SensorComponent):
     name = "linear"
-    doc = "photon (Poisson) and read noise, full well and quantisation, when a [sensor] table is given"
+    doc = (
+        "photon (Poisson) and read noise, full well and quantisation, when a [sensor] table "
+        "is given"
+    )
     table = Sensor
 
     def read_file(self, values, current=None):

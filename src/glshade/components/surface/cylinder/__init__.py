@@ -1,7 +1,8 @@
 """The cylinder of signed radius R, its axis along z (in the plane of incidence) or x.
 
 Table: :class:`CylinderTable` (the radius and the axis). GLSL: ``lib/quadric.glsl`` and
-``cylinder.glsl`` (the axis is a feature: only its branch is compiled). Oracle: the sag form across the axis, a slab domain.
+``cylinder.glsl`` (the axis is a feature: only its branch is compiled). Oracle: the sag
+form across the axis, a slab domain.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ class CylinderTable(QuadricTable):
     """The radius and the axis of a cylinder."""
 
     axis: str = param(
-        "surface.axis", "", "z", "the cylinder's axis: z (in the plane of incidence) or x (across it)",
+        "surface.axis", "", "z",
+        "the cylinder's axis: z (in the plane of incidence) or x (across it)",
         value_type="choice", choices=("z", "x"), role="feature", flag="--axis",
     )  # fmt: skip
 

@@ -3,8 +3,9 @@
 
 The expression is checked and rebuilt by :mod:`.grammar` (never evaluated as text); its
 GLSL (``f``, ``f_x``, ``f_z``, printed by SymPy) is a template variable of
-``formula.glsl``, so each formula compiles one program, and its parameters are uniforms. The first hit is a march that cannot pass the first crossing (the
-library's ``freeform.glsl``), bracketed by the slab ``lo <= y - f <= hi`` and driven by a
+``formula.glsl``, so each formula compiles one program, and its parameters are uniforms.
+The first hit is a march that cannot pass the first crossing (the library's
+``freeform.glsl``), bracketed by the slab ``lo <= y - f <= hi`` and driven by a
 bound ``K`` on ``|f''|`` along horizontal directions. ``lo``, ``hi`` and ``K`` come from
 the formula and its exact Hessian sampled on a 129 x 129 grid over the region the
 camera sees (plus margins); they are sample bounds, not interval bounds (documented in
@@ -51,7 +52,8 @@ class FormulaTable(Table):
         value_type="text", role="feature",
     )  # fmt: skip
     parameters: tuple[tuple[str, float], ...] = param(
-        "surface.parameters", "", (), "named numbers the expression uses, e.g. { a = 0.002, b = 5.0 }",
+        "surface.parameters", "", (),
+        "named numbers the expression uses, e.g. { a = 0.002, b = 5.0 }",
         value_type="table",
     )  # fmt: skip
 
