@@ -83,10 +83,3 @@ def parse_quantity(text: str, unit: str, field: str) -> float:
         allowed = ", ".join(sorted(set(factors))) if factors else "none (a bare number)"
         raise SceneError(field, f"{examples(unit)} (units: {allowed})", text)
     return number * factor
-
-
-def format_length_mm(value_mm: float) -> str:
-    """A length for people: µm below 0.1 mm (``0.005`` -> ``5 µm``), else mm."""
-    if value_mm != 0 and abs(value_mm) < 0.1:
-        return f"{value_mm * 1e3:g} µm"
-    return f"{value_mm:g} mm"

@@ -28,8 +28,9 @@ UV_TOLERANCE = {"fp32": 5e-4, "fp64": 1e-6}
 
 
 @dataclass(frozen=True)
-class Case:
-    """``uv_tolerance_fp32``: a documented limit, where fp32 cannot meet the default
+class Extreme:
+    """One stiff or extreme scene of the stability matrix. ``uv_tolerance_fp32``: a
+    documented limit, where fp32 cannot meet the default
     (the reason in ``note``)."""
 
     name: str
@@ -48,14 +49,14 @@ def _with(scene: Scene, **tables) -> Scene:
     return replace(scene, **tables)
 
 
-def cases() -> list[Case]:
+def cases() -> list[Extreme]:
     flat = paper_scene("flat", 45.0, 4.0, 0.005)
     sphere = paper_scene("sphere", 45.0, 4.0, 0.005)
     cylinder = paper_scene("cylinder", 45.0, 4.0, 0.005)
     out = []
     for theta in (0.5, 1.0, 2.0, 89.0, 89.9):
-        out.append(Case(f"flat theta {theta:g}", "view", flat.updated(camera={"theta_deg": theta})))
-    out.append(Case("sphere theta 1", "view", sphere.updated(camera={"theta_deg": 1.0})))
+        out.append(Extreme(f"flat theta {theta:g}", "view", flat.updated(camera={"theta_deg": theta})))
+    out.append(Extreme("sphere theta 1", "view", sphere.updated(camera={"theta_deg": 1.0})))
     for sigma2, dmax in (
         (0.01, 0.005),
         (0.01, 0.5),
@@ -66,24 +67,24 @@ def cases() -> list[Case]:
         (1.0, 0.02),
     ):
         out.append(
-            Case(
+            Extreme(
                 f"flat sigma2 {sigma2:g} dmax {dmax:g}",
                 "dent",
                 flat.updated(defect={"sigma2": sigma2, "dmax": dmax}),
             )
         )
     out.append(
-        Case(
+        Extreme(
             "flat bump dmax -0.5 sigma2 1",
             "dent",
             flat.updated(defect={"sigma2": 1.0, "dmax": -0.5}),
         )
     )
     out.append(
-        Case("flat bump dmax -1e-6", "dent", flat.updated(defect={"sigma2": 4.0, "dmax": -1e-6}))
+        Extreme("flat bump dmax -1e-6", "dent", flat.updated(defect={"sigma2": 4.0, "dmax": -1e-6}))
     )
     out.append(
-        Case(
+        Extreme(
             "grazing steep bump",
             "dent",
             flat.updated(camera={"theta_deg": 2.0}, defect={"sigma2": 0.25, "dmax": -0.05}),
@@ -91,7 +92,7 @@ def cases() -> list[Case]:
         )
     )
     out.append(
-        Case(
+        Extreme(
             "folding: steep dent at 5 deg",
             "dent",
             flat.updated(camera={"theta_deg": 5.0}, defect={"sigma2": 0.05, "dmax": 0.02}),
@@ -99,7 +100,7 @@ def cases() -> list[Case]:
     )
     near_singular = Defect(dmax=0.005, sigma_x2=1.0, sigma_z2=1.0, sigma_xz=1.0 - 1e-6)
     out.append(
-        Case(
+        Extreme(
             "covariance condition 1e6",
             "covariance",
             _with(flat, defect=near_singular),
@@ -110,7 +111,7 @@ def cases() -> list[Case]:
         )
     )
     out.append(
-        Case(
+        Extreme(
             "defect far off axis",
             "covariance",
             flat.updated(defect={"x0": 12.0, "z0": -9.0}),
@@ -118,7 +119,7 @@ def cases() -> list[Case]:
         )
     )
     out.append(
-        Case(
+        Extreme(
             "sphere, defect far off axis",
             "covariance",
             sphere.updated(defect={"x0": 10.0, "z0": 8.0}),
@@ -126,20 +127,20 @@ def cases() -> list[Case]:
     )
     for radius in (5.0, -5.0, 1e5, -1e5):
         out.append(
-            Case(f"sphere R {radius:g}", "radius", sphere.updated(surface={"radius": radius}))
+            Extreme(f"sphere R {radius:g}", "radius", sphere.updated(surface={"radius": radius}))
         )
         out.append(
-            Case(f"cylinder R {radius:g}", "radius", cylinder.updated(surface={"radius": radius}))
+            Extreme(f"cylinder R {radius:g}", "radius", cylinder.updated(surface={"radius": radius}))
         )
     out.append(
-        Case(
+        Extreme(
             "cylinder x-axis R 5 at 15 deg",
             "radius",
             cylinder.updated(surface={"radius": 5.0, "axis": "x"}, camera={"theta_deg": 15.0}),
         )
     )
     out.append(
-        Case(
+        Extreme(
             "sphere R 20 at 5 deg (silhouette)",
             "silhouette",
             sphere.updated(surface={"radius": 20.0}, camera={"theta_deg": 5.0}),
@@ -148,17 +149,17 @@ def cases() -> list[Case]:
         )
     )
     out.append(
-        Case(
+        Extreme(
             "concave bowl R -20 at 30 deg",
             "silhouette",
             sphere.updated(surface={"radius": -20.0}, camera={"theta_deg": 30.0}),
         )
     )
     out.append(
-        Case("tiny emitter 0.5 mm", "emitter", flat.updated(emitter={"half_size": [0.5, 0.5]}))
+        Extreme("tiny emitter 0.5 mm", "emitter", flat.updated(emitter={"half_size": [0.5, 0.5]}))
     )
     out.append(
-        Case(
+        Extreme(
             "emitter edge-on (sphere R 5 at 85 deg)",
             "emitter",
             sphere.updated(surface={"radius": 5.0}, camera={"theta_deg": 85.0}),
@@ -199,7 +200,7 @@ OUTPUTS = ("image", "uv", "mask", "distance", "iterations")
 
 
 def check(
-    renderer: Renderer, case: Case, view: str, precision: str, scene: Scene | None = None
+    renderer: Renderer, case: Extreme, view: str, precision: str, scene: Scene | None = None
 ) -> Check:
     scene = (scene or views(case.scene)[view]).updated(render={"precision": precision})
     frame: Frame = renderer.render(scene, OUTPUTS)
