@@ -1,5 +1,6 @@
 """Per-frame time of the renderer: a 512² uv frame (GPU-bound) and a 16² frame (the CPU
-work around a draw: scene, features, uniforms, read-back). docs/BENCHMARKS.md, issue 9.
+work around a draw: scene, features, uniforms, read-back). docs/BENCHMARKS.md,
+"The component registry".
 
     python benchmarks/frame_overhead.py
 """
@@ -30,7 +31,8 @@ def main() -> None:
             renderer.render(small.with_phase(i * 0.001))
         overhead = (time.perf_counter() - start) / 300
     print(
-        f"512² uv frame: median {statistics.median(times) * 1e3:.2f} ms; 16² frame: mean {overhead * 1e6:.0f} µs"
+        f"512² uv frame: median {statistics.median(times) * 1e3:.2f} ms; 16² frame: mean "
+        f"{overhead * 1e6:.0f} µs"
     )
 
 

@@ -15,8 +15,8 @@ import time
 import numpy as np
 
 from glshade.gpu.renderer import Renderer
-from glshade.metrics.continuous import StripeLevels, visibility_limit
 from glshade.measure.single import emitter_map
+from glshade.metrics.continuous import StripeLevels, visibility_limit
 from glshade.metrics.visibility import Baseline
 from glshade.scene import paper_scene
 

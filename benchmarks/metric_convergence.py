@@ -1,9 +1,10 @@
-"""The paper's metric converges to its continuous limit (SPEC §6): the paper's
+"""The paper's metric converges to its continuous limit: the paper's
 ``visibility_px`` at finer phase steps and finer sensors, in pixels of the paper's 1024²
 camera, beside ``visibility_continuous_px`` computed at each size, on cases that fold and
 cases that do not.
 
-    python benchmarks/metric_convergence.py [--out docs/metric_convergence.md] [--sizes 512,1024,2048,4096]
+    python benchmarks/metric_convergence.py [--out docs/metric_convergence.md]
+        [--sizes 512,1024,2048,4096]
 
 Writes the Markdown table (and prints it). About 5 minutes on the 2-core CPU machine.
 """
@@ -17,8 +18,8 @@ from pathlib import Path
 
 from glshade.files import atomic_write_bytes
 from glshade.gpu.renderer import Renderer
-from glshade.metrics import physics
 from glshade.measure.single import emitter_map
+from glshade.metrics import physics
 from glshade.metrics.visibility import Baseline, MetricSettings
 from glshade.scene import paper_scene
 
@@ -63,7 +64,8 @@ def table(results: dict, sizes: list[int]) -> list[str]:
         lines += [
             f"### {scene.title()} ({folded})",
             "",
-            f"Closed forms: deflection {law.deflection_px:.2f} px, visible {law.visibility_px:.2f} px.",
+            f"Closed forms: deflection {law.deflection_px:.2f} px, visible "
+            f"{law.visibility_px:.2f} px.",
             "",
             "| size | "
             + " | ".join(f"paper, step {s:g} mm" for s in steps)
@@ -78,7 +80,8 @@ def table(results: dict, sizes: list[int]) -> list[str]:
         gap = abs(finest["paper"][steps[-1]] - finest["limit"])
         lines += [
             "",
-            f"At {sizes[-1]}² and the finest step the paper's metric is {gap:.2f} px from the limit "
+            f"At {sizes[-1]}² and the finest step the paper's metric is {gap:.2f} px from the "
+            "limit "
             f"(one pixel of that sensor is {1024 / sizes[-1]:.2f} px here).",
             "",
         ]
@@ -104,18 +107,26 @@ def main() -> None:
         "# The paper's metric converges to its continuous limit",
         "",
         "`visibility_px` is the paper's metric: whole pixels of the sensor, phases `step` apart. "
-        "`visibility_continuous_px` is its limit for a vanishing phase step and pixel size, by the same contour "
-        "rules (SPEC §6; `glshade.metrics.continuous`). Every number here is in pixels of the paper's 1024² camera "
+        "`visibility_continuous_px` is its limit for a vanishing phase step and pixel size, by "
+        "the same contour "
+        "rules (`glshade.metrics.continuous`). Every number here is in pixels of the "
+        "paper's 1024² camera "
         "(a result at N² is multiplied by 1024/N), so the columns can be compared directly.",
         "",
-        "What to read: down each column the paper's metric approaches the limit as the sensor gets finer (its "
-        "quantisation is one pixel of that sensor); along each row a finer phase step samples more stripe "
-        "positions, so it can only find a larger distance, overshooting the limit by up to a pixel of the sensor; "
-        "the limit itself barely moves with the size (it is computed from the emitter maps with sub-pixel "
-        "contours). On cases that fold the limit is the fold's cap, far below the deflection; on cases that do not "
+        "What to read: down each column the paper's metric approaches the limit as the sensor "
+        "gets finer (its "
+        "quantisation is one pixel of that sensor); along each row a finer phase step samples "
+        "more stripe "
+        "positions, so it can only find a larger distance, overshooting the limit by up to a "
+        "pixel of the sensor; "
+        "the limit itself barely moves with the size (it is computed from the emitter maps with "
+        "sub-pixel "
+        "contours). On cases that fold the limit is the fold's cap, far below the deflection; on "
+        "cases that do not "
         "it equals the deflection.",
         "",
-        f"Command: `python benchmarks/metric_convergence.py` ({seconds:.0f} s on the 2-core CPU machine, llvmpipe).",
+        f"Command: `python benchmarks/metric_convergence.py` ({seconds:.0f} s on the 2-core CPU "
+        "machine, llvmpipe).",
         "",
         *table(results, sizes),
     ]

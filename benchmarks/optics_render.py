@@ -1,4 +1,4 @@
-"""Render time of the optics of issue 12 at 1024² (docs/BENCHMARKS.md).
+"""Render time of the optics (lens, lobes, Fresnel, sensor) at 1024² (docs/BENCHMARKS.md).
 
 The paper's flat plate at θ 45 with its dent, image output: the pinhole mirror, the thin
 lens against its aperture samples, the microfacet lobe against the integration method and

@@ -105,12 +105,14 @@ def main() -> None:
                 print(f"{surface} {precision} done ({time.time() - start:.0f} s)", file=sys.stderr)
     print(
         "| surface | precision | max uv error (mm) | at | as nominal stripe shift (px) "
-        "| uv error ≥ 2 px inside the mask (mm) | max image error | mask disagreements / pixels compared |"
+        "| uv error ≥ 2 px inside the mask (mm) | max image error | mask disagreements / pixels "
+        "compared |"
     )
     print("|---|---|---:|---|---:|---:|---:|---:|")
     for (surface, precision), a in worst.items():
         print(
-            f"| {surface} | {precision} | {a['uv']:.2e} | {a['at']} | {a['uv'] / NOMINAL_MM_PER_PX:.4f} | {a['inner']:.2e} "
+            f"| {surface} | {precision} | {a['uv']:.2e} | {a['at']} | "
+            f"{a['uv'] / NOMINAL_MM_PER_PX:.4f} | {a['inner']:.2e} "
             f"| {a['image']:.1e} | {a['mismatch']} / {a['compared']} |"
         )
     print(

@@ -46,7 +46,8 @@ def main() -> None:
             per_case = sum(seconds) / len(seconds)
             total += per_case * CASES_PER_SURFACE
             print(
-                f"{surface}: {per_case:.2f} s per case (measured at θ {', '.join(f'{t:g}' for t in SUBSET_THETAS)}), "
+                f"{surface}: {per_case:.2f} s per case (measured at θ "
+                f"{', '.join(f'{t:g}' for t in SUBSET_THETAS)}), "
                 f"x {CASES_PER_SURFACE} cases = {per_case * CASES_PER_SURFACE:.0f} s"
             )
     print(f"naive loop, extrapolated to the 216 cases: {total:.0f} s")

@@ -1,4 +1,4 @@
-"""Cases per second of sweeps, in-process against Dask (docs/BENCHMARKS.md, issue 13).
+"""Cases per second of sweeps, in-process against Dask (docs/BENCHMARKS.md).
 
 1. The paper's study (``examples/paper_study.toml``, 216 cases) at ``--size`` pixels:
    in this process (2 analysis threads) and on a LocalCluster of ``--workers`` single-
@@ -24,9 +24,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from glshade.process import reuse_freed_memory
 from glshade.measure.cluster import DaskExecutor
 from glshade.measure.executors import Distribution, LocalExecutor
+from glshade.process import reuse_freed_memory
 from glshade.sweep.run import run_sweep
 from glshade.sweep.spec import load_spec, spec_from_dict
 

@@ -9,6 +9,7 @@ import sys
 import numpy as np
 import pytest
 
+from glshade.components.reflection.blinn_phong.accuracy import monte_carlo
 from glshade.oracle import tracer as reference
 from glshade.scene import paper_scene
 from glshade.validation import accuracy
@@ -26,16 +27,16 @@ def test_pareto_front_ignores_noise_and_keeps_tradeoffs():
     assert front == {"fast, coarse", "slow, fine", "same as fast within noise"}
 
 
-def test_monte_carlo_converges_to_the_quadrature():
+def test_monte_carlo_converges_to_the_quadrature(renderer, tmp_path):
     scene = (
         paper_scene("flat", 45.0, 4.0, 0.005)
         .with_size(6)
         .updated(render={"reflection": "blinn-phong", "shininess": 1e5})
     )
     truth = reference.trace(scene, ("image", "mask"))
+    bench = accuracy.Bench(renderer, 6, 1, ("flat",), tmp_path, print)
     errors = [
-        np.abs(accuracy.blinn_phong_monte_carlo(scene, n) - truth.image)[truth.mask].max()
-        for n in (16, 1024)
+        np.abs(monte_carlo(bench, scene, n) - truth.image)[truth.mask].max() for n in (16, 1024)
     ]
     assert errors[1] < errors[0] and errors[1] < 0.05
 
@@ -69,6 +70,7 @@ def test_accuracy_command_reduced(tmp_path):
         "## Per case",
         "## Blinn-Phong",
         "## Microfacet lobes",
+        "## Height maps",
         "## Defaults, and why",
         "## Stability on stiff and extreme cases",
         "## Documented limits",

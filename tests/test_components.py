@@ -289,7 +289,8 @@ def test_no_component_name_is_branched_on_outside_the_components():
     """``grep`` for ``== "cylinder"`` and friends: only components and the registry may
     know a component by its name."""
     names = {c.name for c in COMPONENTS}
-    pattern = re.compile(r"""(==|!=)\s*["'](%s)["']""" % "|".join(map(re.escape, names)))
+    alternatives = "|".join(map(re.escape, names))
+    pattern = re.compile(rf"""(==|!=)\s*["']({alternatives})["']""")
     root = Path(__file__).resolve().parents[1] / "src" / "glshade"
     offenders = [
         f"{path.relative_to(root)}:{n}"

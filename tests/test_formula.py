@@ -14,13 +14,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from glshade.components.registry import registry
-from glshade.errors import SceneError
 from glshade.components.surface.formula.grammar import (
     MAX_LENGTH,
     FormulaError,
     check_parameter_name,
     parse_formula,
 )
+from glshade.errors import SceneError
 from glshade.scene import paper_scene
 
 POINTS = np.array([[-3.0, -2.0], [-0.5, 1.5], [0.0, 0.0], [0.7, -4.0], [2.5, 3.25]])

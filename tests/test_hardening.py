@@ -30,9 +30,9 @@ from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
 from glshade.files import atomic_write_bytes, check_output, write_image
 from glshade.gpu import renderer as renderer_module
+from glshade.oracle.advice import scene_warnings
 from glshade.oracle.footprint import footprint_mm
 from glshade.scene import Scene, paper_scene
-from glshade.oracle.advice import scene_warnings
 from glshade.study.plan import StudyPlan
 from glshade.study.run import run_study
 from glshade.study.store import read_results_csv

@@ -14,13 +14,13 @@ import tifffile
 import x3pio
 
 from glshade.components.surface.heightmap import readers as heightmap_io
-from glshade.errors import SceneError
 from glshade.components.surface.heightmap.readers import (
     HeightMap,
     cached_height_map,
     load_height_map,
     read_height_map,
 )
+from glshade.errors import SceneError
 
 # 5 rows (along z) x 6 columns (along x), every sample different: an orientation check.
 MAP = np.arange(30, dtype=np.float64).reshape(5, 6) * 0.001

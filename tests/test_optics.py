@@ -204,7 +204,7 @@ def test_microfacet_lobes_agree_with_monte_carlo(renderer, lobe):
     )
     rows, cols = slice(14, 18), slice(12, 20)
     parts, p, d, n = _hits(scene, rows, cols)
-    mean, error = parts.reflection._monte_carlo(scene, p, d, n, 1 << 16, 11)
+    mean, error = parts.reflection.monte_carlo(scene, p, d, n, 1 << 16, 11)
     assert 0.05 < mean.max() - mean.min()  # the stripes are still there
     closed = renderer.render(scene).image[rows, cols].ravel()
     assert np.abs(closed - mean).max() < 4 * error.max() + 1e-3

@@ -6,9 +6,9 @@ import math
 
 import pytest
 
+from glshade.measure.single import emitter_map, measure_scene
 from glshade.metrics import physics
 from glshade.metrics.continuous import deflection, fold_columns
-from glshade.measure.single import emitter_map, measure_scene
 from glshade.metrics.visibility import kept_columns
 from glshade.scene import paper_scene
 from glshade.study.plan import PAPER_DMAXS, PAPER_SIGMA2S, PAPER_THETAS

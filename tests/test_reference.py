@@ -267,7 +267,10 @@ def test_normals_match_finite_differences_with_anisotropic_defect():
     t, p, n, valid = ref.first_hit(scene, origin, d)
     assert valid.all()
     x, z, eps = p[..., 0], p[..., 2], 1e-5
-    height = lambda x, z: ref.surface_height(scene.surface, scene.defect, x, z)
+
+    def height(x, z):
+        return ref.surface_height(scene.surface, scene.defect, x, z)
+
     hx = (height(x + eps, z) - height(x - eps, z)) / (2 * eps)
     hz = (height(x, z + eps) - height(x, z - eps)) / (2 * eps)
     expected = np.stack([-hx, np.ones_like(hx), -hz], axis=-1)
@@ -392,9 +395,10 @@ def test_supersampling_is_the_mean_of_a_finer_camera():
     fine = base.with_size(32)
     a = ref.trace(coarse)
     b = ref.trace(fine)
-    blocks = lambda x: (
-        x.reshape(16, 2, 16, 2, *x.shape[2:]).swapaxes(1, 2).reshape(16, 16, 4, *x.shape[2:])
-    )
+
+    def blocks(x):
+        return x.reshape(16, 2, 16, 2, *x.shape[2:]).swapaxes(1, 2).reshape(16, 16, 4, *x.shape[2:])
+
     np.testing.assert_allclose(a.image, blocks(b.image).mean(axis=2), atol=1e-13)
     count = blocks(b.mask).sum(axis=2)
     assert ((count > 0) & (count < 4)).sum() >= 4  # partially covered pixels exist

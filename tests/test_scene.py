@@ -38,12 +38,12 @@ def test_geometry_follows_spec():
     forward, right, up = s.camera.basis()
     assert right == pytest.approx([1, 0, 0])
     assert up == pytest.approx([0, math.sqrt(3) / 2, -0.5])
-    frame = s.emitter_frame()
-    assert frame.centre == pytest.approx(
+    plane = s.emitter_plane()
+    assert plane.centre == pytest.approx(
         256 * __import__("numpy").array([0, 0.5, -math.sqrt(3) / 2])
     )
-    assert frame.normal @ frame.e_v == pytest.approx(0.0)
-    assert frame.centre @ frame.e_v == pytest.approx(0.0, abs=1e-12)
+    assert plane.normal @ plane.e_v == pytest.approx(0.0)
+    assert plane.centre @ plane.e_v == pytest.approx(0.0, abs=1e-12)
 
 
 def test_the_rig_pose_agrees_with_a_look_at_matrix():

@@ -27,14 +27,14 @@ import glshade
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
 from glshade.gpu.egl_cuda import egl_cuda_numbers, egl_index_for_cuda, worker_egl_device
+from glshade.measure.executors import Distribution
+from glshade.measure.where import open_executor
 from glshade.metrics import physics
 from glshade.oracle import tracer
 from glshade.scene import paper_scene
 from glshade.study.plan import StudyPlan
 from glshade.sweep import optimize as opt
 from glshade.sweep import store
-from glshade.measure.executors import Distribution
-from glshade.measure.where import open_executor
 from glshade.sweep.run import run_sweep
 from glshade.sweep.spec import MAX_CASES_UNCONFIRMED, load_spec, spec_from_dict
 

@@ -166,7 +166,7 @@ def test_render_loop_schedule_fills_the_readout_and_drops_no_finished_job():
         finished = [job is not None and job.done() for job in slots]
         model.collect_metrics()
         after = (model._case_job, model._phase_job)
-        for job, was_done, now in zip(slots, finished, after):
+        for job, was_done, now in zip(slots, finished, after, strict=False):
             if was_done:
                 assert now is None  # taken, not left behind or replaced
             if job is not None and now is None:
@@ -182,7 +182,7 @@ def test_render_loop_schedule_fills_the_readout_and_drops_no_finished_job():
             assert model.readout.at_phase_px == result.distance_px
             phases_taken.add(key[1])
         model.start_metrics()
-        for old, new in zip(after, (model._case_job, model._phase_job)):
+        for old, new in zip(after, (model._case_job, model._phase_job), strict=False):
             assert old is None or new is old  # a job in flight is never replaced
         time.sleep(0.002)
     # the loop alone (no wait) filled the readout, and it followed the animation

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, printable

@@ -250,9 +250,9 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_paper(args: argparse.Namespace) -> int:
+    from glshade.measure.locks import run_lock
     from glshade.study import plan as study
     from glshade.study.run import check_workers
-    from glshade.measure.locks import run_lock
 
     check_workers(args.workers)  # before --out is touched
     metric = metric_settings(args)

@@ -13,7 +13,8 @@ plugins, it is one folder (``components/<slot>/<name>/``) that owns:
 - ``uniforms(scene, context)``: every uniform its GLSL declares, computed in float64,
   each named ``u_<slot>_...`` (its slot's namespace);
 - its NumPy float64 oracle: the methods its slot's base class below lists;
-- ``docs.md`` (optional): its paragraph of ``docs/scene-format.md``.
+- ``docs.md`` (optional): its paragraph of ``docs/scene-format.md``;
+- ``accuracy.py`` (optional): its accuracy knob (:meth:`Component.accuracy_knob`).
 
 The renderer, the composer and the tracer ask a scene's :class:`Active` components (the
 scene resolves them once, ``scene.active``); none of them knows a kind by name.
@@ -34,6 +35,7 @@ from glshade.params import Param, Table, declared_params
 from glshade.rig import EmitterPlane
 
 if TYPE_CHECKING:  # the scene's tables, as the components that own them declare them
+    from glshade.components.accuracy import AccuracyKnob
     from glshade.components.camera.perspective.table import Camera
     from glshade.components.defect.gaussian.table import Defect
     from glshade.components.emitter.stripes.table import Emitter
@@ -101,7 +103,7 @@ class SceneView(Protocol):
     @property
     def active(self) -> Active: ...
 
-    def emitter_frame(self) -> EmitterPlane: ...
+    def emitter_plane(self) -> EmitterPlane: ...
 
     def local_origin(self) -> np.ndarray: ...
 
@@ -142,7 +144,9 @@ class Component:
 
     def glsl_folder(self) -> Path:
         """The folder its GLSL file names are relative to."""
-        return self.glsl_dir if self.glsl_dir is not None else Path(inspect.getfile(type(self))).parent
+        return (
+            self.glsl_dir if self.glsl_dir is not None else Path(inspect.getfile(type(self))).parent
+        )
 
     def docs(self) -> str:
         """Its paragraph of ``docs/scene-format.md``: ``docs.md`` beside its module, if any."""
@@ -198,6 +202,11 @@ class Component:
         the identity but for the sensor. ``exposure`` numbers independent exposures of
         the same scene (their noise differs)."""
         return image
+
+    def accuracy_knob(self) -> AccuracyKnob | None:
+        """Its accuracy knob (the setting that trades its error for run time, measured by
+        ``glshade accuracy``), if it has one: :mod:`glshade.components.accuracy`."""
+        return None
 
     def read_file(
         self, values: dict[str, Any], current: dict[str, Any] | None = None

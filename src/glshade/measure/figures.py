@@ -12,7 +12,6 @@ import numpy as np
 from glshade.files import atomic_write_bytes
 from glshade.metrics.contours import overlay_rgb
 
-
 #: The Fig. 9 colours (RGB 0-1) and what they mean.
 OVERLAY_LEGEND = (
     ((0.0, 0.0, 1.0), "contour, defect-free image"),

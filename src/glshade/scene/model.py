@@ -117,7 +117,7 @@ class Scene:
             object.__setattr__(self, name, value)
 
     # ----------------------------------------------------------------- geometry
-    def emitter_frame(self) -> EmitterPlane:
+    def emitter_plane(self) -> EmitterPlane:
         """The emitter's plane (:func:`glshade.rig.emitter_plane`): in the camera's mirror
         position, turned with it by the rig's azimuth."""
         cam = self.camera

@@ -15,8 +15,8 @@ from __future__ import annotations
 import csv
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -191,7 +191,7 @@ def _figure(rows, variants, path: Path) -> None:
 
     sigma2s = sorted({r["sigma2_mm2"] for r in rows})
     fig, axes = plt.subplots(1, len(sigma2s), figsize=(4.2 * len(sigma2s), 4.2), sharey=False)
-    for ax, sigma2 in zip(np.atleast_1d(axes), sigma2s):
+    for ax, sigma2 in zip(np.atleast_1d(axes), sigma2s, strict=False):
         for variant in variants:
             theta, vis = _series(rows, variant.key, sigma2)
             ax.plot(
@@ -332,7 +332,7 @@ def margin_lines(rows, variants) -> list[str]:
         ]
         for sigma2 in GENTLE:
             theta, vis = _series(rows, variant.key, sigma2)
-            by_theta = dict(zip(theta, vis))
+            by_theta = dict(zip(theta, vis, strict=False))
             lines.append(
                 f"| σ² {sigma2:g}: visibility / floor | "
                 + " | ".join(

@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from glshade.study.stats import spearman
 from glshade.files import atomic_write_bytes
 from glshade.metrics import physics
 from glshade.study.plan import case_scene
+from glshade.study.stats import spearman
 
 HOLDS, PARTLY, NOT = "holds", "partly holds", "does not hold"
 METRICS = {"visibility_px": "paper metric", "visibility_continuous_px": "continuous limit"}
@@ -177,7 +177,7 @@ def _wider(g: _Grid, metric_name: str) -> list[Verdict]:
             rho = spearman(g.sigma2s, means)
             strictly = all(a > b for a, b in pairwise(means))
             verdict = HOLDS if strictly else PARTLY if rho <= -0.8 else NOT
-            shown = ", ".join(f"σ² {v:g}: {m:.1f}" for v, m in zip(g.sigma2s, means))
+            shown = ", ".join(f"σ² {v:g}: {m:.1f}" for v, m in zip(g.sigma2s, means, strict=False))
             out.append(
                 Verdict(
                     2,
@@ -199,7 +199,7 @@ def _theta_trends(g: _Grid, metric_name: str) -> list[Verdict]:
         present = [v for v in group if v in g.sigma2s]
         for s in g.surfaces if present else ():
             for d in g.dmaxs:
-                parts, shown = zip(*(_trend(g, s, v, d, sign) for v in present))
+                parts, shown = zip(*(_trend(g, s, v, d, sign) for v in present), strict=False)
                 out.append(
                     Verdict(
                         number,

@@ -126,7 +126,7 @@ def visibility_plot(rows: list[CaseResult], surface: str, dmax: float, path: Pat
     sigma2s = sorted({r.sigma2_mm2 for r in sel})
     fig = _figure(14, 4.3)
     axes = fig.subplots(1, 3, sharex=True, sharey=True)
-    for ax, (key, law_key, title) in zip(axes, PLOT_PANELS):
+    for ax, (key, law_key, title) in zip(axes, PLOT_PANELS, strict=False):
         for s2 in sigma2s:
             line = sorted((r for r in sel if r.sigma2_mm2 == s2), key=lambda r: r.theta_deg)
             theta = np.array([r.theta_deg for r in line])
@@ -187,6 +187,7 @@ def law_plot(rows: list[CaseResult], path: Path) -> None:
                 "visible contour shift (continuous limit)",
             ),
         ),
+        strict=False,
     ):
         for surface, colour in SURFACE_COLOURS.items():
             for folded, marker in ((False, "o"), (True, "^")):

@@ -22,8 +22,8 @@ from typing import Any
 from glshade.errors import GlshadeError
 from glshade.files import atomic_write_bytes
 from glshade.measure.locks import make_out_dir
-from glshade.measure.record import PARSE, Column, Measurement, columns_markdown
 from glshade.measure.record import COLUMNS as RECORD_COLUMNS
+from glshade.measure.record import PARSE, Column, Measurement, columns_markdown
 from glshade.study.plan import PlanPoint, case_key
 
 

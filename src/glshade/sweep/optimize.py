@@ -33,10 +33,10 @@ import numpy as np
 
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
-from glshade.metrics.visibility import MetricSettings
-from glshade.scene import Scene
 from glshade.measure.engine import Case
 from glshade.measure.record import Measurement
+from glshade.metrics.visibility import MetricSettings
+from glshade.scene import Scene
 from glshade.sweep.spec import canonical_key, case_id
 
 METRICS = ("paper", "continuous")
@@ -428,7 +428,7 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
             order = np.argsort(grid[on_line, i])
             x = grid[on_line, i][order]
             if result.member_values is not None and len(result.members) > 1:
-                for j, member in enumerate(result.members):
+                for j, _member in enumerate(result.members):
                     ax.plot(
                         x,
                         result.member_values[:n][on_line][order, j],

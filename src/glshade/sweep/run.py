@@ -17,8 +17,8 @@ from typing import Any
 
 from glshade.errors import GlshadeError
 from glshade.measure.executors import Distribution, Row
-from glshade.measure.where import open_executor
 from glshade.measure.locks import run_lock
+from glshade.measure.where import open_executor
 from glshade.sweep import store
 from glshade.sweep.spec import MAX_CASES_UNCONFIRMED, GridPoint, SweepSpec
 

@@ -44,7 +44,7 @@ MAX_CASES_UNCONFIRMED = 5000
 #: A grid of more cases than this is refused (the plan itself would not fit in memory).
 MAX_CASES = 1_000_000
 SIZE_KEY = "size"
-#: Other spellings of keys: the issue's ``rig.azimuth_deg`` is ``camera.azimuth_deg``
+#: Other spellings of keys: ``rig.azimuth_deg`` is ``camera.azimuth_deg``
 #: (the emitter follows the camera's keys; docs/sweeps.md).
 KEY_ALIASES = {"rig.azimuth_deg": "camera.azimuth_deg"}
 

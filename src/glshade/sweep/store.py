@@ -22,7 +22,6 @@ from glshade.files import atomic_write_bytes
 from glshade.measure.record import COLUMNS, OUTPUT_NAMES, Measurement
 from glshade.sweep.spec import GridPoint, SweepSpec
 
-
 #: The outputs of a case in the table: the record's measured and closed-form columns
 #: (its timings stay in the case files).
 OUTPUTS = tuple(c for c in COLUMNS if c.name in OUTPUT_NAMES)

@@ -55,7 +55,9 @@ def cases() -> list[Extreme]:
     cylinder = paper_scene("cylinder", 45.0, 4.0, 0.005)
     out = []
     for theta in (0.5, 1.0, 2.0, 89.0, 89.9):
-        out.append(Extreme(f"flat theta {theta:g}", "view", flat.updated(camera={"theta_deg": theta})))
+        out.append(
+            Extreme(f"flat theta {theta:g}", "view", flat.updated(camera={"theta_deg": theta}))
+        )
     out.append(Extreme("sphere theta 1", "view", sphere.updated(camera={"theta_deg": 1.0})))
     for sigma2, dmax in (
         (0.01, 0.005),
@@ -130,7 +132,9 @@ def cases() -> list[Extreme]:
             Extreme(f"sphere R {radius:g}", "radius", sphere.updated(surface={"radius": radius}))
         )
         out.append(
-            Extreme(f"cylinder R {radius:g}", "radius", cylinder.updated(surface={"radius": radius}))
+            Extreme(
+                f"cylinder R {radius:g}", "radius", cylinder.updated(surface={"radius": radius})
+            )
         )
     out.append(
         Extreme(

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
-from glshade.scene import Scene
 from glshade.params import Param
+from glshade.scene import Scene
 
 VIEWS = ("image", "defect-free", "overlay", "displacement")
 

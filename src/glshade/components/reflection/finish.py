@@ -99,18 +99,18 @@ def lambert(scene, p: np.ndarray, n: np.ndarray, points: int = 96) -> np.ndarray
     below the tangent plane left out; by Gauss–Legendre quadrature on the rectangle
     (``points``² nodes; the clipping kink limits it to ~1e-5), independently of the
     shader's closed polygon formula."""
-    frame = scene.emitter_frame()
+    plane = scene.emitter_plane()
     hu, hv = scene.emitter.half_size
     x, w = np.polynomial.legendre.leggauss(points)
     uu, vv = np.meshgrid(x * hu, x * hv, indexing="ij")
     weights = np.outer(w, w).ravel() * hu * hv
-    q = frame.centre + uu.ravel()[:, None] * frame.e_u + vv.ravel()[:, None] * frame.e_v  # (M, 3)
+    q = plane.centre + uu.ravel()[:, None] * plane.e_u + vv.ravel()[:, None] * plane.e_v  # (M, 3)
     out = np.empty(len(p))
     for i in range(len(p)):
         r = q - p[i]
         dist2 = np.einsum("mk,mk->m", r, r)
         cos_s = np.maximum(r @ n[i], 0.0) / np.sqrt(dist2)
-        cos_e = np.maximum(-(r @ frame.normal), 0.0) / np.sqrt(dist2)
+        cos_e = np.maximum(-(r @ plane.normal), 0.0) / np.sqrt(dist2)
         out[i] = np.sum(weights * cos_s * cos_e / dist2) / math.pi
     return out * scene.active.emitter.pattern(scene).mean_radiance()
 

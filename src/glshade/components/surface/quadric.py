@@ -10,9 +10,9 @@ loses no digits near the apex or the rim.
 
 from __future__ import annotations
 
-import numpy as np
-
 from dataclasses import dataclass
+
+import numpy as np
 
 from glshade.components.base import SurfaceComponent
 from glshade.numerics import circle_roots

@@ -11,7 +11,6 @@ Scene files may give an isotropic Σ as one key, ``sigma2`` (written back that w
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from glshade.components.base import DefectComponent

@@ -27,7 +27,7 @@ class Stripes(EmitterComponent):
         return ("plane.glsl", "stripes.glsl", *(("diffuse.glsl",) if variables["diffuse"] else ()))
 
     def uniforms(self, scene, context):
-        em, plane, origin = scene.emitter, scene.emitter_frame(), context.origin
+        em, plane, origin = scene.emitter, scene.emitter_plane(), context.origin
         values: dict[str, object] = {
             "u_emitter_normal": tuple(plane.normal),
             "u_emitter_eu": tuple(plane.e_u),
@@ -59,16 +59,16 @@ class Stripes(EmitterComponent):
         ``r·n_E < 0`` (towards the front), ``t_e > 0`` and ``|u|, |v| <= half_size``.
         ``u, v`` are NaN where not valid.
         """
-        frame = scene.emitter_frame()
+        plane = scene.emitter_plane()
         p = np.asarray(points, dtype=np.float64)
         r = np.asarray(directions, dtype=np.float64)
-        denom = r @ frame.normal
-        rel = p - frame.centre
+        denom = r @ plane.normal
+        rel = p - plane.centre
         with np.errstate(divide="ignore", invalid="ignore"):
-            t_e = -(rel @ frame.normal) / denom
+            t_e = -(rel @ plane.normal) / denom
             q = rel + t_e[..., None] * r
-        u = q @ frame.e_u
-        v = q @ frame.e_v
+        u = q @ plane.e_u
+        v = q @ plane.e_v
         hu, hv = scene.emitter.half_size
         valid = (denom < 0.0) & (t_e > 0.0) & (np.abs(u) <= hu) & (np.abs(v) <= hv)
         return np.where(valid, u, np.nan), np.where(valid, v, np.nan), valid

@@ -12,17 +12,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
 from glshade.components.base import ReflectionComponent, SceneView
 from glshade.components.reflection import finish
+from glshade.components.reflection.blinn_phong.accuracy import BlinnPhongKnob
 from glshade.errors import SceneError
 from glshade.params import Control, param
 
 #: The default exponent: the lobe (reflected-direction std ``2/√N`` = 0.63 mrad) blurs
 #: the paper's 2 mm stripes seen 256 mm away by ±0.16 mm, keeping 88 % of their contrast.
 DEFAULT_SHININESS = 1e7
+
 
 @dataclass(frozen=True)
 class BlinnPhongTable(finish.FinishTable):
@@ -86,6 +89,9 @@ class BlinnPhong(ReflectionComponent):
             return lobe
         return finish.mix_coherent(scene, finish.mirror_radiance(scene, v, ok), lobe, d, n)
 
+    def accuracy_knob(self):
+        return BlinnPhongKnob()
+
     def lobe_std_rad(self, scene):
         """``(n·h)^N ≈ exp(-N α²/2)``: the half vector's angle has std ``1/√N``, the
         reflected direction twice that."""
@@ -121,7 +127,7 @@ def _lobe_samples(scene, p, wo, n_s, e1, e2, a, b):
     direction ``l = 2 (wo·h) h - wo`` is needed only through its dot products with the
     emitter's axes, which are linear in ``(a, b)``: no 3-vectors per sample.
     """
-    frame = scene.emitter_frame()
+    plane = scene.emitter_plane()
     shininess = scene.render.shininess
     rr = 1.0 + a * a + b * b
     inv = 1.0 / np.sqrt(rr)
@@ -140,15 +146,15 @@ def _lobe_samples(scene, p, wo, n_s, e1, e2, a, b):
         + b * np.einsum("nk,nk->n", wo, e2)[:, None, None]
     ) * inv
     weight = base * 4.0 * np.maximum(wo_h, 0.0)
-    h_n, wo_n = along(frame.normal)
-    h_v, wo_v = along(frame.e_v)
-    h_u, wo_u = along(frame.e_u)
+    h_n, wo_n = along(plane.normal)
+    h_v, wo_v = along(plane.e_v)
+    h_u, wo_u = along(plane.e_u)
     l_n = 2.0 * wo_h * h_n - wo_n  # l·n_E
-    rel = p - frame.centre
+    rel = p - plane.centre
     with np.errstate(divide="ignore", invalid="ignore"):
-        t_e = -(rel @ frame.normal)[:, None, None] / l_n
-        v = (rel @ frame.e_v)[:, None, None] + t_e * (2.0 * wo_h * h_v - wo_v)
-        u = (rel @ frame.e_u)[:, None, None] + t_e * (2.0 * wo_h * h_u - wo_u)
+        t_e = -(rel @ plane.normal)[:, None, None] / l_n
+        v = (rel @ plane.e_v)[:, None, None] + t_e * (2.0 * wo_h * h_v - wo_v)
+        u = (rel @ plane.e_u)[:, None, None] + t_e * (2.0 * wo_h * h_u - wo_u)
     hu, hv = scene.emitter.half_size
     ok = (l_n < 0.0) & (t_e > 0.0) & (np.abs(u) <= hu) & (np.abs(v) <= hv) & (wo_h > 0.0)
     return weight, v, ok
@@ -175,8 +181,10 @@ def _grid_points(scene, p, wo, n_s, e1, e2, half) -> tuple[np.ndarray, np.ndarra
         if wanted.max() > _LOBE_MAX_POINTS:
             raise SceneError(
                 "render.shininess",
-                f"large enough for the NumPy reference's Blinn-Phong grid ({wanted.max():.0f} points per "
-                f"axis needed to resolve the emitter's {feature:g} mm features; limit {_LOBE_MAX_POINTS})",
+                f"large enough for the NumPy reference's Blinn-Phong grid ({wanted.max():.0f} "
+                "points per "
+                f"axis needed to resolve the emitter's {feature:g} mm features; limit "
+                f"{_LOBE_MAX_POINTS})",
                 scene.render.shininess,
             )
         sizes.append((16 * np.ceil(wanted / 16.0)).astype(np.int64))
@@ -187,7 +195,7 @@ def _blinn_phong(scene: SceneView, p: np.ndarray, d: np.ndarray, n_s: np.ndarray
     """Blinn-Phong pixel values at hit points ``p`` (N, 3) for unit camera directions ``d``
     and normals ``n_s``: brute-force midpoint quadrature of ``∫ L w dω_l / ∫ w dω_l`` over
     the half vector (see the module docstring)."""
-    shininess = scene.render.shininess
+    shininess = cast(BlinnPhongTable, scene.render).shininess
     if shininess < MIN_SHININESS:
         raise SceneError(
             "render.shininess",
@@ -201,7 +209,7 @@ def _blinn_phong(scene: SceneView, p: np.ndarray, d: np.ndarray, n_s: np.ndarray
     e1, e2 = _lobe_basis(n_s, wo)
     half = math.tan(min(_LOBE_SPAN_STD / math.sqrt(shininess), _LOBE_MAX_ANGLE))
     sizes1, sizes2 = _grid_points(scene, p, wo, n_s, e1, e2, half)
-    for n1, n2 in sorted(set(zip(sizes1.tolist(), sizes2.tolist()))):
+    for n1, n2 in sorted(set(zip(sizes1.tolist(), sizes2.tolist(), strict=False))):
         group = np.nonzero((sizes1 == n1) & (sizes2 == n2))[0]
         a = (-1.0 + (2.0 * np.arange(n1) + 1.0) / n1) * half  # midpoints of [-half, half]
         b = (-1.0 + (2.0 * np.arange(n2) + 1.0) / n2) * half

@@ -20,7 +20,8 @@ Three ways to integrate the stripes over the lobe (``render.lobe_method``):
 The default is the one on the error-versus-time front (``docs/accuracy.md``).
 
 Table: :class:`MicrofacetTable`. GLSL: ``microfacet.glsl`` (the closed forms ask the
-emitter for its pattern seen through a Gaussian or a GGX lobe). Oracle: :meth:`Microfacet.shade`, Monte-Carlo
+emitter for its pattern seen through a Gaussian or a GGX lobe). Oracle:
+:meth:`Microfacet.shade`, Monte-Carlo
 importance sampling (NumPy, fixed seed) with the BRDF written out (``D``, ``G``, the
 sampling density), its standard error :attr:`Microfacet.oracle_samples` bounded.
 """
@@ -34,10 +35,12 @@ import numpy as np
 
 from glshade.components.base import ReflectionComponent
 from glshade.components.reflection import finish
+from glshade.components.reflection.microfacet.accuracy import MicrofacetKnob
 from glshade.params import Control, param
 
 LOBE_METHODS = ("closed", "lattice", "sampling")
 MAX_LOBE_SAMPLES = 4096
+
 
 @dataclass(frozen=True)
 class MicrofacetTable(finish.FinishTable):
@@ -130,6 +133,9 @@ class Microfacet(ReflectionComponent):
     def work_factor(self, scene):
         return 1 if scene.render.lobe_method == "closed" else scene.render.lobe_samples
 
+    def accuracy_knob(self):
+        return MicrofacetKnob()
+
     def lobe_std_rad(self, scene):
         """The reflected direction turns by twice the facet's tilt: std ``2 α/√2``
         (Beckmann); GGX's heavy tails are summarised by the same scale."""
@@ -150,16 +156,14 @@ class Microfacet(ReflectionComponent):
         if alpha == 0.0:
             lobe = mirror
         else:
-            lobe = self._monte_carlo(scene, p, d, n, samples or self.oracle_samples, seed)[0]
+            lobe = self.monte_carlo(scene, p, d, n, samples or self.oracle_samples, seed)[0]
         return finish.mix_coherent(scene, mirror, lobe, d, n)
 
-    def _monte_carlo(
-        self, scene, p, d, n, samples: int, seed: int
-    ) -> tuple[np.ndarray, np.ndarray]:
+    def monte_carlo(self, scene, p, d, n, samples: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
         """``(mean, standard error)`` per hit."""
         alpha, kind = scene.render.roughness, self.name
         rng = np.random.default_rng(seed)
-        frame = scene.emitter_frame()
+        plane = scene.emitter_plane()
         hu, hv = scene.emitter.half_size
         mean = np.zeros(len(p))
         error = np.zeros(len(p))
@@ -186,12 +190,12 @@ class Microfacet(ReflectionComponent):
             pdf_l = big_d * cos_h / (4.0 * np.abs(wo_h))
             g2 = 1.0 / (1.0 + smith_lambda(kind, alpha, cos_o) + smith_lambda(kind, alpha, cos_l))
             brdf = big_d * g2 / (4.0 * cos_o * np.where(cos_l > 0, cos_l, 1.0))
-            facing = l_dir @ frame.normal
-            rel = p[i] - frame.centre
+            facing = l_dir @ plane.normal
+            rel = p[i] - plane.centre
             with np.errstate(divide="ignore", invalid="ignore"):
-                t = -(rel @ frame.normal) / facing
-                uu = rel @ frame.e_u + t * (l_dir @ frame.e_u)
-                vv = rel @ frame.e_v + t * (l_dir @ frame.e_v)
+                t = -(rel @ plane.normal) / facing
+                uu = rel @ plane.e_u + t * (l_dir @ plane.e_u)
+                vv = rel @ plane.e_v + t * (l_dir @ plane.e_v)
             seen = (
                 (facing < 0)
                 & (t > 0)

@@ -10,7 +10,6 @@ emitter's radiance at the mirror ray's ``v`` (and the finish's quadrature).
 
 from __future__ import annotations
 
-
 from glshade.components.base import ReflectionComponent
 from glshade.components.reflection import finish
 

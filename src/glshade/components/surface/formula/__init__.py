@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from glshade.components.base import SurfaceComponent
-from glshade.components.surface.formula.grammar import Formula as ParsedFormula
 from glshade.components.surface.formula.grammar import PARAMETER_PREFIX, parse_formula
+from glshade.components.surface.formula.grammar import Formula as ParsedFormula
 from glshade.components.surface.freeform import MARCH_GLSL, march_uniforms
 from glshade.errors import SceneError
 from glshade.params import Table, param

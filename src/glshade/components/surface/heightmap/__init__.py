@@ -24,11 +24,14 @@ import numpy as np
 
 from glshade.components.base import SurfaceComponent
 from glshade.components.surface.freeform import MARCH_GLSL, march_uniforms
+from glshade.components.surface.heightmap.accuracy import HeightMapKnob
 from glshade.components.surface.heightmap.readers import cached_height_map
 from glshade.errors import SceneError
 from glshade.params import Table, param
 
 OUTSIDES = ("curtain", "flat")
+
+
 @dataclass(frozen=True, eq=False)
 class Grid:
     """A height map ready to render: heights in mm (float64 for the oracle; for the
@@ -211,6 +214,9 @@ class HeightMapSurface(SurfaceComponent):
             "u_surface_curvature": grid.curvature,
             **march_uniforms(scene, context),
         }
+
+    def accuracy_knob(self):
+        return HeightMapKnob()
 
     def second_derivatives(self, scene):
         grid = grid_of(scene)
