@@ -27,14 +27,16 @@ from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-
-import jinja2
+from typing import TYPE_CHECKING
 
 from glshade.components.base import Component, Slot, UniformContext
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, ShaderCompileError
 from glshade.frame import OUTPUTS, normalize_outputs
 from glshade.scene import Scene
+
+if TYPE_CHECKING:
+    import jinja2
 
 VERTEX_TEMPLATE = "fullscreen.vert.glsl"
 FRAGMENT_TEMPLATE = "deflectometry.frag.glsl"
@@ -107,6 +109,8 @@ def qualified(component: Component, name: str) -> str:
 def _environment(folders: tuple[tuple[str, str], ...]) -> jinja2.Environment:
     """The environment whose loader finds the shaders directory's files and each
     component's under its namespace (``folders``: namespace, folder)."""
+    import jinja2  # imported here: a process that never compiles a program needs no Jinja
+
     mapping = {prefix: jinja2.FileSystemLoader(folder) for prefix, folder in folders}
     loader = jinja2.ChoiceLoader(
         [jinja2.FileSystemLoader(str(shader_dir())), jinja2.PrefixLoader(mapping, delimiter="/")]

@@ -18,7 +18,6 @@ import numpy as np
 
 from glshade.components.base import ReflectionComponent, SceneView
 from glshade.components.reflection import finish
-from glshade.components.reflection.blinn_phong.accuracy import BlinnPhongKnob
 from glshade.errors import SceneError
 from glshade.params import Control, param
 
@@ -90,6 +89,9 @@ class BlinnPhong(ReflectionComponent):
         return finish.mix_coherent(scene, finish.mirror_radiance(scene, v, ok), lobe, d, n)
 
     def accuracy_knob(self):
+        # imported here: the knob is only run by `glshade accuracy`
+        from glshade.components.reflection.blinn_phong.accuracy import BlinnPhongKnob
+
         return BlinnPhongKnob()
 
     def lobe_std_rad(self, scene):

@@ -35,7 +35,6 @@ import numpy as np
 
 from glshade.components.base import ReflectionComponent
 from glshade.components.reflection import finish
-from glshade.components.reflection.microfacet.accuracy import MicrofacetKnob
 from glshade.params import Control, param
 
 LOBE_METHODS = ("closed", "lattice", "sampling")
@@ -134,6 +133,9 @@ class Microfacet(ReflectionComponent):
         return 1 if scene.render.lobe_method == "closed" else scene.render.lobe_samples
 
     def accuracy_knob(self):
+        # imported here: the knob is only run by `glshade accuracy`
+        from glshade.components.reflection.microfacet.accuracy import MicrofacetKnob
+
         return MicrofacetKnob()
 
     def lobe_std_rad(self, scene):

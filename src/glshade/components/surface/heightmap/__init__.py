@@ -24,7 +24,6 @@ import numpy as np
 
 from glshade.components.base import SurfaceComponent
 from glshade.components.surface.freeform import MARCH_GLSL, march_uniforms
-from glshade.components.surface.heightmap.accuracy import HeightMapKnob
 from glshade.components.surface.heightmap.readers import cached_height_map
 from glshade.errors import SceneError
 from glshade.params import Table, param
@@ -216,6 +215,9 @@ class HeightMapSurface(SurfaceComponent):
         }
 
     def accuracy_knob(self):
+        # imported here: the knob is only run by `glshade accuracy`
+        from glshade.components.surface.heightmap.accuracy import HeightMapKnob
+
         return HeightMapKnob()
 
     def second_derivatives(self, scene):
