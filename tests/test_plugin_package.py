@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import importlib.util
 import json
+import shutil
 import site
 import subprocess
 import sys
@@ -40,9 +41,11 @@ def plugin_python(tmp_path_factory) -> Path:
     outer = [*site.getsitepackages(), site.getusersitepackages()]
     lines = [f"import site; site.addsitedir({path!r})" for path in outer if Path(path).is_dir()]
     (Path(inner) / "outer_environment.pth").write_text("\n".join(lines) + "\n")
+    # built from a copy: setuptools leaves build/ and *.egg-info beside the sources
+    source = shutil.copytree(PACKAGE, root / "source")
     install = [python, "-m", "pip", "install", "--no-deps", "--no-build-isolation", "--no-index"]
     done = subprocess.run(
-        [*install, "--quiet", str(PACKAGE)], capture_output=True, text=True, cwd=root
+        [*install, "--quiet", str(source)], capture_output=True, text=True, cwd=root
     )
     assert done.returncode == 0, done.stderr[-3000:]
     return python
