@@ -11,6 +11,7 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.files import read_png
+from glshade.frame import AUTO_EXPOSURE_LEVEL, exposure_gain
 from glshade.gpu.renderer import render
 from glshade.scene import Scene, paper_scene
 
@@ -53,11 +54,17 @@ def test_render_writes_image_uv_and_scene(tmp_path, capsys):
     assert code == 0
     assert "wrote" in capsys.readouterr().out
     scene = Scene.load(saved)
-    assert scene == paper_scene("sphere", 30.0, 9.0, 0.003).with_size(64)
+    # a surface given by a flag takes the defaults a file naming only its kind gets (the
+    # emitter's 2 mm period, not the paper's 10 mm for its sphere)
+    typed = paper_scene("sphere", 30.0, 9.0, 0.003).with_size(64).updated(emitter={"period": 2})
+    assert scene == typed
     expected = render(scene, ("image", "uv"))
     pixels = read_png(out)
     assert pixels.dtype == np.uint16 and pixels.shape == (64, 64)
-    np.testing.assert_allclose(pixels / 65535.0, np.clip(expected.image, 0, 1), atol=1.0 / 65535)
+    # written with the automatic exposure: the brightest point at 0.9 of the range
+    exposed = expected.image * exposure_gain("auto", expected.image)
+    assert np.nanmax(exposed) == pytest.approx(AUTO_EXPOSURE_LEVEL)
+    np.testing.assert_allclose(pixels / 65535.0, np.clip(exposed, 0, 1), atol=1.0 / 65535)
     stored = np.load(uv)
     assert stored.dtype == np.float32 and stored.shape == (64, 64, 2)
     np.testing.assert_array_equal(stored, expected.uv)

@@ -171,7 +171,7 @@ def _other_value(param):
         return param.default + " + 0.0001*x"
     if param.value_type == "table":
         return (*param.default, ("spare", 0.5))
-    if param.default is None:
+    if param.default is None or param.default in param.keywords:
         return 0.625
     if param.nonzero:
         return -0.5 * param.default

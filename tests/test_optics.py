@@ -289,7 +289,8 @@ def test_fresnel_against_tabulated_values(renderer, n, k, incidence, expected):
 # ------------------------------------------------------------------ sensor
 def test_sensor_noise_statistics_on_a_uniform_image():
     scene = flat(size=8).updated(
-        sensor={"full_well_e": 10000.0, "read_noise_e": 5.0, "bit_depth": 16, "seed": 4}
+        camera={"exposure": 1.0},
+        sensor={"full_well_e": 10000.0, "read_noise_e": 5.0, "bit_depth": 16, "seed": 4},
     )
     sensor = registry().active(scene).sensor
     uniform = np.full((400, 400), 0.5, np.float32)
@@ -312,6 +313,12 @@ def test_sensor_noise_statistics_on_a_uniform_image():
     assert not np.array_equal(
         sensor.develop(scene, uniform), sensor.develop(scene.updated(sensor={"seed": 5}), uniform)
     )
+    # the exposure scales the photons: 1.5 puts 0.5 at 0.75 of full scale; "auto" puts the
+    # brightest value at 0.9
+    brighter = sensor.develop(scene.updated(camera={"exposure": 1.5}), uniform)
+    assert brighter.mean() == pytest.approx(0.75, abs=3e-4)
+    auto = sensor.develop(scene.updated(camera={"exposure": "auto"}), uniform)
+    assert auto.mean() == pytest.approx(0.9, abs=3e-4)
 
 
 def test_sensor_table_switches_it_on_and_round_trips(tmp_path):
@@ -331,8 +338,13 @@ def test_renderer_image_is_the_sensor_image(renderer):
     scene = flat(size=32).updated(sensor={"bit_depth": 8})
     noiseless = renderer.render(scene.updated(sensor={"full_well_e": None})).image
     recorded = renderer.render(scene).image
-    assert np.array_equal(recorded, registry().active(scene).sensor.develop(scene, noiseless))
-    assert 0 < np.abs(recorded - noiseless).max() < 0.1
+    # "auto" exposure: the defect-free scene's brightest point at 0.9 of full scale
+    gain = renderer.exposure_gain(scene)
+    normal = renderer.render(scene.without_defect().updated(sensor={"full_well_e": None})).image
+    assert gain == pytest.approx(0.9 / np.nanmax(normal))
+    exposed = scene.with_value("camera.exposure", gain)
+    assert np.array_equal(recorded, registry().active(scene).sensor.develop(exposed, noiseless))
+    assert 0 < np.abs(recorded - gain * noiseless).max() < 0.1
 
 
 def test_sensor_noise_floor_is_reported(renderer):

@@ -15,6 +15,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: Where ``camera.exposure = "auto"`` puts the brightest emitter point the scene shows: this
+#: share of the recorded range (a tenth of headroom for a dent's highlight and the noise).
+AUTO_EXPOSURE_LEVEL = 0.9
+
+
+def exposure_gain(exposure: float | str, radiance: np.ndarray) -> float:
+    """The factor from radiance (1 = the emitter's peak seen in a perfect mirror) to the
+    recorded range (1 = full scale): ``exposure`` itself, or for ``"auto"``
+    :data:`AUTO_EXPOSURE_LEVEL` over the brightest finite value of ``radiance`` (1 where
+    nothing is lit)."""
+    if exposure != "auto":
+        return float(exposure)
+    values = np.asarray(radiance)
+    finite = values[np.isfinite(values)]
+    peak = float(finite.max()) if finite.size else 0.0
+    return AUTO_EXPOSURE_LEVEL / peak if peak > 0.0 else 1.0
+
+
 #: The outputs a render can be asked for.
 OUTPUTS: tuple[str, ...] = ("image", "uv", "mask", "distance", "iterations")
 

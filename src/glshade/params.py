@@ -84,6 +84,7 @@ class Param:
     plausible_max: float | None = None
     plausible_why: str = ""
     size: int = 0
+    keywords: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if (
@@ -106,6 +107,10 @@ class Param:
     # ------------------------------------------------------------- validation
     def allowed(self, choices: tuple[str, ...] | None = None) -> str:
         """What the parameter accepts, in words: the text of its error message."""
+        words = "".join(f' or "{word}"' for word in self.keywords)
+        return self._allowed_values(choices) + words
+
+    def _allowed_values(self, choices: tuple[str, ...] | None) -> str:
         unit = f" {self.unit}" if self.unit else ""
         if self.allowed_text is not None:
             return self.allowed_text
@@ -138,6 +143,8 @@ class Param:
         the field and what it allows."""
         if value is None and self.default is None:
             return None
+        if isinstance(value, str) and value.strip() in self.keywords:
+            return value.strip()
         if self.value_type == "choice":
             allowed = choices if choices is not None else self.choices
             if value not in allowed:
@@ -184,7 +191,9 @@ class Param:
 
     def _finite(self, value: Any) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-            raise SceneError(self.path, "a finite number", value)
+            raise SceneError(
+                self.path, self.allowed() if self.keywords else "a finite number", value
+            )
         value = float(value)
         if not math.isfinite(value):
             raise SceneError(self.path, "a finite number", value)
@@ -257,7 +266,7 @@ class Param:
         unchecked: a bare number is in the parameter's unit, or it carries its own
         (:mod:`glshade.units`)."""
         text = text.strip()
-        if self.value_type in ("choice", "text", "path"):
+        if self.value_type in ("choice", "text", "path") or text in self.keywords:
             return text
         if self.value_type == "table":
             return tuple(
@@ -278,7 +287,7 @@ class Param:
         """The default as a scene file would spell it."""
         if self.default is None:
             return "unset"
-        if self.value_type in ("choice", "text", "path"):
+        if self.value_type in ("choice", "text", "path") or self.default in self.keywords:
             return f'"{self.default}"'
         if self.value_type == "table":
             return (

@@ -13,7 +13,7 @@ from glshade.components.registry import registry
 from glshade.errors import GlshadeError, printable
 from glshade.metrics.visibility import MetricSettings
 from glshade.params import Param
-from glshade.scene import PAPER_SURFACES, Scene, paper_scene
+from glshade.scene import Scene
 
 EXIT_USAGE = 2
 
@@ -147,13 +147,11 @@ def metric_settings(args: argparse.Namespace):
 
 
 def scene_from_args(args: argparse.Namespace) -> Scene:
-    """The scene a ``render``/``measure`` call describes: the file (or the paper's scene),
+    """The scene a ``render``/``measure`` call describes: the file (or the default scene),
     then the short flags, then ``--set PATH=VALUE`` in order, then ``--size``."""
-    surface = getattr(args, flag_dest(registry().param("surface.kind")), None)
-    if args.scene is not None:
-        scene = Scene.load(args.scene)
-    else:  # the paper's scene, of the surface asked for when it is one of the paper's
-        scene = paper_scene(surface if surface in PAPER_SURFACES else "flat")
+    # the file, or the scene every default makes (the paper's flat plate): a surface given
+    # by a flag takes its parameters' defaults exactly as a file naming only its kind does
+    scene = Scene.load(args.scene) if args.scene is not None else Scene()
     tables: dict[str, dict[str, object]] = {}
     for param in registry().params():
         value = getattr(args, flag_dest(param), None) if param.flag is not None else None

@@ -31,6 +31,7 @@ from glshade.app.args import (
 from glshade.app.cli_sweep import add_optimize, add_sweep
 from glshade.errors import GlshadeError, ShaderCompileError
 from glshade.files import atomic_write_bytes, check_output
+from glshade.metrics.status import concerns, contrast_warning
 from glshade.oracle.advice import scene_warnings
 from glshade.process import reuse_freed_memory
 from glshade.scene import Camera, Scene, paper_scene
@@ -126,6 +127,8 @@ def _cmd_measure(args: argparse.Namespace) -> int:
         result = measure_scene(renderer, scene, settings, overlay=args.overlay)
     seconds = time.perf_counter() - start
     record = Measurement.of(scene, result)
+    low = contrast_warning(result.stripe_contrast, scene.active.dimming(scene))
+    warn([low] if low else [])
     if args.json:
         size = [scene.camera.width, scene.camera.height]
         out = {
@@ -143,23 +146,44 @@ def _cmd_measure(args: argparse.Namespace) -> int:
 
 
 def _print_measurement(scene: Scene, record) -> None:
-    """The record as a small table, each number with what it means."""
+    """The record as a small table, each number with what it means; a number that cannot
+    be read says so on its own line (its status, and why)."""
     cam = scene.camera
     print(
         f"{scene.title()} ({cam.width}x{cam.height}, {scene.render.precision}, "
         f"{scene.render.reflection})"
     )
+    ok = record.status == "ok"
+    print(
+        f"  status                    {record.status}" + ("" if ok else f": {record.status_reason}")
+    )
+
+    def flag(column: str) -> str:
+        return f"  [{record.status}: not measurable]" if concerns(record.status, column) else ""
+
     print(
         f"  visibility_px             {record.visibility_px:g}  (the paper's metric, best phase "
-        f"{record.best_phase_mm:g} mm)"
+        f"{record.best_phase_mm:g} mm){flag('visibility_px')}"
     )
     print(
         f"  visibility_continuous_px  {record.visibility_continuous_px:.2f}  (its limit: finer "
-        "phase step and pixels)"
+        f"phase step and pixels){flag('visibility_continuous_px')}"
     )
-    print(f"  deflection_px             {record.deflection_px:.2f}  (how far the rays move)")
+    print(
+        f"  deflection_px             {record.deflection_px:.2f}  (how far the rays move)"
+        f"{flag('deflection_px')}"
+    )
     fold = f"yes, {record.islands} islands at most" if record.folded else "no"
     print(f"  folded                    {fold}")
+    print(
+        f"  stripe_contrast           {_number(record.stripe_contrast)}  (of the emitter's; 1: "
+        "a sharp mirror)"
+    )
+    if record.noise_floor_px is not None:
+        print(
+            f"  noise_floor_px            {record.noise_floor_px:g}  (the metric between two noisy "
+            "exposures of the defect-free scene)"
+        )
     laws = [
         f"deflection {_number(record.deflection_law_px)} px",
         f"visible {_number(record.visibility_law_px)} px",
@@ -553,6 +577,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _cmd_render(args: argparse.Namespace) -> int:
     from glshade.files import check_image_output, encode_image, write_npy
+    from glshade.frame import exposure_gain
     from glshade.gpu.context import GLContext
     from glshade.gpu.renderer import Renderer
 
@@ -571,9 +596,10 @@ def _cmd_render(args: argparse.Namespace) -> int:
         start = time.perf_counter()
         frame = renderer.render(scene, outputs)
         seconds = time.perf_counter() - start
-    atomic_write_bytes(
-        args.output, encode_image(frame.output("image"), image_path.suffix, args.bits), "-o"
-    )
+    image = frame.output("image")
+    if not scene.active.records(scene):  # a sensor's image is already in recorded units
+        image = image * exposure_gain(scene.camera.exposure, image)
+    atomic_write_bytes(args.output, encode_image(image, image_path.suffix, args.bits), "-o")
     if args.uv is not None:
         write_npy(args.uv, frame.output("uv"))
     if args.save_scene is not None:

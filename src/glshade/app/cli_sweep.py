@@ -7,6 +7,7 @@ import argparse
 import json
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 from glshade.app.args import (
@@ -131,6 +132,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         f"({result.computed} measured, "
         f"{result.skipped} already done) in {result.seconds:.1f} s{rate}"
     )
+    counts = Counter(str(row.get("status", "ok")) for row in result.rows)
+    if set(counts) - {"ok"}:
+        shown = ", ".join(f"{n} {status}" for status, n in counts.items() if status != "ok")
+        print(f"not measurable: {shown} (the status and status_reason columns say why)")
     return 0
 
 
@@ -252,4 +257,10 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         f"cases, {seconds:.1f} s" + (f"; plot: {args.plot}" if args.plot is not None else ""),
         file=sys.stdout,
     )
+    if result.unmeasurable:
+        print(
+            f"{result.unmeasurable} of {result.cases} cases were not measurable (stripes "
+            "unresolved, the dent at an edge or out of view, or under the noise floor): their "
+            "viewpoints were left out of the search"
+        )
     return 0

@@ -200,8 +200,20 @@ class Component:
     def develop(self, scene: SceneView, image: np.ndarray, exposure: int = 0) -> np.ndarray:
         """What the sensor makes of a rendered radiance image (float32, in place or new);
         the identity but for the sensor. ``exposure`` numbers independent exposures of
-        the same scene (their noise differs)."""
+        the same scene (their noise differs). The renderer gives ``scene`` with
+        ``camera.exposure`` worked out to a number where it was ``"auto"``."""
         return image
+
+    def records(self, scene: SceneView) -> bool:
+        """True when :meth:`develop` turns radiance into recorded values (full scale 1),
+        which ``camera.exposure`` scales; False but for an active sensor."""
+        return False
+
+    def dimming(self, scene: SceneView) -> str | None:
+        """What this component takes from the stripes' brightness or contrast, in a few
+        words (a lens's defocus, a lobe, a reflectance below 1), or None: the causes a
+        low-contrast or underexposed measurement names."""
+        return None
 
     def accuracy_knob(self) -> AccuracyKnob | None:
         """Its accuracy knob (the setting that trades its error for run time, measured by
@@ -397,6 +409,12 @@ class ReflectionComponent(Component):
         """What would narrow the lobe ``ratio`` times (for the lobe warning)."""
         return f"a lobe {ratio:.3g} times narrower"
 
+    def dimming(self, scene: SceneView) -> str | None:
+        std = self.lobe_std_rad(scene)
+        if std is None:
+            return None
+        return f"the {self.name} lobe (angular spread {std * 1e3:.3g} mrad)"
+
 
 class FresnelComponent(Component):
     """How much the surface reflects by the angle of incidence. Oracle: ``reflectance``."""
@@ -405,6 +423,14 @@ class FresnelComponent(Component):
 
     def reflectance(self, scene: SceneView, cos_i: np.ndarray) -> np.ndarray:
         raise NotImplementedError
+
+    def dimming(self, scene: SceneView) -> str | None:
+        """The reflectance at the gaze point (incidence ``90° - θ``), where below 1."""
+        cos_i = np.array([np.sin(scene.camera.theta_rad)])
+        share = float(np.asarray(self.reflectance(scene, cos_i)).reshape(-1)[0])
+        if share >= 0.999:
+            return None
+        return f"Fresnel: the surface reflects {share:.1%} at θ {scene.camera.theta_deg:g}°"
 
 
 class SensorComponent(Component):
@@ -465,3 +491,13 @@ class Active:
         for component in self.components:
             image = component.develop(scene, image, exposure)
         return image
+
+    def records(self, scene: SceneView) -> bool:
+        """True when a component records the radiance (a sensor): the rendered image is
+        then in recorded units, ``camera.exposure`` applied."""
+        return any(component.records(scene) for component in self.components)
+
+    def dimming(self, scene: SceneView) -> tuple[str, ...]:
+        """What dims the stripes or takes their contrast, one phrase per component."""
+        found = (component.dimming(scene) for component in self.components)
+        return tuple(phrase for phrase in found if phrase)

@@ -22,6 +22,7 @@ Numerics (the error budget, fp32):
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import time
@@ -33,7 +34,7 @@ import numpy as np
 
 from glshade.components.base import UniformContext
 from glshade.errors import ContextError, GlshadeError, SceneError
-from glshade.frame import Frame, normalize_outputs
+from glshade.frame import Frame, exposure_gain, normalize_outputs
 from glshade.gpu.compose import ShaderFeatures, compile_error, component_uniforms, compose
 from glshade.gpu.context import GLContext
 from glshade.scene import Scene
@@ -239,6 +240,7 @@ class Renderer:
         self.progress = progress
         self.root_solver = root_solver
         self._programs: dict[ShaderFeatures, tuple[moderngl.Program, moderngl.VertexArray]] = {}
+        self._gains: dict[str, float] = {}  # "auto" exposures, by defect-free scene
         self._targets: dict[tuple[int, int, tuple[str, ...], bool], _Targets] = {}
         self._uniform_names: dict[ShaderFeatures, tuple[str, ...]] = {}
         self._textures: dict[int, tuple[np.ndarray, moderngl.Texture]] = {}
@@ -344,11 +346,31 @@ class Renderer:
         check_work_budget(scene, self.max_rays)
         with self.context.current():
             frame = self._draw(scene, features, out)
-        if frame.image is not None:
-            image = scene.active.develop(scene, frame.image, exposure)
+        if frame.image is not None and scene.active.records(scene):
+            exposed = scene.with_value("camera.exposure", self.exposure_gain(scene))
+            image = scene.active.develop(exposed, frame.image, exposure)
             if image is not frame.image:
                 frame.image[...] = image
         return frame
+
+    def exposure_gain(self, scene: Scene) -> float:
+        """``camera.exposure`` as a number: for ``"auto"``, from the brightest point of
+        the defect-free scene's radiance at phase 0 (rendered once per geometry), so the
+        images with and without the dent, at every phase, are taken alike."""
+        if scene.camera.exposure != "auto":
+            return float(scene.camera.exposure)
+        normal = scene.without_defect().with_phase(0.0)
+        key = json.dumps(normal.to_dict(), sort_keys=True, default=str)
+        gain = self._gains.get(key)
+        if gain is None:
+            features = ShaderFeatures.from_scene(normal, ("image",))
+            with self.context.current():
+                radiance = self._draw(normal, features, None).image
+            gain = exposure_gain("auto", radiance)
+            if len(self._gains) >= 64:
+                self._gains.pop(next(iter(self._gains)))
+            self._gains[key] = gain
+        return gain
 
     def _draw(self, scene: Scene, features: ShaderFeatures, out: Frame | None) -> Frame:
         width, height = scene.camera.width, scene.camera.height

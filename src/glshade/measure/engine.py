@@ -28,6 +28,7 @@ from glshade.measure.record import Measurement
 from glshade.measure.single import (
     baseline_for,
     emitter_map,
+    judged,
     map_baseline,
     measure_scene,
     phase_images,
@@ -152,7 +153,7 @@ def _mapped(renderer, group, settings, pool, extra) -> Iterator[Measured]:
 
 
 def _analyse(case, baseline, v1, trace_s, extra) -> Measured:
-    result = baseline.measure(v1)
+    result = judged(case.scene, baseline, v1, baseline.measure(v1))
     made = extra(case, result, CaseView(baseline, v1, None)) if extra is not None else None
     return Measured(case, result, trace_s, made)
 

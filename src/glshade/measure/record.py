@@ -111,6 +111,20 @@ class Measurement:
         "with a sensor: the paper's metric between two noisy exposures of the defect-free "
         "scene, the contour jitter noise alone makes (empty without a sensor)",
     )
+    status: str = column(
+        "",
+        "whether the numbers can be read: ok, or why not (outside, edge, unresolved, "
+        "saturated, underexposed, noise; docs/study.md, 'Whether a number can be trusted')",
+    )
+    status_reason: str = column(
+        "", "why the numbers cannot be read, and what to change (empty when status is ok)"
+    )
+    stripe_contrast: float | None = column(
+        "",
+        "Michelson contrast of the defect-free stripes over the resolved kept pixels (0.5th to "
+        "99.5th percentile) relative to the emitter's own: 1 for a sharp mirror; below 0.5 "
+        "warned about, with its causes",
+    )
     fold_ratio: float | None = column(
         "",
         "closed form 2 κ Dc De / ((Dc + De) sin θ), κ the largest tangential curvature of base "
@@ -163,6 +177,9 @@ class Measurement:
             offset_dy_px=int(result.offset_px[1]),
             unresolved_fraction=round(result.unresolved_fraction, 5),
             noise_floor_px=result.noise_floor_px,
+            status=result.status,
+            status_reason=result.status_reason,
+            stripe_contrast=_finite(result.stripe_contrast, 4),
             fold_ratio=_finite(law.fold_ratio, 5),
             deflection_law_px=_finite(law.deflection_px, 4),
             visibility_law_px=_finite(law.visibility_px, 4),

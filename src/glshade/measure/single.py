@@ -23,7 +23,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from glshade.errors import GlshadeError
-from glshade.metrics.visibility import Baseline, MetricSettings, Visibility
+from glshade.metrics.status import assess, stripe_contrast
+from glshade.metrics.visibility import Baseline, MetricSettings, Visibility, stripe_radiance
 from glshade.scene import Scene
 
 if TYPE_CHECKING:  # the GPU is loaded only by measure() when it must make a renderer
@@ -84,6 +85,21 @@ def map_baseline(scene: Scene, v0: np.ndarray, settings: MetricSettings) -> Base
     return Baseline(v0, scene.active.emitter.pattern(scene), settings)
 
 
+def judged(scene: Scene, baseline: Baseline, v1: np.ndarray, result: Visibility) -> Visibility:
+    """``result`` with its status: whether its numbers can be read, and why not
+    (:func:`glshade.metrics.status.assess`)."""
+    found = assess(scene, baseline, v1, result)
+    phase = float(baseline.phases[0])
+    if baseline.normal_images is not None:
+        image = baseline.normal_images(phase)
+    else:
+        image = stripe_radiance(baseline.v0, baseline.pattern, phase)
+    contrast = stripe_contrast(image[:, baseline.columns], baseline.valid, baseline.pattern)
+    return dataclasses.replace(
+        result, status=found.status, status_reason=found.reason, stripe_contrast=contrast
+    )
+
+
 def measure_scene(
     renderer: Renderer,
     scene: Scene,
@@ -109,6 +125,7 @@ def measure_scene(
         again = phase_images(renderer, scene.without_defect(), exposure=1)
         floor = baseline.paper(baseline.v0, again)[0].visibility_px
         result = dataclasses.replace(result, noise_floor_px=floor)
+    result = judged(scene, baseline, v1, result)
     if overlay is not None:
         from glshade.measure.figures import write_overlay
 

@@ -30,7 +30,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from glshade.components.image_scale import base_curvatures
 from glshade.scene import Scene
+
+__all__ = ["Laws", "base_curvatures", "fold_onset_theta_deg", "laws", "rig_inverse_covariance"]
 
 
 @dataclass(frozen=True)
@@ -53,19 +56,6 @@ class Laws:
     dent_extent_px: float
     saddle_rows: float
     visibility_px: float
-
-
-def base_curvatures(scene: Scene) -> tuple[float, float]:
-    """Second derivatives of the base height at the gaze point (1/mm): along the plane of
-    incidence (tangential, ``z`` at azimuth 0) and across it (sagittal, ``x``). Convex is
-    negative: a sphere has ``(-1/R, -1/R)``, a cylinder with axis z ``(0, -1/R)``, with
-    axis x ``(-1/R, 0)``; R < 0 (concave) flips the signs. A turned rig
-    (``camera.azimuth_deg`` φ) sees ``f_zz cos² φ + f_xx sin² φ`` along its plane (the
-    surfaces' mixed derivative at the gaze point is 0 for the analytic kinds; a free-form
-    surface's is neglected here)."""
-    f_zz, f_xx = scene.active.surface.second_derivatives(scene)
-    c2, s2 = math.cos(scene.camera.azimuth_rad) ** 2, math.sin(scene.camera.azimuth_rad) ** 2
-    return f_zz * c2 + f_xx * s2, f_xx * c2 + f_zz * s2
 
 
 def rig_inverse_covariance(scene: Scene) -> tuple[float, float]:

@@ -324,7 +324,10 @@ class Visibility:
     they do not resolve the stripes; ``shift``: where the paper's distance was measured;
     ``displacement_px``: the deflection's map; ``limit``: the continuous limit's details;
     ``noise_floor_px``: with a sensor, the paper's metric between two exposures of the
-    defect-free scene (the contour jitter the noise alone makes; None without a sensor).
+    defect-free scene (the contour jitter the noise alone makes; None without a sensor);
+    ``status``, ``status_reason``: whether the numbers can be read, and why not;
+    ``stripe_contrast``: the defect-free stripes' Michelson contrast where the metric
+    reads them (:mod:`glshade.metrics.status`; all three set by :mod:`glshade.measure.single`).
     Its row in every table is :meth:`glshade.measure.record.Measurement.of`.
     """
 
@@ -343,6 +346,9 @@ class Visibility:
     limit: Limit = field(repr=False)
     seconds: StageSeconds = field(default_factory=StageSeconds, repr=False)
     noise_floor_px: float | None = None
+    status: str = "ok"
+    status_reason: str = ""
+    stripe_contrast: float = math.nan
 
 
 class Baseline:

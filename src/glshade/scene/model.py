@@ -30,6 +30,7 @@ from glshade.components.base import Active
 from glshade.components.camera.perspective.table import Camera
 from glshade.components.defect.gaussian.table import Defect
 from glshade.components.emitter.stripes.table import Emitter
+from glshade.components.image_scale import auto_period_mm
 from glshade.components.registry import registry
 from glshade.components.render.table import RenderTable
 from glshade.components.sensor.linear.table import Sensor
@@ -102,6 +103,14 @@ class Scene:
     defect: Defect = field(default_factory=Defect)
     render: RenderSettings = field(default_factory=RenderSettings)
     sensor: Sensor = field(default_factory=Sensor)
+
+    def __post_init__(self) -> None:
+        if self.emitter.period == "auto" or self.emitter.period_auto:
+            fixed = replace(self.emitter, period=2.0, period_auto=False)
+            period = auto_period_mm(replace(self, emitter=fixed))
+            object.__setattr__(
+                self, "emitter", replace(self.emitter, period=period, period_auto=True)
+            )
 
     @cached_property
     def active(self) -> Active:
@@ -349,10 +358,11 @@ def _file_values(scene: Scene, table: str, everything: bool = False) -> dict[str
     reg = registry()
     active = scene.active
     values = {}
+    given = getattr(scene, table).values()  # as the scene was given ("auto" stays "auto")
     for param in reg.table_params(table):
         if not param.stored:
             continue
-        value = getattr(getattr(scene, table), param.key)
+        value = given[param.key]
         in_use = reg.choices(param) is not None or any(
             owner in active for owner in reg.owners(param)
         )

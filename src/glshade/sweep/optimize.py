@@ -35,6 +35,7 @@ from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
 from glshade.measure.engine import Case
 from glshade.measure.record import Measurement
+from glshade.metrics.status import concerns
 from glshade.metrics.visibility import MetricSettings
 from glshade.scene import Scene
 from glshade.sweep.spec import canonical_key, case_id
@@ -82,6 +83,7 @@ class OptimizeResult:
     grid_shape: tuple[int, ...]
     grid_count: int
     cases: int = 0
+    unmeasurable: int = 0  # cases whose number could not be read (their points excluded)
     members: list[dict[str, float]] = field(default_factory=list)
     member_values: np.ndarray | None = None  # (n, members): each member's visibility
 
@@ -104,6 +106,7 @@ class OptimizeResult:
             "evaluations": self.evaluations,
             "grid_evaluations": self.grid_count,
             "cases": self.cases,
+            "unmeasurable_cases": self.unmeasurable,
             "family_members": len(self.members) or 1,
             "near_optimal": {key: list(span) for key, span in self.near_optimal.items()},
             "tolerance_px": self.tolerance_px,
@@ -250,7 +253,7 @@ def search(
             seen[key] = float(s[0])
         return -seen[key]
 
-    if refine_evaluations > 0:
+    if refine_evaluations > 0 and np.isfinite(np.max(scores)):  # nothing to refine from
         simplex = np.vstack(
             [best]
             + [np.clip(best + 0.5 * steps * e, cell_lo, cell_hi) for e in np.eye(len(dimensions))]
@@ -316,6 +319,8 @@ class SceneObjective:
         self.base, self.dimensions, self.family = base, tuple(dimensions), family
         self.settings, self.metric, self.executor = settings, metric, executor
         self.records: dict[str, Measurement] = {}
+        #: Case id -> why its number cannot be read (status: reason).
+        self.unreadable: dict[str, str] = {}
         for point in (tuple(d.lo for d in dimensions), tuple(d.hi for d in dimensions)):
             for member in family:  # every corner and member is a valid scene before any work
                 settings.phases(self.scene(point, member).emitter.period)
@@ -346,7 +351,19 @@ class SceneObjective:
         )
         chosen = paper if self.metric == "paper" else continuous
         score = paper + TIE * continuous if self.metric == "paper" else continuous
-        return score.min(axis=1), chosen.min(axis=1), chosen
+        column = "visibility_px" if self.metric == "paper" else "visibility_continuous_px"
+        readable = np.array(
+            [[not concerns(self.records[i].status, column) for i in row] for row in ids], bool
+        )
+        for i in (i for row in ids for i in row):
+            record = self.records[i]
+            if concerns(record.status, column):
+                self.unreadable[i] = f"{record.status}: {record.status_reason}"
+        # a point is only as good as its worst member, and a member whose number cannot be
+        # read makes the point unusable: never the optimum, never near it
+        worst = np.where(readable.all(axis=1), score.min(axis=1), -np.inf)
+        value = np.where(readable.all(axis=1), chosen.min(axis=1), np.nan)
+        return worst, value, chosen
 
     @property
     def cases(self) -> int:
@@ -375,7 +392,13 @@ def optimize_scene(
         metric=metric,
         members=family if family != [{}] else [],
     )
-    return replace(result, cases=objective.cases)
+    if not math.isfinite(result.visibility_px):
+        why = next(iter(objective.unreadable.values()), "")
+        raise GlshadeError(
+            f"optimize: no point of the search could be measured ({len(objective.unreadable)} "
+            f"of {objective.cases} cases not measurable; first: {why})"
+        )
+    return replace(result, cases=objective.cases, unmeasurable=len(objective.unreadable))
 
 
 # --------------------------------------------------------------------------- figure

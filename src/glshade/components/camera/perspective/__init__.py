@@ -49,6 +49,37 @@ class Perspective(CameraComponent):
         cam = scene.camera
         return {"aperture": cam.f_number > 0.0, "distortion": any(cam.distortion)}
 
+    def stripe_blur_mm(self, scene) -> float:
+        """How far a thin lens spreads one point of the emitter's mirror image (mm on the
+        emitter; 0 for the pinhole): the blur disc's angular diameter ``A |so - sf| /
+        (so sf)`` at ``so = camera.distance + emitter.distance``, times ``so`` (a flat
+        mirror's geometry; a curved base changes it by its magnification)."""
+        cam = scene.camera
+        if cam.f_number <= 0.0:
+            return 0.0
+        so, sf = cam.distance + scene.emitter.distance, focus_distance(cam)
+        return 2.0 * aperture_radius(cam) * abs(so - sf) / sf
+
+    def warnings(self, scene):
+        blur, period = self.stripe_blur_mm(scene), scene.active.emitter.pattern(scene).period_mm
+        if blur <= 0.5 * period:
+            return ()
+        cam = scene.camera
+        sharp = cam.f_number * blur / (0.5 * period)
+        stripes = cam.distance + scene.emitter.distance
+        return (
+            f"camera.f_number = {cam.f_number:g}: the lens blurs each emitter point over "
+            f"{blur:.3g} mm, more than half the {period:g} mm stripe period, so the stripes "
+            f"lose contrast; use camera.f_number >= {sharp:.3g}, or focus on the stripes' "
+            f"mirror image (camera.focus_distance = {stripes:g})",
+        )
+
+    def dimming(self, scene):
+        blur = self.stripe_blur_mm(scene)
+        if blur <= 0.0:
+            return None
+        return f"defocus: f/{scene.camera.f_number:g} blurs each emitter point over {blur:.3g} mm"
+
     def glsl(self, variables):
         files = ["camera.glsl"]
         if variables["aperture"]:

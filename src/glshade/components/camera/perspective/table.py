@@ -67,6 +67,15 @@ class Camera(Table):
         "thin lens: rays per pixel sample over the aperture (Vogel spiral)",
         value_type="integer", lo=1, hi=MAX_APERTURE_SAMPLES, flag="--aperture-samples",
     )  # fmt: skip
+    exposure: float | str = param(
+        "camera.exposure", "", "auto",
+        "what the camera records of the radiance: recorded = radiance × exposure, full scale "
+        "at 1 (exposure 1: the emitter's peak seen in a perfect mirror fills the range); "
+        '"auto": the brightest emitter point the defect-free scene shows lands at 0.9 of the '
+        "range. Scales what the sensor records (its photons, so its noise) and written "
+        "images; the noiseless metric binarises radiance and does not depend on it",
+        lo=0.0, keywords=("auto",), flag="--exposure",
+    )  # fmt: skip
     distortion: tuple[float, float, float, float, float] = param(
         "camera.distortion", "", (0.0, 0.0, 0.0, 0.0, 0.0),
         "OpenCV lens distortion (k1, k2, p1, p2, k3) on normalised coordinates, as "

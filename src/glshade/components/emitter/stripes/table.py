@@ -8,7 +8,8 @@ The radiance ``L(v) = Σ_k exp(-(v - phase - k period)² / (2 σ²))``: each str
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -25,7 +26,13 @@ HALF_WIDTH_STEPS = 60
 @dataclass(frozen=True)
 class Emitter(Table):
     """The stripe emitter (mm): ``distance`` from the origin, ``period``, ``stripe_sigma``
-    (None: FWHM = half a period), ``phase``, ``half_size``."""
+    (None: FWHM = half a period), ``phase``, ``half_size``.
+
+    ``period = "auto"`` is worked out by the scene that holds the table (the shortest
+    period its camera resolves at the gaze point, :mod:`glshade.components.image_scale`):
+    the scene keeps the number in ``period`` and the rule in ``period_auto``, so a copy of
+    the scene with another elevation works it out again, and a scene file says ``"auto"``.
+    """
 
     table = "emitter"
 
@@ -33,7 +40,11 @@ class Emitter(Table):
         "emitter.distance", "mm", 256.0, "origin to the emitter's centre", lo=0.0
     )
     period: float = param(
-        "emitter.period", "mm", 2.0, "stripe spacing along v", lo=0.0, flag="--period",
+        "emitter.period", "mm", 2.0,
+        'stripe spacing along v; "auto": the shortest multiple of 0.25 mm that spans 6 image '
+        "rows at the gaze point (the magnification closed form, docs/physics.md), worked "
+        "out again whenever the scene changes",
+        lo=0.0, flag="--period", keywords=("auto",),
         control=Control("period", 0.2, 20.0, log=True, fmt="%.2f mm"),
     )  # fmt: skip
     stripe_sigma: float | None = param(
@@ -48,6 +59,16 @@ class Emitter(Table):
     half_size: tuple[float, float] = param(
         "emitter.half_size", "mm", (150.0, 150.0), "half extents in u and v", value_type="pair"
     )
+    #: True when ``period`` was worked out from ``"auto"`` by the scene (not a parameter).
+    period_auto: bool = field(default=False, compare=True)
+
+    def values(self) -> dict[str, Any]:
+        """The parameters as a scene gives them: ``period`` is ``"auto"`` where the scene
+        worked it out (so a changed scene works it out again)."""
+        values = super().values()
+        if values.pop("period_auto"):
+            values["period"] = "auto"
+        return values
 
     @property
     def sigma_mm(self) -> float:

@@ -2,9 +2,10 @@
 
 Off unless the scene has a ``[sensor]`` table (``full_well_e`` unset: the noiseless float
 radiance). When on, a rendered radiance image ``L`` (1 = the emitter's peak
-seen in a perfect mirror) becomes
+seen in a perfect mirror) taken with the camera's exposure ``g`` (``camera.exposure``;
+``"auto"``: 0.9 over the brightest point of the defect-free scene) becomes
 
-    electrons = Poisson(L · full_well_e) + Normal(0, read_noise_e)
+    electrons = Poisson(g · L · full_well_e) + Normal(0, read_noise_e)
     stored    = round(clip(electrons / full_well_e, 0, 1) · (2^bits - 1)) / (2^bits - 1)
 
 in the units of the noiseless radiance (1 = full well), quantised to ``bit_depth``. The
@@ -24,6 +25,7 @@ import numpy as np
 
 from glshade.components.base import SensorComponent
 from glshade.components.sensor.linear.table import DEFAULT_FULL_WELL_E, Sensor
+from glshade.frame import exposure_gain
 
 
 def noise_key(scene, exposure: int) -> list[int]:
@@ -55,12 +57,16 @@ class LinearSensor(SensorComponent):
     def shades_from_emitter_map(self, scene):
         return not scene.sensor.on
 
+    def records(self, scene):
+        return scene.sensor.on
+
     def develop(self, scene, image, exposure=0):
         sensor = scene.sensor
         if not sensor.on:
             return image
         rng = np.random.default_rng(noise_key(scene, exposure))
         radiance = np.nan_to_num(np.asarray(image, np.float64), nan=0.0)
+        radiance *= exposure_gain(scene.camera.exposure, radiance)  # "auto": from this image
         electrons = rng.poisson(np.maximum(radiance, 0.0) * sensor.full_well_e).astype(np.float64)
         if sensor.read_noise_e > 0:
             electrons += rng.normal(0.0, sensor.read_noise_e, radiance.shape)
