@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -11,10 +13,11 @@ from glshade.app.cli import main
 from glshade.errors import GlshadeError
 from glshade.measure.record import Measurement
 from glshade.measure.single import measure_scene
-from glshade.study import findings
+from glshade.metrics import physics
+from glshade.study import findings, plots
 from glshade.study.plan import StudyPlan
 from glshade.study.run import run_study
-from glshade.study.store import CSV_COLUMNS, read_results_csv
+from glshade.study.store import CSV_COLUMNS, CaseResult, read_results_csv
 
 TIMING = {"trace_s", "shade_s", "contours_s", "continuous_s"}
 SMALL = dict(thetas=(45.0, 5.0), size=128)
@@ -72,7 +75,9 @@ def test_reduced_study_end_to_end_through_the_cli(tmp_path, capsys):
     for heading in (
         "## What to do with it: where to put the camera",
         "## How the verdicts are decided",
-        "## The closed forms against the simulation",
+        "## Symbols",
+        "## Laws",
+        "## The laws against the simulation",
         "## Where the stripe map folds",
     ):
         assert heading in report, heading
@@ -292,3 +297,156 @@ def test_findings_advice_names_the_fold_and_the_magnification():
         and "magnifies the stripes" in text
     )
     assert findings.theta_ranges({85.0, 45.0, 5.0}, (85.0, 65.0, 45.0, 5.0)) == "85°, 45–5°"
+
+
+# ------------------------------------------------------------- the report, from made-up rows
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _law_rows(plan: StudyPlan, status=None) -> list[CaseResult]:
+    """Rows whose measured numbers are the closed forms (no GL): a stand-in for a run.
+    ``status(case)``: the status column of each row (absent when None)."""
+    rows = []
+    for case in plan.cases():
+        law = physics.laws(plan.scene(*case))
+        visible = law.visibility_px if law.visibility_px == law.visibility_px else 0.0
+        row = {name: 0 for name in CSV_COLUMNS}
+        surface, theta, sigma2, dmax = case
+        row.update(
+            surface=surface,
+            theta_deg=theta,
+            sigma2_mm2=sigma2,
+            dmax_mm=dmax,
+            period_mm=2.0,
+            visibility_px=float(round(visible)),
+            visibility_continuous_px=visible,
+            deflection_px=law.deflection_px,
+            folded=law.folds,
+            unresolved_fraction=0.0,
+            noise_floor_px=None,
+            fold_ratio=law.fold_ratio,
+            deflection_law_px=law.deflection_px,
+            visibility_law_px=visible,
+            magnification=law.magnification,
+        )
+        result = CaseResult.from_row(row)
+        if status is not None:
+            rows.append(_WithStatus(result, *status(case)))
+        else:
+            rows.append(result)
+    return rows
+
+
+class _WithStatus(dict):
+    """A row with the ``status`` and ``status_reason`` columns a run may add."""
+
+    def __init__(self, row, status, reason):
+        super().__init__(dict(row.items()), status=status, status_reason=reason)
+
+    def __getattr__(self, name):
+        try:
+            return self[name]
+        except KeyError as error:
+            raise AttributeError(name) from error
+
+
+PAPER_PLAN = StudyPlan(thetas=(85.0, 45.0, 15.0, 5.0), size=256)
+SYMBOL_CANDIDATES = ("Dc", "De", "f", "p", "κ", "κ_t", "κ_s", "b", "F", "m", "R", "D", "e",
+                     "θ", "σ²", "σ", "dmax", "ρ", "δ")  # fmt: skip
+
+
+def _report(tmp_path, rows, plan) -> str:
+    return findings.write_report(rows, tmp_path, plan, []).read_text()
+
+
+def test_report_defines_every_symbol_once_and_repeats_no_paragraph(tmp_path):
+    report = _report(tmp_path, _law_rows(PAPER_PLAN), PAPER_PLAN)
+    head, _, rest = report.partition("## Symbols")
+    table, _, body = rest.partition("## Laws")
+    defined = {line.split("|")[1].strip() for line in table.splitlines() if line.startswith("| ")}
+    text = head + body
+    for symbol in SYMBOL_CANDIDATES:
+        if re.search(rf"(?<![\w]){re.escape(symbol)}(?![\w])", text):
+            assert symbol in defined, symbol
+    # the symbols' values are the study's: the camera's distance and the 256×256 image
+    assert "| Dc | distance from the camera to the gaze point | mm | 175.6 |" in report
+    assert "pixel pitch of the 256×256 image" in report
+    # every law once, in the Laws section, and no paragraph twice
+    assert report.count("2 κ Dc De / ((Dc + De) sin θ)") <= 2  # the fold law and its symbol
+    assert report.count("Where nothing folds the deflection") == 0
+    paragraphs = [
+        p.strip()
+        for p in re.split(r"\n", report)
+        if len(p.strip()) > 60 and not p.startswith(("|", "#"))
+    ]
+    repeated = {p for p in paragraphs if paragraphs.count(p) > 1}
+    assert not repeated, repeated
+    for name in ("specification", "SPEC", "issue #"):
+        assert name not in report
+
+
+def test_verdicts_carry_their_numbers():
+    verdicts = findings.evaluate(_law_rows(PAPER_PLAN))
+    assert verdicts
+    for v in verdicts:
+        assert v.text.startswith(v.verdict + ": ") and re.search(r"[-+]?\d+%", v.text), v.text
+    steep = [v for v in verdicts if v.finding == 4 and v.scope == "flat, dmax 5 µm"]
+    assert any("σ² 1 -" in v.text and "folds at" in v.text for v in steep), steep
+
+
+def test_free_form_surfaces_get_their_own_text_never_the_spheres():
+    plan = StudyPlan(
+        surfaces=(str(EXAMPLES / "panel.toml"), str(EXAMPLES / "saddle.toml")),
+        thetas=(85.0, 45.0, 5.0),
+        sigma2s=(1.0, 16.0),
+        dmaxs=(0.005,),
+        size=128,
+    )
+    text = "\n".join(findings.advice(_law_rows(plan)))
+    for word in ("sphere", "cylinder", "loses every dent"):
+        assert word not in text, word
+    panel, saddle = text.split("**saddle**")
+    assert "height map" in panel and "Concave along the plane of incidence" in panel
+    assert "free-form surface" in panel and "κ_t = +" in panel
+    assert "Convex along the plane of incidence" in saddle and "y = " in saddle
+
+
+def test_figure_axes_name_the_runs_image_size(tmp_path, monkeypatch):
+    drawn = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: drawn.append(fig))
+    plan = StudyPlan(surfaces=("flat",), thetas=(45.0, 5.0), sigma2s=(1.0,), size=96)
+    rows = _law_rows(plan)
+    plots.write_figures(rows, tmp_path, plan)
+    labels = [ax.get_ylabel() for fig in drawn for ax in fig.axes if ax.get_ylabel()]
+    assert labels and all("96×96" in label for label in labels), labels
+    assert not any("1024" in label for label in labels)
+    # the legends sit outside the data: figure legends, none on an axes
+    assert all(ax.get_legend() is None for fig in drawn for ax in fig.axes)
+
+
+def test_rows_not_measurable_are_left_out_of_verdicts_and_advice(tmp_path):
+    plan = StudyPlan(surfaces=("flat", "sphere"), thetas=(85.0, 45.0, 15.0, 5.0), size=256)
+
+    def unresolved(case):
+        return ("unresolved", "3.1 px per period") if case[1] == 5.0 else ("ok", "")
+
+    marked = _law_rows(plan, unresolved)
+    for row in marked:  # a number nobody may judge
+        if row["status"] != "ok":
+            row["visibility_px"] = row["visibility_continuous_px"] = 1000.0
+    kept = [r for r in _law_rows(plan) if r["theta_deg"] != 5.0]
+    assert findings.advice(marked) == findings.advice(kept)
+    assert [v.text for v in findings.evaluate(marked)] == [v.text for v in findings.evaluate(kept)]
+    report = _report(tmp_path, marked, plan)
+    assert "16 of 64 cases not measurable: stripes unresolved (16; 3.1 px per period)" in report
+    # without the column every row counts
+    plain = _law_rows(plan)
+    assert findings.advice(plain) != findings.advice(kept)
+    drawn = []
+    plots._save, saved = (lambda fig, path: drawn.append(fig)), plots._save
+    try:
+        plots.visibility_plot(marked, "flat", 0.005, tmp_path / "v.png", (256, 256))
+    finally:
+        plots._save = saved
+    labels = [t.get_text() for fig in drawn for legend in fig.legends for t in legend.get_texts()]
+    assert "not measurable" in labels

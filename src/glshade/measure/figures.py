@@ -12,12 +12,18 @@ import numpy as np
 from glshade.files import atomic_write_bytes
 from glshade.metrics.contours import overlay_rgb
 
-#: The Fig. 9 colours (RGB 0-1) and what they mean.
+#: The Fig. 9 overlay's colours (RGB 0-1, distinct in print and for colour-blind readers)
+#: and what they mean; drawn on white.
+DEFECT_FREE = (0.0, 0.35, 0.75)
+WITH_DENT = (0.85, 0.2, 0.0)
+BOTH = (0.62, 0.62, 0.62)
+ISLAND = (0.0, 0.62, 0.45)
+SHIFT = (0.85, 0.0, 0.6)
 OVERLAY_LEGEND = (
-    ((0.0, 0.0, 1.0), "contour, defect-free image"),
-    ((1.0, 0.0, 0.0), "contour, image with the dent"),
-    ((1.0, 0.0, 1.0), "both (contours coincide)"),
-    ((1.0, 150 / 255, 0.0), "island of a fold (not measured)"),
+    (DEFECT_FREE, "contour, defect-free image"),
+    (WITH_DENT, "contour, image with the dent"),
+    (BOTH, "both (contours coincide)"),
+    (ISLAND, "island of a fold (not measured)"),
 )
 
 
@@ -28,13 +34,13 @@ def new_figure(width_in: float, height_in: float):
     return Figure(figsize=(width_in, height_in))
 
 
-def save_figure(fig, path: Path) -> None:
+def save_figure(fig, path: Path, dpi: int = 110) -> None:
     """Write ``fig`` as a PNG, atomically."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     FigureCanvasAgg(fig)
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight")
+    fig.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight")
     atomic_write_bytes(Path(path), buffer.getvalue())
 
 
@@ -45,66 +51,109 @@ def write_overlay(baseline, v1, result, images, title: str, path: Path) -> None:
     overlay_figure(overlay_rgb(normal, defect), result, baseline.columns.start, title, path)
 
 
+def _contour_masks(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The defect-free contours, the dent's measured contours and its islands, from
+    :func:`glshade.metrics.contours.overlay_rgb`'s colours."""
+    island = (rgb[..., 0] == 255) & (rgb[..., 1] == 150) & (rgb[..., 2] == 0)
+    normal = rgb[..., 2] == 255
+    defect = (rgb[..., 0] == 255) & ~island
+    return normal, defect, island
+
+
+def _paint(masks: tuple[np.ndarray, np.ndarray, np.ndarray], thickness: int) -> np.ndarray:
+    """The contours on white (float RGB), each ``thickness`` pixels wide: the defect-free
+    ones, the dent's over them, black where both coincide, the islands on top."""
+    import cv2
+
+    if thickness > 1:
+        kernel = np.ones((thickness, thickness), np.uint8)
+        masks = tuple(cv2.dilate(m.astype(np.uint8), kernel) > 0 for m in masks)  # type: ignore[assignment]
+    normal, defect, island = masks
+    image = np.ones(normal.shape + (3,))
+    image[normal] = DEFECT_FREE
+    image[defect] = WITH_DENT
+    image[normal & defect] = BOTH
+    image[island] = ISLAND
+    return image
+
+
 def overlay_figure(
-    rgb: np.ndarray, result, column_start: int, title: str, path: Path, zoom_px: int = 48
+    rgb: np.ndarray, result, column_start: int, title: str, path: Path, zoom_px: int = 40
 ) -> None:
     """The Fig. 9 overlay of one case at its best phase: the cut contour images merged
-    (left), a magnified window around the largest distance with that distance drawn
-    (right), a title naming the case and a legend for every colour.
+    (left, contours thickened to stay visible at print size), a magnified window around
+    the largest distance with that distance marked and annotated (right), a title naming
+    the case and a legend for every colour.
 
     ``rgb``: :func:`glshade.metrics.contours.overlay_rgb` of the kept columns; ``result``: the
     case's :class:`glshade.metrics.visibility.Visibility`; ``column_start``: the first kept column.
     """
-    from matplotlib.patches import Patch, Rectangle
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Rectangle
 
     shift = result.shift
-    fig = new_figure(12, 6.2)
-    full, near = fig.subplots(1, 2, gridspec_kw={"width_ratios": (1.0, 1.0)})
+    masks = _contour_masks(rgb)
     height, width = rgb.shape[:2]
+    extent = (column_start - 0.5, column_start + width - 0.5, height - 0.5, -0.5)
+    fig = new_figure(11, 6.4)
+    full, near = fig.subplots(1, 2, gridspec_kw={"width_ratios": (0.8, 1.2)})
     full.imshow(
-        rgb,
-        interpolation="antialiased",
-        extent=(column_start - 0.5, column_start + width - 0.5, height - 0.5, -0.5),
+        _paint(masks, max(1, round(height / 300))), interpolation="antialiased", extent=extent
     )
-    full.set_title("kept columns (cut at both sides)", fontsize=9)
-    full.set_xlabel("image column (px)")
-    full.set_ylabel("image row (px)")
+    full.set_title("kept columns (cut at both sides)", fontsize=10)
+    full.set_xlabel("image column (px)", fontsize=10)
+    full.set_ylabel("image row (px)", fontsize=10)
+    handles = [Line2D([], [], color=colour, lw=3, label=text) for colour, text in OVERLAY_LEGEND]
     if shift.column >= 0:
         rows = (shift.normal_row, shift.defect_row)
         centre_row = 0.5 * (rows[0] + rows[1])
         half = max(zoom_px, abs(rows[0] - rows[1]) * 0.75 + 8)
         x0, x1 = shift.column - half, shift.column + half
         y0, y1 = centre_row - half, centre_row + half
-        full.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="yellow", lw=1))
-        near.imshow(rgb, interpolation="nearest", extent=full.images[0].get_extent())
+        full.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor=SHIFT, lw=2))
+        full.annotate(
+            "magnified",
+            xy=(x1, y0),
+            xytext=(x1 + 0.08 * width, y0 - 0.06 * height),
+            color=SHIFT,
+            fontsize=9,
+            bbox={"boxstyle": "round", "fc": "white", "ec": SHIFT, "alpha": 0.9},
+            arrowprops={"arrowstyle": "-", "color": SHIFT, "lw": 1},
+        )
+        near.imshow(_paint(masks, 1), interpolation="nearest", extent=extent)
         near.set_xlim(x0, x1)
         near.set_ylim(y1, y0)
+        for row in rows:
+            near.plot([shift.column], [row], "o", ms=6, mfc="none", mec=SHIFT, mew=1.5)
         near.annotate(
             "",
             xy=(shift.column, rows[1]),
             xytext=(shift.column, rows[0]),
-            arrowprops={"arrowstyle": "<->", "color": "yellow", "lw": 1.5},
+            arrowprops={"arrowstyle": "<|-|>", "color": SHIFT, "lw": 2, "shrinkA": 0, "shrinkB": 0},
         )
-        near.text(
-            shift.column + 2,
-            centre_row,
-            f" {shift.distance_px:g} px\n ({shift.side} contour)",
-            color="yellow",
+        near.set_title(
+            "magnified: the largest distance between corresponding contours\n"
+            f"shift {shift.distance_px:g} px ({shift.side} contour, column {shift.column:g})",
             fontsize=10,
-            va="center",
+            color=SHIFT,
         )
-        near.set_title("magnified: the largest distance between corresponding contours", fontsize=9)
+        handles.append(
+            Line2D([], [], color=SHIFT, lw=2, marker="o", mfc="none", label="measured shift")
+        )
     else:
-        near.set_title("no corresponding contours to compare", fontsize=9)
-    near.set_xlabel("image column (px)")
-    handles = [Patch(color=c, label=text) for c, text in OVERLAY_LEGEND]
-    handles.append(Patch(color="yellow", label="measured distance"))
-    fig.legend(handles=handles, loc="lower center", ncol=5, fontsize=8.5)
+        near.set_title("no corresponding contours to compare", fontsize=10)
+    near.set_xlabel("image column (px)", fontsize=10)
+    near.set_ylabel("image row (px)", fontsize=10)
+    fig.legend(
+        handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.02), ncol=3, fontsize=10,
+        frameon=False,
+    )  # fmt: skip
     fig.suptitle(
         f"Fig. 9 overlay: {title}; phase {result.best_phase_mm:g} mm\n"
         f"visibility {result.visibility_px:g} px (limit {result.visibility_continuous_px:.2f} px, "
-        f"deflection {result.deflection_px:.2f} px, {result.islands} islands)",
-        fontsize=10.5,
+        f"deflection {result.deflection_px:.2f} px, {result.islands} islands); "
+        f"image {width} kept columns × {height} rows",
+        fontsize=11,
     )
-    fig.tight_layout(rect=(0, 0.06, 1, 1))
-    save_figure(fig, path)
+    fig.tight_layout()
+    save_figure(fig, path, dpi=150)

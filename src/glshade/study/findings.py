@@ -19,8 +19,11 @@ import numpy as np
 
 from glshade.files import atomic_write_bytes
 from glshade.metrics import physics
-from glshade.study.plan import case_scene
+from glshade.study.notation import image_size, laws_section, symbols_section
+from glshade.study.plan import case_scene, surface_label
+from glshade.study.shapes import CONCAVE, CONVEX, FLAT, Shape, curvature_text, shape
 from glshade.study.stats import spearman
+from glshade.study.status import excluded_sentence, split_measurable
 
 HOLDS, PARTLY, NOT = "holds", "partly holds", "does not hold"
 METRICS = {"visibility_px": "paper metric", "visibility_continuous_px": "continuous limit"}
@@ -77,6 +80,13 @@ class Verdict:
     metric: str
     verdict: str
     evidence: str
+    #: The verdict with its measured difference and where it applies:
+    #: "does not hold: σ² 1 -72 %, σ² 4 -22 % (θ 85° → 5°); within 10 % down to θ 35°".
+    headline: str = ""
+
+    @property
+    def text(self) -> str:
+        return self.headline or self.verdict
 
 
 def _worst(verdicts: list[str]) -> str:
@@ -113,7 +123,10 @@ def evaluate(rows: Sequence[Mapping]) -> list[Verdict]:
     """Every verdict the rows support (a finding needs its σ², depths and ≥ 3 θ). A row is
     a :class:`~glshade.study.store.CaseResult` or any mapping of its columns (the
     functions here read rows by column name)."""
+    rows, _ = split_measurable(rows)
     out: list[Verdict] = []
+    if not rows:
+        return out
     axes = [
         list(dict.fromkeys(r[key] for r in rows))
         for key in ("surface", "dmax_mm", "sigma2_mm2", "theta_deg")
@@ -150,14 +163,17 @@ def _deeper(g: _Grid, metric_name: str) -> list[Verdict]:
         less = sum(a < b for a, b in pairs)
         share = more / len(pairs)
         verdict = HOLDS if share >= 0.9 and less == 0 else PARTLY if share >= 0.6 else NOT
+        gain = float(np.median([a / b - 1 for a, b in pairs if b > 0] or [0.0]))
         out.append(
             Verdict(
                 1,
-                s,
+                surface_label(s),
                 metric_name,
                 verdict,
                 f"dmax {um(hi)} more visible than {um(lo)} in {more}/{len(pairs)} cases, less in "
                 f"{less}",
+                f"{verdict}: {um(hi)} more visible in {share:.0%} of the cases "
+                f"({more}/{len(pairs)}), by {gain:+.0%} (median)",
             )
         )
     return out
@@ -170,21 +186,28 @@ def _wider(g: _Grid, metric_name: str) -> list[Verdict]:
     out = []
     for s in g.surfaces:
         for d in g.dmaxs:
-            means = [
-                np.mean([g.value(s, t, v, d) for t in g.thetas if g.has(s, t, v, d)])
+            kept = [
+                (v, float(np.mean(vals)))
                 for v in g.sigma2s
+                if (vals := [g.value(s, t, v, d) for t in g.thetas if g.has(s, t, v, d)])
             ]
-            rho = spearman(g.sigma2s, means)
+            if len(kept) < 2:
+                continue
+            sigma2s, means = [v for v, _ in kept], [m for _, m in kept]
+            rho = spearman(sigma2s, means)
             strictly = all(a > b for a, b in pairwise(means))
             verdict = HOLDS if strictly else PARTLY if rho <= -0.8 else NOT
-            shown = ", ".join(f"σ² {v:g}: {m:.1f}" for v, m in zip(g.sigma2s, means, strict=False))
+            shown = ", ".join(f"σ² {v:g}: {m:.1f}" for v, m in kept)
+            change = means[-1] / means[0] - 1 if means[0] > 0 else 0.0
             out.append(
                 Verdict(
                     2,
-                    f"{s}, dmax {um(d)}",
+                    f"{surface_label(s)}, dmax {um(d)}",
                     metric_name,
                     verdict,
                     f"mean over θ {shown} px; Spearman ρ = {rho:.2f}",
+                    f"{verdict}: σ² {sigma2s[0]:g} → {sigma2s[-1]:g} mean {means[0]:.1f} → "
+                    f"{means[-1]:.1f} px ({change:+.0%})",
                 )
             )
     return out
@@ -199,22 +222,46 @@ def _theta_trends(g: _Grid, metric_name: str) -> list[Verdict]:
         present = [v for v in group if v in g.sigma2s]
         for s in g.surfaces if present else ():
             for d in g.dmaxs:
-                parts, shown = zip(*(_trend(g, s, v, d, sign) for v in present), strict=False)
+                trends = [tr for v in present if (tr := _trend(g, s, v, d, sign)) is not None]
+                if not trends:
+                    continue
+                verdict = _worst([tr.verdict for tr in trends])
                 out.append(
                     Verdict(
                         number,
-                        f"{s}, dmax {um(d)}",
+                        f"{surface_label(s)}, dmax {um(d)}",
                         metric_name,
-                        _worst(list(parts)),
-                        "; ".join(shown),
+                        verdict,
+                        "; ".join(tr.evidence for tr in trends),
+                        _trend_headline(verdict, trends),
                     )
                 )
     return out
 
 
-def _trend(g: _Grid, s: str, v: float, d: float, sign: float) -> tuple[str, str]:
-    """One σ²'s verdict on a θ trend of sign ``sign``, and its evidence."""
+@dataclass(frozen=True)
+class _Trend:
+    """One σ²'s θ trend: its verdict, evidence, relative change from the highest to the
+    lowest θ, the θ range, and the lowest θ down to which the value stays within
+    :data:`MIN_EFFECT` of its value at the highest θ."""
+
+    sigma2: float
+    verdict: str
+    evidence: str
+    change: float
+    theta_high: float
+    theta_low: float
+    steady_to: float
+    #: The highest θ at which the stripe map folds (None where it never does).
+    folds_from: float | None = None
+
+
+def _trend(g: _Grid, s: str, v: float, d: float, sign: float) -> _Trend | None:
+    """One σ²'s verdict on a θ trend of sign ``sign``, and its evidence (None with fewer
+    than three θ measured)."""
     ts = [t for t in g.thetas if g.has(s, t, v, d)]
+    if len(ts) < 3:
+        return None
     vals = [g.value(s, t, v, d) for t in ts]
     rho = spearman(ts, vals)
     high, low = vals[-1], vals[0]  # at the highest and the lowest θ
@@ -226,10 +273,46 @@ def _trend(g: _Grid, s: str, v: float, d: float, sign: float) -> tuple[str, str]
         verdict = PARTLY
     else:
         verdict = NOT
-    return (
+    steady_to = ts[-1]
+    for t, value in zip(reversed(ts), reversed(vals), strict=True):
+        if high > 0 and abs(value / high - 1) >= MIN_EFFECT:
+            break
+        steady_to = t
+    folded = [t for t in ts if g.table[(s, t, v, d)].get("folded")]
+    return _Trend(
+        v,
         verdict,
         f"σ² {v:g}: ρ(θ, visibility) = {rho:+.2f}, θ {ts[-1]:g} → {ts[0]:g}: {high:.2f} → "
         f"{low:.2f} px ({change:+.0%})",
+        change,
+        ts[-1],
+        ts[0],
+        steady_to,
+        max(folded) if folded else None,
+    )
+
+
+def _trend_headline(verdict: str, trends: list[_Trend]) -> str:
+    """ "does not hold: σ² 1 -72 %, σ² 4 -22 % (θ 85° → 5°); within 10 % down to θ 35°
+    (σ² 1), at every θ (σ² 4)"."""
+    changes = ", ".join(f"σ² {tr.sigma2:g} {tr.change:+.0%}" for tr in trends)
+    where = []
+    for tr in trends:
+        if tr.steady_to == tr.theta_low:
+            where.append(f"σ² {tr.sigma2:g} at every θ")
+        elif tr.steady_to == tr.theta_high:
+            where.append(f"σ² {tr.sigma2:g} already below θ {tr.theta_high:g}°")
+        else:
+            where.append(f"σ² {tr.sigma2:g} down to θ {tr.steady_to:g}°")
+        if tr.folds_from is not None:
+            where[-1] += (
+                " (folds at every θ)"
+                if tr.folds_from == tr.theta_high
+                else f" (folds at θ ≤ {tr.folds_from:g}°)"
+            )
+    return (
+        f"{verdict}: {changes} (θ {trends[0].theta_high:g}° → {trends[0].theta_low:g}°); "
+        f"within {MIN_EFFECT:.0%} of the highest view's value: {', '.join(where)}"
     )
 
 
@@ -245,7 +328,22 @@ def _alike(g: _Grid, metric_name: str, found: list[Verdict]) -> list[Verdict]:
         if not failing
         else "not holding in: " + "; ".join(failing)
     )
-    return [Verdict(5, ", ".join(g.surfaces), metric_name, verdict, evidence)]
+    scopes = {v.scope for v in three_four}
+    holding = len(scopes) - len(failing)
+    headline = (
+        f"{verdict}: findings 3 and 4 hold in {holding} of {len(scopes)} surface-and-depth "
+        f"scopes ({holding / len(scopes):.0%})"
+    )
+    return [
+        Verdict(
+            5,
+            ", ".join(surface_label(s) for s in g.surfaces),
+            metric_name,
+            verdict,
+            evidence,
+            headline,
+        )
+    ]
 
 
 FINDING_TEXT = {
@@ -306,97 +404,187 @@ def best_thetas(
     return sorted(keep, reverse=True)
 
 
-def _magnifies(surface: str) -> bool:
-    """The paper's ``surface`` is convex along the plane of incidence at the gaze point:
-    it magnifies the stripes by m (docs/physics.md), which decides its advice."""
-    return physics.base_curvatures(case_scene(surface))[0] < 0.0
+def _series_changes(rows: Sequence[Mapping], surface: str, unfolded_only: bool) -> list[float]:
+    """The continuous limit's relative change from the highest to the lowest θ of every
+    (σ², dmax) series of ``surface`` (only series that never fold, if asked)."""
+    out = []
+    for s2 in sorted({r["sigma2_mm2"] for r in rows}):
+        for d in sorted({r["dmax_mm"] for r in rows}):
+            line = sorted(
+                (
+                    r
+                    for r in rows
+                    if r["surface"] == surface and r["sigma2_mm2"] == s2 and r["dmax_mm"] == d
+                ),
+                key=lambda r: r["theta_deg"],
+            )
+            if len(line) < 2 or (unfolded_only and any(r.get("folded") for r in line)):
+                continue
+            high = line[-1]["visibility_continuous_px"]
+            if high > 0:
+                out.append(line[0]["visibility_continuous_px"] / high - 1)
+    return out
 
 
-def _why(rows: Sequence[Mapping], surface: str, sigma2s, dmaxs) -> str:
-    """The closed form behind the advice for one surface and class of dent, with the
-    numbers at the lowest view."""
+def _change_range(changes: list[float]) -> str:
+    lo, hi = min(changes), max(changes)
+    return f"{lo:+.0%}" if round(lo, 2) == round(hi, 2) else f"{lo:+.0%} to {hi:+.0%}"
+
+
+def surface_text(rows: Sequence[Mapping], sh: Shape) -> str:
+    """What the surface is and what that does to a dent's visibility, from its shape and
+    the rows' numbers (laws named as in the report's Laws section)."""
+    span = f"from θ {sh.theta_high:g}° to {sh.theta_low:g}°"
+    parts = []
+    if sh.free_form:
+        parts.append(
+            "A free-form surface: its curvatures are those at the gaze point, where the dent "
+            "sits, and the laws hold there only."
+        )
+    if sh.kind == FLAT:
+        steady = _series_changes(rows, sh.surface, unfolded_only=True)
+        measured = (
+            f" (measured, continuous limit of the dents that never fold: "
+            f"{_change_range(steady)} {span})"
+            if steady
+            else ""
+        )
+        parts.append(
+            f"Flat along the plane of incidence (κ_t = {curvature_text(sh.kappa_t)}, m = 1 by "
+            "the magnification law): by the deflection law a dent that does not fold moves its "
+            f"contours as far from any θ{measured}."
+        )
+    else:
+        changes = _series_changes(rows, sh.surface, unfolded_only=False)
+        measured = (
+            f"; the continuous limit changes by {_change_range(changes)} {span}" if changes else ""
+        )
+        if sh.kind == CONVEX:
+            parts.append(
+                f"Convex along the plane of incidence (κ_t = {curvature_text(sh.kappa_t)}): by "
+                f"the magnification law it magnifies the stripes, m = {sh.m_high:.3g} at θ "
+                f"{sh.theta_high:g}° and {sh.m_low:.3g} at θ {sh.theta_low:g}°, and every shift "
+                f"in pixels shrinks by m{measured}."
+            )
+        else:
+            parts.append(
+                f"Concave along the plane of incidence (κ_t = {curvature_text(sh.kappa_t)}): by "
+                f"the magnification law it shrinks the stripes, m = {sh.m_high:.3g} at θ "
+                f"{sh.theta_high:g}° and {sh.m_low:.3g} at θ {sh.theta_low:g}°, so every shift "
+                f"in pixels grows by 1/m{measured}; its curvature adds to the dent's in the "
+                "fold law."
+            )
+    folds = [r for r in rows if r["surface"] == sh.surface and r.get("folded")]
+    if sh.curved_across and folds:
+        parts.append(
+            f"Curved across the plane of incidence (κ_s = {curvature_text(sh.kappa_s)}): by "
+            "the saddle law a dent that folds keeps more of its shift at low views than on a "
+            "plate flat across it."
+        )
+    if not folds:
+        parts.append("No case of this study folds on it (fold law).")
+    return " ".join(parts)
+
+
+def _fold_text(rows: Sequence[Mapping], surface: str, sigma2s, dmaxs) -> str:
+    """The fold law's onsets of one class of dent, and the fold cap law's numbers at the
+    lowest view."""
     table = _table(rows)
     low = min(r["theta_deg"] for r in rows)
-    if _magnifies(surface):
-        m_high = physics.laws(case_scene(surface, max(r["theta_deg"] for r in rows))).magnification
-        m_low = physics.laws(case_scene(surface, low)).magnification
-        return (
-            f"The convex {surface} magnifies the stripes by m = 1 + 2 Dc De / (R sin θ (Dc + "
-            "De)), from "
-            f"{m_high:.1f} at the highest view to {m_low:.0f} at θ {low:g}°, and every "
-            "displacement in pixels shrinks "
-            "by m: a low view loses every dent. No dent of Table 1 folds on it (its floor "
-            "curvature dmax/σ² is below "
-            "the base's 1/R)."
-        )
     onsets = []
     for s2 in sigma2s:
         for d in dmaxs:
             onset = physics.fold_onset_theta_deg(case_scene(surface, 45.0, s2, d))
             if onset > 0:
                 onsets.append(
-                    f"σ² {s2:g}, {um(d)}: " + ("every θ" if onset >= 90 else f"θ < {onset:.1f}°")
+                    ("every θ" if onset >= 90 else f"θ < {onset:.1f}°") + f" (σ² {s2:g}, {um(d)})"
                 )
+    if not onsets:
+        return "None of them folds (fold law)."
+    text = "Folds (fold law) at " + ", ".join(onsets) + "."
     candidates = [
         table[k] for k in ((surface, low, s2, d) for s2 in sigma2s for d in dmaxs) if k in table
     ]
     worst = max(
         candidates, key=lambda r: r["deflection_px"] - r["visibility_continuous_px"], default=None
     )
-    text = (
-        "Where nothing folds the deflection 2 (dmax/σ) e^(-1/2) De f / ((Dc + De) p) does not "
-        "depend on θ; a low "
-        "view adds 2-3 % (the steepest flank lies σ cos θ farther from the emitter). "
-    )
-    if onsets:
+    if worst is not None and worst.get("folded"):
         text += (
-            "The stripe map folds where sin θ < 2 κ Dc De / (Dc + De), κ = dmax/σ² ("
-            + "; ".join(onsets)
-            + "). "
-            "Below that only the contours outside the band where the rays move more than their "
-            "distance from "
-            "the dent reach the cut columns, b sqrt(2 ln F) with b ∝ sin θ"
+            f" Fold cap law at θ {low:g}°: the σ² {worst['sigma2_mm2']:g}, "
+            f"{um(worst['dmax_mm'])} dent moves the rays by {worst['deflection_px']:.1f} px and "
+            f"its contours by {worst['visibility_continuous_px']:.1f} px."
         )
-        if worst is not None and worst["folded"]:
-            text += (
-                f": at θ {low:g}° the σ² {worst['sigma2_mm2']:g}, {um(worst['dmax_mm'])} dent "
-                "moves the rays by "
-                f"{worst['deflection_px']:.1f} px and its contours by "
-                f"{worst['visibility_continuous_px']:.1f} px"
-            )
-        text += "."
-        if physics.base_curvatures(case_scene(surface))[1] != 0:
-            text += (
-                " The cylinder's curvature across the plane of incidence lifts the fold's saddles "
-                "and with them "
-                "the cap (docs/physics.md §3): a dent that folds keeps more of its shift at low "
-                "views than on the "
-                "flat plate."
-            )
     return text
 
 
+CLASSES = (("steep dents (σ² 1, 4)", STEEP), ("gentle dents (σ² 9, 16)", GENTLE))
+
+
 def advice(rows: Sequence[Mapping]) -> list[str]:
-    """For each surface and class of dent, the θ that keep the dent most visible, and why."""
-    lines = []
+    """For each surface: what it is and what that does, then for each class of dent the
+    θ that keep the dent most visible and the fold law's numbers. Measurable rows only."""
+    rows, _ = split_measurable(rows)
+    lines: list[str] = []
     dmaxs = sorted({r["dmax_mm"] for r in rows})
     sigma2s = sorted({r["sigma2_mm2"] for r in rows})
     thetas = {r["theta_deg"] for r in rows}
     if len(thetas) < 3:
-        return ["Not given: the advice needs at least three θ."]
+        return ["Not given: the advice needs at least three measurable θ."]
     for surface in dict.fromkeys(r["surface"] for r in rows):
-        for label, group in (("steep dents (σ² 1, 4)", STEEP), ("gentle dents (σ² 9, 16)", GENTLE)):
+        sh = shape(rows, surface)
+        named = "" if sh.description == sh.label else f" ({sh.description})"
+        lines += [f"**{sh.label}**{named}. {surface_text(rows, sh)}", ""]
+        for label, group in CLASSES:
             present = [v for v in group if v in sigma2s]
             if not present:
                 continue
-            ranges = "; ".join(
-                f"θ {theta_ranges(best_thetas(rows, surface, present, d), thetas)} ({um(d)})"
-                for d in dmaxs
-            )
+            by_depth: dict[str, list[str]] = {}
+            for d in dmaxs:
+                found = theta_ranges(best_thetas(rows, surface, present, d), thetas)
+                by_depth.setdefault(found, []).append(um(d))
+            ranges = "; ".join(f"θ {found} ({', '.join(ds)})" for found, ds in by_depth.items())
             lines.append(
-                f"- **{surface}, {label}**: {ranges}. {_why(rows, surface, present, dmaxs)}"
+                f"- **{sh.label}, {label}**: {ranges}. {_fold_text(rows, surface, present, dmaxs)}"
             )
+        lines.append("")
     return lines
+
+
+def in_short(rows: Sequence[Mapping]) -> str:
+    """The advice in one paragraph, by what the surfaces are."""
+    rows, _ = split_measurable(rows)
+    if len({r["theta_deg"] for r in rows}) < 3:
+        return ""
+    kinds: dict[str, list[str]] = {}
+    for surface in dict.fromkeys(r["surface"] for r in rows):
+        sh = shape(rows, surface)
+        kinds.setdefault(sh.kind, []).append(sh.label)
+    parts = []
+    if FLAT in kinds:
+        parts.append(
+            f"on {', '.join(kinds[FLAT])} (flat along the plane of incidence) a steep dent is "
+            "seen best from above its fold onset, a gentle one from anywhere"
+        )
+    if CONCAVE in kinds:
+        parts.append(
+            f"on {', '.join(kinds[CONCAVE])} (concave) a lower view enlarges every shift by "
+            "1/m, until the dent folds"
+        )
+    if CONVEX in kinds:
+        parts.append(
+            f"on {', '.join(kinds[CONVEX])} (convex) from as high as possible, since m shrinks "
+            "every shift as the view grazes"
+        )
+    gains = [
+        c
+        for s in dict.fromkeys(r["surface"] for r in rows)
+        for c in _series_changes(rows, s, False)
+    ]
+    best = max(gains, default=0.0)
+    return (
+        "In short: " + "; ".join(parts) + ". The lowest view of this study gains at most "
+        f"{best:+.0%} over the highest (continuous limit, any surface and dent)."
+    )
 
 
 def law_summary(rows: Sequence[Mapping]) -> list[str]:
@@ -448,16 +636,24 @@ def law_by_theta(rows: Sequence[Mapping], surface: str) -> str:
 def write_report(
     rows: Sequence[Mapping], out_dir: Path, plan, figures: list[Path], timings=None
 ) -> Path:
-    """``report.md``: the conclusion, the verdicts with their rules and numbers, the closed
-    forms against the simulation, the folded cases, and the figures."""
+    """``report.md``: the symbols, the laws, the advice, the verdicts with their rules and
+    numbers, the laws against the simulation, the folded cases and the figures. Rows that
+    are not measurable (:func:`glshade.study.status.is_measurable`) are counted, not
+    judged."""
+    everything = list(rows)
+    rows, _ = split_measurable(everything)
     verdicts = evaluate(rows)
-    lines = _opening(rows, plan) + _findings_sections(verdicts)
+    lines = _opening(everything, plan)
+    lines += symbols_section(rows, plan)
+    lines += laws_section()
+    lines += _advice_section(rows)
+    lines += _findings_sections(verdicts)
     lines += _laws_section(rows)
     lines += _folds_section(rows)
     from glshade.study.finding3 import report_section
 
     lines += report_section(Path(out_dir))
-    lines += _notes(rows, plan)
+    lines += _notes(everything, plan)
     lines += ["## Figures", ""]
     lines += [f"![{path.stem}]({path.name})" for path in figures]
     if timings is not None:
@@ -479,53 +675,51 @@ def write_report(
 
 
 def _opening(rows: Sequence[Mapping], plan) -> list[str]:
-    """The report's title, what was run, and the advice."""
-    return [
+    """The report's title, what was run, and which cases could not be measured."""
+    width, height = image_size(plan)
+    paper = " (the paper's field of view)" if (width, height) == (1024, 1024) else ""
+    lines = [
         "# glshade: the paper's study",
         "",
         (
-            f"{len(rows)} cases: surfaces {', '.join(plan.surfaces)}; θ "
-            f"{', '.join(f'{t:g}' for t in plan.thetas)}°; "
+            f"{len(rows)} cases: surfaces {', '.join(surface_label(s) for s in plan.surfaces)}; "
+            f"θ {', '.join(f'{t:g}' for t in plan.thetas)}°; "
             f"σ² {', '.join(f'{v:g}' for v in plan.sigma2s)} mm²; dmax "
-            f"{', '.join(um(d) for d in plan.dmaxs)}; "
-            f"{plan.size}×{plan.size} pixels (the paper's field of view); phase step "
-            f"{plan.metric.step_mm:g} mm; "
-            f"threshold {plan.metric.threshold:g}; central {plan.metric.keep_fraction:.0%} of the "
-            "columns kept. Depths are "
-            "in µm throughout this report and in the figures' titles and file names; "
-            "`results.csv` keeps `dmax_mm`."
+            f"{', '.join(um(d) for d in plan.dmaxs)}; images of {width}×{height} pixels{paper}; "
+            f"phase step {plan.metric.step_mm:g} mm; threshold {plan.metric.threshold:g}; "
+            f"central {plan.metric.keep_fraction:.0%} of the columns kept. Depths are in µm "
+            "throughout this report and in the figures' titles and file names; `results.csv` "
+            "keeps `dmax_mm`."
         ),
         "",
         (
-            "Three numbers per case (docs/study.md; every column in `docs/results.md`): the "
-            "paper's metric `visibility_px` (whole "
-            "pixels), its continuous limit `visibility_continuous_px` (what the paper's metric "
-            "tends to with a finer phase "
-            "step and a finer sensor), and `deflection_px` (how far the rays move). Verdicts are "
-            "given for the first two."
+            "Three numbers per case (`docs/study.md`; every column in `docs/results.md`): the "
+            "paper's metric `visibility_px` (whole pixels), its continuous limit "
+            "`visibility_continuous_px` (what the paper's metric tends to with a finer phase "
+            "step and a finer sensor), and `deflection_px` (how far the rays move). Verdicts "
+            "are given for the first two."
         ),
         "",
+    ]
+    excluded = excluded_sentence(rows)
+    if excluded:
+        lines += [f"**{excluded}**", ""]
+    return lines
+
+
+def _advice_section(rows: Sequence[Mapping]) -> list[str]:
+    """Where to put the camera, per surface and class of dent."""
+    return [
         "## What to do with it: where to put the camera",
         "",
         (
-            "For each surface and class of dent: the study's elevations θ at which every dent of "
-            "the class keeps at "
-            f"least {NEAR_BEST:.0%} of its best visibility (continuous limit), per depth, and the "
-            "closed form that explains "
-            "it (derived in glshade's `docs/physics.md`):"
+            "For each surface: what it is, and for each class of dent the study's elevations θ "
+            f"at which every dent of the class keeps at least {NEAR_BEST:.0%} of its best "
+            "visibility (continuous limit), per depth, with the laws that explain it."
         ),
         "",
         *advice(rows),
-        "",
-        (
-            "In short: on flat and cylindrical parts a steep dent is seen best from above the "
-            "angle at which it folds the "
-            "stripe map, a gentle one from anywhere, and on a strongly curved convex part (the "
-            "sphere) from as high as "
-            'possible. "Looking from just above the surface" never helps by more than a few '
-            "per cent in this model; it "
-            "hurts steep dents once they fold, and every dent on a convex part."
-        ),
+        in_short(rows),
         "",
     ]
 
@@ -543,8 +737,8 @@ def _findings_sections(verdicts: list[Verdict]) -> list[str]:
         "",
         (
             '"Partly holds" therefore means: the trend is there in rank, or in most cases, but '
-            "not strong or not "
-            "everywhere enough to call it the paper's effect."
+            "not strong or not everywhere enough to call it the paper's effect. Each verdict "
+            "carries the measured difference it rests on and where it applies."
         ),
         "",
     ]
@@ -559,21 +753,19 @@ def _findings_sections(verdicts: list[Verdict]) -> list[str]:
             "| scope | metric | verdict | numbers |",
             "|---|---|---|---|",
         ]
-        lines += [f"| {v.scope} | {v.metric} | **{v.verdict}** | {v.evidence} |" for v in mine]
+        lines += [f"| {v.scope} | {v.metric} | **{v.text}** | {v.evidence} |" for v in mine]
         lines.append("")
     return lines
 
 
 def _laws_section(rows: Sequence[Mapping]) -> list[str]:
     lines = [
-        "## The closed forms against the simulation",
+        "## The laws against the simulation",
         "",
         (
-            "`deflection_law_px` is the small-slope closed form of the deflection, divided by the "
-            "convex base's magnification m; "
-            "`visibility_law_px` is the deflection capped by a fold at b sqrt(2 ln(F/m)) "
-            "(docs/physics.md derives both); "
-            "`fold_ratio` > 1 predicts a fold. `law_vs_simulation.png` plots every case."
+            "`deflection_law_px` is the deflection law (D / m), `visibility_law_px` the fold "
+            "cap law (the deflection law where nothing folds), `fold_ratio` the fold law's "
+            "ratio. `law_vs_simulation.png` plots every case."
         ),
         "",
         *law_summary(rows),
@@ -582,18 +774,19 @@ def _laws_section(rows: Sequence[Mapping]) -> list[str]:
     predicted = [r for r in rows if (r["fold_ratio"] or 0.0) > 1.0]
     agree = sum(((r["fold_ratio"] or 0.0) > 1.0) == r["folded"] for r in rows)
     lines.append(
-        f"- Fold onset: the law predicts {len(predicted)} folded cases; it agrees with the "
-        "`folded` flag in "
-        f"{agree} of {len(rows)} cases."
+        f"- Fold onset: the fold law predicts {len(predicted)} folded cases; it agrees with the "
+        f"`folded` flag in {agree} of {len(rows)} cases."
     )
-    for surface in [s for s in dict.fromkeys(r["surface"] for r in rows) if _magnifies(s)]:
+    for surface in dict.fromkeys(r["surface"] for r in rows):
+        sh = shape(rows, surface)
+        if not sh.magnifies:
+            continue
         lines.append(
-            f"- Where the {surface}'s law breaks: the worst deflection error per θ is "
-            f"{law_by_theta(rows, surface)}. At grazing views the dent's flank facing the camera "
-            "is seen at "
-            "the local elevation θ + z/R, a large change when σ/R is comparable to θ, and m (∝ "
-            "1/sin θ) is "
-            "then far from its value at the gaze point. The law holds where σ/R ≪ θ."
+            f"- Where the deflection law breaks on {sh.label}: the worst error per θ is "
+            f"{law_by_theta(rows, surface)}. At grazing views the dent's flank facing the "
+            "camera is seen at the local elevation θ + σ/R, a large change when σ/R is "
+            "comparable to θ, and m (∝ 1/sin θ) is then far from its value at the gaze point. "
+            "The law holds where σ/R ≪ θ."
         )
     lines.append("")
     return lines
@@ -619,7 +812,8 @@ def _folds_section(rows: Sequence[Mapping]) -> list[str]:
     ]
     for r in folded:
         lines.append(
-            f"| {r['surface']} | {r['theta_deg']:g} | {r['sigma2_mm2']:g} | {um(r['dmax_mm'])} | "
+            f"| {surface_label(r['surface'])} | {r['theta_deg']:g} | {r['sigma2_mm2']:g} | "
+            f"{um(r['dmax_mm'])} | "
             f"{r['fold_ratio']:.2f} "
             f"| {r['visibility_px']:g} | {r['visibility_continuous_px']:.2f} | "
             f"{r['visibility_law_px']:.2f} "
@@ -632,32 +826,38 @@ def _notes(rows: Sequence[Mapping], plan) -> list[str]:
     unresolved = max((r["unresolved_fraction"] for r in rows), default=0.0)
     mostly = [r for r in rows if r["unresolved_fraction"] > 0.5]
     gap = max((abs(r["visibility_px"] - r["visibility_continuous_px"]) for r in rows), default=0.0)
+    width, height = image_size(plan)
+    sub_pixel = sorted(
+        {surface_label(r["surface"]) for r in rows if r["visibility_continuous_px"] < 1.0}
+    )
+    where = (
+        f" Where the limit is below a pixel ({', '.join(sub_pixel)}, in some cases), the "
+        "paper's metric reads 1 px or 0 px and cannot rank the dents; the limit can."
+        if sub_pixel
+        else ""
+    )
     lines = [
         "## Notes",
         "",
         (
             f"- The paper's metric counts whole pixels at {len(plan.metric.phases(2.0))} phases "
-            "per 2 mm period: it differs "
-            f"from its continuous limit by at most {gap:.2f} px here. Where the limit is below a "
-            "pixel (the sphere at low "
-            "θ), the paper's metric reads 1 px or 0 px and cannot rank the dents; the limit can."
+            f"per 2 mm period: it differs from its continuous limit by at most {gap:.2f} px "
+            f"here.{where}"
         ),
         (
             "- Pixels where the defect-free stripes span fewer than "
-            f"{plan.metric.min_period_px:g} px per period are left out "
-            "of the contours (aliasing; see `glshade.metrics.visibility.resolved_mask`); at most "
-            f"{unresolved:.1%} of a case's "
-            "kept pixels were."
+            f"{plan.metric.min_period_px:g} px per period are left out of the contours "
+            "(aliasing; see `glshade.metrics.visibility.resolved_mask`); at most "
+            f"{unresolved:.1%} of a case's kept pixels were."
         ),
     ]
     if mostly:
-        kinds = ", ".join(sorted({r["surface"] for r in mostly}))
+        kinds = ", ".join(sorted({surface_label(r["surface"]) for r in mostly}))
         lines.append(
             f"- **{len(mostly)} cases ({kinds}) are mostly not resolved** at "
-            f"{plan.size}×{plan.size}: their stripes span "
-            f"fewer than {plan.metric.min_period_px:g} px per period, so their paper metric "
-            "measures next to nothing; "
-            "use a larger --size (the paper's is 1024)."
+            f"{width}×{height}: their stripes span fewer than {plan.metric.min_period_px:g} px "
+            "per period, so their paper metric measures next to nothing; use a larger --size "
+            "(the paper's is 1024)."
         )
     lines += ["- `results.csv` holds every case; the figures below were drawn from it.", ""]
     return lines
@@ -668,9 +868,9 @@ def _summary_table(verdicts: list[Verdict]) -> list[str]:
     if not paper:
         return []
     lines = ["| finding | scope | paper metric | continuous limit |", "|---|---|---|---|"]
-    limit = {(v.finding, v.scope): v.verdict for v in verdicts if v.metric == "continuous limit"}
+    limit = {(v.finding, v.scope): v.text for v in verdicts if v.metric == "continuous limit"}
     for v in paper:
         lines.append(
-            f"| {v.finding} | {v.scope} | {v.verdict} | {limit.get((v.finding, v.scope), '—')} |"
+            f"| {v.finding} | {v.scope} | {v.text} | {limit.get((v.finding, v.scope), '—')} |"
         )
     return lines

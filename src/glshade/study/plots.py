@@ -18,7 +18,9 @@ import numpy as np
 from glshade.files import read_png
 from glshade.measure.figures import new_figure as _figure
 from glshade.measure.figures import save_figure as _save
+from glshade.study.notation import image_size
 from glshade.study.plan import GRID_THETAS, StudyPlan, case_key, surface_label
+from glshade.study.status import is_measurable, status_of
 from glshade.study.store import CaseResult
 
 SURFACE_NAMES = {"flat": "flat plate", "cylinder": "cylinder, R 70 mm", "sphere": "sphere, R 70 mm"}
@@ -36,6 +38,31 @@ def surface_name(surface: str) -> str:
 
 
 SURFACE_COLOURS = {"flat": "tab:blue", "cylinder": "tab:orange", "sphere": "tab:green"}
+#: Colours of the other surfaces of a study, in order.
+MORE_COLOURS = ("tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan", "tab:red")
+#: How a row that is not measurable is drawn (hollow grey), and its legend entry.
+NOT_MEASURABLE = {"facecolors": "none", "edgecolors": "0.55", "linewidths": 1.3}
+NOT_MEASURABLE_LABEL = "not measurable"
+
+
+def surface_colours(surfaces) -> dict[str, str]:
+    """A colour for every surface of a study: the paper's own, then :data:`MORE_COLOURS`."""
+    more = iter(MORE_COLOURS * 4)
+    return {s: SURFACE_COLOURS.get(s) or next(more) for s in surfaces}
+
+
+def pixels_label(image: tuple[int, int] | None) -> str:
+    """The axis label of a length in pixels: of the run's image, when its size is known."""
+    return f"pixels of the {image[0]}×{image[1]} image" if image else "pixels of the image"
+
+
+def _not_measurable_handle():
+    from matplotlib.lines import Line2D
+
+    return Line2D(
+        [], [], color="0.55", marker="o", ls="none", markerfacecolor="none",
+        label=NOT_MEASURABLE_LABEL,
+    )  # fmt: skip
 
 
 def _um(dmax_mm: float) -> str:
@@ -86,10 +113,13 @@ def image_grid(
         for j, t in enumerate(thetas):
             r = lookup[(t, s2)]
             fold = ", folds" if r.folded else ""
+            text = f"{r['visibility_px']:g} px (limit {r['visibility_continuous_px']:.1f}){fold}"
+            if not is_measurable(r):
+                text = f"not measurable: {status_of(r)}"
             ax.text(
                 j * cell + side / 2,
                 i * cell + side + gap * 0.1,
-                f"{r['visibility_px']:g} px (limit {r['visibility_continuous_px']:.1f}){fold}",
+                text,
                 ha="center",
                 va="top",
                 fontsize=7.5,
@@ -119,20 +149,39 @@ PLOT_PANELS = (
 )
 
 
-def visibility_plot(rows: list[CaseResult], surface: str, dmax: float, path: Path) -> None:
+def visibility_plot(
+    rows: list[CaseResult],
+    surface: str,
+    dmax: float,
+    path: Path,
+    image: tuple[int, int] | None = None,
+) -> None:
     """The three numbers against θ, one colour per σ²: markers the simulation, dashed
-    lines the closed forms (docs/physics.md); rings mark cases whose stripe map folds."""
+    lines the closed forms (docs/physics.md); rings mark cases whose stripe map folds,
+    hollow grey markers the cases that are not measurable (left out of the lines).
+    ``image``: the run's image size, for the axis label."""
+    from matplotlib.lines import Line2D
+
     sel = [r for r in rows if r.surface == surface and r.dmax_mm == dmax]
     sigma2s = sorted({r.sigma2_mm2 for r in sel})
-    fig = _figure(14, 4.3)
+    fig = _figure(15, 4.3)
     axes = fig.subplots(1, 3, sharex=True, sharey=True)
+    excluded = False
     for ax, (key, law_key, title) in zip(axes, PLOT_PANELS, strict=False):
         for s2 in sigma2s:
-            line = sorted((r for r in sel if r.sigma2_mm2 == s2), key=lambda r: r.theta_deg)
+            series = sorted((r for r in sel if r.sigma2_mm2 == s2), key=lambda r: r.theta_deg)
+            line = [r for r in series if is_measurable(r)]
+            bad = [r for r in series if not is_measurable(r)]
             theta = np.array([r.theta_deg for r in line])
             value = np.array([r[key] for r in line])
             (handle,) = ax.plot(theta, value, marker="o", label=f"σ² = {s2:g} mm²")
-            ax.plot(theta, [r[law_key] for r in line], ls="--", lw=1, color=handle.get_color())
+            ax.plot(
+                [r.theta_deg for r in series],
+                [r[law_key] for r in series],
+                ls="--",
+                lw=1,
+                color=handle.get_color(),
+            )
             folded = np.array([r.folded for r in line], bool)
             if folded.any():
                 ax.scatter(
@@ -142,13 +191,16 @@ def visibility_plot(rows: list[CaseResult], surface: str, dmax: float, path: Pat
                     facecolors="none",
                     edgecolors=handle.get_color(),
                 )
+            if bad:
+                excluded = True
+                ax.scatter(
+                    [r.theta_deg for r in bad], [r[key] for r in bad], s=40, **NOT_MEASURABLE
+                )
         ax.set_title(title, fontsize=10)
         ax.set_xlabel("θ (deg)")
         ax.invert_xaxis()
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("pixels of the 1024² image")
-    from matplotlib.lines import Line2D
-
+    axes[0].set_ylabel(pixels_label(image))
     extra = [
         Line2D([], [], color="k", ls="--", lw=1, label="closed form"),
         Line2D(
@@ -162,8 +214,17 @@ def visibility_plot(rows: list[CaseResult], surface: str, dmax: float, path: Pat
             label="stripe map folds",
         ),
     ]
+    if excluded:
+        extra.append(_not_measurable_handle())
     handles, labels = axes[0].get_legend_handles_labels()
-    axes[0].legend(handles + extra, labels + [h.get_label() for h in extra], fontsize=8)
+    fig.legend(
+        handles + extra,
+        labels + [h.get_label() for h in extra],
+        fontsize=9,
+        loc="center left",
+        bbox_to_anchor=(1.0, 0.5),
+        frameon=False,
+    )
     fig.suptitle(
         f"{surface_name(surface)}, dmax = {_um(dmax)}: visibility against the camera's elevation",
         fontsize=11,
@@ -172,10 +233,14 @@ def visibility_plot(rows: list[CaseResult], surface: str, dmax: float, path: Pat
     _save(fig, path)
 
 
-def law_plot(rows: list[CaseResult], path: Path) -> None:
+def law_plot(rows: list[CaseResult], path: Path, image: tuple[int, int] | None = None) -> None:
     """Closed form against simulation for every case: the deflection (left) and the
-    visible shift (right, the continuous limit against the fold-capped law)."""
-    fig = _figure(11, 5)
+    visible shift (right, the continuous limit against the fold-capped law); cases that
+    are not measurable as hollow grey markers. ``image``: the run's image size."""
+    fig = _figure(12, 5)
+    colours = surface_colours(dict.fromkeys(r.surface for r in rows))
+    unit = pixels_label(image)
+    excluded = False
     axes = fig.subplots(1, 2)
     for ax, (sim, law, title) in zip(
         axes,
@@ -189,17 +254,21 @@ def law_plot(rows: list[CaseResult], path: Path) -> None:
         ),
         strict=False,
     ):
-        for surface, colour in SURFACE_COLOURS.items():
+        drawable = [
+            r
+            for r in rows
+            if r[law] is not None and math.isfinite(r[law]) and r[law] > 0 and r[sim] > 0
+        ]
+        bad = [r for r in drawable if not is_measurable(r)]
+        if bad:
+            excluded = True
+            ax.scatter([r[law] for r in bad], [r[sim] for r in bad], s=26, **NOT_MEASURABLE)
+        for surface, colour in colours.items():
             for folded, marker in ((False, "o"), (True, "^")):
                 pick = [
                     r
-                    for r in rows
-                    if r.surface == surface
-                    and r.folded == folded
-                    and r[law] is not None
-                    and math.isfinite(r[law])
-                    and r[law] > 0
-                    and r[sim] > 0
+                    for r in drawable
+                    if r.surface == surface and r.folded == folded and is_measurable(r)
                 ]
                 if pick:
                     ax.scatter(
@@ -216,11 +285,17 @@ def law_plot(rows: list[CaseResult], path: Path) -> None:
         ax.plot([lo, hi], [lo, hi], color="k", lw=1, label="simulation = law")
         ax.plot([lo, hi], [lo * 1.1, hi * 1.1], color="k", lw=0.6, ls=":", label="±10 %")
         ax.plot([lo, hi], [lo / 1.1, hi / 1.1], color="k", lw=0.6, ls=":")
-        ax.set_xlabel("closed form (px)")
-        ax.set_ylabel("simulation (px)")
+        ax.set_xlabel(f"closed form ({unit})")
+        ax.set_ylabel(f"simulation ({unit})")
         ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3, which="both")
-    axes[0].legend(fontsize=7.5)
+    handles, labels = axes[0].get_legend_handles_labels()
+    if excluded:
+        handles.append(_not_measurable_handle())
+        labels.append(NOT_MEASURABLE_LABEL)
+    fig.legend(
+        handles, labels, fontsize=9, loc="center left", bbox_to_anchor=(1.0, 0.5), frameon=False
+    )
     fig.suptitle(
         f"Closed forms against the simulation, all {len(rows)} cases (docs/physics.md)", fontsize=11
     )
@@ -253,7 +328,7 @@ def surface_figures(
         ):
             written.append(out_dir / grid_name)
         if len(plan.thetas) >= 2:
-            visibility_plot(mine, surface, dmax, out_dir / plot_name)
+            visibility_plot(mine, surface, dmax, out_dir / plot_name, image_size(plan))
             written.append(out_dir / plot_name)
     return written
 
@@ -272,6 +347,6 @@ def write_figures(
             drawn[surface] if surface in drawn else surface_figures(rows, out_dir, plan, surface)
         )
     if rows:
-        law_plot(rows, out_dir / LAW_FIGURE)
+        law_plot(rows, out_dir / LAW_FIGURE, image_size(plan))
         written.append(out_dir / LAW_FIGURE)
     return written

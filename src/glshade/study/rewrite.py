@@ -1,0 +1,45 @@
+"""A study's report and figures again, from what its directory keeps (``study.json`` and
+``results.csv``), without measuring anything: the visibility plots, the laws against the
+simulation and ``report.md``. The image grids are redrawn where the case thumbnails are
+still in ``cases/``; otherwise the grids already there are kept, as are the Fig. 9
+overlays (they need the case's images, so only a run draws them)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from glshade.metrics.visibility import MetricSettings
+from glshade.study import findings, plots
+from glshade.study.plan import OVERLAY_CASES, StudyPlan
+from glshade.study.store import read_results_csv
+
+
+def stored_plan(out_dir: Path) -> StudyPlan:
+    """The plan a study directory was run with (its ``study.json``)."""
+    data = json.loads((Path(out_dir) / "study.json").read_text())
+    known = set(MetricSettings.__dataclass_fields__)
+    metric = MetricSettings(**{k: v for k, v in data.get("metric", {}).items() if k in known})
+    return StudyPlan(
+        surfaces=tuple(data["surfaces"]),
+        thetas=tuple(data["thetas"]),
+        sigma2s=tuple(data["sigma2s"]),
+        dmaxs=tuple(data["dmaxs"]),
+        size=int(data["size"]),
+        metric=metric,
+    )
+
+
+def rewrite(out_dir: Path) -> Path:
+    """Redraw what the stored rows allow and write ``report.md``; returns its path."""
+    out_dir = Path(out_dir)
+    plan = stored_plan(out_dir)
+    rows = read_results_csv(out_dir / "results.csv")
+    written = plots.write_figures(rows, out_dir, plan)
+    figures = [out_dir / name for name in OVERLAY_CASES.values() if (out_dir / name).exists()]
+    for surface in plan.surfaces:
+        for dmax in plan.dmaxs:
+            grid, plot = (out_dir / name for name in plots.figure_names(surface, dmax))
+            figures += [path for path in (grid, plot) if path in written or path.exists()]
+    figures += [path for path in written if path not in figures]
+    return findings.write_report(rows, out_dir, plan, figures)
