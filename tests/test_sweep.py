@@ -507,3 +507,34 @@ def test_optimize_cli_json_and_plot(tmp_path, capsys):
     assert main(["optimize", "--over", "camera.theta_deg", "--family", "defect.sigma2=4..1"]) == 2
     assert "inverted" in capsys.readouterr().err
     assert math.isfinite(summary["visibility_px"])
+
+
+def test_the_optimiser_never_picks_a_view_it_cannot_read(renderer):
+    """The paper's metric on a sphere with 2 mm stripes at 256²: low views leave the dent
+    unresolved (0 px, status unresolved); those viewpoints are left out, counted, and the
+    optimum is a view whose number can be read."""
+    base = paper_scene("sphere", 45.0, 4.0, 0.005).with_size(256).updated(emitter={"period": 8})
+    dims = (opt.Dimension("camera.theta_deg", 5.0, 85.0),)
+    with open_executor(Distribution(), renderer) as executor:
+        result = opt.optimize_scene(
+            base, dims, [{}], metric="paper", executor=executor, grid_points=9,
+            refine_evaluations=0,
+        )  # fmt: skip
+        objective = opt.SceneObjective(
+            base, dims, [{}], glshade.MetricSettings(), "paper", executor
+        )
+        scores, values, _ = objective(result.points)
+    assert result.unmeasurable > 0 and len(objective.unreadable) == result.unmeasurable
+    assert np.isneginf(scores).sum() == result.unmeasurable and np.isnan(values).any()
+    best = base.with_value("camera.theta_deg", result.optimum["camera.theta_deg"])
+    assert glshade.measure(best, renderer=renderer).status == "ok"
+    assert result.summary()["unmeasurable_cases"] == result.unmeasurable
+    # nothing readable anywhere: one clear error, no optimum
+    with (
+        open_executor(Distribution(), renderer) as executor,
+        pytest.raises(glshade.GlshadeError, match="no point of the search could be measured"),
+    ):
+        opt.optimize_scene(
+            base.with_value("emitter.period", 2.0), dims, [{}], metric="paper",
+            executor=executor, grid_points=3, refine_evaluations=0,
+        )  # fmt: skip

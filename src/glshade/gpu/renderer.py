@@ -365,7 +365,7 @@ class Renderer:
         if gain is None:
             features = ShaderFeatures.from_scene(normal, ("image",))
             with self.context.current():
-                radiance = self._draw(normal, features, None).image
+                radiance = self._draw(normal, features, None).output("image")
             gain = exposure_gain("auto", radiance)
             if len(self._gains) >= 64:
                 self._gains.pop(next(iter(self._gains)))

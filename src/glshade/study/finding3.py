@@ -24,6 +24,7 @@ from glshade.files import atomic_write_bytes
 from glshade.measure.engine import Case
 from glshade.measure.executors import LocalExecutor
 from glshade.measure.locks import run_lock
+from glshade.metrics.status import concerns
 from glshade.metrics.visibility import MetricSettings
 from glshade.scene import Scene, paper_scene
 from glshade.study.stats import spearman
@@ -87,8 +88,12 @@ FIELDS = (
     "visibility_continuous_px",
     "deflection_px",
     "noise_floor_px",
+    "status",
+    "status_reason",
     "seconds",
 )
+#: Columns read back as text.
+TEXT_FIELDS = ("variant", "status", "status_reason")
 
 
 def scene_for(variant: Variant, theta: float, sigma2: float, size: int) -> Scene:
@@ -140,6 +145,8 @@ def _row(key, record) -> dict:
         "visibility_continuous_px": record.visibility_continuous_px,
         "deflection_px": record.deflection_px,
         "noise_floor_px": "" if record.noise_floor_px is None else record.noise_floor_px,
+        "status": record.status,
+        "status_reason": record.status_reason,
         "seconds": round(sum(record.seconds().values()), 3),
     }
 
@@ -157,18 +164,26 @@ def _write_csv(rows, path: Path) -> None:
 def read_rows(path: Path) -> list[dict]:
     with path.open() as fh:
         return [
-            {k: (v if k == "variant" else float(v) if v != "" else None) for k, v in row.items()}
+            {k: (v if k in TEXT_FIELDS else float(v) if v != "" else None) for k, v in row.items()}
             for row in csv.DictReader(fh)
         ]
 
 
+def readable(row, key: str = "visibility_px") -> bool:
+    """True when ``row``'s ``key`` can be read (its status does not concern it; rows
+    without a status column are readable)."""
+    return not concerns(str(row.get("status") or "ok"), key)
+
+
 def _series(
-    rows, variant: str, sigma2: float, key: str = "visibility_px"
+    rows, variant: str, sigma2: float, key: str = "visibility_px", measurable: bool = True
 ) -> tuple[np.ndarray, np.ndarray]:
+    """θ and ``key`` of a variant's dent, sorted by θ: its readable rows (``measurable``)
+    or the others."""
     chosen = sorted(
         (r["theta_deg"], r[key])
         for r in rows
-        if r["variant"] == variant and r["sigma2_mm2"] == sigma2
+        if r["variant"] == variant and r["sigma2_mm2"] == sigma2 and readable(r, key) == measurable
     )
     return np.array([c[0] for c in chosen]), np.array([c[1] for c in chosen], dtype=float)
 
@@ -190,23 +205,32 @@ def _figure(rows, variants, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     sigma2s = sorted({r["sigma2_mm2"] for r in rows})
+    marked = False
     fig, axes = plt.subplots(1, len(sigma2s), figsize=(4.2 * len(sigma2s), 4.2), sharey=False)
     for ax, sigma2 in zip(np.atleast_1d(axes), sigma2s, strict=False):
         for variant in variants:
             theta, vis = _series(rows, variant.key, sigma2)
-            ax.plot(
+            line = ax.plot(
                 theta,
                 vis,
                 marker="o",
                 ms=3,
                 label=variant.key,
                 lw=2.5 if variant is variants[0] else 1.2,
-            )
+            )[0]
+            theta, vis = _series(rows, variant.key, sigma2, measurable=False)
+            if len(theta):  # not measurable: hollow, in the variant's colour, off the line
+                ax.plot(theta, vis, ls="none", marker="o", ms=6, mfc="none", mec=line.get_color())
+                marked = True
         ax.set_title(f"flat, σ² {sigma2:g} mm², dmax 5 µm")
         ax.set_xlabel("θ (deg)")
         ax.invert_xaxis()
     np.atleast_1d(axes)[0].set_ylabel("visibility (px)")
-    np.atleast_1d(axes)[-1].legend(fontsize=7)
+    if marked:
+        np.atleast_1d(axes)[-1].plot(
+            [], [], ls="none", marker="o", mfc="none", mec="grey", label="not measurable"
+        )
+    np.atleast_1d(axes)[-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     fig.tight_layout()
     import io
 
@@ -229,6 +253,10 @@ def verdict_lines(rows, variants, key: str = "visibility_px") -> list[str]:
                 f"σ² {sigma2:g}: ρ {rho:+.2f}, {high:.2f} px above 65° → {low:.2f} px below 25°"
             )
         word = "**holds**" if finding3_holds(rows, variant.key, key) else "does not hold"
+        left_out = [r for r in rows if r["variant"] == variant.key and not readable(r, key)]
+        if left_out:
+            statuses = ", ".join(sorted({str(r["status"]) for r in left_out}))
+            parts.append(f"{len(left_out)} cases not measurable ({statuses}) left out")
         lines.append(f"- {variant.label}: finding 3 {word} ({'; '.join(parts)})")
     return lines
 
@@ -240,6 +268,7 @@ def _mean(rows, variant: str, key: str, low: bool, sigma2s=GENTLE) -> float:
         if r["variant"] == variant
         and r["sigma2_mm2"] in sigma2s
         and r[key] not in (None, "")
+        and (key == "noise_floor_px" or readable(r, key))
         and (r["theta_deg"] <= 25.0 if low else r["theta_deg"] >= 65.0)
     ]
     return float(np.mean(values)) if values else float("nan")
@@ -331,8 +360,14 @@ def margin_lines(rows, variants) -> list[str]:
             "| noise floor (px) | " + " | ".join(f"{float(floors[t]):g}" for t in thetas) + " |",
         ]
         for sigma2 in GENTLE:
-            theta, vis = _series(rows, variant.key, sigma2)
-            by_theta = dict(zip(theta, vis, strict=False))
+            # every case, measurable or not: a ratio of at most 1 is what "noise" means
+            by_theta = {
+                t: v
+                for measurable in (True, False)
+                for t, v in zip(
+                    *_series(rows, variant.key, sigma2, measurable=measurable), strict=True
+                )
+            }
             lines.append(
                 f"| σ² {sigma2:g}: visibility / floor | "
                 + " | ".join(

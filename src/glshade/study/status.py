@@ -12,8 +12,8 @@ from collections.abc import Mapping, Sequence
 #: What each status other than ``ok`` means, in the report's words.
 STATUS_TEXT = {
     "unresolved": "stripes unresolved",
-    "outside": "dent outside the surface or the view",
-    "edge": "dent at the edge of the kept columns",
+    "outside": "dent not seen",
+    "edge": "dent at an edge (the image's, the seen region's or a height map's)",
     "saturated": "image saturated",
     "underexposed": "image underexposed",
     "noise": "shift lost in the sensor's noise",

@@ -280,6 +280,9 @@ def search(
         else (0.0 if metric == "paper" else 0.05 * max(values_all[winner], 1e-9))
     )
     near = points_all[values_all >= values_all[winner] - tolerance]
+    if not len(near):  # no point could be read: the caller says so
+        near = points_all[:0].reshape(0, len(dimensions))
+        near = np.vstack([near, np.full((1, len(dimensions)), np.nan)])
     return OptimizeResult(
         dimensions=tuple(dimensions),
         optimum={d.name: round(float(points_all[winner, i]), 4) for i, d in enumerate(dimensions)},
