@@ -447,11 +447,13 @@ class HeightMapSurface(SurfaceComponent):
         if not grid.holes.any():
             return np.ones(x.shape, dtype=bool)
         rows, cols = grid.shape
+        finite = np.isfinite(x) & np.isfinite(z)  # no point (NaN): nothing to discard
+        x, z = np.where(finite, x, grid.corner[0]), np.where(finite, z, grid.corner[1])
         u = np.clip((x - grid.corner[0]) / grid.spacing[0], 0.0, cols - 1.0)
         v = np.clip((z - grid.corner[1]) / grid.spacing[1], 0.0, rows - 1.0)
         i = np.clip(np.floor(u), 0, cols - 2).astype(np.int64)
         j = np.clip(np.floor(v), 0, rows - 2).astype(np.int64)
-        measured = ~grid.holes[j, i]
+        measured = ~grid.holes[j, i] | ~finite
         if scene.surface.outside == "flat":
             measured |= ~self._inside(grid, x, z)
         return measured

@@ -177,10 +177,12 @@ def _checked(heights: np.ndarray, name: str) -> np.ndarray:
     infinite = np.isinf(heights)
     if infinite.any():
         row, col = (int(i) for i in np.argwhere(infinite)[0])
+        count = int(infinite.sum())
         raise SceneError(
             FIELD,
-            f"a height map without infinite values ({name} has {int(infinite.sum())} Inf "
-            f"samples, the first at row {row}, column {col}; NaN marks an unmeasured sample)",
+            f"a height map without infinite values ({name} has {count} Inf "
+            f"sample{'' if count == 1 else 's'}, the first at row {row}, column {col}; NaN marks "
+            "an unmeasured sample)",
         )
     if np.isnan(heights).all():
         raise SceneError(
