@@ -318,3 +318,24 @@ def test_coverage_flags_holes_near_the_dent_and_a_dent_at_the_edge(tmp_path):
     assert surface.coverage(flat).dent_at_edge
     # analytic surfaces have no map: the generic hook answers None
     assert paper_scene().active.surface.coverage(paper_scene()) is None
+
+
+def test_only_a_map_with_holes_asks_base_measured(renderer, tmp_path):
+    """The hole test is composed only for a map that has holes left (fill = "none"); its
+    program keeps the uniforms it is given and the contract's code checks hold."""
+    from tests.test_components import OUTPUT_SETS, check_absent_code
+
+    from glshade.gpu.compose import ShaderFeatures, compose
+    from glshade.gpu.renderer import RootSolver, scene_uniforms
+
+    file, _ = _holed_map(tmp_path / "holed.npy")
+    base = paper_scene(theta_deg=40.0).with_size(12)
+    for fill, holes in (("none", True), ("nearest", False), ("harmonic", False)):
+        scene = _map_scene(base, file, 0.4, fill=fill)
+        for outputs in OUTPUT_SETS:
+            features = ShaderFeatures.from_scene(scene, outputs)
+            assert ("if (!base_measured(p))" in compose(features)[1]) == holes, (fill, outputs)
+            check_absent_code(scene, outputs)
+            program = renderer.program(features)
+            active = {n for n in program if hasattr(program[n], "value") and n.startswith("u_")}
+            assert active <= set(scene_uniforms(scene, RootSolver(), features))
