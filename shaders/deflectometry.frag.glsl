@@ -53,6 +53,9 @@ bool trace(real col, real row, int k, out float radiance, out real2 uv) {
     hit_distance = -1.0;
 {$ endif $}
     if (!surface_hit(ray.o, d, ray.tmin, p, depth, dent_grad)) return false;
+{$ if surface_holes is defined and surface_holes $}
+    if (!base_measured(p)) return false;     // a hole in the surface's data: no surface to reflect
+{$ endif $}
 {$ if "distance" in outputs $}
     hit_distance = float(dot(p - ray.o, d) - ray.tmin);
 {$ endif $}

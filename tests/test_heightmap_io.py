@@ -61,6 +61,21 @@ def test_x3p_is_metres_with_x_along_columns_and_y_along_rows(tmp_path):
     assert got.spacing_mm == pytest.approx((0.02, 0.03))  # (x between columns, z between rows)
 
 
+def test_unmeasured_points_are_kept_as_nan(tmp_path):
+    """Profilometers write NaN where they measured nothing: .x3p and .npy maps with NaN
+    patches load, the NaN where the file has them (other formats alike)."""
+    holed = MAP.copy()
+    holed[1:3, 2:4] = np.nan
+    holed[4, 0] = np.nan
+    x3pio.write(tmp_path / "m.x3p", holed * 1e-3, x_scale=20e-6, y_scale=30e-6)
+    np.save(tmp_path / "m.npy", holed)
+    for name in ("m.x3p", "m.npy"):
+        got = read_height_map(tmp_path / name).heights
+        assert np.array_equal(np.isnan(got), np.isnan(holed)), name
+        finite = ~np.isnan(holed)
+        assert got[finite] == pytest.approx(MAP[finite], rel=1e-12), name
+
+
 def test_float_tiff_and_16_bit_png(tmp_path):
     tifffile.imwrite(tmp_path / "m.tif", MAP.astype(np.float32))
     got = read_height_map(tmp_path / "m.tif")
@@ -185,19 +200,24 @@ REFUSALS = [
         "at least 4 x 4 samples (small.npy has 3 rows x 8 columns)",
     ),
     (
-        "nan.npy",
+        "inf.npy",
         lambda p: np.save(p, _nan_at(1, 2)),
-        "(nan.npy has 2 NaN or Inf samples, the first at row 1, column 2)",
+        "(inf.npy has 1 Inf sample, the first at row 4, column 5; NaN marks an unmeasured",
     ),
     (
         "inf.tif",
         lambda p: tifffile.imwrite(p, np.full((5, 5), -np.inf, np.float32)),
-        "25 NaN or Inf samples",
+        "25 Inf samples",
     ),
     (
-        "hole.x3p",
-        lambda p: x3pio.write(p, _nan_at(3, 0) * 1e-3, x_scale=1e-5, y_scale=1e-5),
-        "x3p marks unmeasured points so: fill them first), the first at row 3, column 0",
+        "unmeasured.x3p",
+        lambda p: x3pio.write(p, np.full((5, 6), np.nan), x_scale=1e-5, y_scale=1e-5),
+        "a height map with a measured sample (unmeasured.x3p holds only NaN",
+    ),
+    (
+        "unmeasured.npy",
+        lambda p: np.save(p, np.full((5, 6), np.nan)),
+        "(unmeasured.npy holds only NaN: unmeasured)",
     ),
     (
         "rgb.png",

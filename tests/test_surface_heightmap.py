@@ -11,7 +11,14 @@ import sys
 import numpy as np
 import pytest
 
-from glshade.components.surface.heightmap import catmull_rom, map_bounds
+from glshade.components.surface.heightmap import (
+    MapCoverage,
+    catmull_rom,
+    fill_harmonic,
+    fill_nearest,
+    grid_of,
+    map_bounds,
+)
 from glshade.measure.single import measure_scene
 from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
@@ -147,7 +154,7 @@ def test_relative_paths_follow_the_scene_file(tmp_path, renderer):
             ["--set", "surface.file=missing.npy", "--set", "surface.spacing=1,1"],
             "surface.file",
         ),
-        ("nan", ["--set", "surface.file=bad.npy", "--set", "surface.spacing=1,1"], "NaN"),
+        ("inf", ["--set", "surface.file=bad.npy", "--set", "surface.spacing=1,1"], "Inf"),
         ("small", ["--set", "surface.file=small.npy", "--set", "surface.spacing=1,1"], "4"),
         ("good", ["--set", "surface.file=good.npy"], "surface.spacing: must be set"),
         (
@@ -159,9 +166,9 @@ def test_relative_paths_follow_the_scene_file(tmp_path, renderer):
     ],
 )
 def test_bad_height_maps_are_one_line(tmp_path, setup, args, fragment):
-    if setup == "nan":
+    if setup == "inf":
         heights = np.zeros((8, 8))
-        heights[2, 3] = np.nan
+        heights[2, 3] = np.inf
         np.save(tmp_path / "bad.npy", heights)
     elif setup == "small":
         np.save(tmp_path / "small.npy", np.zeros((3, 8)))
@@ -178,3 +185,157 @@ def test_bad_height_maps_are_one_line(tmp_path, setup, args, fragment):
     lines = result.stderr.strip().splitlines()
     assert result.returncode == 2 and len(lines) == 1 and fragment in lines[0], result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+# ------------------------------------------------------------------ unmeasured samples
+def _holed_map(path, spacing=0.4, half=12.0):
+    """The wavy map with a NaN patch right of the dent (on the camera's side of it), a
+    NaN corner and a lone NaN sample; saved as .npy."""
+    x = np.arange(-half, half + 1e-9, spacing)
+    xx, zz = np.meshgrid(x, x)
+    heights = 0.004 * np.sin(xx / 1.7) * np.cos(zz / 2.3) - 0.0002 * xx * zz
+    heights[20:30, 35:45] = np.nan
+    heights[:3, :4] = np.nan
+    heights[45, 12] = np.nan
+    np.save(path, heights)
+    return str(path), heights
+
+
+@pytest.mark.parametrize("precision, tol", [("fp32", 5e-4), ("fp64", 1e-6)])
+def test_holes_are_misses_on_the_gpu_and_in_the_oracle(renderer, tmp_path, precision, tol):
+    file, heights = _holed_map(tmp_path / "holed.npy")
+    base = paper_scene(theta_deg=40.0).with_size(40).updated(render={"precision": precision})
+    holed = _map_scene(base, file, 0.4)
+    filled = _map_scene(base, file, 0.4, fill="harmonic")
+    shader = renderer.render(holed, ("uv", "mask"))
+    oracle = tracer.trace(holed, ("uv", "mask"))
+    assert (shader.mask != oracle.mask).sum() <= 2
+    both = shader.mask & oracle.mask
+    assert both.sum() > 200
+    assert np.abs(shader.uv - oracle.uv)[both].max() < tol
+    # The holes occlude as the harmonic fill does, and reflect nothing: the pixels lost
+    # are exactly those whose first hit on the filled map lands in a hole cell.
+    whole = tracer.trace(filled, ("uv", "mask"))
+    _, points, _, valid = tracer.first_hit(filled, *_camera_rays(filled))
+    in_hole = valid & ~holed.active.surface.measured(holed, points[..., 0], points[..., 2])
+    assert in_hole.sum() >= 10
+    assert np.array_equal(oracle.mask, whole.mask & ~in_hole)
+    assert not shader.mask[in_hole].any()
+    kept = oracle.mask
+    assert np.array_equal(oracle.uv[kept], whole.uv[kept])
+    assert np.isnan(shader.uv[~shader.mask]).all()
+
+
+def _camera_rays(scene):
+    origins, dirs = scene.active.camera.sample_rays(scene, None, None, 1)
+    return origins[:, :, 0], dirs[:, :, 0]
+
+
+def test_an_x3p_with_unmeasured_points_renders(renderer, tmp_path):
+    import x3pio
+
+    _, heights = _holed_map(tmp_path / "holed.npy")
+    x3pio.write(tmp_path / "holed.x3p", heights * 1e-3, x_scale=0.4e-3, y_scale=0.4e-3)
+    scene = (
+        paper_scene(theta_deg=40.0)
+        .with_size(24)
+        .updated(surface={"kind": "heightmap", "file": str(tmp_path / "holed.x3p")})
+    )
+    grid = grid_of(scene)
+    assert grid.spacing == pytest.approx((0.4, 0.4))
+    assert scene.active.surface.nan_fraction(scene) == np.isnan(heights).sum() / heights.size
+    shader = renderer.render(scene, ("uv", "mask"))
+    oracle = tracer.trace(scene, ("uv", "mask"))
+    assert (shader.mask != oracle.mask).sum() <= 2 and shader.mask.sum() > 100
+    assert np.isfinite(grid.heights).all()  # the geometry the holes occlude with
+
+
+def test_fills_give_finite_maps_and_the_harmonic_fill_keeps_a_plane(tmp_path):
+    rows, cols = np.mgrid[0:14, 0:17].astype(float)
+    plane = 0.013 * cols - 0.021 * rows + 0.5
+    holed = plane.copy()
+    holed[4:9, 5:11] = np.nan  # a hole inside the map
+    holed[7, 2] = np.nan
+    assert np.abs(fill_harmonic(holed) - plane).max() < 1e-9
+    near = fill_nearest(holed)
+    assert np.isfinite(near).all() and np.array_equal(
+        near[~np.isnan(holed)], plane[~np.isnan(holed)]
+    )
+    assert near[7, 2] in (plane[6, 2], plane[8, 2], plane[7, 1], plane[7, 3])
+    holed[0, :6] = np.nan  # at the edge too: finite, within the measured range
+    filled = fill_harmonic(holed)
+    assert np.isfinite(filled).all()
+    assert np.nanmin(holed) <= filled.min() and filled.max() <= np.nanmax(holed)
+    # through the scene: every fill is a finite map with no holes left
+    np.save(tmp_path / "p.npy", holed)
+    for fill in ("nearest", "harmonic"):
+        grid = grid_of(_map_scene(paper_scene(), str(tmp_path / "p.npy"), 0.5, fill=fill))
+        assert np.isfinite(grid.heights).all() and not grid.holes.any()
+        assert grid.nan_fraction == np.isnan(holed).sum() / holed.size
+
+
+def test_nan_fraction_is_the_share_of_unmeasured_samples(tmp_path):
+    heights = np.zeros((30, 40))
+    heights[2:5, 3:10] = np.nan  # 21 of 1200 samples, far from the dent
+    np.save(tmp_path / "m.npy", heights)
+    scene = _map_scene(paper_scene(), str(tmp_path / "m.npy"), 1.0)
+    assert scene.active.surface.nan_fraction(scene) == 21 / 1200
+    assert scene.active.surface.coverage(scene) == MapCoverage(21 / 1200, False, False)
+    np.save(tmp_path / "full.npy", np.zeros((30, 40)))
+    full = _map_scene(paper_scene(), str(tmp_path / "full.npy"), 1.0)
+    assert full.active.surface.nan_fraction(full) == 0.0
+    assert full.active.surface.coverage(full) == MapCoverage(0.0, False, False)
+
+
+def test_coverage_flags_holes_near_the_dent_and_a_dent_at_the_edge(tmp_path):
+    """A 41 x 41 map, 1 mm apart, centred on the origin (x, z in [-20, 20]); the dent has
+    sigma = 2 mm: its region is the disc of radius 6 mm around (x0, z0)."""
+    heights = np.zeros((41, 41))
+    heights[20, 28] = np.nan  # x = 8, z = 0: its cells reach x = 6 (footprint: 2 cells)
+    np.save(tmp_path / "m.npy", heights)
+    scene = _map_scene(paper_scene(), str(tmp_path / "m.npy"), 1.0).updated(
+        defect={"sigma2": 4.0, "x0": 0.0, "z0": 0.0}
+    )
+    surface = scene.active.surface
+    cover = surface.coverage(scene)
+    assert cover == MapCoverage(1 / 41**2, True, False)
+    further = scene.updated(defect={"x0": -0.5})  # the hole's cells now 6.5 mm away
+    assert surface.coverage(further) == MapCoverage(1 / 41**2, False, False)
+    # elongated along x: 3 sqrt(4.84) = 6.6 mm reaches the cells 6.5 mm away
+    along = {"x0": -0.5, "sigma_x2": 4.84, "sigma_z2": 1.0, "sigma_xz": 0.0}
+    assert surface.coverage(scene.updated(defect=along)).nan_near_dent
+    across = {"x0": -0.5, "sigma_x2": 1.0, "sigma_z2": 4.84, "sigma_xz": 0.0}
+    assert not surface.coverage(scene.updated(defect=across)).nan_near_dent
+    assert not surface.coverage(scene.updated(surface={"fill": "harmonic"})).nan_near_dent
+    assert not surface.coverage(scene.updated(defect={"dmax": 0.0})).nan_near_dent
+    # the map's edge: x = 20; the region reaches it from x0 = 14 on
+    assert surface.coverage(scene.updated(defect={"x0": 13.9, "z0": -10.0})) == MapCoverage(
+        1 / 41**2, False, False
+    )
+    assert surface.coverage(scene.updated(defect={"x0": 14.0, "z0": -10.0})).dent_at_edge
+    assert surface.coverage(scene.updated(defect={"x0": -10.0, "z0": -25.0})).dent_at_edge
+    flat = scene.updated(defect={"x0": -10.0, "z0": 16.0}, surface={"outside": "flat"})
+    assert surface.coverage(flat).dent_at_edge
+    # analytic surfaces have no map: the generic hook answers None
+    assert paper_scene().active.surface.coverage(paper_scene()) is None
+
+
+def test_only_a_map_with_holes_asks_base_measured(renderer, tmp_path):
+    """The hole test is composed only for a map that has holes left (fill = "none"); its
+    program keeps the uniforms it is given and the contract's code checks hold."""
+    from tests.test_components import OUTPUT_SETS, check_absent_code
+
+    from glshade.gpu.compose import ShaderFeatures, compose
+    from glshade.gpu.renderer import RootSolver, scene_uniforms
+
+    file, _ = _holed_map(tmp_path / "holed.npy")
+    base = paper_scene(theta_deg=40.0).with_size(12)
+    for fill, holes in (("none", True), ("nearest", False), ("harmonic", False)):
+        scene = _map_scene(base, file, 0.4, fill=fill)
+        for outputs in OUTPUT_SETS:
+            features = ShaderFeatures.from_scene(scene, outputs)
+            assert ("if (!base_measured(p))" in compose(features)[1]) == holes, (fill, outputs)
+            check_absent_code(scene, outputs)
+            program = renderer.program(features)
+            active = {n for n in program if hasattr(program[n], "value") and n.startswith("u_")}
+            assert active <= set(scene_uniforms(scene, RootSolver(), features))

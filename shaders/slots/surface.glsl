@@ -7,3 +7,6 @@ real base_height(real3 p);                   // f at p
 real base_curvature(real3 p);                // a bound on |f''| along horizontal unit directions, 1/mm
 real2 base_slope(real3 p);                   // (f_x, f_z) at p
 real3 base_normal(real3 p, real depth, real2 dent_grad);   // unnormalised normal of f + D
+{$ if surface_holes is defined and surface_holes $}
+bool base_measured(real3 p);                 // false where the surface has no data (a hit there is a miss)
+{$ endif $}

@@ -309,6 +309,20 @@ class SurfaceComponent(Component):
         ``(D_x, D_z)``; finite wherever the surface exists."""
         raise NotImplementedError
 
+    def measured(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """False where the surface occludes but has no data to reflect from (a height
+        map's unmeasured samples): a first hit there is a miss. Everywhere True by default;
+        a surface that says False somewhere sets the template variable ``surface_holes``
+        and defines ``base_measured`` in its GLSL to match."""
+        return np.ones(np.broadcast(x, z).shape, dtype=bool)
+
+    def coverage(self, scene: SceneView) -> Any:
+        """How the surface's measured data cover the scene's dent, or None when the
+        surface is not measured data (analytic surfaces: the default). A height map
+        returns its ``MapCoverage`` (unmeasured share, holes near the dent, the dent at
+        the map's edge), so callers never ask which surface it is."""
+        return None
+
     def second_derivatives(self, scene: SceneView) -> tuple[float, float]:
         """``(f_zz, f_xx)`` at the gaze point (1/mm): along the plane of incidence and
         across it; convex is negative (:func:`glshade.metrics.physics.base_curvatures`)."""

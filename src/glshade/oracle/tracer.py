@@ -39,6 +39,8 @@ the shell, e.g. the outside of a deep concave bowl) the pixel is a miss. The sea
    the sample spacing (grazing rays over a bump); a negative minimum moves the bracket
    there.
 4. Bisection on ``g`` until the bracket is one ulp wide.
+5. A hit where the surface has no data (:meth:`SurfaceComponent.measured`: a height
+   map's holes) is a miss.
 
 *Normal.* ``n ∝ (-h_x, 1, -h_z)`` for ``h = f + D``; for curved kinds it is multiplied
 through by ``w = sqrt(R² - ρ²)`` so it stays finite (horizontal) at a sphere's
@@ -226,6 +228,12 @@ def _first_hit_rays(scene: Scene, o: np.ndarray, d: np.ndarray):
     t = np.full(len(d), np.nan)
     if hit.any():
         t[hit] = _bisect(scene, parts, o[hit], d[hit], ta[hit], tb[hit])
+        p = o[hit] + t[hit, None] * d[hit]
+        measured = parts.surface.measured(scene, p[:, 0], p[:, 2])
+        if not measured.all():  # a hole in the surface's data: no surface to reflect
+            lost = np.flatnonzero(hit)[~measured]
+            hit[lost] = False
+            t[lost] = np.nan
     return t, hit
 
 

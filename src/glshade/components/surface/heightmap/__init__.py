@@ -1,4 +1,4 @@
-"""A measured or sampled height map ``y = f(x, z)`` (SPEC §8.1 ``kind = "heightmap"``).
+"""A measured or sampled height map ``y = f(x, z)`` (``surface.kind = "heightmap"``).
 
 The samples ``heights[row, column]`` (rows along +z, columns along +x, ``spacing`` mm
 apart, sample [0, 0] at ``origin``; read by :mod:`.readers` from .npy, .x3p,
@@ -11,6 +11,17 @@ surface is either absent (``outside = "curtain"``: those rays miss) or the plane
 
 First hit: the library's ``freeform.glsl``, bracketed by the slab [lo, hi] and driven by a bound
 K on ``|f''|``, both rigorous for the spline (:func:`map_bounds`).
+
+Unmeasured samples (NaN, as profilometers write them) are either filled (``fill =
+"nearest"`` or ``"harmonic"``: :func:`fill_nearest`, :func:`fill_harmonic`) or masked
+(``fill = "none"``, the default): a cell of the spline whose 4 x 4 footprint touches an
+unmeasured sample is a hole, where the ray meets no surface it could reflect from (the
+pixel is a miss, in the shader and in the oracle alike). The first-hit solve itself runs
+on the harmonic fill of the map, so the holes occlude what lies behind them as the part's
+unknown surface would, and the march keeps its rigorous bounds; a hit that lands in a
+hole is then discarded (``base_measured`` in the shader, :meth:`HeightMapSurface.measured`
+in the oracle). :meth:`HeightMapSurface.coverage` reports how the holes and the map's edge
+sit against the dent.
 """
 
 from __future__ import annotations
@@ -29,6 +40,26 @@ from glshade.errors import SceneError
 from glshade.params import Table, param
 
 OUTSIDES = ("curtain", "flat")
+#: What becomes of unmeasured (NaN) samples: masked, or filled from the measured ones.
+FILLS = ("none", "nearest", "harmonic")
+#: The dent's region for :meth:`HeightMapSurface.coverage`: within this many standard
+#: deviations of its centre (the Mahalanobis distance of its covariance).
+DENT_REACH_SIGMA = 3.0
+
+
+@dataclass(frozen=True)
+class MapCoverage:
+    """How a height map covers the dent (:meth:`HeightMapSurface.coverage`).
+
+    ``nan_fraction``: the share of the map's samples the file leaves unmeasured (NaN), in
+    [0, 1], whatever the fill. ``nan_near_dent``: a masked cell (one whose spline touches
+    an unmeasured sample; none once filled) lies within the dent's region.
+    ``dent_at_edge``: the dent's region reaches the map's edge or beyond it.
+    """
+
+    nan_fraction: float
+    nan_near_dent: bool
+    dent_at_edge: bool
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,6 +76,11 @@ class Grid:
     hi: float
     curvature: float
     name: str
+    #: (rows - 1, columns - 1): cell [j, i] (between samples j, j + 1 and i, i + 1) is a
+    #: hole, its spline's footprint touching an unmeasured sample (all False once filled)
+    holes: np.ndarray = field(repr=False)
+    #: the share of the file's samples that are unmeasured (NaN), whatever the fill
+    nan_fraction: float = 0.0
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -70,6 +106,7 @@ def check_heightmap(values: dict) -> None:
         values.get("spacing"),
         values.get("origin"),
         values.get("outside"),
+        values.get("fill"),
     )
 
 
@@ -103,25 +140,38 @@ class HeightMapTable(Table):
         "surface.outside", "", "curtain", "beyond the map: curtain (no surface) or flat (y = 0)",
         value_type="choice", choices=OUTSIDES, role="feature",
     )  # fmt: skip
+    fill: str = param(
+        "surface.fill", "", "none",
+        "unmeasured (NaN) samples: none (holes: no surface there), nearest (the nearest "
+        "measured sample) or harmonic (Laplace's equation over each hole)",
+        value_type="choice", choices=FILLS, role="feature", flag="--fill",
+    )  # fmt: skip
 
 
 def grid_of(scene) -> Grid:
     s = scene.surface
-    return _grid(s.file, s.scale, s.spacing, s.origin, s.outside)
+    return _grid(s.file, s.scale, s.spacing, s.origin, s.outside, s.fill)
 
 
-def _grid(file, scale, spacing, origin, outside) -> Grid:
+def _grid(file, scale, spacing, origin, outside, fill) -> Grid:
     height_map = cached_height_map(
         file, float(scale)
     )  # the same object while the file is unchanged
-    return _build(height_map, spacing, origin, outside or "curtain")
+    return _build(height_map, spacing, origin, outside or "curtain", fill or "none")
 
 
 @functools.lru_cache(maxsize=8)
-def _build(height_map, spacing, origin, outside: str) -> Grid:
+def _build(height_map, spacing, origin, outside: str, fill: str) -> Grid:
     """The render-ready grid of a map (cached per map object: maps compare by identity)."""
     file = height_map.source
     heights = np.asarray(height_map.heights, dtype=np.float64)
+    unmeasured = np.isnan(heights)
+    nan_fraction = float(unmeasured.mean())
+    if fill == "nearest":
+        heights = fill_nearest(heights)
+    elif unmeasured.any():  # "harmonic", and the geometry the holes of "none" occlude with
+        heights = fill_harmonic(heights)
+    holes = hole_cells(unmeasured) if fill == "none" else np.zeros_like(unmeasured[1:, 1:])
     if height_map.spacing_mm is not None and spacing is None:
         spacing = height_map.spacing_mm
     if spacing is None:
@@ -136,9 +186,11 @@ def _build(height_map, spacing, origin, outside: str) -> Grid:
     if outside == "flat":
         lo, hi = min(lo, 0.0), max(hi, 0.0)
     high = heights.astype(np.float32)
+    flags = np.zeros_like(high)
+    flags[:-1, :-1] = holes  # texel (i, j): whether cell [j, i] is a hole
     texture = np.stack(
-        [high, (heights - high).astype(np.float32)], axis=-1
-    )  # hi + lo: the doubles, to ~1e-14
+        [high, (heights - high).astype(np.float32), flags], axis=-1
+    )  # hi + lo: the doubles, to ~1e-14; the holes
     heights = (
         high.astype(np.float64) + texture[..., 1]
     )  # the oracle interpolates what the shader reads
@@ -151,7 +203,78 @@ def _build(height_map, spacing, origin, outside: str) -> Grid:
         hi,
         curvature,
         Path(file).name,
+        holes,
+        nan_fraction,
     )
+
+
+def fill_nearest(heights: np.ndarray) -> np.ndarray:
+    """``heights`` with every NaN sample replaced by the nearest measured one (Euclidean
+    distance in samples; ties as SciPy's distance transform breaks them)."""
+    from scipy import ndimage
+
+    unmeasured = np.isnan(heights)
+    if not unmeasured.any():
+        return heights
+    index = ndimage.distance_transform_edt(unmeasured, return_distances=False, return_indices=True)
+    return heights[tuple(index)]
+
+
+def fill_harmonic(heights: np.ndarray) -> np.ndarray:
+    """``heights`` with its NaN samples solving Laplace's equation (the 5-point stencil:
+    each equals the mean of its neighbours) with the measured samples as boundary values;
+    at the map's edge a sample has only its neighbours inside the map (zero normal
+    derivative there). A plane is reproduced exactly over holes inside the map; the fill
+    stays within the range of the measured samples. One sparse solve (SciPy)."""
+    from scipy import sparse
+    from scipy.sparse.linalg import spsolve
+
+    unmeasured = np.isnan(heights)
+    if not unmeasured.any():
+        return heights
+    rows, cols = heights.shape
+    unknown = np.flatnonzero(unmeasured)
+    number = np.full(heights.size, -1, dtype=np.int64)
+    number[unknown] = np.arange(len(unknown))
+    r, c = np.divmod(unknown, cols)
+    flat = heights.ravel()
+    diagonal = np.zeros(len(unknown))
+    rhs = np.zeros(len(unknown))
+    i_parts, j_parts = [], []
+    for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+        rn, cn = r + dr, c + dc
+        inside = (rn >= 0) & (rn < rows) & (cn >= 0) & (cn < cols)
+        diagonal += inside
+        k = np.flatnonzero(inside)
+        neighbour = rn[k] * cols + cn[k]
+        other = number[neighbour]
+        known = other < 0
+        np.add.at(rhs, k[known], flat[neighbour[known]])
+        i_parts.append(k[~known])
+        j_parts.append(other[~known])
+    i = np.concatenate(i_parts)
+    j = np.concatenate(j_parts)
+    n = len(unknown)
+    own = np.arange(n)
+    values = np.concatenate([diagonal, -np.ones(len(i))])
+    where = (np.concatenate([own, i]), np.concatenate([own, j]))
+    matrix = sparse.csr_matrix((values, where), shape=(n, n))
+    filled = flat.copy()
+    filled[unknown] = spsolve(matrix, rhs)
+    return filled.reshape(rows, cols)
+
+
+def hole_cells(unmeasured: np.ndarray) -> np.ndarray:
+    """``(rows - 1, columns - 1)``: whether the spline's cell [j, i] reads an unmeasured
+    sample (its 4 x 4 taps, rows j - 1 … j + 2 and columns i - 1 … i + 2, clamped to the
+    map as :func:`catmull_rom` clamps them)."""
+    padded = np.pad(unmeasured, 1, mode="edge")
+    rows, cols = unmeasured.shape
+    holes = np.zeros((rows - 1, cols - 1), dtype=bool)
+    for a in range(4):
+        for b in range(4):
+            holes |= padded[a : a + rows - 1, b : b + cols - 1]
+    return holes
 
 
 def map_bounds(heights: np.ndarray, spacing) -> tuple[float, float, float]:
@@ -189,7 +312,10 @@ class HeightMapSurface(SurfaceComponent):
     table = HeightMapTable
 
     def features(self, scene):
-        return {"heightmap_outside": scene.surface.outside}
+        features: dict = {"heightmap_outside": scene.surface.outside}
+        if grid_of(scene).holes.any():
+            features["surface_holes"] = True  # the template asks base_measured(p)
+        return features
 
     def glsl(self, variables):
         return (*MARCH_GLSL, "heightmap.glsl")
@@ -234,6 +360,51 @@ class HeightMapSurface(SurfaceComponent):
         rows, cols = grid.shape
         return f"height map {grid.name} ({cols}x{rows}, {grid.spacing[0]:g} mm)"
 
+    def nan_fraction(self, scene) -> float:
+        """The share of the map's samples that the file leaves unmeasured (NaN), in [0, 1],
+        whatever ``fill`` makes of them."""
+        return grid_of(scene).nan_fraction
+
+    def coverage(self, scene) -> MapCoverage:
+        """How this map covers the scene's dent: a :class:`MapCoverage`.
+
+        The dent's region is the ellipse within :data:`DENT_REACH_SIGMA` (3) standard
+        deviations of its centre, ``(p - c)^T Σ^-1 (p - c) <= 9`` with the defect's
+        covariance Σ and centre c (x0, z0), in the scene's world (x, z), mm.
+
+        - ``nan_fraction``: as :meth:`nan_fraction` (the file's share of NaN samples).
+        - ``nan_near_dent``: a masked cell (``fill = "none"``: a cell of the spline whose
+          footprint touches an unmeasured sample, where rays meet no surface) overlaps the
+          dent's region. Always False once the map is filled (``nearest``, ``harmonic``)
+          or when the scene has no dent.
+        - ``dent_at_edge``: the dent's region reaches the map's rectangle's edge or lies
+          partly beyond it (the dent is then not all on measured data, whether
+          ``outside`` is a curtain or the plane y = 0). False when the scene has no dent.
+
+        A caller that finds either flag True should not trust a visibility read off this
+        map as the dent's own. Pure NumPy, cheap (one pass over the hole cells)."""
+        grid = grid_of(scene)
+        defect = scene.defect
+        if not scene.active.defect.present(scene):
+            return MapCoverage(grid.nan_fraction, False, False)
+        centre = np.asarray(scene.active.defect.centre(scene), dtype=np.float64)[[0, 2]]
+        sigma = np.array(
+            [[defect.sigma_x2, defect.sigma_xz], [defect.sigma_xz, defect.sigma_z2]], float
+        )
+        reach = DENT_REACH_SIGMA**2
+        half = DENT_REACH_SIGMA * np.sqrt(np.diag(sigma))  # the ellipse's half-extent in x, z
+        (x0, z0), (x1, z1) = grid.corner, grid.far_corner
+        at_edge = bool(
+            centre[0] - half[0] <= x0
+            or centre[0] + half[0] >= x1
+            or centre[1] - half[1] <= z0
+            or centre[1] + half[1] >= z1
+        )
+        near = _cells_meet_ellipse(
+            grid, np.argwhere(grid.holes), centre, np.linalg.inv(sigma), reach
+        )
+        return MapCoverage(grid.nan_fraction, near, at_edge)
+
     # ------------------------------------------------------------------ oracle
     def domain(self, scene, o, d):
         n = len(d)
@@ -267,6 +438,26 @@ class HeightMapSurface(SurfaceComponent):
     def height(self, scene, x, z):
         return self._evaluate(scene, x, z)[0]
 
+    def measured(self, scene, x, z):
+        """False in the holes: cells whose spline reads an unmeasured sample (``fill =
+        "none"``); a hit there is a miss. The cell of (x, z) is found as the spline finds
+        it (clamped to the map); beyond a ``flat`` map's edge the plane is measured."""
+        grid = grid_of(scene)
+        x, z = np.broadcast_arrays(np.asarray(x, np.float64), np.asarray(z, np.float64))
+        if not grid.holes.any():
+            return np.ones(x.shape, dtype=bool)
+        rows, cols = grid.shape
+        finite = np.isfinite(x) & np.isfinite(z)  # no point (NaN): nothing to discard
+        x, z = np.where(finite, x, grid.corner[0]), np.where(finite, z, grid.corner[1])
+        u = np.clip((x - grid.corner[0]) / grid.spacing[0], 0.0, cols - 1.0)
+        v = np.clip((z - grid.corner[1]) / grid.spacing[1], 0.0, rows - 1.0)
+        i = np.clip(np.floor(u), 0, cols - 2).astype(np.int64)
+        j = np.clip(np.floor(v), 0, rows - 2).astype(np.int64)
+        measured = ~grid.holes[j, i] | ~finite
+        if scene.surface.outside == "flat":
+            measured |= ~self._inside(grid, x, z)
+        return measured
+
     def outside(self, scene, x, z):
         if scene.surface.outside == "flat":
             return np.zeros(np.broadcast(x, z).shape, dtype=bool)
@@ -298,6 +489,36 @@ class HeightMapSurface(SurfaceComponent):
             inside = self._inside(grid, x, z)
             f, fx, fz = (np.where(inside, v, 0.0) for v in (f, fx, fz))
         return f, fx, fz
+
+
+def _cells_meet_ellipse(grid: Grid, cells: np.ndarray, centre, inverse, reach: float) -> bool:
+    """Whether any of the cells ``[j, i]`` (rectangles between samples) meets the ellipse
+    ``(p - centre)^T inverse (p - centre) <= reach``: the centre lies in a cell, or the
+    quadratic's minimum along one of a cell's four edges is within reach."""
+    if not len(cells):
+        return False
+    j, i = cells[:, 0].astype(float), cells[:, 1].astype(float)
+    (dx, dz), (x0, z0) = grid.spacing, grid.corner
+    left, right = x0 + i * dx, x0 + (i + 1) * dx
+    bottom, top = z0 + j * dz, z0 + (j + 1) * dz
+    cx, cz = centre
+    if np.any((left <= cx) & (cx <= right) & (bottom <= cz) & (cz <= top)):
+        return True
+    corners = (
+        np.stack([left, bottom], -1),
+        np.stack([right, bottom], -1),
+        np.stack([right, top], -1),
+        np.stack([left, top], -1),
+    )
+    for k in range(4):
+        a, b = corners[k] - centre, corners[(k + 1) % 4] - centre
+        e = b - a
+        ee = np.einsum("ni,ij,nj->n", e, inverse, e)
+        s = np.clip(-np.einsum("ni,ij,nj->n", a, inverse, e) / ee, 0.0, 1.0)
+        p = a + s[:, None] * e
+        if np.any(np.einsum("ni,ij,nj->n", p, inverse, p) <= reach):
+            return True
+    return False
 
 
 def _weights(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

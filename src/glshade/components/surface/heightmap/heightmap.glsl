@@ -1,7 +1,9 @@
 // Base surface: a height map, bicubic Catmull-Rom between its samples (C1: continuous
 // normals), beyond it nothing (curtain) or the plane y = 0 (flat). The samples are a
 // float texture read texel by texel; the spline and its gradient are exact in real.
-uniform sampler2D t_surface_heights;       // heights[row, column] in mm, as float pairs hi + lo: texel (column, row)
+// Unmeasured samples were filled (harmonically) for the first-hit solve; with holes, the
+// cells whose spline reads one are flagged, and a hit there is a miss (base_measured).
+uniform sampler2D t_surface_heights;       // texel (column, row): heights[row, column] in mm as float pairs hi + lo (r, g); b: 1 where cell [row, column] is a hole
 uniform real2 u_surface_corner;        // local (x, z) of sample [row 0, column 0], mm
 uniform real2 u_surface_spacing;       // (dx, dz), mm
 uniform ivec2 u_surface_size;          // (columns, rows)
@@ -59,6 +61,19 @@ real map_height(real2 q, out real2 grad) {
     grad = real2(fu, fv) / u_surface_spacing;
     return (real(ref.x) + real(ref.y)) + f;   // the weights sum to 1
 }
+
+{$ if surface_holes is defined and surface_holes $}
+// False where the hit's cell (found as map_height finds it) reads an unmeasured sample.
+bool base_measured(real3 p) {
+{$ if heightmap_outside == "flat" $}
+    if (!map_inside(p.xz)) return true;
+{$ endif $}
+    real2 top = real2(u_surface_size - ivec2(1));
+    real2 g = clamp((p.xz - u_surface_corner) / u_surface_spacing, real2(0.0), top);
+    ivec2 cell = ivec2(clamp(floor(g), real2(0.0), top - 1.0));
+    return texelFetch(t_surface_heights, cell, 0).b < 0.5;
+}
+{$ endif $}
 
 // f and its gradient where the surface is: the spline over the map, the plane beyond it.
 real surface_height(real2 q, out real2 grad) {

@@ -14,14 +14,16 @@ Formats, chosen by the extension (any case):
   its y axis our z (rows): x3pio gives ``layer.z`` shaped ``(SizeY, SizeX)``, x varying
   fastest as the standard stores it, so no transpose is needed. Only the first layer of a
   surface on a regular grid (incremental x and y axes) with positive increments is
-  accepted; unmeasured points (NaN) are refused like any other NaN.
+  accepted; unmeasured points (NaN) are kept as NaN, like NaN in any other format.
 - ``.tif``/``.tiff`` (``tifffile``): a 2-D greyscale image of 32- or 64-bit floats or
   unsigned integers, times ``scale``. No spacing.
 - ``.png`` (OpenCV): 16-bit greyscale only, times ``scale``. No spacing.
 
 Every map needs at least :data:`MIN_SIDE` and at most :data:`MAX_SIDE` samples along each
-side, and finite values. Every problem is a :class:`~glshade.errors.SceneError` of one
-line for ``surface.file`` that names the file and what is wrong.
+side, and no infinite values. NaN marks an unmeasured sample (the surface component masks
+or fills them: its ``fill``); a map needs at least one measured sample. Every problem is a
+:class:`~glshade.errors.SceneError` of one line for ``surface.file`` that names the file
+and what is wrong.
 
 :func:`cached_height_map` keeps the last few maps, keyed by path, modification time and
 size, so an edited file is read again; the arrays it hands out are read-only because they
@@ -106,7 +108,7 @@ def read_height_map(path: str | os.PathLike[str], scale: float = 1.0) -> HeightM
         raise SceneError(
             FIELD, f"a readable height map ({name}: {type(exc).__name__}: {detail})"
         ) from None
-    heights = _checked(np.asarray(heights), name, suffix)
+    heights = _checked(np.asarray(heights), name)
     if suffix != ".x3p":
         heights = _scaled(heights, scale, name)
     heights.flags.writeable = False
@@ -168,18 +170,23 @@ def _check_shape(shape: tuple[int, ...], name: str) -> None:
         )
 
 
-def _checked(heights: np.ndarray, name: str, suffix: str) -> np.ndarray:
+def _checked(heights: np.ndarray, name: str) -> np.ndarray:
     _check_kind(heights.dtype, name)
     _check_shape(heights.shape, name)
     heights = np.array(heights, dtype=np.float64)  # a copy: never a view of a reader's buffer
-    bad = ~np.isfinite(heights)
-    if bad.any():
-        row, col = (int(i) for i in np.argwhere(bad)[0])
-        hint = " (x3p marks unmeasured points so: fill them first)" if suffix == ".x3p" else ""
+    infinite = np.isinf(heights)
+    if infinite.any():
+        row, col = (int(i) for i in np.argwhere(infinite)[0])
+        count = int(infinite.sum())
         raise SceneError(
             FIELD,
-            f"a height map with finite values ({name} has {int(bad.sum())} NaN or Inf "
-            f"samples{hint}, the first at row {row}, column {col})",
+            f"a height map without infinite values ({name} has {count} Inf "
+            f"sample{'' if count == 1 else 's'}, the first at row {row}, column {col}; NaN marks "
+            "an unmeasured sample)",
+        )
+    if np.isnan(heights).all():
+        raise SceneError(
+            FIELD, f"a height map with a measured sample ({name} holds only NaN: unmeasured)"
         )
     return heights
 
@@ -189,7 +196,7 @@ def _scaled(heights: np.ndarray, scale: float, name: str) -> np.ndarray:
         raise SceneError("surface.scale", "a finite number (mm per stored unit)", scale)
     with np.errstate(over="ignore"):
         heights = heights * scale
-    if not np.isfinite(heights).all():
+    if np.isinf(heights).any():
         raise SceneError(
             FIELD, f"a height map that stays finite in mm ({name} times scale {scale:g} overflows)"
         )
