@@ -245,3 +245,32 @@ def test_exposure_gain_closed_form():
     assert exposure_gain("auto", np.zeros((2, 2))) == 1.0
     assert math.isnan(st.michelson(image[:0]))
     assert st.michelson(np.array([1.0, 3.0])) == pytest.approx(0.5, rel=0.02)
+
+
+def test_unmeasured_points_at_the_dent_say_edge(tmp_path, renderer):
+    """A profilometer's map with a hole (NaN) by the dent: the numbers say ``edge`` and
+    why; the same map filled harmonically, or with the hole far away, is ``ok``."""
+    heights = np.zeros((121, 121))
+    near, far = heights.copy(), heights.copy()
+    near[62:66, 58:62] = np.nan  # 0.2 mm spacing: a hole 0.6 mm from the dent's centre
+    far[2:5, 2:5] = np.nan
+    scenes = {}
+    for name, array in (("near", near), ("far", far)):
+        np.save(tmp_path / f"{name}.npy", array)
+        scenes[name] = (
+            Scene()
+            .with_values(
+                [
+                    ("surface.kind", "heightmap"),
+                    ("surface.file", str(tmp_path / f"{name}.npy")),
+                    ("surface.spacing", (0.2, 0.2)),
+                    ("camera.theta_deg", 45.0),
+                ]
+            )
+            .with_size(256)
+        )
+    holed = measure_scene(renderer, scenes["near"])
+    assert holed.status == "edge" and "unmeasured" in holed.status_reason
+    filled = measure_scene(renderer, scenes["near"].with_value("surface.fill", "harmonic"))
+    assert filled.status == "ok"
+    assert measure_scene(renderer, scenes["far"]).status == "ok"

@@ -339,3 +339,27 @@ def test_only_a_map_with_holes_asks_base_measured(renderer, tmp_path):
             program = renderer.program(features)
             active = {n for n in program if hasattr(program[n], "value") and n.startswith("u_")}
             assert active <= set(scene_uniforms(scene, RootSolver(), features))
+
+
+def test_a_map_of_one_height_renders_in_float32(tmp_path, renderer):
+    """Every sample 0: the bracketing slab has no thickness, which float32 once found empty
+    (no pixel hit). It must render as the flat plate does where the map covers it."""
+    np.save(tmp_path / "zero.npy", np.zeros((121, 121)))
+    scene = (
+        Scene()
+        .with_values(
+            [
+                ("surface.kind", "heightmap"),
+                ("surface.file", str(tmp_path / "zero.npy")),
+                ("surface.spacing", (0.2, 0.2)),
+                ("camera.theta_deg", 45.0),
+            ]
+        )
+        .with_size(64)
+    )
+    frame = renderer.render(scene, ("uv", "mask"))
+    flat = renderer.render(scene.with_value("surface.kind", "flat"), ("uv", "mask"))
+    assert frame.mask.sum() > 1000
+    both = frame.mask & flat.mask
+    assert both.sum() == frame.mask.sum()
+    np.testing.assert_allclose(frame.uv[both], flat.uv[both], atol=5e-4)

@@ -282,14 +282,18 @@ def assess(scene, baseline, v1: np.ndarray, result) -> Status:
 
 
 def _edge(scene, baseline, region: Region, result, noisy: bool) -> Status:
+    coverage = scene.active.surface.coverage(scene)  # a height map's: the most specific
+    if coverage is not None and coverage.nan_near_dent:
+        return Status(
+            "edge",
+            "unmeasured (NaN) samples of the height map lie in the dent's region (fill them: "
+            'surface.fill = "harmonic" or "nearest")',
+        )
+    if coverage is not None and coverage.dent_at_edge:
+        return Status("edge", "the dent's region reaches the height map's edge")
     where = touches_edge(region.mask, np.isfinite(baseline.v0))
     if where is not None:
         return Status("edge", f"the dent's region touches {where}")
-    coverage = getattr(scene.active.surface, "coverage", lambda _scene: None)(scene)
-    if coverage is not None and coverage.dent_at_edge:
-        return Status("edge", "the dent's region reaches the height map's edge")
-    if coverage is not None and coverage.nan_near_dent:
-        return Status("edge", "unmeasured (NaN) samples of the height map lie in the dent's region")
     if noisy:
         return Status()
     shift = result.shift

@@ -47,6 +47,12 @@ FILLS = ("none", "nearest", "harmonic")
 DENT_REACH_SIGMA = 3.0
 
 
+#: How far the shader's bracketing slab reaches beyond the map's lowest and highest point
+#: (mm): well above float32's rounding of a hit along a 500 mm ray, far below any height
+#: that matters.
+SLAB_PAD_MM = 1e-4
+
+
 @dataclass(frozen=True)
 class MapCoverage:
     """How a height map covers the dent (:meth:`HeightMapSurface.coverage`).
@@ -334,8 +340,10 @@ class HeightMapSurface(SurfaceComponent):
             "u_surface_corner": corner,
             "u_surface_spacing": grid.spacing,
             "u_surface_size": (cols, rows),
-            "u_surface_lo": grid.lo,
-            "u_surface_hi": grid.hi,
+            # the slab the march brackets in, opened by SLAB_PAD_MM: a map of one height
+            # (every sample 0) has a slab of no thickness, which float32 finds empty
+            "u_surface_lo": grid.lo - SLAB_PAD_MM,
+            "u_surface_hi": grid.hi + SLAB_PAD_MM,
             "u_surface_curvature": grid.curvature,
             **march_uniforms(scene, context),
         }
