@@ -441,14 +441,17 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
             ms=14,
             label="optimum",
         )
+        lost = ~np.isfinite(values)
+        if lost.any():
+            ax.plot(grid[lost, 1], grid[lost, 0], "x", color="0.4", ms=6, label="not measurable")
         ax.set_xlabel(dims[1].name)
         ax.set_ylabel(dims[0].name)
-        ax.legend(loc="best", fontsize=8)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.25, 1.0), fontsize=8)
     else:
         fig, axes = plt.subplots(
             1, len(dims), figsize=(6.4 * min(len(dims), 3), 4.4), squeeze=False
         )
-        best = grid[int(np.argmax(values))]
+        best = grid[int(np.nanargmax(values))]
         for i, (ax, dim) in enumerate(zip(axes[0], dims, strict=True)):
             on_line = np.all(np.isclose(np.delete(grid, i, axis=1), np.delete(best, i)), axis=1)
             order = np.argsort(grid[on_line, i])
@@ -462,7 +465,14 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
                         lw=0.8,
                         label="family members" if j == 0 else None,
                     )
-            ax.plot(x, values[on_line][order], "o-", color="C0", label=f"{label}visibility")
+            shown = values[on_line][order]
+            ax.plot(x, shown, "o-", color="C0", label=f"{label}visibility")
+            lost = ~np.isfinite(shown)
+            if lost.any():  # unreadable viewpoints: marked on the axis, never a number
+                ax.plot(
+                    x[lost], np.zeros(lost.sum()), "x", color="0.4", ms=7, clip_on=False,
+                    label="not measurable",
+                )  # fmt: skip
             if len(dims) == 1:
                 ax.plot(
                     result.points[n:, 0], result.values[n:], "x", color="C1", label="refinement"
