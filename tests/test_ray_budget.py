@@ -146,3 +146,17 @@ def test_split_draws_are_the_oracles_mean_of_the_same_rays(gl_context):
     assert (frame.rays == 65536).all()
     assert np.abs(frame.image[rows, cols] - window.image).max() < 2e-3
     assert np.abs(frame.uv[rows, cols] - window.uv).max() < 5e-4
+
+
+def test_a_draw_the_limit_cut_short_is_traced_again_in_halves(gl_context, renderer):
+    """With no loop budget at all (every ray in one draw), llvmpipe's limiter cuts the
+    draw: its ``rays`` count falls short, the renderer traces it again in halves until
+    each draw holds, and the frame is the budgeted one. (A GPU without a limit traces it
+    in one draw: the same frame.)"""
+    scene = flat_lens(4, 3)
+    budgeted = renderer.render(scene, ("image", "rays"))
+    with Renderer(gl_context, loop_budget=1 << 40) as unbudgeted:
+        assert samples_per_draw(scene, unbudgeted.root_solver, unbudgeted.loop_budget) == 262144
+        frame = unbudgeted.render(scene, ("image", "rays"))
+    assert (frame.rays == 262144).all()
+    assert np.abs(frame.image - budgeted.image).max() < 1e-5
