@@ -50,6 +50,9 @@ _OUTPUT_BYTES = {
     "rays": 2 * 16 + 4,
 }
 _OUTPUT_BYTES_FP64 = {**_OUTPUT_BYTES, "uv": 16 + 32}
+#: Bytes per pixel a frame traced over several draws adds: each output's float64 sum and
+#: one draw's float64 copy beside it.
+_SUM_BYTES = {"image": 16, "uv": 32, "mask": 0, "distance": 16, "iterations": 4, "rays": 48}
 
 
 def _target_format(name: str, precision: str) -> tuple[int, str]:
@@ -187,16 +190,23 @@ def check_work_budget(scene: Scene, max_rays: int) -> None:
         )
 
 
-def frame_bytes(width: int, height: int, outputs, precision: str = "fp32") -> int:
-    """Bytes one frame's render targets and host arrays take."""
+def frame_bytes(
+    width: int, height: int, outputs, precision: str = "fp32", summed: bool = False
+) -> int:
+    """Bytes one frame's render targets and host arrays take (``summed``: and the sums of
+    a frame traced over several draws)."""
     table = _OUTPUT_BYTES_FP64 if precision == "fp64" else _OUTPUT_BYTES
-    return width * height * sum(table[name] for name in normalize_outputs(outputs))
+    names = normalize_outputs(outputs)
+    per_pixel = sum(table[name] for name in names)
+    if summed:
+        per_pixel += sum(_SUM_BYTES[name] for name in names)
+    return width * height * per_pixel
 
 
-def check_frame_budget(scene: Scene, outputs, budget_bytes: int) -> None:
+def check_frame_budget(scene: Scene, outputs, budget_bytes: int, summed: bool = False) -> None:
     """Reject a frame whose buffers would exceed ``budget_bytes``, naming the fields."""
     cam = scene.camera
-    need = frame_bytes(cam.width, cam.height, outputs, scene.render.precision)
+    need = frame_bytes(cam.width, cam.height, outputs, scene.render.precision, summed)
     if need > budget_bytes:
         per_pixel = need // (cam.width * cam.height)
         max_pixels = budget_bytes // per_pixel
@@ -394,7 +404,10 @@ class Renderer:
                 f"at most {self._max_side} pixels (GL_MAX_TEXTURE_SIZE)",
                 max(width, height),
             )
-        check_frame_budget(scene, features.outputs, self.memory_budget_bytes)
+        summed = sampled(features) and (
+            samples_per_draw(scene, self.root_solver, self.loop_budget) < pixel_samples(scene)
+        )
+        check_frame_budget(scene, features.outputs, self.memory_budget_bytes, summed)
         check_work_budget(scene, self.max_rays)
         with self.context.current():
             frame = self._draw(scene, features, out)
