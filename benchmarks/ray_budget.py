@@ -19,6 +19,7 @@ from glshade import paper_scene
 from glshade.gpu.renderer import Renderer
 
 BRIGHTNESS = [
+    ("flat mirror, the paper's dent", "flat+dent", 45.0, 16, 1024),
     ("flat mirror", "flat", 45.0, 16, 1024),
     ("flat mirror", "flat", 45.0, 12, 1024),
     ("flat mirror", "flat", 45.0, 8, 1024),
@@ -29,7 +30,10 @@ BRIGHTNESS = [
 
 
 def crop(shape: str, theta: float, supersample: int, samples: int):
-    scene = paper_scene(shape, theta, 1.0, 0.005).with_size(256)
+    if shape == "flat+dent":  # the paper's flat scene: σ² 4, 5 µm
+        scene = paper_scene("flat", theta, 4.0, 0.005).with_size(256)
+    else:
+        scene = paper_scene(shape, theta, 1.0, 0.005).with_size(256)
     if shape == "flat":
         scene = scene.without_defect()
     return scene.updated(
