@@ -24,6 +24,8 @@ layout(location = {{ loop.index0 }}) out float out_mask;    // 1 where the emitt
 layout(location = {{ loop.index0 }}) out float out_distance; // camera to surface hit, mm; NaN: none
 {$ elif name == "iterations" $}
 layout(location = {{ loop.index0 }}) out float out_iterations; // evaluations of g by the dent solve
+{$ elif name == "rays" $}
+layout(location = {{ loop.index0 }}) out vec4 out_rays;     // rays traced whole, reaching the emitter, hitting the surface
 {$ endif $}
 {$ endfor $}
 
@@ -75,6 +77,24 @@ bool trace(real col, real row, int k, out float radiance, out real2 uv) {
 {$ if supersample $}
 uniform int u_render_supersample;            // rays per pixel side
 {$ endif $}
+{$ if supersample or aperture $}
+// The slice of the pixel's sample indices this draw traces: the renderer splits a pixel's
+// rays over as many draws as the driver's loop limit needs and sums them.
+uniform int u_pass_first;                    // first sample index
+uniform int u_pass_count;                    // samples in this draw
+{$ endif $}
+{$ if "rays" in outputs $}
+
+// A loop of two iterations whose count the compiler cannot see: it runs both only when
+// the driver's loop limiter (llvmpipe: 65535 iterations of all loops of a fragment
+// together) has not run out, i.e. when no loop before it was cut short.
+uniform int u_pass_two;                      // 2
+bool loops_ran_whole() {
+    int runs = 0;
+    for (int i = 0; i < u_pass_two; ++i) runs += 1;
+    return runs == 2;
+}
+{$ endif $}
 
 void main() {
     real col = floor(real(gl_FragCoord.x));
@@ -92,7 +112,10 @@ void main() {
 {$ endif $}
 {$ if supersample or aperture $}
     // n x n sub-pixel positions, each with the camera's rays (a lens: its aperture
-    // samples); radiance averages all, uv the ones that reach the emitter.
+    // samples): sample index i = (a n + b) K + k. This draw traces indices
+    // [u_pass_first, u_pass_first + u_pass_count) and writes its share of the mean
+    // radiance (its sum over all n² K), and uv as the mean over its rays that reach the
+    // emitter (the renderer weighs the draws by their counts).
     int hits = 0;
 {$ if supersample $}
     int side = u_render_supersample;
@@ -101,34 +124,43 @@ void main() {
 {$ endif $}
     real step = 1.0 / real(side);
     int rays = camera_samples();
-    for (int a = 0; a < side; ++a) {
-        for (int b = 0; b < side; ++b) {
-            for (int k = 0; k < rays; ++k) {
-                float sample_radiance;
-                real2 sample_uv;
+    int traced = 0;
+    for (int i = u_pass_first; i < u_pass_first + u_pass_count; ++i) {
+        int sub = i / rays;
+        int k = i - sub * rays;
+        int a = sub / side;
+        int b = sub - a * side;
+        float sample_radiance;
+        real2 sample_uv;
 {$ if "iterations" in outputs $}
-                g_evaluations = 0;
+        g_evaluations = 0;
 {$ endif $}
-                if (trace(col + (real(b) + 0.5) * step, row + (real(a) + 0.5) * step, k, sample_radiance, sample_uv)) {
-                    radiance += sample_radiance;
-                    uv += sample_uv;
-                    hits += 1;
-                }
-{$ if "distance" in outputs $}
-                if (hit_distance >= 0.0) {
-                    distance_sum += hit_distance;
-                    surface_hits += 1;
-                }
-{$ endif $}
-{$ if "iterations" in outputs $}
-                most_evaluations = max(most_evaluations, g_evaluations);
-{$ endif $}
-            }
+        if (trace(col + (real(b) + 0.5) * step, row + (real(a) + 0.5) * step, k, sample_radiance, sample_uv)) {
+            radiance += sample_radiance;
+            uv += sample_uv;
+            hits += 1;
         }
+{$ if "distance" in outputs $}
+        if (hit_distance >= 0.0) {
+            distance_sum += hit_distance;
+            surface_hits += 1;
+        }
+{$ endif $}
+{$ if "iterations" in outputs $}
+        most_evaluations = max(most_evaluations, g_evaluations);
+{$ endif $}
+        traced += 1;
     }
     radiance /= float(side * side * rays);
     reached = hits > 0;
     if (reached) uv /= real(hits);
+{$ if "rays" in outputs $}
+    // the ray being traced when the limiter ran out was cut short: not counted
+    out_rays = vec4(float(loops_ran_whole() ? traced : traced - 1), float(hits), 0.0, 0.0);
+{$ if "distance" in outputs $}
+    out_rays.z = float(surface_hits);
+{$ endif $}
+{$ endif $}
 {$ else $}
     reached = trace(col + 0.5, row + 0.5, 0, radiance, uv);
 {$ if "distance" in outputs $}
@@ -136,6 +168,12 @@ void main() {
         distance_sum = hit_distance;
         surface_hits = 1;
     }
+{$ endif $}
+{$ if "rays" in outputs $}
+    out_rays = vec4(loops_ran_whole() ? 1.0 : 0.0, reached ? 1.0 : 0.0, 0.0, 0.0);
+{$ if "distance" in outputs $}
+    out_rays.z = float(surface_hits);
+{$ endif $}
 {$ endif $}
 {$ if "iterations" in outputs $}
     most_evaluations = g_evaluations;

@@ -46,6 +46,7 @@ MARKERS = {
     "mask": ["out_mask"],
     "distance": ["out_distance", "hit_distance"],
     "iterations": ["out_iterations", "g_evaluations"],
+    "rays": ["out_rays", "loops_ran_whole", "u_pass_two"],
 }
 
 
@@ -129,11 +130,13 @@ def test_supersampling_code_only_when_asked():
         ("distance",),
         ("iterations",),
         ("image", "distance", "iterations"),
+        ("rays",),
+        ("image", "uv", "rays"),
     ],
 )
 def test_only_requested_outputs_are_declared(outputs):
     src = source(paper_scene(), outputs)
-    for name in ("image", "uv", "mask", "distance", "iterations"):
+    for name in ("image", "uv", "mask", "distance", "iterations", "rays"):
         if name in outputs:
             assert present(src, name), name
         else:

@@ -29,6 +29,7 @@ bool freeform_march(real3 start, real3 d, real shift, real span, real curvature,
     }
     if (!crossed) return false;
     real x = (g_b < 0.0) ? a + (b - a) * g_a / (g_a - g_b) : 0.5 * (a + b);
+{# 64: surface/freeform.py's POLISH_ITERATIONS, which the renderer's loop count uses #}
 {$ call(point) march.newton_bisection("64", "u_surface_march_tol") $}freeform_gap({{ point }}, d, shift, slope){$ endcall $}
     s_hit = x;
     return true;

@@ -6,7 +6,9 @@ Supersampling convention (shared by the shader and the NumPy reference): with ``
 per pixel side the sub-pixel sample ``(a, b)`` sits at ``((b + 0.5)/n, (a + 0.5)/n)``
 inside the pixel; ``image`` is the mean radiance over all ``n²`` samples (a miss counts
 0), ``uv`` the mean over the samples that reach the emitter (NaN when none does), and
-``mask`` is True where at least one sample reaches the emitter.
+``mask`` is True where at least one sample reaches the emitter. A pixel's ``n²`` x (lens)
+aperture samples may be traced over several draws (the driver's loop limit): the frame is
+the same set of rays either way, and ``rays`` counts them.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ def exposure_gain(exposure: float | str, radiance: np.ndarray) -> float:
 
 
 #: The outputs a render can be asked for.
-OUTPUTS: tuple[str, ...] = ("image", "uv", "mask", "distance", "iterations")
+OUTPUTS: tuple[str, ...] = ("image", "uv", "mask", "distance", "iterations", "rays")
 
 
 @dataclass(frozen=True)
@@ -48,17 +50,21 @@ class Frame:
     point to the surface hit along the ray (mm; NaN where the ray hits no surface; the
     mean over the samples that hit, when supersampled); ``iterations``, float32 (H, W),
     evaluations of the gap function by the dent's root solve (0 without a defect; the
-    most any sample needed, when supersampled)."""
+    most any sample needed, when supersampled); ``rays``, float32 (H, W), camera rays
+    traced and summed into the pixel, all draws together (``render.supersample``² x the
+    camera's aperture samples when every one was; a ray the driver's loop limit cut short
+    is not counted)."""
 
     image: np.ndarray | None = None
     uv: np.ndarray | None = None
     mask: np.ndarray | None = None
     distance: np.ndarray | None = None
     iterations: np.ndarray | None = None
+    rays: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
-        for array in (self.image, self.uv, self.mask, self.distance, self.iterations):
+        for array in (self.image, self.uv, self.mask, self.distance, self.iterations, self.rays):
             if array is not None:
                 return (int(array.shape[0]), int(array.shape[1]))
         raise ValueError("empty frame")

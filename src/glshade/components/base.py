@@ -197,6 +197,16 @@ class Component:
         """Rays this component traces per pixel sample (the work budget counts them)."""
         return 1
 
+    def loop_iterations(self, scene: SceneView, solver: Any) -> int:
+        """The most loop iterations this component's GLSL runs for one camera ray (a
+        march, a root polish, a lobe's samples), a loop of at most ``n`` iterations
+        counting ``n + 1`` (llvmpipe counts the test that ends it); loops of a small constant
+        count, which the compiler unrolls, count 0. A driver may stop a fragment's loops
+        after a fixed number of iterations in all (llvmpipe: 65535), so the renderer splits
+        a pixel's rays over draws that each stay well under it. ``solver``: the renderer's
+        dent solver (``march_steps``, ``newton_iterations``)."""
+        return 0
+
     def develop(self, scene: SceneView, image: np.ndarray, exposure: int = 0) -> np.ndarray:
         """What the sensor makes of a rendered radiance image (float32, in place or new);
         the identity but for the sensor. ``exposure`` numbers independent exposures of
@@ -494,6 +504,11 @@ class Active:
         for component in self.components:
             factor *= component.work_factor(scene)
         return factor
+
+    def loop_iterations(self, scene: SceneView, solver: Any) -> int:
+        """Loop iterations of one camera ray, all components together, the sample loop's
+        own included."""
+        return 1 + sum(c.loop_iterations(scene, solver) for c in self.components)
 
     def textures(self, scene: SceneView) -> dict[str, np.ndarray]:
         textures: dict[str, np.ndarray] = {}

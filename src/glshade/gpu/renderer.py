@@ -22,6 +22,7 @@ Numerics (the error budget, fp32):
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -41,14 +42,26 @@ from glshade.scene import Scene
 
 #: Bytes per pixel of each output: GPU render target + host array (fp64 uv: an RGBA32F
 #: target of float hi/lo pairs, a float64 host array).
-_OUTPUT_BYTES = {"image": 2 * 4, "uv": 2 * 8, "mask": 2 * 1, "distance": 2 * 4, "iterations": 2 * 4}
+_OUTPUT_BYTES = {
+    "image": 2 * 4,
+    "uv": 2 * 8,
+    "mask": 2 * 1,
+    "distance": 2 * 4,
+    "iterations": 2 * 4,
+    "rays": 2 * 16 + 4,
+}
 _OUTPUT_BYTES_FP64 = {**_OUTPUT_BYTES, "uv": 16 + 32}
+#: Bytes per pixel a frame traced over several draws adds: each output's float64 sum and
+#: one draw's float64 copy beside it.
+_SUM_BYTES = {"image": 16, "uv": 32, "mask": 0, "distance": 16, "iterations": 4, "rays": 48}
 
 
 def _target_format(name: str, precision: str) -> tuple[int, str]:
     """(components, moderngl dtype) of an output's render target."""
     if name == "uv":
         return (4 if precision == "fp64" else 2), "f4"
+    if name == "rays":
+        return 4, "f4"  # (rays traced whole, reaching the emitter, hitting the surface, 0)
     return 1, ("f1" if name == "mask" else "f4")
 
 
@@ -63,6 +76,11 @@ SINGLE_DRAW_WORK = 1 << 22
 TILE_SECONDS = 0.25
 #: A frame expected to take longer than this shows a progress bar (when enabled).
 PROGRESS_AFTER_SECONDS = 2.0
+#: Loop iterations one draw may run per fragment, all loops together (the sample loop,
+#: the marches and root polishes, a lobe's samples): llvmpipe stops a fragment's loops
+#: after 65535 iterations in all, and a frame whose pixels need more is traced over
+#: several draws, each a slice of every pixel's samples (docs/architecture.md).
+PASS_LOOP_BUDGET = 16384
 
 
 @dataclass(frozen=True)
@@ -135,6 +153,28 @@ def frame_rays(scene: Scene) -> int:
     return rays * scene.active.work_factor(scene)
 
 
+def pixel_samples(scene: Scene) -> int:
+    """Camera rays one pixel traces: ``render.supersample``² x the camera's samples (a
+    lens's aperture samples)."""
+    return scene.render.supersample**2 * scene.active.camera.samples(scene)
+
+
+def samples_per_draw(
+    scene: Scene, solver: RootSolver = RootSolver(), budget: int = PASS_LOOP_BUDGET
+) -> int:
+    """Camera rays of a pixel one draw traces: as many as keep its loop iterations
+    (:meth:`Active.loop_iterations <glshade.components.base.Active.loop_iterations>` per
+    ray) within ``budget``, at least one, at most all."""
+    per_ray = scene.active.loop_iterations(scene, solver)
+    return max(1, min(pixel_samples(scene), budget // per_ray))
+
+
+def sampled(features: ShaderFeatures) -> bool:
+    """Does the program loop over a pixel's samples (supersampling or a lens)?"""
+    variables = dict(features.variables)
+    return bool(variables.get("supersample") or variables.get("aperture"))
+
+
 def check_work_budget(scene: Scene, max_rays: int) -> None:
     """Refuse, before any work, a frame that would trace more than ``max_rays`` rays."""
     rays = frame_rays(scene)
@@ -151,16 +191,23 @@ def check_work_budget(scene: Scene, max_rays: int) -> None:
         )
 
 
-def frame_bytes(width: int, height: int, outputs, precision: str = "fp32") -> int:
-    """Bytes one frame's render targets and host arrays take."""
+def frame_bytes(
+    width: int, height: int, outputs, precision: str = "fp32", summed: bool = False
+) -> int:
+    """Bytes one frame's render targets and host arrays take (``summed``: and the sums of
+    a frame traced over several draws)."""
     table = _OUTPUT_BYTES_FP64 if precision == "fp64" else _OUTPUT_BYTES
-    return width * height * sum(table[name] for name in normalize_outputs(outputs))
+    names = normalize_outputs(outputs)
+    per_pixel = sum(table[name] for name in names)
+    if summed:
+        per_pixel += sum(_SUM_BYTES[name] for name in names)
+    return width * height * per_pixel
 
 
-def check_frame_budget(scene: Scene, outputs, budget_bytes: int) -> None:
+def check_frame_budget(scene: Scene, outputs, budget_bytes: int, summed: bool = False) -> None:
     """Reject a frame whose buffers would exceed ``budget_bytes``, naming the fields."""
     cam = scene.camera
-    need = frame_bytes(cam.width, cam.height, outputs, scene.render.precision)
+    need = frame_bytes(cam.width, cam.height, outputs, scene.render.precision, summed)
     if need > budget_bytes:
         per_pixel = need // (cam.width * cam.height)
         max_pixels = budget_bytes // per_pixel
@@ -180,10 +227,18 @@ def scene_uniforms(
     declares, computed in float64 by the active components.
 
     The local frame is the world shifted by the dent centre ``O`` (``Scene.local_origin``).
+    The renderer's own: the slice of the samples a draw traces (``u_pass_first``,
+    ``u_pass_count``; here all of them) and ``u_pass_two`` (2, for the loop-limit check
+    behind the ``rays`` output).
     """
     features = features or ShaderFeatures.from_scene(scene)
     context = UniformContext(scene.local_origin(), features.template_variables(), solver)
-    return component_uniforms(scene, features, context)
+    values = component_uniforms(scene, features, context)
+    if sampled(features):
+        values.update(u_pass_first=0, u_pass_count=pixel_samples(scene))
+    if "rays" in features.outputs:
+        values["u_pass_two"] = 2
+    return values
 
 
 class _Targets:
@@ -215,6 +270,8 @@ class Renderer:
     (default ``GLSHADE_MEMORY_BUDGET_MB`` or 2 GiB); ``max_rays``: most rays per frame
     (default ``GLSHADE_MAX_RAYS`` or 2³²). ``root_solver``: the dent solve.
     ``progress``: show a progress bar (stderr) for frames that take over 2 s.
+    ``loop_budget``: loop iterations one draw may run per pixel (:data:`PASS_LOOP_BUDGET`):
+    a pixel's rays are traced over as many draws as it needs, and summed.
 
     Large frames are drawn in bands of rows of about a quarter of a second each, so a
     Ctrl-C (KeyboardInterrupt) stops a render within about a second.
@@ -230,6 +287,7 @@ class Renderer:
         max_rays: int | None = None,
         root_solver: RootSolver = RootSolver(),
         progress: bool = False,
+        loop_budget: int = PASS_LOOP_BUDGET,
     ) -> None:
         self._owns_context = context is None
         self.context = context if context is not None else GLContext()
@@ -239,6 +297,9 @@ class Renderer:
         self.max_rays = max_rays_from_env() if max_rays is None else max_rays
         self.progress = progress
         self.root_solver = root_solver
+        if loop_budget < 1:
+            raise GlshadeError(f"loop_budget: must be at least 1, got {loop_budget}")
+        self.loop_budget = loop_budget
         self._programs: dict[ShaderFeatures, tuple[moderngl.Program, moderngl.VertexArray]] = {}
         self._gains: dict[str, float] = {}  # "auto" exposures, by defect-free scene
         self._targets: dict[tuple[int, int, tuple[str, ...], bool], _Targets] = {}
@@ -334,6 +395,9 @@ class Renderer:
         is what it records (``exposure``: which of several independent exposures).
         """
         features = ShaderFeatures.from_scene(scene, outputs)
+        if sampled(features) and "rays" not in features.outputs:
+            # a program that loops over a pixel's samples counts them: checked per draw
+            features = ShaderFeatures.from_scene(scene, (*features.outputs, "rays"))
         cam = scene.camera
         width, height = cam.width, cam.height
         if max(width, height) > self._max_side:
@@ -342,10 +406,15 @@ class Renderer:
                 f"at most {self._max_side} pixels (GL_MAX_TEXTURE_SIZE)",
                 max(width, height),
             )
-        check_frame_budget(scene, features.outputs, self.memory_budget_bytes)
+        summed = sampled(features) and (
+            samples_per_draw(scene, self.root_solver, self.loop_budget) < pixel_samples(scene)
+        )
+        check_frame_budget(scene, features.outputs, self.memory_budget_bytes, summed)
         check_work_budget(scene, self.max_rays)
         with self.context.current():
             frame = self._draw(scene, features, out)
+        if frame.rays is not None and "rays" not in normalize_outputs(outputs):
+            frame = dataclasses.replace(frame, rays=None)
         if frame.image is not None and scene.active.records(scene):
             exposed = scene.with_value("camera.exposure", self.exposure_gain(scene))
             image = scene.active.develop(exposed, frame.image, exposure)
@@ -373,6 +442,9 @@ class Renderer:
         return gain
 
     def _draw(self, scene: Scene, features: ShaderFeatures, out: Frame | None) -> Frame:
+        """One frame of ``features.outputs``; a program that loops over a pixel's samples
+        also writes ``rays``, and its samples are traced over as many draws as
+        :func:`samples_per_draw` says (:meth:`_draw_sampled`)."""
         width, height = scene.camera.width, scene.camera.height
         program, vao = self._program(features)
         uniforms = scene_uniforms(scene, self.root_solver, features)
@@ -390,16 +462,44 @@ class Renderer:
         targets.fbo.use()
         targets.fbo.viewport = (0, 0, width, height)
         work = frame_rays(scene) * (4 if features.precision == "fp64" else 1)
+        if not sampled(features):
+            self._draw_once(vao, width, height, work)
+            arrays = self._read(targets, features, width, height, out)
+            if "rays" in arrays:
+                rays = self._output_array("rays", height, width, features.precision, out)
+                rays[...] = arrays["rays"][..., 0]
+                arrays["rays"] = rays
+            return Frame(**arrays)
+        return self._draw_sampled(scene, features, program, vao, targets, work, out)
+
+    def _draw_once(self, vao: moderngl.VertexArray, width: int, height: int, work: int) -> None:
         if work <= SINGLE_DRAW_WORK:
             vao.render(moderngl.TRIANGLES, vertices=3)
         else:
             self._draw_in_bands(vao, width, height, work)
 
+    def _read(
+        self,
+        targets: _Targets,
+        features: ShaderFeatures,
+        width: int,
+        height: int,
+        out: Frame | None,
+    ) -> dict[str, np.ndarray]:
+        """Every render target, read back (``out``'s arrays filled where given; ``rays``
+        with its four channels)."""
         arrays: dict[str, np.ndarray] = {}
+        viewport = (0, 0, width, height)
         for index, name in enumerate(features.outputs):
-            array = self._output_array(name, height, width, features.precision, out)
             components, dtype = _target_format(name, features.precision)
-            viewport = (0, 0, width, height)
+            if name == "rays":
+                array = np.empty((height, width, 4), np.float32)
+                targets.fbo.read_into(
+                    array, viewport=viewport, components=4, attachment=index, dtype="f4"
+                )
+                arrays[name] = array
+                continue
+            array = self._output_array(name, height, width, features.precision, out)
             if name == "uv" and features.precision == "fp64":
                 pairs = np.empty((height, width, 4), np.float32)  # (u_hi, v_hi, u_lo, v_lo)
                 targets.fbo.read_into(
@@ -412,7 +512,53 @@ class Renderer:
                     host, viewport=viewport, components=components, attachment=index, dtype=dtype
                 )
             arrays[name] = array
-        return Frame(**arrays)
+        return arrays
+
+    def _draw_sampled(
+        self,
+        scene: Scene,
+        features: ShaderFeatures,
+        program: moderngl.Program,
+        vao: moderngl.VertexArray,
+        targets: _Targets,
+        work: int,
+        out: Frame | None,
+    ) -> Frame:
+        """Trace every pixel's samples ``0 … S-1`` in slices ``[first, first + count)``,
+        one draw each, and add the draws up in float64: the image is the sum of their
+        shares of the mean, uv and distance the means weighted by each draw's counts,
+        iterations the most. Each draw's ``rays`` must equal its count in every pixel: a
+        draw a driver's loop limit cut short is traced again in halves."""
+        width, height = scene.camera.width, scene.camera.height
+        total = pixel_samples(scene)
+        size = samples_per_draw(scene, self.root_solver, self.loop_budget)
+        first_uniform = cast(moderngl.Uniform, program["u_pass_first"])
+        count_uniform = cast(moderngl.Uniform, program["u_pass_count"])
+        sums: dict[str, np.ndarray] = {}
+        first = 0
+        while first < total:
+            count = min(size, total - first)
+            first_uniform.value, count_uniform.value = first, count
+            self._draw_once(vao, width, height, max(1, work * count // total))
+            whole = count == total
+            arrays = self._read(targets, features, width, height, out if whole else None)
+            counts = arrays["rays"]
+            if (counts[..., 0] < count).any():
+                if count == 1:
+                    raise GlshadeError(
+                        "one ray of this scene runs more loop iterations than the driver "
+                        "allows a pixel (its loop limit); lower the root solver's "
+                        "march_steps or render.lobe_samples"
+                    )
+                size = count // 2
+                continue
+            if whole:
+                rays = self._output_array("rays", height, width, features.precision, out)
+                rays[...] = counts[..., 0]
+                return Frame(**{**arrays, "rays": rays})
+            _accumulate(sums, arrays)
+            first += count
+        return Frame(**_finish(sums, features, out, self._output_array))
 
     def _texture(self, array: np.ndarray) -> moderngl.Texture:
         """The texture holding ``array`` (float32; (rows, cols) or (rows, cols, channels)),
@@ -482,6 +628,56 @@ class Renderer:
                 f"out.{name}: must be a C-contiguous {np.dtype(dtype).name} array of shape {shape}"
             )
         return given
+
+
+def _accumulate(sums: dict[str, np.ndarray], arrays: dict[str, np.ndarray]) -> None:
+    """Add one draw's outputs to the float64 sums of a frame traced over several draws."""
+    counts = arrays["rays"].astype(np.float64)
+    hits, surface_hits = counts[..., 1], counts[..., 2]
+    parts: dict[str, np.ndarray] = {"rays": counts}
+    if "image" in arrays:
+        parts["image"] = arrays["image"].astype(np.float64)
+    if "uv" in arrays:
+        uv = arrays["uv"].astype(np.float64)
+        parts["uv"] = np.where(hits[..., None] > 0, uv * hits[..., None], 0.0)
+    if "distance" in arrays:
+        distance = arrays["distance"].astype(np.float64)
+        parts["distance"] = np.where(surface_hits > 0, distance * surface_hits, 0.0)
+    for name, part in parts.items():
+        if name in sums:
+            sums[name] += part
+        else:
+            sums[name] = part
+    if "iterations" in arrays:
+        most = arrays["iterations"]
+        sums["iterations"] = np.maximum(sums["iterations"], most) if "iterations" in sums else most
+
+
+def _finish(
+    sums: dict[str, np.ndarray], features: ShaderFeatures, out: Frame | None, output_array
+) -> dict[str, np.ndarray]:
+    """The frame's arrays from the sums of its draws (``out``'s filled where given)."""
+    counts = sums["rays"]
+    hits, surface_hits = counts[..., 1], counts[..., 2]
+    height, width = counts.shape[:2]
+    arrays: dict[str, np.ndarray] = {}
+    for name in features.outputs:
+        array = output_array(name, height, width, features.precision, out)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            if name == "image":
+                array[...] = sums["image"]
+            elif name == "uv":
+                array[...] = np.where(hits[..., None] > 0, sums["uv"] / hits[..., None], np.nan)
+            elif name == "mask":
+                array[...] = hits > 0
+            elif name == "distance":
+                array[...] = np.where(surface_hits > 0, sums["distance"] / surface_hits, np.nan)
+            elif name == "iterations":
+                array[...] = sums["iterations"]
+            elif name == "rays":
+                array[...] = counts[..., 0]
+        arrays[name] = array
+    return arrays
 
 
 def _progress_bar(total_rows: int, done_rows: int):

@@ -388,7 +388,8 @@ def trace(
     where no sample reaches the emitter), ``mask`` (H, W) bool; fields not asked for are
     None. ``rows``/``cols`` trace a window of the full sensor (the arrays have the
     window's shape). Supersampling follows :mod:`glshade.frame`; ``render.precision`` is
-    ignored (always float64). With Blinn-Phong, ``uv``/``mask`` are the mirror ray's."""
+    ignored (always float64); ``rays`` is every pixel's count of rays, all traced. With
+    Blinn-Phong, ``uv``/``mask`` are the mirror ray's."""
     wanted = normalize_outputs(outputs if isinstance(outputs, str) else tuple(outputs))
     n = scene.render.supersample
     origins, dirs = scene.active.camera.sample_rays(scene, rows, cols, n)
@@ -408,7 +409,8 @@ def trace(
             uv = np.where(count[..., None] > 0, total / count[..., None], np.nan)
     if "mask" in wanted:
         mask = count > 0
-    return Frame(image=image, uv=uv, mask=mask)
+    rays = np.full((h, w), float(samples), np.float32) if "rays" in wanted else None
+    return Frame(image=image, uv=uv, mask=mask, rays=rays)
 
 
 __all__ = [

@@ -9,9 +9,25 @@ MARCH_STEPS = 256
 MARCH_GLSL = ("lib/march.glsl", "lib/freeform.glsl")
 
 
+#: Most iterations of the free-form polish (``lib/freeform.glsl``).
+POLISH_ITERATIONS = 64
+
+
+def march_steps(solver) -> int:
+    """Steps of the free-form march for the renderer's dent solver."""
+    return max(MARCH_STEPS, 4 * solver.march_steps)
+
+
+def march_loop_iterations(scene, solver) -> int:
+    """Loop iterations of one ray's first hit: the march and its polish, on each of the two
+    shifted surfaces that bracket a dent (once without one)."""
+    surfaces = 2 if scene.defect.present else 1
+    return surfaces * ((march_steps(solver) + 1) + (POLISH_ITERATIONS + 1))
+
+
 def march_uniforms(scene, context) -> dict[str, object]:
     """The uniforms of ``lib/freeform.glsl``."""
     return {
-        "u_surface_march_steps": max(MARCH_STEPS, 4 * context.solver.march_steps),
+        "u_surface_march_steps": march_steps(context.solver),
         "u_surface_march_tol": context.solver.tolerance_for(scene.render.precision),
     }

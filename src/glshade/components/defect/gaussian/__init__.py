@@ -83,6 +83,12 @@ class Gaussian(DefectComponent):
             values["u_defect_axis"], values["u_defect_inv_var"] = self._principal(dent)
         return values
 
+    def loop_iterations(self, scene, solver):
+        # the march, then the Newton-bisection polish
+        return (
+            (solver.march_steps + 1) + (solver.newton_iterations + 1) if scene.defect.present else 0
+        )
+
     @staticmethod
     def _principal(dent) -> tuple[tuple[float, float], tuple[float, float]]:
         """The first principal axis (x, z) and the inverse principal variances (1/mm²)."""

@@ -48,6 +48,13 @@ class Stripes(EmitterComponent):
                 values["u_emitter_mean"] = em.mean_radiance()
         return values
 
+    def loop_iterations(self, scene, solver):
+        # once per ray: the GGX blur's harmonics (at most 64), the diffuse polygon (at most 5)
+        variables = scene.active.features(scene)
+        return (65 if variables.get("blur") == "ggx" else 0) + (
+            6 if variables.get("diffuse") else 0
+        )
+
     def pattern(self, scene) -> Emitter:
         return scene.emitter
 

@@ -132,6 +132,10 @@ class Microfacet(ReflectionComponent):
     def work_factor(self, scene):
         return 1 if scene.render.lobe_method == "closed" else scene.render.lobe_samples
 
+    def loop_iterations(self, scene, solver):
+        # the lattice's loop over its slope samples (the closed form's loop is the emitter's)
+        return 0 if scene.render.lobe_method == "closed" else scene.render.lobe_samples + 1
+
     def accuracy_knob(self):
         # imported here: the knob is only run by `glshade accuracy`
         from glshade.components.reflection.microfacet.accuracy import MicrofacetKnob

@@ -23,7 +23,11 @@ import numpy as np
 from glshade.components.base import SurfaceComponent
 from glshade.components.surface.formula.grammar import PARAMETER_PREFIX, parse_formula
 from glshade.components.surface.formula.grammar import Formula as ParsedFormula
-from glshade.components.surface.freeform import MARCH_GLSL, march_uniforms
+from glshade.components.surface.freeform import (
+    MARCH_GLSL,
+    march_loop_iterations,
+    march_uniforms,
+)
 from glshade.errors import SceneError
 from glshade.params import Table, param
 
@@ -85,6 +89,9 @@ class Formula(SurfaceComponent):
 
     def glsl(self, variables):
         return (*MARCH_GLSL, "formula.glsl")
+
+    def loop_iterations(self, scene, solver):
+        return march_loop_iterations(scene, solver)
 
     def uniforms(self, scene, context):
         lo, hi, curvature = bounds(scene)

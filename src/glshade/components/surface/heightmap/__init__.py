@@ -34,7 +34,11 @@ from pathlib import Path
 import numpy as np
 
 from glshade.components.base import SurfaceComponent
-from glshade.components.surface.freeform import MARCH_GLSL, march_uniforms
+from glshade.components.surface.freeform import (
+    MARCH_GLSL,
+    march_loop_iterations,
+    march_uniforms,
+)
 from glshade.components.surface.heightmap.readers import cached_height_map
 from glshade.errors import SceneError
 from glshade.params import Table, param
@@ -328,6 +332,9 @@ class HeightMapSurface(SurfaceComponent):
 
     def textures(self, scene):
         return {"t_surface_heights": grid_of(scene).texture}
+
+    def loop_iterations(self, scene, solver):
+        return march_loop_iterations(scene, solver)
 
     def uniforms(self, scene, context):
         grid = grid_of(scene)
