@@ -36,48 +36,57 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     (["render", "utf16.toml"], "this is UTF-16 text", {}),
     (["render", "table.toml"], "lens: must be one of the tables", {}),
     (["render", "key.toml"], "camera.zoom: must be one of the keys", {}),
-    (["render", "string.toml"], "camera.theta_deg: must be a finite number, got '45'", {}),
+    (
+        ["render", "string.toml"],
+        "camera.theta_deg: must be in (0, 90) degrees (a number in degrees, or with a unit: "
+        "15deg, 0.26rad), got '45 parsecs'",
+        {},
+    ),
     (["render", "range.toml"], "camera.theta_deg: must be in (0, 90) degrees, got 120.0", {}),
     (["render", "scalar.toml"], "camera: must be a table of keys", {}),
     (["measure", "latin1.toml"], "scene file latin1.toml: must be UTF-8 text", {}),
     (["view", "image.png"], "this is a PNG image", {}),
     # values and flags
-    (["render", "--theta", "95"], "camera.theta_deg: must be in (0, 90) degrees", {}),
-    (["render", "--theta", "nan"], "camera.theta_deg: must be a finite number", {}),
+    (["render", "--theta", "95"], "--theta (camera.theta_deg): must be in (0, 90) degrees", {}),
+    (["render", "--theta", "nan"], "--theta (camera.theta_deg): must be a finite number", {}),
     (["render", "--dmax", "5xx"], "defect.dmax: must be a number in mm, or with a unit", {}),
     (["render", "--dmax", "5kg"], "units: cm, m, mm, nm, um", {}),
-    (["render", "--sigma2", "-1"], "defect.sigma_x2: must be a finite number > 0", {}),
+    (["render", "--sigma2", "-1"], "--sigma2 (defect.sigma2): must be a finite number > 0", {}),
     (["render", "--size", "0"], "camera.width: must be an integer in [1, 16384]", {}),
-    (["render", "--supersample", "17"], "render.supersample: must be an integer in [1, 16]", {}),
+    (
+        ["render", "--supersample", "17"],
+        "--supersample (render.supersample): must be an integer in [1, 16]",
+        {},
+    ),
     (["render", "--surface", "torus"], "invalid choice: 'torus'", {}),
     (["render", "--set", "camera.zoom=2"], "camera.zoom: must be one of the keys", {}),
     (["render", "--set", "theta=5"], "expected PATH=VALUE", {}),
     (["render", "--set", "emitter.half_size=1"], "emitter.half_size: must be two numbers", {}),
     (
-        ["render", "--size", "8192", "--supersample", "16"],
-        "= 1.72e+10 rays, more than the work budget",
+        ["render", "--size", "4096", "--supersample", "16", "--f-number", "8", "--focus", "431.6"],
+        "= 2.75e+11 rays, more than the work budget",
         {},
     ),
     (["render", "--no-such-flag"], "unrecognized arguments: --no-such-flag", {}),
     # optics and sensor (issue 12)
     (
         ["render", "--f-number", "-2"],
-        "camera.f_number: must be a finite number >= 0 (0: pinhole), got -2.0",
+        "--f-number (camera.f_number): must be a finite number >= 0 (0: pinhole), got -2.0",
         {},
     ),
     (
         ["render", "--roughness", "-0.01"],
-        "render.roughness: must be a finite number >= 0, got -0.01",
+        "--roughness (render.roughness): must be a finite number >= 0, got -0.01",
         {},
     ),
     (
         ["render", "--wavelength", "0"],
-        "render.wavelength_um: must be a finite number > 0, got 0.0",
+        "--wavelength (render.wavelength_um): must be a finite number > 0, got 0.0",
         {},
     ),
     (
         ["render", "--height-rms", "-0.1"],
-        "render.height_rms_um: must be a finite number >= 0, got -0.1",
+        "--height-rms (render.height_rms_um): must be a finite number >= 0, got -0.1",
         {},
     ),
     (
@@ -87,13 +96,13 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     ),
     (
         ["render", "--distortion", "0.1,0.2"],
-        "camera.distortion: must be a list of 5 finite numbers",
+        "--distortion (camera.distortion): must be a list of 5 finite numbers",
         {},
     ),
     (["render", "--bit-depth", "13"], "sensor.bit_depth: must be one of 8, 10, 12, 16, got 13", {}),
     (
         ["render", "--aperture-samples", "0"],
-        "camera.aperture_samples: must be an integer in [1, 1024]",
+        "--aperture-samples (camera.aperture_samples): must be an integer in [1, 1024]",
         {},
     ),
     (["frobnicate"], "invalid choice: 'frobnicate'", {}),
@@ -173,7 +182,7 @@ def _fixtures(root: Path) -> None:
     (root / "utf16.toml").write_bytes("[camera]\ntheta_deg = 45\n".encode("utf-16"))
     (root / "table.toml").write_text("[lens]\nf = 2\n")
     (root / "key.toml").write_text("[camera]\nzoom = 2\n")
-    (root / "string.toml").write_text('[camera]\ntheta_deg = "45"\n')
+    (root / "string.toml").write_text('[camera]\ntheta_deg = "45 parsecs"\n')
     (root / "range.toml").write_text("[camera]\ntheta_deg = 120.0\n")
     (root / "scalar.toml").write_text("camera = 5\n")
     os.mkfifo(root / "fifo.png")

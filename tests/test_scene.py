@@ -148,7 +148,7 @@ def test_isotropic_written_as_sigma2():
             "defect.sigma_xz",
             "positive definite",
         ),
-        ({"defect": {"sigma2": -4.0}}, "defect.sigma_x2", "> 0"),
+        ({"defect": {"sigma2": -4.0}}, "defect.sigma2", "> 0"),
         ({"defect": {"sigma2": 4.0, "sigma_xz": 0.1}}, "defect.sigma_xz", "absent"),
         ({"defect": {"dmax": float("nan")}}, "defect.dmax", "finite"),
         ({"render": {"precision": "fp16"}}, "render.precision", "fp32, fp64"),

@@ -25,7 +25,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from glshade.errors import SceneError
-from glshade.units import parse_quantity
+from glshade.units import examples, parse_quantity
 
 #: How a value is typed: a real number, an integer, one of some names, a pair of numbers,
 #: a fixed-length list of numbers (``size`` of them), a text (a formula), a table of named numbers.
@@ -145,6 +145,7 @@ class Param:
             return None
         if isinstance(value, str) and value.strip() in self.keywords:
             return value.strip()
+        value = self._quantities(value)
         if self.value_type == "choice":
             allowed = choices if choices is not None else self.choices
             if value not in allowed:
@@ -188,6 +189,23 @@ class Param:
                 )
             return tuple(self._finite(number) for number in value)
         return self._real(value)
+
+    def _quantities(self, value: Any) -> Any:
+        """Text with a unit (``"5 um"`` in a scene file, ``Scene.with_value``, a sweep
+        grid) -> the number in the parameter's unit, for the numeric types (each element
+        of a pair or vector); anything else unchanged (and checked as it is)."""
+        if self.value_type in ("real", "integer") and isinstance(value, str):
+            number = self._quantity(value)
+            return int(number) if self.value_type == "integer" and number.is_integer() else number
+        if self.value_type in ("pair", "vector") and isinstance(value, (list, tuple)):
+            return type(value)(self._quantity(v) if isinstance(v, str) else v for v in value)
+        return value
+
+    def _quantity(self, text: str) -> float:
+        try:
+            return parse_quantity(text, self.unit, self.path)
+        except SceneError:
+            raise SceneError(self.path, f"{self.allowed()} ({examples(self.unit)})", text) from None
 
     def _finite(self, value: Any) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):

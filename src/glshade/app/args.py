@@ -10,10 +10,11 @@ from pathlib import Path
 from typing import Any
 
 from glshade.components.registry import registry
-from glshade.errors import GlshadeError, printable
+from glshade.errors import GlshadeError, SceneError, printable
 from glshade.metrics.visibility import MetricSettings
 from glshade.params import Param
 from glshade.scene import Scene
+from glshade.units import parse_quantity
 
 EXIT_USAGE = 2
 
@@ -147,8 +148,10 @@ def metric_settings(args: argparse.Namespace):
 
 
 def scene_from_args(args: argparse.Namespace) -> Scene:
-    """The scene a ``render``/``measure`` call describes: the file (or the default scene),
-    then the short flags, then ``--set PATH=VALUE`` in order, then ``--size``."""
+    """The scene a ``render``/``measure``/``view`` call describes: the file (or the
+    default scene), then the short flags, then ``--set PATH=VALUE`` in order, then
+    ``--size``. A bad value is named as the user typed it (``--sigma2``, or the dotted
+    path of ``--set``), not by the fields it sets."""
     # the file, or the scene every default makes (the paper's flat plate): a surface given
     # by a flag takes its parameters' defaults exactly as a file naming only its kind does
     scene = Scene.load(args.scene) if args.scene is not None else Scene()
@@ -156,11 +159,10 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
     for param in registry().params():
         value = getattr(args, flag_dest(param), None) if param.flag is not None else None
         if value is not None:
-            tables.setdefault(param.table, {})[param.key] = value
+            tables.setdefault(param.table, {})[param.key] = checked(param, value, param.flag)
     for item in args.settings:  # later settings win; all are applied at once, so values that
-        path, value = parse_setting(
-            item
-        )  # only make sense together (a kind and its file) can be given
+        # only make sense together (a kind and its file) can be given together
+        path, value = parse_setting(item, scene, tables)
         table, _, key = path.partition(".")
         tables.setdefault(table, {})[key] = value
     scene = scene.updated(**tables)
@@ -169,16 +171,58 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
     return scene
 
 
-def parse_setting(item: str) -> tuple[str, object]:
+def checked(param: Param, value: object, typed: str | None = None) -> object:
+    """``value`` checked against its own declaration first (a selector's names are checked
+    when the scene is built), so a bad value is named ``typed`` (a flag) or by its own
+    path, never by the fields a shorthand sets (``defect.sigma2`` sets two variances)."""
+    if param.value_type == "choice":
+        return value
+    try:
+        param.check(value)
+    except SceneError as exc:
+        name = exc.field if typed is None else f"{typed} ({exc.field})"
+        raise SceneError(name, exc.allowed, exc.got) from None
+    return value
+
+
+def parse_setting(
+    item: str, scene: Scene | None = None, pending: dict[str, dict[str, object]] | None = None
+) -> tuple[str, object]:
     """``PATH=VALUE`` -> the parameter's path and its value parsed by its declaration (a
-    SceneError names an unknown path, and the value is checked when it is applied)."""
+    SceneError names an unknown path, and the value is checked as typed). A named entry
+    of a table parameter, ``surface.parameters.a=0.2``, sets that entry and keeps the
+    table's others (those already ``pending``, else those of ``scene``)."""
     path, sep, text = item.partition("=")
     path = path.strip()
     if not sep or "." not in path:
         raise GlshadeError(
             f"--set {item!r}: expected PATH=VALUE with a dotted path such as camera.theta_deg=15"
         )
-    return path, registry().param(path).parse(text)
+    if path.count(".") == 2:
+        return _table_entry(path, text, scene, pending or {})
+    param = registry().param(path)
+    return path, checked(param, param.parse(text))
+
+
+def _table_entry(
+    path: str, text: str, scene: Scene | None, pending: dict[str, dict[str, object]]
+) -> tuple[str, object]:
+    """``table.key.name=VALUE`` for a parameter holding named numbers (a formula's
+    ``parameters``): the whole table with ``name`` set."""
+    outer, _, name = path.rpartition(".")
+    param = registry().param(outer)
+    if param.value_type != "table" or not name.strip():
+        raise GlshadeError(
+            f"--set {path}: {outer} is not a table of named numbers; a dotted path has one "
+            "dot (camera.theta_deg=15), or two for an entry of such a table "
+            "(surface.parameters.a=0.2)"
+        )
+    given = pending.get(param.table, {}).get(param.key)
+    if given is None and scene is not None:
+        given = scene.value(outer)
+    current = dict(given or ())  # type: ignore[call-overload]
+    current[name.strip()] = parse_quantity(text, "", path)
+    return outer, checked(param, tuple(current.items()))
 
 
 def warn(lines) -> None:

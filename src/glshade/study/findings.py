@@ -674,6 +674,13 @@ def write_report(
     return path
 
 
+def _named(surface: str) -> str:
+    """A surface as the opening lists it: its kind, or its label and the scene file the
+    user gave (``saddle (examples/saddle.toml)``)."""
+    label = surface_label(surface)
+    return label if label == surface else f"{label} (`{surface}`)"
+
+
 def _opening(rows: Sequence[Mapping], plan) -> list[str]:
     """The report's title, what was run, and which cases could not be measured."""
     width, height = image_size(plan)
@@ -682,7 +689,7 @@ def _opening(rows: Sequence[Mapping], plan) -> list[str]:
         "# glshade: the paper's study",
         "",
         (
-            f"{len(rows)} cases: surfaces {', '.join(surface_label(s) for s in plan.surfaces)}; "
+            f"{len(rows)} cases: surfaces {', '.join(_named(s) for s in plan.surfaces)}; "
             f"θ {', '.join(f'{t:g}' for t in plan.thetas)}°; "
             f"σ² {', '.join(f'{v:g}' for v in plan.sigma2s)} mm²; dmax "
             f"{', '.join(um(d) for d in plan.dmaxs)}; images of {width}×{height} pixels{paper}; "

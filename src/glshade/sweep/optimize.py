@@ -37,8 +37,10 @@ from glshade.measure.engine import Case
 from glshade.measure.record import Measurement
 from glshade.metrics.status import concerns
 from glshade.metrics.visibility import MetricSettings
+from glshade.params import Param
 from glshade.scene import Scene
 from glshade.sweep.spec import canonical_key, case_id
+from glshade.units import examples, parse_quantity
 
 METRICS = ("paper", "continuous")
 #: Tie-break weight of the continuous visibility in the paper metric's score.
@@ -120,9 +122,9 @@ def parse_over(text: str) -> tuple[Dimension, ...]:
     for item in _items(text, "--over"):
         given, _, span = item.partition("=")
         key = canonical_key(given)
-        _numeric_param(key, "--over")
+        unit = _numeric_param(key, "--over").unit
         if span:
-            lo, hi = _span(span, f"--over {key}")
+            lo, hi = _span(span, f"--over {key}", unit=unit)
         elif key in DEFAULT_BOUNDS:
             lo, hi = DEFAULT_BOUNDS[key]
         else:
@@ -144,11 +146,11 @@ def parse_family(text: str | None, points: int = 3) -> list[dict[str, float]]:
         key = canonical_key(key)
         if not sep:
             raise GlshadeError(f"--family {item!r}: expected KEY=LO..HI or KEY=V1|V2")
-        _numeric_param(key, "--family")
+        unit = _numeric_param(key, "--family").unit
         if "|" in span:
-            values = [_float(v, f"--family {key}") for v in span.split("|")]
+            values = [_float(v, f"--family {key}", unit) for v in span.split("|")]
         else:
-            lo, hi = _span(span, f"--family {key}", allow_equal=True)
+            lo, hi = _span(span, f"--family {key}", allow_equal=True, unit=unit)
             values = [lo] if lo == hi else list(np.linspace(lo, hi, points))
         axes.append((key, values))
     if len({k for k, _ in axes}) != len(axes):
@@ -166,7 +168,7 @@ def _items(text: str, flag: str) -> list[str]:
     return items
 
 
-def _numeric_param(key: str, flag: str) -> None:
+def _numeric_param(key: str, flag: str) -> Param:
     try:
         param = registry().param(key)
     except SceneError as exc:
@@ -175,13 +177,15 @@ def _numeric_param(key: str, flag: str) -> None:
         raise GlshadeError(
             f"{flag} {key}: not a number ({param.value_type}); sweep it with glshade sweep instead"
         )
+    return param
 
 
-def _span(text: str, where: str, allow_equal: bool = False) -> tuple[float, float]:
+def _span(text: str, where: str, allow_equal: bool = False, unit: str = "") -> tuple[float, float]:
+    """``LO..HI``: each end a number in ``unit``, or with its own (``3um..8um``)."""
     lo_text, sep, hi_text = text.partition("..")
     if not sep:
         raise GlshadeError(f"{where}: expected a range LO..HI, got {text!r}")
-    lo, hi = _float(lo_text, where), _float(hi_text, where)
+    lo, hi = _float(lo_text, where, unit), _float(hi_text, where, unit)
     if not (lo < hi or (allow_equal and lo == hi)):
         raise GlshadeError(
             f"{where}: an empty or inverted range {lo:g}..{hi:g}; LO must be below HI"
@@ -189,11 +193,12 @@ def _span(text: str, where: str, allow_equal: bool = False) -> tuple[float, floa
     return lo, hi
 
 
-def _float(text: str, where: str) -> float:
+def _float(text: str, where: str, unit: str = "") -> float:
     try:
-        value = float(text)
-    except ValueError:
-        raise GlshadeError(f"{where}: expected a number, got {text.strip()!r}") from None
+        value = parse_quantity(text, unit, where)
+    except SceneError:
+        shown = examples(unit) if unit else "a number"
+        raise GlshadeError(f"{where}: expected {shown}, got {text.strip()!r}") from None
     if not math.isfinite(value):
         raise GlshadeError(f"{where}: expected a finite number, got {text.strip()!r}")
     return value
