@@ -80,7 +80,8 @@ class ViewerWindow(mglw.WindowConfig):
         self.status = {"hover": "", "message": "", "scale_top": 0.0, "frame_ms": 0.0}
         self.started = self.last = time.perf_counter()
         self.shown_for = None
-        self.drawn_for: tuple | None = None  # what the kept picture shows
+        self.drawn_for: tuple | None = None  # what the last frame's picture showed
+        self.kept_for: tuple | None = None  # what the kept texture shows
         self.schedule = FrameSchedule(continuous=self.options.frames is not None)
         self.stats.update(panel_bottom=0.0, panel_scroll=0.0, opened_at=tuple(self.wnd.size))
         window = getattr(self.wnd, "_window", None)  # pyglet's: redraw when uncovered
@@ -137,7 +138,8 @@ class ViewerWindow(mglw.WindowConfig):
 
     def _state(self):
         m = self.model
-        return (m.traced_for, m.scene.emitter.phase, m.view, m.displacement is not None)
+        measured = m.view == "displacement" and m.displacement is not None
+        return (m.traced_for, m.scene.emitter.phase, m.view, measured)
 
     # ------------------------------------------------------------ frame
     def on_render(self, time_s, frame_time):
@@ -175,25 +177,30 @@ class ViewerWindow(mglw.WindowConfig):
         return self._programs[features]
 
     def draw(self):
-        """One frame: the picture (the display pass, only when it changed; else the kept
-        one), then the panel."""
+        """One frame: the picture, then the panel. A picture that changed since the last
+        frame is drawn by the display pass straight into the window (an animation pays
+        one pass a frame); one that did not is copied from the kept texture, which the
+        display pass fills once (a frame for the panel alone re-renders nothing)."""
         cam = self.options.scene.camera
         key = (self.model.scene, self.model.view, self.mode, self.shown_for, id(self.shown_uv))
-        if key != self.drawn_for:
+        if key == self.drawn_for and key != self.kept_for:  # the picture settled: keep it
             self.picture_fbo.use()
             self.ctx.viewport = (0, 0, cam.width, cam.height)
             self.display_pass()
-            self.drawn_for = key
-            self.model.scene_passes += 1
+            self.kept_for = key
+        origin = (0, self.wnd.buffer_size[1] - cam.height)
         self.wnd.fbo.use()
         self.ctx.clear(0.12, 0.12, 0.12)
-        origin = (0, self.wnd.buffer_size[1] - cam.height)
         self.ctx.viewport = (*origin, cam.width, cam.height)
-        program, quad = self._copy
-        self.tex_picture.use(0)
-        program["u_picture"].value = 0
-        program["u_origin"].value = origin
-        quad.render(moderngl.TRIANGLES, vertices=3)
+        if key == self.kept_for:
+            program, quad = self._copy
+            self.tex_picture.use(0)
+            program["u_picture"] = 0
+            program["u_origin"] = origin
+            quad.render(moderngl.TRIANGLES, vertices=3)
+        else:
+            self.display_pass()
+        self.drawn_for = key
         self.ctx.viewport = (0, 0, *self.wnd.buffer_size)
         if self.gui is not None:
             height = self.wnd.size[1]
@@ -206,7 +213,8 @@ class ViewerWindow(mglw.WindowConfig):
             self.fit(bottom)
 
     def display_pass(self):
-        """The current view into the kept picture (the framebuffer bound)."""
+        """The current view into the bound framebuffer's viewport."""
+        self.model.scene_passes += 1
         program, quad, features = self.display()
         values = {
             **display_uniforms(self.model.scene, features),
@@ -240,7 +248,7 @@ class ViewerWindow(mglw.WindowConfig):
     def on_resize(self, width, height):
         if self.gui is not None:
             self.gui.resize(width, height)
-        self.drawn_for = None
+        self.drawn_for = self.kept_for = None
         self.schedule.poke()
 
     # ------------------------------------------------------------ input
@@ -347,6 +355,7 @@ class ViewerWindow(mglw.WindowConfig):
         stats["readout"] = replace(m.readout)
         stats["traces"], stats["reshades"] = m.traces, m.reshades
         stats["scene_passes"], stats["window_size"] = m.scene_passes, tuple(self.wnd.size)
+        stats["scale_top"] = self.status["scale_top"]
         if self.options.screenshot is not None:
             self.screenshot(self.options.screenshot)
         m.close()
@@ -382,6 +391,7 @@ def run(options: ViewerOptions) -> dict:
     """Open the window and run until it is closed (or ``frames`` frames were drawn)."""
     app, stats = make_app(options)
     config = mglw.create_window_config_instance(app, args=["--window", "pyglet"])
+    assert isinstance(config, ViewerWindow)
     loop(config)
     return stats
 
