@@ -31,7 +31,7 @@ def _find(parent: psutil.Process, wanted, timeout_s: float = 30.0) -> psutil.Pro
             try:
                 if wanted(child.cmdline()):
                     return child
-            except psutil.NoSuchProcess:
+            except (psutil.NoSuchProcess, psutil.ZombieProcess):
                 continue
         time.sleep(0.1)
     raise RuntimeError("the viewer did not start")
@@ -58,9 +58,10 @@ def main() -> None:
         str(args.size),
     ]
     runner = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    viewer = None
     try:
         parent = psutil.Process(runner.pid)
-        viewer = _find(parent, lambda cmd: "glshade" in cmd and "view" in cmd)
+        viewer = _find(parent, lambda cmd: cmd[:4] == [sys.executable, "-m", "glshade", "view"])
         server = _find(parent, lambda cmd: bool(cmd) and cmd[0].endswith("Xvfb"))
         time.sleep(args.settle)
         if runner.poll() is not None:
@@ -71,9 +72,10 @@ def main() -> None:
         wall = time.perf_counter() - start
         cpu_viewer, cpu_server = _cpu(viewer) - cpu_viewer, _cpu(server) - cpu_server
     finally:
-        for process in psutil.Process(runner.pid).children(recursive=True):
-            if "glshade" in " ".join(process.cmdline()):
-                process.terminate()
+        if viewer is not None and viewer.is_running():
+            viewer.terminate()  # xvfb-run then ends its X server
+        else:
+            runner.terminate()
         runner.wait(timeout=30)
     print(
         f"idle viewer at {args.size}²: {100 * cpu_viewer / wall:.1f} % of a core "

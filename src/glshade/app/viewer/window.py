@@ -368,12 +368,15 @@ class ViewerWindow(mglw.WindowConfig):
 def make_app(options: ViewerOptions) -> tuple[type[ViewerWindow], dict]:
     """The window class for ``options`` and the dict its run fills with statistics. With
     the panel, the window opens tall enough for all of it, and for the image with the
-    colour bar beneath it."""
+    colour bar beneath it where the screen has room for that."""
     cam = options.scene.camera
     stats: dict = {"frames": 0, "seconds": 0.0, "traces": 0, "reshades": 0}
     if options.panel:
         sample = ViewerModel(options.scene, view=options.view, animate=options.animate)
-        below = cam.height + BAR_HEIGHT  # the displacement view's colour bar
+        below = cam.height + BAR_HEIGHT  # the displacement view's colour bar beneath
+        screen = _screen_height()
+        if screen is not None and below > 0.9 * screen:
+            below = cam.height  # no room: the bar goes over the image's bottom edge
         height = max(below, panel_height(sample, (cam.width, cam.height)))
         size = (cam.width + PANEL_WIDTH, height)
     else:
@@ -385,6 +388,16 @@ def make_app(options: ViewerOptions) -> tuple[type[ViewerWindow], dict]:
         "log_level": logging.WARNING,
     }  # moderngl-window's INFO lines are not the user's business
     return type("ViewerApp", (ViewerWindow,), attributes), stats
+
+
+def _screen_height() -> int | None:
+    """The default screen's height in pixels (None where pyglet cannot tell)."""
+    try:
+        import pyglet
+
+        return int(pyglet.display.get_display().get_default_screen().height)
+    except Exception:  # noqa: BLE001 - a guess is not worth failing over
+        return None
 
 
 def run(options: ViewerOptions) -> dict:
