@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import ctypes.util
+import json
 import os
 import re
 import shutil
@@ -10,10 +12,12 @@ import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import glshade
 from glshade.app.viewer import (
     ViewerModel,
     apply_setting,
@@ -21,6 +25,13 @@ from glshade.app.viewer import (
     parse_sets,
     readout_lines,
 )
+from glshade.app.viewer.colourbar import (
+    colour_bar_layout,
+    colour_bar_ticks,
+    colour_index,
+    colour_lut,
+)
+from glshade.app.viewer.model import IDLE_WAIT_S, POLL_S, SETTLE_FRAMES, FrameSchedule
 from glshade.errors import GlshadeError, SceneError
 from glshade.files import read_png
 from glshade.gpu.renderer import render
@@ -122,8 +133,82 @@ def test_model_pictures_metrics_and_hover():
     assert not any("..." in line for line in readout_lines(r))
     colour, top = model.displacement_rgba()
     assert top == pytest.approx(r.deflection_px) and colour[..., :3].any()
+    # the picture's colours are the colour bar's: 0 px at its dark end, the top at its bright
+    lut, d = colour_lut(), model.displacement
+    peak = np.unravel_index(np.nanargmax(d), d.shape)
+    assert (colour[peak][:3] == lut[255]).all()
+    calm = np.unravel_index(np.nanargmin(d), d.shape)
+    assert (colour[calm][:3] == lut[colour_index(d[calm], top)]).all()
     assert "u " in model.hover(128, 128) and "displacement" in model.hover(128, 128)
     assert model.hover(-1, 5) == ""
+    model.close()
+
+
+def test_colour_bar_ticks_follow_the_displacement_scale():
+    """The bar's numbers: 0 and round steps up to the scale's top (the largest
+    displacement, px), each at its share of the bar, labelled with its value."""
+    for top in (4.55, 0.3, 1.0, 12.7, 0.0123, 100.0, 2.5, 7.0):
+        ticks = colour_bar_ticks(top)
+        values = [t.value for t in ticks]
+        assert values[0] == 0.0 and ticks[0].at == 0.0
+        assert 3 <= len(ticks) <= 6 and values[-1] <= top * (1 + 1e-9)
+        step = values[1]
+        assert top - values[-1] < step  # the ticks reach the top's last whole step
+        mantissa = step / 10 ** np.floor(np.log10(step))
+        assert any(np.isclose(mantissa, m) for m in (1, 2, 2.5, 5))
+        for i, tick in enumerate(ticks):
+            assert tick.value == pytest.approx(i * step)
+            assert tick.at == pytest.approx(tick.value / top)
+            assert float(tick.label) == pytest.approx(tick.value, abs=1e-12)
+    assert [t.label for t in colour_bar_ticks(4.55)] == ["0", "1", "2", "3", "4"]
+    assert [t.label for t in colour_bar_ticks(0.3)] == ["0.0", "0.1", "0.2", "0.3"]
+    assert [t.label for t in colour_bar_ticks(2.5)][-1] == "2.5"
+    assert [t.value for t in colour_bar_ticks(0.0)] == [0.0]  # nothing measured yet
+    # beneath the image when the window leaves room, over its bottom edge otherwise
+    assert not colour_bar_layout(512, 512, 600).overlaid
+    low = colour_bar_layout(512, 512, 512)
+    assert low.overlaid and low.strip_bottom == 512
+
+
+def test_idle_schedule_draws_only_on_change():
+    """The window's loop draws what the schedule asks for: a few frames after an event,
+    every frame of an animation or a scripted run, a frame when the worker hands in a
+    result; nothing at all for an untouched window."""
+    scene = paper_scene("flat", 45.0, 1.0, 0.005).with_size(64).updated(emitter={"period": 4.0})
+    model = ViewerModel(scene)
+    schedule = FrameSchedule()
+    assert model.needs_trace and schedule.wants_frame(model)  # the first frames: trace
+    model.traced(render(scene, ("uv",)).uv, render(scene.without_defect(), ("uv",)).uv[..., 1])
+    drawn = 0
+    while schedule.wants_frame(model):  # the window's loop, minus the window
+        model.start_metrics()
+        schedule.drew()
+        drawn += 1
+        assert drawn <= SETTLE_FRAMES + 1
+        if schedule.owed == 0:  # the loop would wait now; the worker finishes meanwhile
+            for job in (model._case_job, model._phase_job):
+                if job is not None:
+                    job.result()
+    assert model.readout.deflection_px is not None and not model.metrics_pending
+    # settled: a thousand turns of the loop draw nothing, and it waits long between them
+    assert not any(schedule.wants_frame(model) for _ in range(1000))
+    assert schedule.wait_s(model) == IDLE_WAIT_S
+    schedule.poke()  # an input event
+    turns = 0
+    while schedule.wants_frame(model):
+        schedule.drew()
+        turns += 1
+    assert turns == SETTLE_FRAMES
+    model.set("phase", 1.0)  # a phase change: the worker measures, the loop polls for it
+    model.start_metrics()
+    assert model.metrics_pending and schedule.wait_s(model) == POLL_S
+    model._phase_job.result()
+    assert schedule.wants_frame(model)  # the result arrived: one frame shows it
+    assert not schedule.wants_frame(model)
+    model.animate = True
+    assert all(schedule.wants_frame(model) for _ in range(10))
+    model.animate = False
+    assert FrameSchedule(continuous=True).wants_frame(model)  # a scripted run draws on
     model.close()
 
 
@@ -363,3 +448,158 @@ def test_formulas_and_files_are_text_fields(tmp_path):
     assert not model.set_value("surface.expression", "x; y")
     assert model.refused.startswith("refused: surface.expression: ';' at column 2 is not allowed")
     assert model.scene.surface.expression == "0.001*x^2"
+
+
+# --------------------------------------------------------------------------- window at rest
+_RUN_WINDOW = """
+import json, sys
+from pathlib import Path
+from glshade.app.viewer import ViewerOptions, run
+from glshade.scene import paper_scene
+size, view, frames, animate, shot = sys.argv[1:]
+options = ViewerOptions(
+    scene=paper_scene().with_size(int(size)), view=view, frames=int(frames),
+    animate=animate == "1", screenshot=Path(shot),
+)
+stats = run(options)
+stats.pop("readout")
+print("stats: " + json.dumps(stats))
+"""
+
+
+def window_stats(tmp_path, size=512, view="image", frames=6, animate=False):
+    """Run the window as ``glshade view`` does (in a subprocess, under Xvfb when there is
+    no display) and return its statistics and its last frame."""
+    shot = tmp_path / f"{view}_{frames}.png"
+    command = [sys.executable, "-c", _RUN_WINDOW, str(size), view, str(frames)]
+    command += ["1" if animate else "0", str(shot)]
+    if not os.environ.get("DISPLAY"):
+        command = ["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24", *command]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=180)
+    assert result.returncode == 0, result.stderr[-3000:]
+    line = next(x for x in result.stdout.splitlines() if x.startswith("stats: "))
+    return json.loads(line.removeprefix("stats: ")), read_png(shot)
+
+
+@needs_display
+def test_default_window_shows_the_whole_panel_and_a_labelled_colour_bar(tmp_path):
+    """At the default size (512² image) every item of the panel is in the window, with no
+    scrolling, and the displacement view has its colour bar beneath the image: the
+    viewer's colour map along the ramp, and numbers under it."""
+    stats, pixels = window_stats(tmp_path, view="displacement")
+    width, height = stats["window_size"]
+    assert stats["opened_at"] == stats["window_size"]  # it opened at a size that fits
+    assert width == 512 + 360 and 512 < height <= 640  # fits a 768-pixel-high screen
+    assert 0 < stats["panel_bottom"] <= height and stats["panel_scroll"] == 0
+    assert pixels.shape[:2] == (height, width)
+    layout = colour_bar_layout(512, 512, height)
+    assert not layout.overlaid and layout.strip_bottom <= height
+    top = stats["scale_top"]
+    assert top == pytest.approx(18.0 / 4 * 512 / 512, rel=0.05)  # the deflection, px
+    lut = colour_lut().astype(int)
+    row = int(layout.top + layout.height / 2)
+    ticks = colour_bar_ticks(top)
+    assert len(ticks) >= 3
+    for tick in ticks:
+        x = int(layout.left + tick.at * (layout.width - 1))
+        expected = lut[colour_index(tick.value, top)]
+        assert np.abs(pixels[row, x].astype(int) - expected).max() <= 12, tick
+        # the tick's number beneath the ramp: bright text on the dark strip
+        label = pixels[
+            int(layout.top + layout.height + 5) : int(layout.top + layout.height + 18),
+            max(0, x - 12) : x + 12,
+        ]
+        assert (label.min(axis=2) > 180).sum() >= 5, tick
+    # the image view has no bar: the strip beneath the image is the window's grey
+    _, plain = window_stats(tmp_path, view="image")
+    strip = plain[512:height, :512]
+    assert np.abs(strip.astype(int) - plain[height - 1, 0].astype(int)).max() <= 2
+
+
+@needs_display
+def test_frames_for_the_panel_alone_render_no_scene(tmp_path):
+    """A frame where nothing in the picture changed copies the kept picture: 30 frames
+    of a still scene run the display pass at most three times; an animation runs it
+    every frame."""
+    still, _ = window_stats(tmp_path, size=128, frames=30)
+    assert still["frames"] == 30 and still["scene_passes"] <= 3
+    moving, _ = window_stats(tmp_path, size=128, frames=20, animate=True)
+    assert moving["scene_passes"] >= 20 and moving["traces"] == 1
+
+
+_DRIVE_IDLE = """
+import ctypes, json, re, subprocess, sys, time
+from pathlib import Path
+out = Path(sys.argv[1])
+viewer = subprocess.Popen([sys.executable, "-m", "glshade", "view", "--size", "256"], cwd=out)
+x11, xtst = ctypes.CDLL("libX11.so.6"), ctypes.CDLL("libXtst.so.6")
+x11.XOpenDisplay.restype = ctypes.c_void_p
+display = ctypes.c_void_p(x11.XOpenDisplay(None))
+def window():
+    for _ in range(600):
+        info = subprocess.run(["xwininfo", "-name", "glshade view"], capture_output=True,
+                              text=True).stdout
+        if "Map State: IsViewable" in info:
+            return [int(re.search(k + r":\\s+(-?\\d+)", info).group(1))
+                    for k in ("Absolute upper-left X", "Absolute upper-left Y")]
+        time.sleep(0.1)
+    raise SystemExit("no window")
+def press(name):
+    code = x11.XKeysymToKeycode(display, x11.XStringToKeysym(name.encode()))
+    xtst.XTestFakeKeyEvent(display, code, 1, 0)
+    xtst.XTestFakeKeyEvent(display, code, 0, 0)
+    x11.XFlush(display)
+def shot():
+    before = set(out.glob("glshade_view_*.png"))
+    press("s")
+    for _ in range(600):
+        new = set(out.glob("glshade_view_*.png")) - before
+        if new:
+            time.sleep(0.2)
+            return new.pop().name
+        time.sleep(0.05)
+    raise SystemExit("no screenshot")
+x, y = window()
+xtst.XTestFakeMotionEvent(display, -1, x + 128, y + 128, 0)  # the pointer on the image
+x11.XFlush(display)
+time.sleep(float(sys.argv[2]))
+first = shot()
+time.sleep(float(sys.argv[2]))
+second = shot()
+press("o")
+time.sleep(0.5)
+third = shot()
+viewer.terminate()
+viewer.wait()
+print("shots: " + json.dumps([first, second, third]))
+"""
+
+
+@needs_display
+@pytest.mark.skipif(
+    ctypes.util.find_library("Xtst") is None or shutil.which("xwininfo") is None,
+    reason="needs libXtst and xwininfo (Debian: libxtst6, x11-utils) to press keys",
+)
+def test_untouched_window_draws_nothing_and_still_answers_keys(tmp_path):
+    """The real window, with keys pressed through XTest: the frame number in the
+    screenshot's name counts the frames drawn. Seconds at rest between two presses
+    draw no frame beyond the few that follow the first press; O still toggles the
+    overlay, and the next screenshot shows it."""
+    command = [sys.executable, "-c", _DRIVE_IDLE, str(tmp_path), "3"]
+    if not os.environ.get("DISPLAY"):
+        command = ["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24", *command]
+    # the viewer runs in tmp_path: the glshade under test, wherever the path said it is
+    source = str(Path(glshade.__file__).resolve().parents[1])
+    path = os.pathsep.join([source, os.environ.get("PYTHONPATH", "")])
+    env = {**os.environ, "PYTHONPATH": path}
+    result = subprocess.run(command, capture_output=True, text=True, timeout=180, env=env)
+    assert result.returncode == 0, result.stderr[-3000:]
+    line = next(x for x in result.stdout.splitlines() if x.startswith("shots: "))
+    names = json.loads(line.removeprefix("shots: "))
+    first, second, third = (int(re.search(r"_(\d+)\.png", n).group(1)) for n in names)
+    assert second - first <= SETTLE_FRAMES + 1  # 3 s at rest: no frames of its own
+    assert third > second
+    overlay = read_png(tmp_path / names[2])[:256, :256].astype(int)
+    red = (overlay[..., 0] > 200) & (overlay[..., 2] < 80)
+    blue = (overlay[..., 2] > 200) & (overlay[..., 0] < 80)
+    assert red.any() and blue.any()  # the Fig. 9 contours: the key reached the viewer

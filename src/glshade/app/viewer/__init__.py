@@ -12,11 +12,16 @@ window's own GL context. What is recomputed is only what changed:
   Blinn-Phong or supersampling, where the picture is not a function of the uv map, the
   image is re-rendered instead;
 - the visibility metrics run in a worker thread, never on the render thread, and the
-  panel shows the latest finished result.
+  panel shows the latest finished result;
+- nothing changed, nothing is drawn: the window waits for input, the worker's result or
+  the animation (``FrameSchedule``), and a frame for the panel alone copies the kept
+  picture instead of running the display pass again.
 
 The package: ``controls`` (the controls, generated from the parameter schema),
-``model`` (``ViewerModel``: everything but the window, tested without a display),
-``panel`` (the imgui panel) and ``window`` (the moderngl-window window). The
+``model`` (``ViewerModel`` and ``FrameSchedule``: everything but the window, tested
+without a display), ``panel`` (the imgui panel, and the window height it needs),
+``colourbar`` (the displacement view's labelled colour bar) and ``window`` (the
+moderngl-window window and its event-driven loop). The
 scripted mode (``--frames N --screenshot out.png --set theta=5``) runs a real window for
 tests and demos. Needs the ``viewer`` extra: ``pip install "glshade[viewer]"``.
 """

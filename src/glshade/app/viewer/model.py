@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from glshade.app.viewer.colourbar import colour_index, colour_lut
 from glshade.app.viewer.controls import apply_setting, geometry_key
 from glshade.errors import GlshadeError, SceneError
 from glshade.measure.single import map_baseline
@@ -99,6 +100,7 @@ class ViewerModel:
     traced_for: Scene | None = None
     traces: int = 0
     reshades: int = 0
+    scene_passes: int = 0  # the window's display pass run (not per frame: on a change)
     refused: str = ""
     _baseline: _Once | None = None
     _pool: ThreadPoolExecutor | None = None
@@ -200,24 +202,18 @@ class ViewerModel:
         return rgba
 
     def displacement_rgba(self) -> tuple[np.ndarray, float]:
-        """The displacement (deflection) as a colour map with a scale bar (bottom right),
-        and the value at its top end (px)."""
-        from matplotlib import colormaps
-
+        """The displacement (deflection) as a colour map (the colour bar's, from 0 to the
+        largest displacement), and that top end of the scale (px)."""
         h, w = self.traced_map().shape
         rgba = np.zeros((h, w, 4), np.uint8)
         rgba[..., 3] = 255
         if self.displacement is None:
             return rgba, 0.0
         top = float(np.nanmax(self.displacement)) if np.isfinite(self.displacement).any() else 0.0
-        scale = top if top > 0 else 1.0
-        lut = (colormaps["viridis"](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
-        values = np.nan_to_num(self.displacement / scale, nan=-1.0)
-        index = np.clip((values * 255).astype(int), 0, 255)
-        rgba[..., :3] = np.where(values[..., None] >= 0, lut[index], 0)
-        bar_h, bar_w = max(4, h // 40), max(16, w // 4)
-        ramp = np.linspace(0, 255, bar_w).astype(int)
-        rgba[h - 2 * bar_h : h - bar_h, w - bar_w - bar_h : w - bar_h, :3] = lut[ramp][None]
+        lut = colour_lut()
+        finite = np.isfinite(self.displacement)
+        index = colour_index(np.where(finite, self.displacement, 0.0), top)
+        rgba[..., :3] = np.where(finite[..., None], lut[index], 0)
         return rgba, top
 
     def hover(self, col: int, row: int) -> str:
@@ -232,11 +228,18 @@ class ViewerModel:
         return text
 
     # ---------------------------------------------------------------- metrics
-    def collect_metrics(self) -> None:
-        """Take whatever the worker finished (call before :meth:`start_metrics`)."""
+    @property
+    def metrics_pending(self) -> bool:
+        """A job is in the worker (the window polls for it instead of sleeping)."""
+        return self._case_job is not None or self._phase_job is not None
+
+    def collect_metrics(self) -> bool:
+        """Take whatever the worker finished (call before :meth:`start_metrics`); True
+        when something was taken (the panel has news to show)."""
+        taken = False
         if self._case_job is not None and self._case_job.done():
             trace, result, error = self._case_job.result()
-            self._case_job = None
+            self._case_job, taken = None, True
             if trace == self.traces and error is not None:
                 self.readout.error = error
                 self._case_done = True
@@ -252,7 +255,7 @@ class ViewerModel:
                 self._case_done = True
         if self._phase_job is not None and self._phase_job.done():
             key, result, error = self._phase_job.result()
-            self._phase_job = None
+            self._phase_job, taken = None, True
             if key[0] == self.traces and error is not None:
                 self.readout.error = error
                 self.readout.phase_for = key
@@ -262,6 +265,7 @@ class ViewerModel:
                     result.islands,
                 )
                 self.readout.phase_for = key
+        return taken
 
     def start_metrics(self) -> None:
         """Give the worker what is missing: the whole case once per trace, and the
@@ -301,6 +305,42 @@ class ViewerModel:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+
+
+#: Frames drawn after the last input event: imgui answers an event a frame or two later
+#: (it spreads a press and a release over two frames), then the panel shows the result.
+SETTLE_FRAMES = 4
+#: How long an idle window waits for an event before looking again (seconds); while the
+#: worker measures, it looks for the result this often instead.
+IDLE_WAIT_S = 0.5
+POLL_S = 1 / 30
+
+
+@dataclass
+class FrameSchedule:
+    """When the window draws, so that an untouched window does no work: on input and for
+    :data:`SETTLE_FRAMES` frames after it, while the phase is animated, when the worker
+    hands in a result or the scene awaits its trace, and every frame of a scripted run
+    (``continuous``). Otherwise the window waits for events without drawing."""
+
+    continuous: bool = False
+    owed: int = SETTLE_FRAMES  # the first frames
+
+    def poke(self, frames: int = SETTLE_FRAMES) -> None:
+        """Something happened (input, a resize, an edit in the panel): draw a few frames."""
+        self.owed = max(self.owed, frames)
+
+    def wants_frame(self, model: ViewerModel) -> bool:
+        """Whether the next loop turn draws (takes the worker's finished results)."""
+        news = model.collect_metrics()
+        return self.continuous or model.animate or news or model.needs_trace or self.owed > 0
+
+    def drew(self) -> None:
+        self.owed = max(0, self.owed - 1)
+
+    def wait_s(self, model: ViewerModel) -> float:
+        """How long to wait for an event when no frame is wanted."""
+        return POLL_S if model.metrics_pending else IDLE_WAIT_S
 
 
 @dataclass

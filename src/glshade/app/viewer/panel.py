@@ -1,6 +1,9 @@
 """The viewer's control panel (imgui): the controls of the components in use, generated
 from the parameter schema (:func:`glshade.app.viewer.controls.panel_params`), then the
-view, the readout and the help line."""
+view, the readout and the help line; and, in the displacement view, the colour bar.
+
+The window opens tall enough for the whole panel (:func:`panel_height` lays it out once
+before the window exists), so no item sits below the fold."""
 
 from __future__ import annotations
 
@@ -8,11 +11,20 @@ import math
 
 from imgui_bundle import imgui
 
+from glshade.app.viewer.colourbar import colour_bar_layout, draw_colour_bar
 from glshade.app.viewer.controls import VIEWS, combo, panel_params, slider
 from glshade.app.viewer.model import ViewerModel, readout_lines
 from glshade.params import Param
 
 PANEL_WIDTH = 360
+#: The status the panel is laid out with before the window opens: a hover line and a
+#: save message as long as real ones, so that they fit too when they come.
+SAMPLE_STATUS = {
+    "hover": "pixel (1023, 1023): u -100.000 mm, v -100.000 mm, displacement 10.00 px",
+    "message": "wrote glshade_view_10000.png",
+    "scale_top": 0.0,
+    "frame_ms": 0.0,
+}
 #: The panel lists the tables in this order (the surface first: it changes the most).
 PANEL_TABLES = ("surface", "camera", "defect", "emitter", "render", "sensor")
 #: Parameters drawn by a dedicated widget rather than a plain slider.
@@ -20,8 +32,41 @@ _SHORTHAND = "defect.sigma2"
 _COVARIANCE = ("defect.sigma_x2", "defect.sigma_z2", "defect.sigma_xz")
 
 
-def draw_panel(model: ViewerModel, left: int, height: int, status: dict) -> None:
-    """One frame of the panel at ``x = left``; ``status``: hover text, message, scale."""
+def panel_style() -> None:
+    """A little tighter than imgui's default (rows of 20 px instead of 23)."""
+    style = imgui.get_style()
+    style.frame_padding = imgui.ImVec2(4, 2)
+    style.item_spacing = imgui.ImVec2(8, 3)
+    style.window_padding = imgui.ImVec2(8, 6)
+
+
+def panel_height(model: ViewerModel, image: tuple[int, int]) -> int:
+    """The window height the panel needs for ``model``'s scene, laid out by imgui
+    without a window (its own context, destroyed after)."""
+    previous = imgui.get_current_context()
+    context = imgui.create_context()
+    try:
+        io = imgui.get_io()
+        io.set_ini_filename("")
+        io.display_size = imgui.ImVec2(image[0] + PANEL_WIDTH, 4096)
+        io.fonts.build()
+        panel_style()
+        bottom, _ = draw_panel(model, image[0], 4096, dict(SAMPLE_STATUS), image)
+    finally:
+        imgui.destroy_context(context)
+        if previous is not None:
+            imgui.set_current_context(previous)
+    return math.ceil(bottom)
+
+
+def draw_panel(
+    model: ViewerModel, left: int, height: int, status: dict, image: tuple[int, int]
+) -> tuple[float, float]:
+    """One frame of the panel at ``x = left`` in a window ``height`` pixels high, and the
+    colour bar over the ``image`` (width, height) in the displacement view; ``status``:
+    hover text, message, scale top, frame time. Returns the y (window pixels) where the
+    panel's content ends (its last item's bottom and the window's padding), and how far
+    the panel could scroll (0 when all of it is in view)."""
     imgui.new_frame()
     imgui.set_next_window_pos(imgui.ImVec2(left, 0))
     imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, height))
@@ -34,8 +79,13 @@ def draw_panel(model: ViewerModel, left: int, height: int, status: dict) -> None
         for param in (p for p in params if p.table == table):
             _parameter(model, param)
     _view_and_readout(model, status)
+    bottom = imgui.get_item_rect_max().y + imgui.get_style().window_padding.y
+    scroll = imgui.get_scroll_max_y()
     imgui.end()
+    if model.view == "displacement":
+        draw_colour_bar(colour_bar_layout(*image, height), image[0], status["scale_top"])
     imgui.render()
+    return bottom, scroll
 
 
 def _parameter(model: ViewerModel, param: Param) -> None:
@@ -127,10 +177,8 @@ def _view_and_readout(model: ViewerModel, status: dict) -> None:
             imgui.ImVec4(1.0, 0.6, 0.2, 1.0),
             f"the stripe map folds: {model.readout.islands} islands (not measured)",
         )
-    if model.view == "displacement":
-        imgui.text(f"colour scale: 0 (dark) to {status['scale_top']:.2f} px (yellow)")
     imgui.text_wrapped(status["hover"] or "hover over the image")
-    imgui.text(f"{imgui.get_io().framerate:.0f} fps, {model.traces} traces")
+    imgui.text(f"last frame {status['frame_ms']:.1f} ms, {model.traces} traces")
     imgui.text_wrapped("keys: S screenshot, T save scene, R reset, O overlay")
     if status["message"]:
         imgui.text_wrapped(status["message"])
