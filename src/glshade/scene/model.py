@@ -342,9 +342,9 @@ def _read_file(
     every key checked to be declared. ``current``: the values being changed, if any."""
     reg = registry()
     for key, value in values.items():  # as typed: an error names the key the user wrote
-        declared = next((p for p in reg.table_params(table) if p.key == key), None)
-        if declared is not None and declared.value_type != "choice":
-            values[key] = declared.check(value)
+        typed = next((p for p in reg.table_params(table) if p.key == key), None)
+        if typed is not None and typed.value_type != "choice":
+            values[key] = typed.check(value)
     for component in _table_components(table):
         values = component.read_file(values, current)
     declared = [p.key for p in reg.table_params(table)]
