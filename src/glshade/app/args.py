@@ -43,6 +43,7 @@ def add_scene_flags(p: argparse.ArgumentParser) -> None:
         "(see docs/scene-format.md); applied after the short flags",
     )
     p.add_argument("--size", type=int, metavar="N", help="N pixels across, same field of view")
+    add_save_scene(p)
     p.add_argument(
         "--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)"
     )
@@ -54,6 +55,31 @@ def path_arg(text: str) -> Path:
     if not text.strip():
         raise argparse.ArgumentTypeError("expected a path, got an empty string")
     return Path(text)
+
+
+def add_save_scene(p: argparse.ArgumentParser) -> None:
+    """``--save-scene SCENE.toml``: every command that takes a scene can write the scene it
+    actually used (loading the file back gives the same scene)."""
+    p.add_argument(
+        "--save-scene",
+        type=path_arg,
+        metavar="SCENE.toml",
+        help="also write the scene actually used, as TOML (reads back to the same scene)",
+    )
+
+
+def check_save_scene(args: argparse.Namespace) -> None:
+    """Refuse a bad ``--save-scene`` path before any work."""
+    if getattr(args, "save_scene", None) is not None:
+        from glshade.files import check_output
+
+        check_output(args.save_scene, "--save-scene", (".toml",))
+
+
+def save_scene(args: argparse.Namespace, scene: Scene) -> None:
+    """Write ``--save-scene`` (after the command's work succeeded: nothing half-way)."""
+    if getattr(args, "save_scene", None) is not None:
+        scene.save(args.save_scene)
 
 
 def flag_dest(param: Param) -> str:

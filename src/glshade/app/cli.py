@@ -20,11 +20,14 @@ from glshade.app.args import (
     EXIT_USAGE,
     Parser,
     add_metric_flags,
+    add_save_scene,
     add_scene_flags,
+    check_save_scene,
     metric_settings,
     one_line,
     path_arg,
     quantity_list,
+    save_scene,
     scene_from_args,
     warn,
 )
@@ -71,12 +74,6 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
         metavar="UV.npy",
         help="also write the uv map (float32 H×W×2, mm, NaN = no hit)",
     )
-    p.add_argument(
-        "--save-scene",
-        type=path_arg,
-        metavar="SCENE.toml",
-        help="also write the effective scene as TOML",
-    )
     p.set_defaults(run=_cmd_render)
 
 
@@ -118,6 +115,7 @@ def _cmd_measure(args: argparse.Namespace) -> int:
     settings.phases(scene.active.emitter.pattern(scene).period_mm)
     if args.overlay is not None:
         check_output(args.overlay, "--overlay", (".png",))
+    check_save_scene(args)
     warn(scene_warnings(scene))
     start = time.perf_counter()
     with (
@@ -127,6 +125,7 @@ def _cmd_measure(args: argparse.Namespace) -> int:
         result = measure_scene(renderer, scene, settings, overlay=args.overlay)
     seconds = time.perf_counter() - start
     record = Measurement.of(scene, result)
+    save_scene(args, scene)
     low = contrast_warning(result.stripe_contrast, scene.active.dimming(scene))
     warn([low] if low else [])
     if args.json:
@@ -390,6 +389,7 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--no-panel", action="store_true", help="no control panel (the window shows the image only)"
     )
+    add_save_scene(p)
     p.set_defaults(run=_cmd_view)
 
 
@@ -405,7 +405,9 @@ def _cmd_view(args: argparse.Namespace) -> int:
         raise GlshadeError("--screenshot and --benchmark need --frames N")
     if args.screenshot is not None:
         check_output(args.screenshot, "--screenshot", (".png",))
+    check_save_scene(args)
     warn(scene_warnings(scene))
+    save_scene(args, scene)  # the scene the window opens with (T saves it as it is then)
     options = viewer.ViewerOptions(
         scene=scene,
         view=extra.get("view", "image"),
@@ -585,8 +587,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
     image_path = check_image_output(args.output, "-o", args.bits)
     if args.uv is not None:
         check_output(args.uv, "--uv", (".npy",))
-    if args.save_scene is not None:
-        check_output(args.save_scene, "--save-scene", (".toml",))
+    check_save_scene(args)
     warn(scene_warnings(scene))
     outputs = ("image", "uv") if args.uv is not None else ("image",)
     with (
@@ -602,8 +603,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
     atomic_write_bytes(args.output, encode_image(image, image_path.suffix, args.bits), "-o")
     if args.uv is not None:
         write_npy(args.uv, frame.output("uv"))
-    if args.save_scene is not None:
-        scene.save(args.save_scene)
+    save_scene(args, scene)
     cam = scene.camera
     print(
         f"wrote {args.output} ({cam.width}x{cam.height}, {scene.surface.kind}, theta "

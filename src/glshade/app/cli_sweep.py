@@ -13,8 +13,10 @@ from pathlib import Path
 from glshade.app.args import (
     add_metric_flags,
     add_scene_flags,
+    check_save_scene,
     metric_settings,
     path_arg,
+    save_scene,
     scene_from_args,
     warn,
 )
@@ -224,6 +226,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     family = parse_family(args.family, args.family_points)
     if args.plot is not None:
         check_output(args.plot, "--plot", (".png",))
+    check_save_scene(args)
     settings = metric_settings(args)
     distribution = _distribution(args)
     warn(scene_warnings(scene))
@@ -241,6 +244,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
             refine_evaluations=args.refine,
         )
     seconds = time.perf_counter() - start
+    save_scene(args, scene)
     if args.plot is not None:
         objective_figure(result, args.plot)
     if args.json:
