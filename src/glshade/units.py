@@ -1,10 +1,10 @@
-"""Quantities typed on the command line: a number with an optional unit.
+"""Quantities as a user types them: a number with an optional unit.
 
-Scene files hold bare numbers in the units of ``docs/scene-format.md`` (lengths in mm,
-areas in mm², angles in degrees). On the command line (short flags, ``--set``, the study's
-lists) a value may also carry its unit: ``--dmax 5um``, ``--dmax 0.005mm``,
-``--sigma2 4mm2``, ``--theta 0.5rad``. A bare number is in the parameter's own unit, so
-``--dmax 5`` is still 5 mm.
+A bare number is in the parameter's own unit (``docs/scene-format.md``: lengths in mm,
+areas in mm², angles in degrees), so ``--dmax 5`` is still 5 mm. A value may also carry
+its unit wherever a number is typed: on the command line (``--dmax 5um``, ``--sigma2
+4mm2``, ``--theta 0.5rad``, ``--family defect.dmax=3um..5um``) and, as a string, in a
+scene file or ``Scene.with_value`` (``dmax = "5 um"``; :meth:`glshade.params.Param.check`).
 """
 
 from __future__ import annotations

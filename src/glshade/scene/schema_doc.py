@@ -36,10 +36,14 @@ applied after the file and the short flags), and the ones with a short flag by t
 
 ## Units
 
-In a scene file every value is a bare number in the unit of its row: lengths in mm,
-areas in mm², angles in degrees. On the command line a value may carry its unit instead:
-`--dmax 5um`, `--dmax 0.005mm`, `--set defect.sigma2=4mm2`, `--theta 0.26rad`,
-`--dmaxs 3um,5um`; a bare number is in the row's unit, so `--dmax 5` is a 5 mm dent.
+A bare number is in the unit of its row: lengths in mm, areas in mm², angles in degrees,
+so `dmax = 5` is a 5 mm dent. Any number may carry its unit instead, as a string in a
+scene file (`dmax = "5 um"`, `distance = "25.6 cm"`, `half_size = ["15 cm", 100]`), in
+`Scene.with_value("defect.dmax", "5um")`, in a sweep's grid, and on the command line:
+`--dmax 5um`, `--set defect.sigma2=4mm2`, `--theta 0.26rad`, `--dmaxs 3um,5um`,
+`--family defect.dmax=3um..5um`, `--over camera.theta_deg=5deg..0.5rad`. A file written
+by glshade (`--save-scene`) holds bare numbers. Where a row also accepts a word
+(`period = "auto"`, `exposure = "auto"`), its allowed range says so.
 Lengths take `nm`, `um` (or `µm`), `mm`, `cm`, `m`; areas the same followed by `2`, `^2`
 or `²`; angles `deg`, `rad`, `mrad`.
 
