@@ -14,9 +14,10 @@ import numpy as np
 from glshade.app.viewer.colourbar import colour_index, colour_lut
 from glshade.app.viewer.controls import apply_setting, geometry_key
 from glshade.errors import GlshadeError, SceneError
-from glshade.measure.single import map_baseline
+from glshade.measure.single import judged, map_baseline
 from glshade.metrics import contours
 from glshade.metrics import visibility as vis
+from glshade.metrics.status import concerns
 from glshade.scene import PAPER_SURFACES, Scene, paper_scene
 
 
@@ -36,6 +37,8 @@ class Readout:
     islands: int | None = None
     phase_for: tuple | None = None
     error: str | None = None  # why this geometry cannot be measured
+    status: str | None = None  # whether the numbers can be read (glshade.metrics.status)
+    status_reason: str = ""
 
 
 def readout_lines(r: Readout) -> list[str]:
@@ -47,13 +50,20 @@ def readout_lines(r: Readout) -> list[str]:
             return "-" if r.error is not None else "..."
         return f"{value:{fmt}} px"
 
+    def flag(column: str) -> str:
+        return f" [{r.status}: not measurable]" if concerns(r.status or "ok", column) else ""
+
     best = "" if r.best_phase_mm is None else f" (phase {r.best_phase_mm:g} mm)"
     lines = [
-        f"visibility, this phase: {px(r.at_phase_px, 'g')}",
-        f"visibility, best phase: {px(r.visibility_px, 'g')}{best}",
-        f"continuous limit: {px(r.continuous_px, '.2f')}",
-        f"deflection: {px(r.deflection_px, '.2f')}",
+        f"visibility, this phase: {px(r.at_phase_px, 'g')}{flag('visibility_px')}",
+        f"visibility, best phase: {px(r.visibility_px, 'g')}{best}{flag('visibility_px')}",
+        f"continuous limit: {px(r.continuous_px, '.2f')}{flag('visibility_continuous_px')}",
+        f"deflection: {px(r.deflection_px, '.2f')}{flag('deflection_px')}",
     ]
+    if r.status is None:  # a line always, so the panel's height does not change
+        lines.append("status: -" if r.error is not None else "status: ...")
+    else:
+        lines.append(f"status: {r.status}" + (f": {r.status_reason}" if r.status_reason else ""))
     if r.error is not None:
         lines.append(f"not measured: {r.error}")
     return lines
@@ -251,6 +261,7 @@ class ViewerModel:
                     result.deflection_px,
                 )
                 r.folded, r.islands = result.folded, result.islands
+                r.status, r.status_reason = result.status, result.status_reason
                 self.displacement = result.displacement_px
                 self._case_done = True
         if self._phase_job is not None and self._phase_job.done():
@@ -275,9 +286,14 @@ class ViewerModel:
             return
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="glshade-metric")
-        trace, baseline, v1 = self.traces, self._baseline, self.v1
+        trace, baseline, v1, scene = self.traces, self._baseline, self.v1, self.scene
         if not self._case_done and self._case_job is None:
-            self._case_job = self._pool.submit(_attempt, trace, lambda: baseline.get().measure(v1))
+
+            def case() -> vis.Visibility:  # measured and judged as every front end does
+                analysed, traced = baseline.get(), np.asarray(v1)
+                return judged(scene, analysed, traced, analysed.measure(traced))
+
+            self._case_job = self._pool.submit(_attempt, trace, case)
         key = (trace, self.scene.emitter.phase)
         if self._phase_job is None and self.readout.phase_for != key:
             phase = self.scene.emitter.phase

@@ -171,7 +171,15 @@ def _view_and_readout(model: ViewerModel, status: dict) -> None:
         model.view = VIEWS[index]
     imgui.separator()
     for line in readout_lines(model.readout):
-        imgui.text(line)
+        if not line.startswith("status: "):
+            imgui.text(line)
+            continue
+        word, _, why = line.removeprefix("status: ").partition(": ")
+        ok = word in ("ok", "...", "-")
+        colour = imgui.ImVec4(0.6, 0.9, 0.6, 1.0) if ok else imgui.ImVec4(1.0, 0.45, 0.35, 1.0)
+        imgui.text_colored(colour, f"status: {word}" + ("" if ok else " (hover: why)"))
+        if why and imgui.is_item_hovered():
+            imgui.set_tooltip(why.replace("%", "%%"))  # a format string
     if model.readout.folded:
         imgui.text_colored(
             imgui.ImVec4(1.0, 0.6, 0.2, 1.0),
