@@ -603,3 +603,21 @@ def test_untouched_window_draws_nothing_and_still_answers_keys(tmp_path):
     red = (overlay[..., 0] > 200) & (overlay[..., 2] < 80)
     blue = (overlay[..., 2] > 200) & (overlay[..., 0] < 80)
     assert red.any() and blue.any()  # the Fig. 9 contours: the key reached the viewer
+
+
+def test_the_readout_marks_numbers_it_cannot_read():
+    from glshade.app.viewer.model import Readout, readout_lines
+
+    measuring = readout_lines(Readout())
+    assert measuring[-1] == "status: ..."  # the line is always there: the panel keeps its height
+    lost = Readout(
+        at_phase_px=0.0, visibility_px=0.0, continuous_px=0.16, deflection_px=0.16,
+        status="unresolved", status_reason="the 2 mm stripes span 0.3 px per period",
+    )  # fmt: skip
+    lines = readout_lines(lost)
+    assert lines[0].endswith("[unresolved: not measurable]")
+    assert lines[1].endswith("[unresolved: not measurable]")
+    assert "not measurable" not in lines[2] and "not measurable" not in lines[3]
+    assert lines[-1] == "status: unresolved: the 2 mm stripes span 0.3 px per period"
+    edge = readout_lines(Readout(deflection_px=3.0, status="edge", status_reason="border"))
+    assert "[edge: not measurable]" in edge[3]
