@@ -117,30 +117,54 @@ def dent_window(scene, shape: tuple[int, int]) -> np.ndarray:
     return mask
 
 
+def _box(mask: np.ndarray) -> tuple[slice, slice] | None:
+    """The bounding box of a mask's True pixels (None: none)."""
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if not len(rows):
+        return None
+    return slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)
+
+
 def dent_region(v0: np.ndarray, v1: np.ndarray, window: np.ndarray) -> Region:
     """Where, inside its ``window``, the dent moves the emitter map: ``|v1 - v0|`` in rows
     of the defect-free map (``|∂v0/∂row|`` mm per row) at least :data:`REGION_SHARE` of its
     largest value there. (Outside the window a discontinuity, a height map's step, may
-    move the map by a hair's breadth of the dent's tail: not the dent's region.)"""
-    v0 = np.asarray(v0, np.float64)
-    v1 = np.asarray(v1, np.float64)
+    move the map by a hair's breadth of the dent's tail: not the dent's region.) Computed
+    in the window's box only."""
+    region = np.zeros(np.shape(v0), bool)
+    box = _box(window)
+    if box is None:
+        return Region(region, 0.0)
+    rows, cols = box
+    grown = slice(max(rows.start - 1, 0), rows.stop + 1)  # the gradient's neighbours
+    a = np.asarray(v0[grown, cols], np.float64)
+    b = np.asarray(v1[grown, cols], np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
-        per_row = np.abs(np.gradient(v0, axis=0)) if v0.shape[0] > 1 else np.full(v0.shape, np.nan)
-        moved = np.abs(v1 - v0) / per_row
-    moved[~np.isfinite(moved) | ~window] = 0.0
+        per_row = np.abs(np.gradient(a, axis=0)) if a.shape[0] > 1 else np.full(a.shape, np.nan)
+        moved = np.abs(b - a) / per_row
+    inner = slice(rows.start - grown.start, rows.start - grown.start + rows.stop - rows.start)
+    moved = moved[inner]
+    moved[~np.isfinite(moved) | ~window[rows, cols]] = 0.0
     peak = float(moved.max()) if moved.size else 0.0
     if peak < SEEN_PX:
-        return Region(np.zeros(v0.shape, bool), peak)
-    return Region(moved >= REGION_SHARE * peak, peak)
+        return Region(region, peak)
+    region[rows, cols] = moved >= REGION_SHARE * peak
+    return Region(region, peak)
 
 
 def touches_edge(region: np.ndarray, seen: np.ndarray) -> str | None:
     """What of the image's or the seen region's edges the dent's region touches (words),
     or None. (The metric's cut columns are not an edge: contours are paired by stripe,
     so a dent wider than the kept columns still moves its stripes' contours measurably.)"""
-    if region[0].any() or region[-1].any() or region[:, 0].any() or region[:, -1].any():
+    box = _box(region)
+    if box is None:
+        return None
+    rows, cols = box
+    height, width = region.shape
+    if rows.start == 0 or cols.start == 0 or rows.stop == height or cols.stop == width:
         return "the image's border"
-    if (_grown(region) & ~seen).any():
+    around = slice(rows.start - 1, rows.stop + 1), slice(cols.start - 1, cols.stop + 1)
+    if (_grown(region[around]) & ~seen[around]).any():
         return "the edge of the region that sees the emitter"
     return None
 
@@ -176,6 +200,10 @@ def shift_away(region: Region, row: float, column: int, shift_px: float) -> floa
 
 def unresolved_share(region: np.ndarray, resolved: np.ndarray, seen: np.ndarray) -> float:
     """The share of the dent's seen region the metric leaves out as unresolved."""
+    box = _box(region)
+    if box is None:
+        return 0.0
+    region, resolved, seen = region[box], resolved[box], seen[box]
     inside = region & seen
     count = int(inside.sum())
     return float((inside & ~resolved).sum() / count) if count else 0.0
@@ -264,12 +292,7 @@ def assess(scene, baseline, v1: np.ndarray, result) -> Status:
     # where a shift under the noise floor lies says nothing about the dent
     found = [_edge(scene, baseline, region, result, noisy), _unresolved(scene, baseline, region)]
     if scene.active.records(scene) and baseline.normal_images is not None:
-        image = baseline.normal_images(float(baseline.phases[0]))
-        problem = exposure_problem(image, seen)
-        if problem is not None and problem.status == "underexposed":
-            causes = scene.active.dimming(scene)
-            problem = Status(problem.status, problem.reason + "".join(f"; {c}" for c in causes))
-        found.append(problem or Status())
+        found.append(_exposure(scene, baseline, seen))
     if noisy:
         found.append(
             Status(
@@ -279,6 +302,20 @@ def assess(scene, baseline, v1: np.ndarray, result) -> Status:
             )
         )
     return combined(found)
+
+
+def _exposure(scene, baseline, seen: np.ndarray) -> Status:
+    """``saturated``/``underexposed`` of the defect-free recorded image (once per
+    baseline: every dent on it was exposed alike), an underexposure's causes named."""
+    found = baseline.derived.get("exposure")
+    if found is None:
+        image = baseline.normal_images(float(baseline.phases[0]))
+        found = exposure_problem(image, seen) or Status()
+        if found.status == "underexposed":
+            causes = scene.active.dimming(scene)
+            found = Status(found.status, found.reason + "".join(f"; {c}" for c in causes))
+        baseline.derived["exposure"] = found
+    return found
 
 
 def _edge(scene, baseline, region: Region, result, noisy: bool) -> Status:
@@ -305,9 +342,9 @@ def _edge(scene, baseline, region: Region, result, noisy: bool) -> Status:
             f"column {shift.column}) lies {away:.0f} px from the dent's region: a discontinuity "
             "of the surface or of the seen region moved it, not the dent",
         )
-    moved = np.nan_to_num(np.asarray(result.displacement_px, np.float64), nan=0.0)
-    if moved.size and moved.max() > 0.0:
-        row, column = np.unravel_index(int(np.argmax(moved)), moved.shape)
+    moved = np.asarray(result.displacement_px)
+    if moved.size and np.isfinite(moved).any() and np.nanmax(moved) > 0.0:
+        row, column = np.unravel_index(int(np.nanargmax(moved)), moved.shape)
         away = shift_away(region, float(row), int(column), float(moved[row, column]))
         if away is not None:
             return Status(

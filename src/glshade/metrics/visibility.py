@@ -34,7 +34,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Protocol
+from typing import Any, Protocol
 
 import cv2
 import numpy as np
@@ -401,6 +401,9 @@ class Baseline:
             first = np.asarray(normal_images(float(self.phases[0])))[:, self.columns]
             self.level = image_level(first, self.valid, settings.threshold)
         self._stripes: dict[float, ct.StripeMap] = {}
+        #: Numbers other modules derive from this analysis alone, computed once (the
+        #: stripes' contrast): every dent measured against it shares them.
+        self.derived: dict[str, Any] = {}
         self._locks = {
             float(phase): threading.Lock() for phase in self.phases
         }  # one analysis per phase

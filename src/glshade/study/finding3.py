@@ -13,6 +13,7 @@ pipeline of ``glshade measure`` and ``glshade sweep``. ``glshade finding3`` writ
 from __future__ import annotations
 
 import csv
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -316,11 +317,29 @@ def answer_lines(rows, variants) -> list[str]:
             f"With {variant.label}, the sensor's noise floor is {floor_high:.1f} px above 65° and "
             f"{floor_low:.1f} px "
             "below 25°; the gentle dents' visibility over it goes from "
-            f"{vis_high / floor_high:.1f} to "
-            f"{vis_low / floor_low:.1f}."
+            f"{_over(vis_high, floor_high, rows, variant.key, False)} to "
+            f"{_over(vis_low, floor_low, rows, variant.key, True)}."
         )
     lines += ["", *_margin_paragraph(rows, noisy), ""]
     return lines
+
+
+def _over(visibility: float, floor: float, rows, variant: str, low: bool) -> str:
+    """``visibility / floor`` as the answer prints it, or why it cannot be read (the
+    statuses of the variant's gentle dents on that side of the θ range)."""
+    if math.isfinite(visibility) and floor > 0:
+        return f"{visibility / floor:.1f}"
+    statuses = sorted(
+        {
+            str(r["status"])
+            for r in rows
+            if r["variant"] == variant
+            and r["sigma2_mm2"] in GENTLE
+            and (r["theta_deg"] <= 25.0 if low else r["theta_deg"] >= 65.0)
+            and not readable(r)
+        }
+    )
+    return f"not measurable ({', '.join(statuses) or 'no case'})"
 
 
 def _margin_paragraph(rows, noisy) -> list[str]:
