@@ -500,7 +500,7 @@ def _add_finding3(sub: argparse._SubParsersAction) -> None:
         "plate with the ideal mirror and with each realistic effect alone and combined; write "
         "OUT/finding3.csv, finding3.png and finding3.md ('glshade paper --out OUT' then quotes "
         "the verdicts). "
-        "About 12 minutes at the default size on 2 CPU cores.",
+        "About 14 minutes at the default size on 2 CPU cores.",
     )
     p.add_argument(
         "--out",

@@ -204,8 +204,17 @@ def trend(
     """``(rho, low, high)``: Spearman's rho of visibility against θ (negative: it grows as
     θ falls) and the mean visibility at θ <= 25° and at θ >= 65°."""
     theta, vis = _series(rows, variant, sigma2, key)
-    rho = spearman(theta, vis) if np.ptp(vis) > 0 else 0.0
-    return rho, float(vis[theta <= 25.0].mean()), float(vis[theta >= 65.0].mean())
+    rho = spearman(theta, vis) if len(vis) > 1 and np.ptp(vis) > 0 else 0.0
+    return rho, _mean_or_nan(vis[theta <= 25.0]), _mean_or_nan(vis[theta >= 65.0])
+
+
+def _mean_or_nan(values: np.ndarray) -> float:
+    """The mean, NaN for no value (every case on that side of θ not measurable)."""
+    return float(values.mean()) if len(values) else math.nan
+
+
+def _px(value: float) -> str:
+    return f"{value:.2f} px" if math.isfinite(value) else "not measurable"
 
 
 def _figure(rows, variants, path: Path) -> None:
@@ -257,12 +266,16 @@ def verdict_lines(rows, variants, key: str = "visibility_px") -> list[str]:
     lines = []
     for variant in variants:
         parts = []
+        judged = True
         for sigma2 in GENTLE:
             rho, low, high = trend(rows, variant.key, sigma2, key)
+            judged = judged and math.isfinite(low) and math.isfinite(high)
             parts.append(
-                f"σ² {sigma2:g}: ρ {rho:+.2f}, {high:.2f} px above 65° → {low:.2f} px below 25°"
+                f"σ² {sigma2:g}: ρ {rho:+.2f}, {_px(high)} above 65° → {_px(low)} below 25°"
             )
         word = "**holds**" if finding3_holds(rows, variant.key, key) else "does not hold"
+        if not judged:
+            word = "cannot be judged (the views it compares are not measurable)"
         left_out = [r for r in rows if r["variant"] == variant.key and not readable(r, key)]
         if left_out:
             statuses = ", ".join(sorted({str(r["status"]) for r in left_out}))
@@ -366,17 +379,18 @@ def _margin_paragraph(rows, noisy) -> list[str]:
     exposed = [key for key, g in grows.items() if g < HOLDS_GAIN]
     text = (
         f"What a low viewpoint buys is margin over the noise, not a larger shift: with "
-        f"{worst}, the noise floor falls from {high:.1f} px above 65° to {low:.1f} px below "
+        f"`{worst}`, the noise floor falls from {high:.1f} px above 65° to {low:.1f} px below "
         "25°, because a clear coat reflects 4 % seen from above and nearly all of the light "
         "from just above the surface, and eq. (1)'s finish turns mirror-like there (the "
         "paper's own explanation, its eq. (1) and ref. [16], in numbers)."
     )
     if exposed:
         text += (
-            f' Exposed for the scene (camera.exposure "auto", the default: {", ".join(exposed)})'
-            ", the same finish gives a floor of "
-            + ", ".join(f"{floors[k][0]:.1f} → {floors[k][1]:.1f} px" for k in exposed)
-            + ": the margin a low view buys is the exposure a fixed camera could not set."
+            ' Exposed for the scene (camera.exposure "auto", the default), the floors stay '
+            + ", ".join(f"{floors[k][0]:.1f} → {floors[k][1]:.1f} px (`{k}`)" for k in exposed)
+            + ": the margin a low view buys is the exposure a fixed camera could not set, and "
+            "at a steep view that fixed camera is underexposed (its cases there are marked not "
+            "measurable)."
         )
     return [text]
 
@@ -461,6 +475,8 @@ def write_report(rows, variants, size: int, path: Path) -> Path:
         "",
         "## Visibility (px) against θ",
         "",
+        "A value whose case cannot be read carries its status in brackets.",
+        "",
     ]
     thetas = sorted({r["theta_deg"] for r in rows}, reverse=True)
     for sigma2 in sorted({r["sigma2_mm2"] for r in rows}):
@@ -471,8 +487,14 @@ def write_report(rows, variants, size: int, path: Path) -> Path:
             "|---|" + "---|" * len(thetas),
         ]
         for variant in variants:
-            _, vis = _series(rows, variant.key, sigma2)
-            lines.append(f"| {variant.key} | " + " | ".join(f"{v:g}" for v in vis[::-1]) + " |")
+            cells = {
+                r["theta_deg"]: f"{r['visibility_px']:g}"
+                + ("" if readable(r) else f" ({r.get('status')})")
+                for r in rows
+                if r["variant"] == variant.key and r["sigma2_mm2"] == sigma2
+            }
+            shown = " | ".join(cells.get(t, "—") for t in thetas)
+            lines.append(f"| {variant.key} | {shown} |")
         lines.append("")
     margins = margin_lines(rows, variants)
     if margins:
