@@ -107,7 +107,10 @@ def test_info_reports_renderer_and_fp64():
     [
         (["render", "--theta", "95"], "--theta (camera.theta_deg): must be in (0, 90)"),
         (["render", "--size", "0"], "camera.width: must be an integer in [1, 16384]"),
-        (["render", "--surface", "sphere", "--radius", "0"], "--radius (surface.radius): must be non-zero"),
+        (
+            ["render", "--surface", "sphere", "--radius", "0"],
+            "--radius (surface.radius): must be non-zero",
+        ),
         (["render", "--sigma2", "-1"], "--sigma2 (defect.sigma2): must be a finite number > 0"),
         (["render", "--surface", "torus"], "invalid choice: 'torus'"),
         (["render", "missing.toml"], "scene file: must be an existing TOML file"),
