@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from glshade.components.image_scale import base_curvatures
+from glshade.components.image_scale import base_curvatures, magnification
 from glshade.scene import Scene
 
 __all__ = ["Laws", "base_curvatures", "fold_onset_theta_deg", "laws", "rig_inverse_covariance"]
@@ -76,7 +76,7 @@ def laws(scene: Scene) -> Laws:
     delta = cam.pixel_pitch / cam.focal
     lever = 2.0 * dc * de / ((dc + de) * sin_t)  # mm: curvature -> fold ratio
     tangential, sagittal = base_curvatures(scene)
-    m = 1.0 - lever * tangential
+    m = magnification(scene)  # 1 - lever κ_t (components/image_scale.py)
     inv_xx, inv_zz = rig_inverse_covariance(scene)
     sigma_z = 1.0 / math.sqrt(inv_zz)
     b = sigma_z * sin_t / (dc * delta)
