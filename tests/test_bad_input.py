@@ -1,5 +1,5 @@
 """Every kind of bad input a user can give: exit code 2, one line on stderr naming the
-file or field, never a traceback, nothing written (issue 10).
+file or field, never a traceback, nothing written.
 
 Each case runs the real ``glshade`` in a subprocess, in a directory holding the fixture
 files below; the directory's listing must be the same afterwards.
@@ -68,7 +68,7 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
         {},
     ),
     (["render", "--no-such-flag"], "unrecognized arguments: --no-such-flag", {}),
-    # optics and sensor (issue 12)
+    # optics and sensor
     (
         ["render", "--f-number", "-2"],
         "--f-number (camera.f_number): must be a finite number >= 0 (0: pinhole), got -2.0",

@@ -1,4 +1,4 @@
-"""Hardening (issue 10): random input never escapes as a traceback, outputs are only
+"""Hardening: random input never escapes as a traceback, outputs are only
 regular files, studies are locked and never mixed, units, long renders, the lobe warning.
 """
 

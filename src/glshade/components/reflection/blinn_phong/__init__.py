@@ -1,4 +1,4 @@
-"""Blinn-Phong reflection (SPEC §5): the weight ``(n·h)^N`` around the mirror direction,
+"""Blinn-Phong reflection: the weight ``(n·h)^N`` around the mirror direction,
 normalised so that a uniform emitter gives 1.
 
 Table: :class:`BlinnPhongTable` (the exponent, and the finish of eq. (1)). GLSL:

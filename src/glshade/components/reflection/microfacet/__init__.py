@@ -1,4 +1,4 @@
-"""Microfacet reflection (SPEC §8.2): Beckmann and GGX lobes of roughness ``α``.
+"""Microfacet reflection: Beckmann and GGX lobes of roughness ``α``.
 
 Cook–Torrance with height-correlated Smith shadowing ``G2 = 1 / (1 + Λ(wo) + Λ(l))``.
 Over the half vector's slopes ``(x, y)`` (``h = normalise(n + x e1 + y e2)``, ``e1`` in
