@@ -528,7 +528,8 @@ def _cmd_finding3(args: argparse.Namespace) -> int:
         size=args.size,
         progress=lambda row: print(
             f"{row['variant']:>13} theta {row['theta_deg']:>4g} sigma2 {row['sigma2_mm2']:>3g}: "
-            f"{row['visibility_px']:g} px ({row['seconds']:.1f} s)",
+            f"{row['visibility_px']:g} px ({row['seconds']:.1f} s)"
+            + ("" if row["status"] == "ok" else f" [{row['status']}: not measurable]"),
             file=sys.stderr,
         ),
     )

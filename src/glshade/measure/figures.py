@@ -48,6 +48,8 @@ def write_overlay(baseline, v1, result, images, title: str, path: Path) -> None:
     """The Fig. 9 overlay of a measured case (its baseline, emitter map, result and, for
     rendered shading, its phase images) at its best phase."""
     normal, defect = baseline.stripes_at(v1, result.best_phase_mm, result.offset_px, images)
+    if result.status != "ok":  # the picture says what its number says
+        title = f"{title} [{result.status}: not measurable]"
     overlay_figure(overlay_rgb(normal, defect), result, baseline.columns.start, title, path)
 
 
