@@ -1,0 +1,295 @@
+"""Phase-measuring deflectometry (PMD): the fringe coding, its decoding, and from decoded
+slopes to heights (docs/pmd.md).
+
+An inspection station shows sinusoidal fringes on a screen, at ``N`` phase shifts and
+``K`` periods per direction, and decodes for every camera pixel the screen point it sees.
+This module is the station's side, pure NumPy/SciPy and independent of rendering:
+
+- :class:`FringeCoding`: the periods (finest first), shifts, offset, amplitude, the
+  screen's grey levels and gamma, and the screen's extent; :meth:`FringeCoding.radiance`
+  is what frame ``(k, n)`` displays at a screen coordinate (the oracle of a rendered frame
+  and the generator of synthetic sequences).
+- :func:`decode`: wrapped phases, modulation, offset and temporal unwrapping of a
+  ``(K, N, H, W)`` sequence into the screen coordinate ``s`` (mm from the screen's edge).
+- :func:`unwrap_failures`, :func:`predicted_noise_mm`: against the exact map, and the
+  noise a decoder should reach.
+- :func:`integrate_slopes`, :func:`dent_from_height`: least-squares heights from slope
+  maps, and the Gaussian dent they hold.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from glshade.errors import GlshadeError
+
+
+@dataclass(frozen=True)
+class FringeCoding:
+    """One direction's fringe sequence. ``periods_mm``: finest first, each longer than the
+    last, the coarsest at least ``screen_extent_mm`` (the screen's length along the
+    direction: one fringe spans it, so the decoding is unambiguous); ``shifts``: ``N >=
+    3`` steps ``δ_n = 2π n / N``; ``offset`` and ``amplitude``: the commanded mean and
+    modulation (``offset ± amplitude`` within [0, 1]); ``levels``: the screen's grey
+    levels (0: continuous); ``gamma``: displayed = commanded ** gamma."""
+
+    periods_mm: tuple[float, ...] = (2.0, 16.0, 128.0, 1024.0)
+    shifts: int = 4
+    offset: float = 0.5
+    amplitude: float = 0.5
+    levels: int = 256
+    gamma: float = 1.0
+    screen_extent_mm: float = 300.0
+
+    def __post_init__(self) -> None:
+        periods = tuple(float(p) for p in self.periods_mm)
+        object.__setattr__(self, "periods_mm", periods)
+        if not periods or any(not (math.isfinite(p) and p > 0) for p in periods):
+            raise GlshadeError(f"periods: must be finite lengths > 0 mm, got {list(periods)}")
+        if any(b <= a for a, b in zip(periods, periods[1:], strict=False)):
+            raise GlshadeError(f"periods: must grow from the finest, got {list(periods)}")
+        if periods[-1] < self.screen_extent_mm:
+            raise GlshadeError(
+                f"periods: the coarsest ({periods[-1]:g} mm) must span the screen's "
+                f"{self.screen_extent_mm:g} mm, or the decoding is ambiguous"
+            )
+        if isinstance(self.shifts, bool) or not isinstance(self.shifts, int) or self.shifts < 3:
+            raise GlshadeError(f"shifts: must be an integer >= 3, got {self.shifts!r}")
+        if not (math.isfinite(self.gamma) and self.gamma > 0):
+            raise GlshadeError(f"gamma: must be a finite number > 0, got {self.gamma!r}")
+        if isinstance(self.levels, bool) or self.levels == 1 or self.levels < 0:
+            raise GlshadeError(
+                f"levels: must be 0 (continuous) or at least 2 grey levels, got {self.levels!r}"
+            )
+        if not (0.0 < self.amplitude and 0.0 <= self.offset - self.amplitude):
+            raise GlshadeError(
+                f"offset, amplitude: need 0 < amplitude <= offset, got {self.offset:g}, "
+                f"{self.amplitude:g}"
+            )
+        if self.offset + self.amplitude > 1.0:
+            raise GlshadeError(
+                f"offset + amplitude: must be at most 1 (the screen's white), got "
+                f"{self.offset + self.amplitude:g}"
+            )
+
+    @property
+    def shift_rad(self) -> np.ndarray:
+        """``δ_n = 2π n / N``, n = 0 … N-1."""
+        return 2.0 * np.pi * np.arange(self.shifts) / self.shifts
+
+    def radiance(self, s_mm: np.ndarray, period_index: int, shift_index: int) -> np.ndarray:
+        """What frame ``(k, n)`` displays at screen coordinate ``s_mm`` (mm from the
+        screen's edge): ``offset + amplitude cos(2π s / periods[k] - δ_n)`` commanded,
+        rounded to ``levels`` grey levels, displayed through ``gamma`` (float64; NaN
+        stays NaN)."""
+        period = self.periods_mm[period_index]
+        delta = 2.0 * np.pi * shift_index / self.shifts
+        s = np.asarray(s_mm, np.float64)
+        commanded = self.offset + self.amplitude * np.cos(2.0 * np.pi * s / period - delta)
+        if self.levels:
+            top = self.levels - 1
+            commanded = np.round(commanded * top) / top
+        return np.power(np.clip(commanded, 0.0, 1.0), self.gamma)
+
+    def sequence(self, s_mm: np.ndarray) -> np.ndarray:
+        """Every frame of the direction at ``s_mm``: shape ``(K, N) + s_mm.shape``."""
+        return np.stack(
+            [
+                np.stack([self.radiance(s_mm, k, n) for n in range(self.shifts)])
+                for k in range(len(self.periods_mm))
+            ]
+        )
+
+
+@dataclass(frozen=True)
+class Decoded:
+    """One direction decoded. ``s_mm``: the screen coordinate (mm from its edge, NaN where
+    not valid); ``wrapped`` (K, H, W): the phases in [0, 2π); ``modulation`` (K, H, W):
+    ``B_k``; ``offset`` (K, H, W): ``A_k``; ``valid``: every ``B_k`` at least the
+    threshold."""
+
+    s_mm: np.ndarray
+    wrapped: np.ndarray
+    modulation: np.ndarray
+    offset: np.ndarray
+    valid: np.ndarray
+
+
+def decode(
+    frames: np.ndarray,
+    coding: FringeCoding,
+    peak_response: float = 1.0,
+    min_modulation: float | None = None,
+) -> Decoded:
+    """Decode a ``(K, N, H, W)`` sequence (frame ``(k, n)`` at period ``k``, shift ``n``).
+
+    ``φ_k = atan2(Σ I_n sin δ_n, Σ I_n cos δ_n)`` in [0, 2π), ``B_k = (2/N) |Σ I_n
+    e^{iδ_n}|``, ``A_k`` the mean; unwrapped from the coarsest period down, ``s_K = p_K
+    φ_K / 2π`` (taken below 0 when it lies past the middle of the gap between the screen's
+    extent and ``p_K``: noise wrapped it round) and ``s_k = p_k (φ_k + 2π round((2π
+    s_{k+1} / p_k - φ_k) / 2π)) / 2π``; the result is ``s_1``. Valid where every ``B_k >=
+    min_modulation`` (default 0.1 of ``amplitude`` times ``peak_response``, the image's
+    response to the screen's white)."""
+    frames = np.asarray(frames, np.float64)
+    periods = np.asarray(coding.periods_mm)
+    if frames.ndim < 3 or frames.shape[:2] != (len(periods), coding.shifts):
+        raise GlshadeError(
+            f"decode: frames must have shape ({len(periods)}, {coding.shifts}, ...) for this "
+            f"coding, got {frames.shape}"
+        )
+    delta = coding.shift_rad.reshape((1, -1) + (1,) * (frames.ndim - 2))
+    sine = (frames * np.sin(delta)).sum(axis=1)
+    cosine = (frames * np.cos(delta)).sum(axis=1)
+    wrapped = np.mod(np.arctan2(sine, cosine), 2.0 * np.pi)
+    modulation = (2.0 / coding.shifts) * np.hypot(sine, cosine)
+    offset = frames.mean(axis=1)
+    threshold = 0.1 * coding.amplitude * peak_response if min_modulation is None else min_modulation
+    valid = np.all(modulation >= threshold, axis=0) & np.all(np.isfinite(frames), axis=(0, 1))
+    s = periods[-1] * wrapped[-1] / (2.0 * np.pi)
+    # the screen spans [0, extent] of the coarsest period: a coordinate past the middle of
+    # the gap beyond it is one just below 0 that the noise wrapped round
+    s = np.where(s > 0.5 * (periods[-1] + coding.screen_extent_mm), s - periods[-1], s)
+    for k in range(len(periods) - 2, -1, -1):
+        turns = np.round((2.0 * np.pi * s / periods[k] - wrapped[k]) / (2.0 * np.pi))
+        s = periods[k] * (wrapped[k] + 2.0 * np.pi * turns) / (2.0 * np.pi)
+    return Decoded(np.where(valid, s, np.nan), wrapped, modulation, offset, valid)
+
+
+def unwrap_failures(decoded_s: np.ndarray, exact_s: np.ndarray, finest_period_mm: float) -> int:
+    """Valid pixels (finite ``decoded_s``) whose decoded coordinate differs from the exact
+    one by more than half the finest period: the unwrapping chose the wrong fringe."""
+    decoded_s, exact_s = np.asarray(decoded_s), np.asarray(exact_s)
+    both = np.isfinite(decoded_s) & np.isfinite(exact_s)
+    return int((np.abs(decoded_s[both] - exact_s[both]) > 0.5 * finest_period_mm).sum())
+
+
+def predicted_noise_mm(coding: FringeCoding, sigma_intensity: float, modulation: float) -> float:
+    """The decoded coordinate's noise from intensity noise ``σ_I`` at modulation ``B``:
+    ``periods[0] / 2π · sqrt(2 / N) · σ_I / B`` (the finest period's phase noise, which the
+    unwrapping keeps when it picks the right fringe)."""
+    return (
+        coding.periods_mm[0]
+        / (2.0 * np.pi)
+        * math.sqrt(2.0 / coding.shifts)
+        * sigma_intensity
+        / modulation
+    )
+
+
+# --------------------------------------------------------------------------- heights
+def integrate_slopes(
+    slope_x: np.ndarray,
+    slope_z: np.ndarray,
+    spacing_mm: tuple[float, float],
+    valid: np.ndarray | None = None,
+    outside: np.ndarray | None = None,
+) -> np.ndarray:
+    """Heights (the slopes' unit times mm) on a regular grid from the slopes ``∂h/∂x``
+    (along columns, ``spacing_mm[0]``) and ``∂h/∂z`` (along rows, ``spacing_mm[1]``):
+    the least-squares solution of the forward differences between valid neighbours
+    (SciPy's sparse ``lsqr``), then the plane (tilt and offset) fitted over the valid
+    pixels of ``outside`` (default: every valid pixel) removed. NaN where not valid."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.linalg import lsqr
+
+    gx, gz = np.asarray(slope_x, np.float64), np.asarray(slope_z, np.float64)
+    ok = np.isfinite(gx) & np.isfinite(gz)
+    if valid is not None:
+        ok &= np.asarray(valid, bool)
+    index = np.full(gx.shape, -1)
+    index[ok] = np.arange(int(ok.sum()))
+    rows: list[np.ndarray] = []
+    cols: list[np.ndarray] = []
+    values: list[np.ndarray] = []
+    rhs: list[np.ndarray] = []
+
+    def differences(a: np.ndarray, b: np.ndarray, slope: np.ndarray, step: float) -> None:
+        pair = (a >= 0) & (b >= 0)
+        count = int(pair.sum())
+        first = sum(len(r) for r in rhs)  # the equations so far
+        equation = np.arange(first, first + count)
+        rows.extend([equation, equation])
+        cols.extend([b[pair], a[pair]])
+        values.extend([np.full(count, 1.0), np.full(count, -1.0)])
+        rhs.append(slope[pair] * step)
+
+    along_x = 0.5 * (gx[:, :-1] + gx[:, 1:])  # the mean slope between the two samples
+    along_z = 0.5 * (gz[:-1, :] + gz[1:, :])
+    differences(index[:, :-1], index[:, 1:], along_x, spacing_mm[0])
+    differences(index[:-1, :], index[1:, :], along_z, spacing_mm[1])
+    unknowns = int(ok.sum())
+    heights = np.full(gx.shape, np.nan)
+    if not rhs or unknowns == 0:
+        return heights
+    b = np.concatenate(rhs)
+    matrix = coo_matrix(
+        (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
+        shape=(len(b), unknowns),
+    ).tocsr()
+    solution = lsqr(matrix, b, atol=1e-12, btol=1e-12, iter_lim=20 * unknowns)[0]
+    heights[ok] = solution
+    return remove_plane(heights, outside)
+
+
+def remove_plane(heights: np.ndarray, outside: np.ndarray | None = None) -> np.ndarray:
+    """``heights`` minus the plane ``a + b column + c row`` fitted (least squares) to its
+    finite values where ``outside`` (default: all of them)."""
+    fit = np.isfinite(heights)
+    if outside is not None:
+        fit &= np.asarray(outside, bool)
+    if fit.sum() < 3:
+        return heights
+    row, col = np.nonzero(fit)
+    design = np.column_stack([np.ones(len(row)), col, row])
+    coef = np.linalg.lstsq(design, heights[fit], rcond=None)[0]
+    all_rows, all_cols = np.indices(heights.shape)
+    return heights - (coef[0] + coef[1] * all_cols + coef[2] * all_rows)
+
+
+@dataclass(frozen=True)
+class Dent:
+    """A Gaussian dent fitted to a height map: ``depth`` (positive for a dent, the map's
+    unit), ``sigma_mm`` (its isotropic σ) and centre ``(x0, z0)`` mm."""
+
+    depth: float
+    sigma_mm: float
+    x0_mm: float
+    z0_mm: float
+
+
+def dent_from_height(height: np.ndarray, x_mm: np.ndarray, z_mm: np.ndarray) -> Dent:
+    """The isotropic Gaussian ``-depth exp(-r²/2σ²) + c`` that fits ``height`` (finite
+    values; SciPy's ``curve_fit``), started from the map's lowest point."""
+    from scipy.optimize import curve_fit
+
+    height, x_mm, z_mm = (np.asarray(a, np.float64) for a in (height, x_mm, z_mm))
+    ok = np.isfinite(height)
+    if ok.sum() < 5:
+        raise GlshadeError("dent_from_height: fewer than 5 valid heights")
+    h, x, z = height[ok], x_mm[ok], z_mm[ok]
+
+    def model(xz, depth, sigma, x0, z0, level):
+        px, pz = xz
+        return level - depth * np.exp(-((px - x0) ** 2 + (pz - z0) ** 2) / (2.0 * sigma**2))
+
+    import warnings
+
+    from scipy.optimize import OptimizeWarning
+
+    lowest = int(np.argmin(h))
+    extent = max(np.ptp(x), np.ptp(z), 1e-9)
+    start = (
+        float(np.median(h) - h[lowest]),
+        0.1 * extent,
+        x[lowest],
+        z[lowest],
+        float(np.median(h)),
+    )
+    with warnings.catch_warnings():  # the fit's covariance is not what is asked for
+        warnings.simplefilter("ignore", OptimizeWarning)
+        params, _ = curve_fit(model, (x, z), h, p0=start, maxfev=5000)
+    depth, sigma, x0, z0, _ = params
+    return Dent(float(depth), float(abs(sigma)), float(x0), float(z0))
