@@ -75,24 +75,29 @@ class FringeCoding:
                 f"{self.offset + self.amplitude:g}"
             )
 
+    def shift_rad(self, n: int | np.ndarray) -> float | np.ndarray:
+        """``δ_n = 2π n / N`` for shift index ``n`` (an integer or an array of them)."""
+        if np.ndim(n) == 0:
+            return 2.0 * math.pi * int(n) / self.shifts
+        return 2.0 * np.pi * np.asarray(n, np.float64) / self.shifts
+
     @property
-    def shift_rad(self) -> np.ndarray:
-        """``δ_n = 2π n / N``, n = 0 … N-1."""
+    def shifts_rad(self) -> np.ndarray:
+        """Every step, ``δ_n`` for n = 0 … N-1."""
         return 2.0 * np.pi * np.arange(self.shifts) / self.shifts
 
     def radiance(self, s_mm: np.ndarray, period_index: int, shift_index: int) -> np.ndarray:
         """What frame ``(k, n)`` displays at screen coordinate ``s_mm`` (mm from the
-        screen's edge): ``offset + amplitude cos(2π s / periods[k] - δ_n)`` commanded,
-        rounded to ``levels`` grey levels, displayed through ``gamma`` (float64; NaN
-        stays NaN)."""
-        period = self.periods_mm[period_index]
-        delta = 2.0 * np.pi * shift_index / self.shifts
-        s = np.asarray(s_mm, np.float64)
-        commanded = self.offset + self.amplitude * np.cos(2.0 * np.pi * s / period - delta)
-        if self.levels:
-            top = self.levels - 1
-            commanded = np.round(commanded * top) / top
-        return np.power(np.clip(commanded, 0.0, 1.0), self.gamma)
+        screen's edge): :func:`commanded_to_displayed` with this coding's values."""
+        return commanded_to_displayed(
+            s_mm,
+            self.periods_mm[period_index],
+            self.shift_rad(shift_index),
+            offset=self.offset,
+            amplitude=self.amplitude,
+            levels=self.levels,
+            gamma=self.gamma,
+        )
 
     def sequence(self, s_mm: np.ndarray) -> np.ndarray:
         """Every frame of the direction at ``s_mm``: shape ``(K, N) + s_mm.shape``."""
@@ -104,17 +109,47 @@ class FringeCoding:
         )
 
 
+def commanded_to_displayed(
+    s_mm: np.ndarray,
+    period_mm: float | np.ndarray,
+    shift_rad: float | np.ndarray,
+    *,
+    offset: float = 0.5,
+    amplitude: float = 0.5,
+    levels: int = 0,
+    gamma: float = 1.0,
+) -> np.ndarray:
+    """A fringe frame's displayed radiance at screen coordinate ``s_mm`` (mm from the
+    screen's edge), float64, every argument broadcast as NumPy arrays:
+
+    - commanded ``c = offset + amplitude cos(2π s / period - δ)``;
+    - quantised to ``levels`` grey levels, ``c = round(c (levels - 1)) / (levels - 1)``
+      (``levels = 0``: continuous);
+    - displayed ``c ** gamma`` (``c`` clipped to [0, 1] first).
+
+    NaN stays NaN. This is the synthetic sequences' generator and the oracle of a
+    rendered fringe frame."""
+    s = np.asarray(s_mm, np.float64)
+    period = np.asarray(period_mm, np.float64)
+    delta = np.asarray(shift_rad, np.float64)
+    commanded = offset + amplitude * np.cos(2.0 * np.pi * s / period - delta)
+    if levels:
+        top = levels - 1
+        commanded = np.round(commanded * top) / top
+    return np.asarray(np.power(np.clip(commanded, 0.0, 1.0), gamma), np.float64)
+
+
 @dataclass(frozen=True)
 class Decoded:
     """One direction decoded. ``s_mm``: the screen coordinate (mm from its edge, NaN where
-    not valid); ``wrapped`` (K, H, W): the phases in [0, 2π); ``modulation`` (K, H, W):
-    ``B_k``; ``offset`` (K, H, W): ``A_k``; ``valid``: every ``B_k`` at least the
+    not valid); ``modulation`` (K, H, W): ``B_k``; ``offset`` (K, H, W): ``A_k``;
+    ``wrapped`` (K, H, W): the phases in [0, 2π); ``valid``: every ``B_k`` at least the
     threshold."""
 
     s_mm: np.ndarray
-    wrapped: np.ndarray
     modulation: np.ndarray
     offset: np.ndarray
+    wrapped: np.ndarray
     valid: np.ndarray
 
 
@@ -140,7 +175,7 @@ def decode(
             f"decode: frames must have shape ({len(periods)}, {coding.shifts}, ...) for this "
             f"coding, got {frames.shape}"
         )
-    delta = coding.shift_rad.reshape((1, -1) + (1,) * (frames.ndim - 2))
+    delta = coding.shifts_rad.reshape((1, -1) + (1,) * (frames.ndim - 2))
     sine = (frames * np.sin(delta)).sum(axis=1)
     cosine = (frames * np.cos(delta)).sum(axis=1)
     wrapped = np.mod(np.arctan2(sine, cosine), 2.0 * np.pi)
@@ -155,7 +190,7 @@ def decode(
     for k in range(len(periods) - 2, -1, -1):
         turns = np.round((2.0 * np.pi * s / periods[k] - wrapped[k]) / (2.0 * np.pi))
         s = periods[k] * (wrapped[k] + 2.0 * np.pi * turns) / (2.0 * np.pi)
-    return Decoded(np.where(valid, s, np.nan), wrapped, modulation, offset, valid)
+    return Decoded(np.where(valid, s, np.nan), modulation, offset, wrapped, valid)
 
 
 def unwrap_failures(decoded_s: np.ndarray, exact_s: np.ndarray, finest_period_mm: float) -> int:
@@ -179,28 +214,78 @@ def predicted_noise_mm(coding: FringeCoding, sigma_intensity: float, modulation:
     )
 
 
+# --------------------------------------------------------------------------- slopes
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def normals_from_points(
+    points: np.ndarray, camera_position: np.ndarray, screen_points: np.ndarray
+) -> np.ndarray:
+    """The measured unit normals ``(..., 3)``: at each surface point ``P`` the bisector of
+    the directions from ``P`` to the camera and from ``P`` to its decoded screen point (a
+    mirror that sends the camera's ray there). Arrays broadcast, float64; NaN in, NaN out."""
+    p = np.asarray(points, np.float64)
+    to_camera = _unit(np.asarray(camera_position, np.float64) - p)
+    to_screen = _unit(np.asarray(screen_points, np.float64) - p)
+    return _unit(to_camera + to_screen)
+
+
+def slope_deviation(measured: np.ndarray, nominal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The slopes ``(∂d/∂x, ∂d/∂z)`` of a deviation ``d`` added along ``y`` (``+y`` up) that
+    turns the ``nominal`` unit normals into the ``measured`` ones (both ``(..., 3)``):
+    a normal ``n`` is that of a surface with gradient ``(-n_x / n_y, -n_z / n_y)``, and the
+    deviation's slope is the measured gradient minus the nominal one. Dimensionless, i.e.
+    rad for small slopes (the tangent of the tilt); what :func:`integrate_slopes` takes."""
+    m = np.asarray(measured, np.float64)
+    n = np.asarray(nominal, np.float64)
+    gx = -m[..., 0] / m[..., 1] + n[..., 0] / n[..., 1]
+    gz = -m[..., 2] / m[..., 1] + n[..., 2] / n[..., 1]
+    return gx, gz
+
+
 # --------------------------------------------------------------------------- heights
 def integrate_slopes(
     slope_x: np.ndarray,
     slope_z: np.ndarray,
-    spacing_mm: tuple[float, float],
+    spacing_mm: float | tuple[float, float],
     valid: np.ndarray | None = None,
     outside: np.ndarray | None = None,
 ) -> np.ndarray:
     """Heights (the slopes' unit times mm) on a regular grid from the slopes ``∂h/∂x``
-    (along columns, ``spacing_mm[0]``) and ``∂h/∂z`` (along rows, ``spacing_mm[1]``):
-    the least-squares solution of the forward differences between valid neighbours
-    (SciPy's sparse ``lsqr``), then the plane (tilt and offset) fitted over the valid
-    pixels of ``outside`` (default: every valid pixel) removed. NaN where not valid."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.linalg import lsqr
+    (along columns, spacing ``dx``) and ``∂h/∂z`` (along rows, spacing ``dz``;
+    ``spacing_mm`` is ``(dx, dz)`` or one number for both).
 
+    Every pair of valid 4-neighbours gives one equation (forward differences): their
+    height difference equals the mean of their two slopes times the spacing. The least-
+    squares solution comes from the normal equations, solved directly (SciPy's sparse
+    ``spsolve``) with one height per connected valid region held at 0 (each region's
+    free offset). Then the plane (tilt and offset) fitted over the valid pixels of
+    ``outside`` (default: every valid pixel) is removed. NaN where not valid."""
+    from scipy.ndimage import label
+    from scipy.sparse import coo_matrix, diags
+    from scipy.sparse.linalg import spsolve
+
+    dx, dz = (
+        (float(spacing_mm), float(spacing_mm))
+        if np.ndim(spacing_mm) == 0
+        else (float(spacing_mm[0]), float(spacing_mm[1]))  # type: ignore[index]
+    )
     gx, gz = np.asarray(slope_x, np.float64), np.asarray(slope_z, np.float64)
+    if gx.ndim != 2 or gx.shape != gz.shape:
+        raise GlshadeError(
+            f"integrate_slopes: slope maps must be 2-D of one shape, got {gx.shape}, {gz.shape}"
+        )
     ok = np.isfinite(gx) & np.isfinite(gz)
     if valid is not None:
         ok &= np.asarray(valid, bool)
+    unknowns = int(ok.sum())
+    heights = np.full(gx.shape, np.nan)
+    if unknowns == 0:
+        return heights
     index = np.full(gx.shape, -1)
-    index[ok] = np.arange(int(ok.sum()))
+    index[ok] = np.arange(unknowns)
+
     rows: list[np.ndarray] = []
     cols: list[np.ndarray] = []
     values: list[np.ndarray] = []
@@ -216,21 +301,20 @@ def integrate_slopes(
         values.extend([np.full(count, 1.0), np.full(count, -1.0)])
         rhs.append(slope[pair] * step)
 
-    along_x = 0.5 * (gx[:, :-1] + gx[:, 1:])  # the mean slope between the two samples
-    along_z = 0.5 * (gz[:-1, :] + gz[1:, :])
-    differences(index[:, :-1], index[:, 1:], along_x, spacing_mm[0])
-    differences(index[:-1, :], index[1:, :], along_z, spacing_mm[1])
-    unknowns = int(ok.sum())
-    heights = np.full(gx.shape, np.nan)
-    if not rhs or unknowns == 0:
-        return heights
+    differences(index[:, :-1], index[:, 1:], 0.5 * (gx[:, :-1] + gx[:, 1:]), dx)
+    differences(index[:-1, :], index[1:, :], 0.5 * (gz[:-1, :] + gz[1:, :]), dz)
     b = np.concatenate(rhs)
     matrix = coo_matrix(
         (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
         shape=(len(b), unknowns),
     ).tocsr()
-    solution = lsqr(matrix, b, atol=1e-12, btol=1e-12, iter_lim=20 * unknowns)[0]
-    heights[ok] = solution
+    # each connected region's heights are known up to an offset: hold its first at 0
+    regions, count = label(ok)
+    _, first = np.unique(regions[ok], return_index=True)
+    pin = np.zeros(unknowns)
+    pin[first[:count]] = 1.0
+    normal = (matrix.T @ matrix + diags(pin)).tocsc()
+    heights[ok] = spsolve(normal, matrix.T @ b)
     return remove_plane(heights, outside)
 
 
