@@ -26,25 +26,92 @@ def test_noise_free_decoding_recovers_the_map():
     assert decoded.valid.all()
     assert np.max(np.abs(decoded.s_mm - s)) < 1e-9
     assert np.allclose(decoded.modulation, CODING.amplitude) and np.allclose(decoded.offset, 0.5)
-    # 8-bit screen levels: a phase error of a fraction of a grey level, far below a period
+    assert np.all((decoded.wrapped >= 0) & (decoded.wrapped < 2 * np.pi))
+
+
+def test_eight_bit_levels_stay_within_their_bound():
+    """Rounding to ``levels`` grey levels errs by at most half a level ``q / 2`` (``q = 1 /
+    (levels - 1)``) per frame; the errors' phasor ``(2/N) Σ e_n exp(iδ_n)`` is then at most
+    ``q``, so the phase errs by at most ``asin(q / B)`` and the coordinate by ``p_1 / 2π``
+    times that."""
+    s = screen(CODING)
     eight = pmd.FringeCoding(levels=256)
     error = np.abs(pmd.decode(eight.sequence(s), eight).s_mm - s)
-    assert 1e-6 < error.max() < 2e-3 * eight.periods_mm[0]
+    bound = eight.periods_mm[0] / (2 * np.pi) * np.arcsin((1 / 255) / eight.amplitude)
+    assert 1e-6 < error.max() < bound
+    assert error.max() > 0.1 * bound  # a real effect, not a vanishing one
+
+
+def test_an_image_of_screen_points_decodes_pixel_for_pixel():
+    """A (K, N, H, W) sequence of a smooth 2-D map (what a camera sees)."""
+    rows, cols = np.mgrid[0:60, 0:80]
+    s = 5.0 + 2.9 * cols + 0.8 * rows + 3.0 * np.sin(cols / 7.0) * np.cos(rows / 5.0)
+    frames = CODING.sequence(s)
+    assert frames.shape == (4, 4, 60, 80)
+    decoded = pmd.decode(frames, CODING)
+    assert decoded.modulation.shape == decoded.wrapped.shape == decoded.offset.shape
+    assert decoded.modulation.shape == (4, 60, 80) and decoded.valid.shape == (60, 80)
+    assert np.max(np.abs(decoded.s_mm - s)) < 1e-9
+    # the wrapped phase of each period is the exact one
+    for k, period in enumerate(CODING.periods_mm):
+        exact = np.mod(2 * np.pi * s / period, 2 * np.pi)
+        gap = np.angle(np.exp(1j * (decoded.wrapped[k] - exact)))
+        assert np.max(np.abs(gap)) < 1e-9
+
+
+def test_the_displayed_radiance_is_the_formula():
+    s = np.linspace(0.0, 300.0, 1001)
+    shown = pmd.commanded_to_displayed(s, 16.0, np.pi / 2, offset=0.5, amplitude=0.4)
+    assert shown.dtype == np.float64
+    assert np.allclose(shown, 0.5 + 0.4 * np.cos(2 * np.pi * s / 16.0 - np.pi / 2), atol=1e-15)
+    levels = pmd.commanded_to_displayed(s, 16.0, 0.0, levels=4, gamma=2.0)
+    commanded = np.round((0.5 + 0.5 * np.cos(2 * np.pi * s / 16.0)) * 3) / 3
+    assert np.allclose(levels, commanded**2, atol=1e-15)
+    assert set(np.round(levels * 9).astype(int)) <= {0, 1, 4, 9}  # (j/3)² only
+    # every argument broadcasts: a column of shifts against a row of coordinates
+    grid = pmd.commanded_to_displayed(s[None, :], 16.0, CODING.shift_rad(np.arange(4))[:, None])
+    assert grid.shape == (4, 1001) and np.allclose(grid[2], 0.5 - 0.5 * np.cos(2 * np.pi * s / 16))
+    assert np.isnan(pmd.commanded_to_displayed(np.array([np.nan]), 2.0, 0.0)).all()
+    # the coding's frames are this helper with its values
+    coding = pmd.FringeCoding(shifts=5, gamma=1.8, levels=64)
+    assert coding.shift_rad(2) == pytest.approx(4 * np.pi / 5)
+    expected = pmd.commanded_to_displayed(
+        s, 128.0, 4 * np.pi / 5, offset=0.5, amplitude=0.5, levels=64, gamma=1.8
+    )
+    assert np.array_equal(coding.radiance(s, 2, 2), expected)
+    assert np.array_equal(coding.sequence(s)[2, 2], expected)
+
+
+def _fourier(gamma: float, offset: float, amplitude: float, count: int) -> np.ndarray:
+    """The cosine coefficients b_h of ``(offset + amplitude cos θ) ** gamma``."""
+    theta = np.linspace(0.0, 2 * np.pi, 4096, endpoint=False)
+    signal = (offset + amplitude * np.cos(theta)) ** gamma
+    return (np.fft.rfft(signal).real * 2 / len(theta))[:count]
 
 
 def test_gamma_harmonics_alias_into_three_steps_and_fade_with_more():
-    """A screen gamma adds harmonics h of the fringe. N equal steps cancel every harmonic
-    but those with h ≡ ±1 (mod N), which alias into the phase: N = 3 aliases the 2nd
-    (the strongest), N = 4 the 3rd, N = 8 the 7th, each much weaker than the last."""
+    """A screen gamma turns the fringe into ``Σ_h b_h cos(h θ)``. N equal steps cancel
+    every harmonic but those with h ≡ ±1 (mod N): harmonics 2 … N-2 cancel, so three
+    steps alias the 2nd harmonic (the strongest), four the 3rd, eight the 7th. To first
+    order the phasor becomes ``e^{iθ} (b_1 + b_{N+1} e^{iNθ} + b_{N-1} e^{-iNθ})``: a
+    phase error oscillating at N times the fringe with amplitude ``|b_{N+1} - b_{N-1}| /
+    b_1``, predicted here from the Fourier coefficients of ``(0.5 + 0.5 cos θ)^2.2`` and
+    measured by decoding."""
     s = screen(CODING)
+    b = _fourier(2.2, 0.5, 0.5, 12)
+    finest = CODING.periods_mm[0]
     errors = {}
     for shifts in (3, 4, 8):
         coding = pmd.FringeCoding(shifts=shifts, gamma=2.2, levels=0)
-        errors[shifts] = np.max(np.abs(pmd.decode(coding.sequence(s), coding).s_mm - s))
-    finest = CODING.periods_mm[0]
-    assert errors[3] > 5 * errors[4] > 0
-    assert errors[4] > 20 * errors[8]
-    assert errors[3] > 1e-3 * finest and errors[8] < 1e-4 * finest
+        decoded = pmd.decode(coding.sequence(s), coding)
+        phase_error = np.max(np.abs(decoded.s_mm - s)) * 2 * np.pi / finest
+        predicted = abs(b[shifts + 1] - b[shifts - 1]) / b[1]
+        assert phase_error == pytest.approx(predicted, rel=0.05)
+        errors[shifts] = phase_error
+    # about 0.28 rad, 0.011 rad, 4e-5 rad
+    assert errors[3] > 20 * errors[4] > 0
+    assert errors[4] > 200 * errors[8]
+    assert errors[3] > 0.2 and errors[8] < 1e-4
     # gamma 1 has no harmonics: three steps are exact
     three = pmd.FringeCoding(shifts=3, levels=0)
     assert np.max(np.abs(pmd.decode(three.sequence(s), three).s_mm - s)) < 1e-9
