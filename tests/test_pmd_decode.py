@@ -117,20 +117,39 @@ def test_gamma_harmonics_alias_into_three_steps_and_fade_with_more():
     assert np.max(np.abs(pmd.decode(three.sequence(s), three).s_mm - s)) < 1e-9
 
 
-@pytest.mark.parametrize("shifts", [4, 8])
+@pytest.mark.parametrize("shifts", [3, 4, 8])
 def test_decoded_noise_matches_the_prediction(shifts):
+    """Intensity noise σ_I on each frame gives the phase a noise ``sqrt(2/N) σ_I / B``;
+    the decoded coordinate keeps the finest period's, ``p_1 / 2π`` times that."""
     coding = pmd.FringeCoding(shifts=shifts, levels=0)
     s = screen(coding, 20000)
     clean = coding.sequence(s)
     sigma = 0.01
+    predicted = pmd.predicted_noise_mm(coding, sigma, coding.amplitude)
+    assert predicted == pytest.approx(2.0 / (2 * np.pi) * np.sqrt(2 / shifts) * 0.02)
     spreads = []
     for seed in range(4):
         noise = np.random.default_rng(seed).normal(0.0, sigma, clean.shape)
         decoded = pmd.decode(clean + noise, coding)
         assert pmd.unwrap_failures(decoded.s_mm, s, coding.periods_mm[0]) == 0
-        spreads.append(np.std(decoded.s_mm - s))
-    predicted = pmd.predicted_noise_mm(coding, sigma, coding.amplitude)
-    assert np.mean(spreads) == pytest.approx(predicted, rel=0.15)
+        spread = np.std(decoded.s_mm - s)
+        assert spread == pytest.approx(predicted, rel=0.15)
+        spreads.append(spread)
+    assert np.mean(spreads) == pytest.approx(predicted, rel=0.05)
+
+
+def test_noise_at_the_screen_edge_does_not_wrap_round_the_coarsest_period():
+    """At ``s`` just above 0 the coarsest phase's noise puts half the pixels just below
+    2π, i.e. ``s_K`` near ``p_K`` (1024 mm), far past the 300 mm screen: they are read as
+    just below 0, and decode right. A pixel at the far edge is left alone."""
+    sigma = 0.01
+    for edge in (0.05, CODING.screen_extent_mm - 0.05):
+        s = np.full(20000, edge)
+        noisy = CODING.sequence(s) + np.random.default_rng(3).normal(0.0, sigma, (4, 4, 20000))
+        decoded = pmd.decode(noisy, CODING)
+        assert decoded.valid.all()
+        assert pmd.unwrap_failures(decoded.s_mm, s, CODING.periods_mm[0]) == 0
+        assert np.max(np.abs(decoded.s_mm - edge)) < 0.1
 
 
 def test_unwrapping_fails_where_the_period_ratio_outgrows_the_noise():
@@ -152,6 +171,35 @@ def test_unwrapping_fails_where_the_period_ratio_outgrows_the_noise():
     assert counts["wide"] > 100 and counts["safe"] == 0
 
 
+def test_unwrapping_failures_are_counted_pixel_for_pixel():
+    """Failures placed by construction: 37 pixels whose 16 mm frames show the fringe of
+    ``s + 9 mm`` (over half that period: the wrong 2 mm fringe is picked), 50 whose 16 mm
+    frames show ``s + 0.5 mm`` (a quarter of a 2 mm fringe: still the right one) and 20
+    whose frames carry no fringe (not valid, so not counted however far off)."""
+    s = screen(CODING, 1000)
+    frames = CODING.sequence(s)
+    rng = np.random.default_rng(7)
+    chosen = rng.permutation(1000)
+    wrong, slight, dark = chosen[:37], chosen[37:87], chosen[87:107]
+    for n in range(CODING.shifts):
+        frames[1, n, wrong] = CODING.radiance(s[wrong] + 9.0, 1, n)
+        frames[1, n, slight] = CODING.radiance(s[slight] + 0.5, 1, n)
+    frames[:, :, dark] = 0.5
+    decoded = pmd.decode(frames, CODING)
+    assert pmd.unwrap_failures(decoded.s_mm, s, CODING.periods_mm[0]) == 37
+    assert np.all(np.abs(decoded.s_mm[wrong] - s[wrong]) > 5.0)
+    assert (
+        np.max(
+            np.abs(np.delete(decoded.s_mm, np.r_[wrong, dark]) - np.delete(s, np.r_[wrong, dark]))
+        )
+        < 1e-9
+    )
+    # a pixel without an exact value (it misses the screen) is not counted either
+    exact = s.copy()
+    exact[wrong[:7]] = np.nan
+    assert pmd.unwrap_failures(decoded.s_mm, exact, CODING.periods_mm[0]) == 30
+
+
 def test_pixels_without_modulation_are_not_valid():
     s = screen(CODING, 100)
     frames = CODING.sequence(s)
@@ -163,6 +211,14 @@ def test_pixels_without_modulation_are_not_valid():
     dim = CODING.sequence(s) * 0.05
     assert not pmd.decode(dim, CODING).valid.any()
     assert pmd.decode(dim, CODING, peak_response=0.05).valid.all()
+    # an explicit threshold: B = 0.025 passes 0.02 and fails 0.03
+    assert pmd.decode(dim, CODING, min_modulation=0.02).valid.all()
+    assert not pmd.decode(dim, CODING, min_modulation=0.03).valid.any()
+    # one weak period is enough to drop a pixel
+    one_weak = CODING.sequence(s)
+    one_weak[2, :, 10] = 0.5 + 0.01 * (one_weak[2, :, 10] - 0.5)
+    assert not pmd.decode(one_weak, CODING).valid[10]
+    assert pmd.decode(one_weak, CODING).valid[np.arange(100) != 10].all()
 
 
 def test_heights_from_slopes_and_the_dent_they_hold():
@@ -189,6 +245,67 @@ def test_heights_from_slopes_and_the_dent_they_hold():
     valid[:10, :10] = False
     holed = pmd.integrate_slopes(slope_x, slope_z, (spacing, spacing), valid, outside)
     assert np.isnan(holed[:10, :10]).all() and np.isfinite(holed[20:, 20:]).all()
+
+
+def _mirror(direction: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    return direction - 2 * np.sum(direction * normal, axis=-1, keepdims=True) * normal
+
+
+def _tilted(slope_x, slope_z) -> np.ndarray:
+    """The unit normal of the surface ``y = slope_x x + slope_z z``."""
+    n = np.stack(np.broadcast_arrays(-slope_x, 1.0, -slope_z), axis=-1).astype(float)
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+
+def test_normals_of_a_flat_mirror_and_of_a_known_tilt():
+    """A screen point where the camera's ray, reflected at P by a mirror of normal n,
+    lands: the measured normal is n. On the flat nominal mirror (+y) the slope deviation is
+    0; on a mirror tilted to slopes (3e-3, -1e-3) it is exactly those slopes."""
+    rng = np.random.default_rng(0)
+    points = np.column_stack([rng.uniform(-20, 20, 50), np.zeros(50), rng.uniform(-20, 20, 50)])
+    camera = np.array([0.0, 400.0, -300.0])
+    up = np.array([0.0, 1.0, 0.0])
+    for slopes in ((0.0, 0.0), (3e-3, -1e-3), (0.2, 0.1)):
+        normal = _tilted(*slopes)
+        seen = _mirror(points - camera, normal)  # the reflected ray's direction
+        screen_points = points + 700.0 * seen / np.linalg.norm(seen, axis=-1, keepdims=True)
+        measured = pmd.normals_from_points(points, camera, screen_points)
+        assert np.allclose(np.linalg.norm(measured, axis=-1), 1.0, atol=1e-15)
+        assert np.allclose(measured, normal, atol=1e-12)
+        gx, gz = pmd.slope_deviation(measured, up)
+        assert np.allclose(gx, slopes[0], atol=1e-12) and np.allclose(gz, slopes[1], atol=1e-12)
+    # relative to a tilted nominal normal: only the difference counts
+    gx, gz = pmd.slope_deviation(_tilted(0.05, 0.02), _tilted(0.04, 0.03))
+    assert gx == pytest.approx(0.01, abs=1e-14) and gz == pytest.approx(-0.01, abs=1e-14)
+    # a small tilt by an angle α about z: slope tan α ≈ α rad
+    alpha = 50e-6
+    gx, gz = pmd.slope_deviation(np.array([-np.sin(alpha), np.cos(alpha), 0.0]), up)
+    assert gx == pytest.approx(alpha, rel=1e-8) and gz == 0.0
+
+
+def test_a_dent_seen_in_reflection_comes_back_from_its_screen_points():
+    """The whole chain on a flat part with a Gaussian dent: each grid point reflects the
+    camera's ray to a screen point with the dented normal; from those screen points the
+    measured normals, their slopes against +y, the integrated heights and the fitted dent
+    give back the dent's depth and σ."""
+    spacing = 0.2
+    x = (np.arange(81) - 40) * spacing
+    xx, zz = np.meshgrid(x, x)
+    depth, sigma = 2e-3, 1.2
+    gauss = np.exp(-(xx**2 + zz**2) / (2 * sigma**2))
+    normal = _tilted(depth * gauss * xx / sigma**2, depth * gauss * zz / sigma**2)
+    points = np.stack([xx, np.zeros_like(xx), zz], axis=-1)
+    camera = np.array([0.0, 300.0, -200.0])
+    seen = _mirror(points - camera, normal)
+    screen_points = points + 500.0 * seen / np.linalg.norm(seen, axis=-1, keepdims=True)
+    measured = pmd.normals_from_points(points, camera, screen_points)
+    gx, gz = pmd.slope_deviation(measured, np.array([0.0, 1.0, 0.0]))
+    outside = xx**2 + zz**2 > (4 * sigma) ** 2
+    height = pmd.integrate_slopes(gx, gz, spacing, outside=outside)
+    assert np.nanmax(np.abs(height - pmd.remove_plane(-depth * gauss, outside))) < 0.02 * depth
+    dent = pmd.dent_from_height(height, xx, zz)
+    assert dent.depth == pytest.approx(depth, rel=0.02)
+    assert dent.sigma_mm == pytest.approx(sigma, rel=0.05)
 
 
 @pytest.mark.parametrize(
