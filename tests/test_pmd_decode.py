@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.ndimage import label
 
 from glshade.errors import GlshadeError
 from glshade.metrics import pmd
@@ -245,6 +246,36 @@ def test_heights_from_slopes_and_the_dent_they_hold():
     valid[:10, :10] = False
     holed = pmd.integrate_slopes(slope_x, slope_z, (spacing, spacing), valid, outside)
     assert np.isnan(holed[:10, :10]).all() and np.isfinite(holed[20:, 20:]).all()
+
+
+def test_heights_over_two_separate_regions_and_unequal_spacings():
+    """A valid region cut in two by a column of invalid pixels: each half's offset is free,
+    so the tilt is fitted in common and each half gets its own offset. The right half is a
+    pure tilt and comes back flat; the left one holds the dent. Spacings 0.1 mm along x and
+    0.15 mm along z."""
+    dx, dz = 0.1, 0.15
+    x = (np.arange(161) - 50) * dx
+    z = (np.arange(81) - 40) * dz
+    xx, zz = np.meshgrid(x, z)
+    depth, sigma = 4e-3, 1.0
+    gauss = np.exp(-(xx**2 + zz**2) / (2 * sigma**2))
+    slope_x = depth * gauss * xx / sigma**2 + 3e-4
+    slope_z = depth * gauss * zz / sigma**2 + 2e-4
+    valid = np.ones(xx.shape, bool)
+    valid[:, 100:103] = False
+    outside = xx**2 + zz**2 > (4 * sigma) ** 2
+    height = pmd.integrate_slopes(slope_x, slope_z, (dx, dz), valid, outside)
+    assert np.isnan(height[:, 100:103]).all() and np.isfinite(height[valid]).all()
+    assert np.max(np.abs(height[:, 103:])) < 1e-3 * depth  # the tilt is gone, no step
+    assert np.max(np.abs(height[:, :100] + depth * gauss[:, :100])) < 0.02 * depth
+    dent = pmd.dent_from_height(height[:, :100], xx[:, :100], zz[:, :100])
+    assert dent.depth == pytest.approx(depth, rel=0.02)
+    assert dent.sigma_mm == pytest.approx(sigma, rel=0.05)
+    # a step between the halves: one plane cannot take it out, an offset per half can
+    stepped = height + 0.1 * (xx > 5.0)
+    assert np.nanmax(np.abs(pmd.remove_plane(stepped, outside) - height)) > 0.01
+    halves = label(valid)[0]
+    assert np.nanmax(np.abs(pmd.remove_plane(stepped, outside, halves) - height)) < 1e-12
 
 
 def _mirror(direction: np.ndarray, normal: np.ndarray) -> np.ndarray:

@@ -315,22 +315,39 @@ def integrate_slopes(
     pin[first[:count]] = 1.0
     normal = (matrix.T @ matrix + diags(pin)).tocsc()
     heights[ok] = spsolve(normal, matrix.T @ b)
-    return remove_plane(heights, outside)
+    return remove_plane(heights, outside, regions if count > 1 else None)
 
 
-def remove_plane(heights: np.ndarray, outside: np.ndarray | None = None) -> np.ndarray:
+def remove_plane(
+    heights: np.ndarray, outside: np.ndarray | None = None, regions: np.ndarray | None = None
+) -> np.ndarray:
     """``heights`` minus the plane ``a + b column + c row`` fitted (least squares) to its
-    finite values where ``outside`` (default: all of them)."""
+    finite values where ``outside`` (default: all of them). With ``regions`` (an integer
+    label per pixel, as :func:`scipy.ndimage.label` gives), the tilt is shared and each
+    region gets its own offset ``a`` (regions unconnected to each other have unrelated
+    offsets); a region with no pixel to fit keeps its heights' offset."""
     fit = np.isfinite(heights)
     if outside is not None:
         fit &= np.asarray(outside, bool)
     if fit.sum() < 3:
         return heights
-    row, col = np.nonzero(fit)
-    design = np.column_stack([np.ones(len(row)), col, row])
-    coef = np.linalg.lstsq(design, heights[fit], rcond=None)[0]
     all_rows, all_cols = np.indices(heights.shape)
-    return heights - (coef[0] + coef[1] * all_cols + coef[2] * all_rows)
+    if regions is None:
+        labels = np.zeros(heights.shape, int)
+    else:
+        labels = np.unique(np.asarray(regions), return_inverse=True)[1].reshape(heights.shape)
+    count = int(labels.max()) + 1
+
+    def design(where: np.ndarray) -> np.ndarray:
+        offsets = np.zeros((int(where.sum()), count))
+        offsets[np.arange(len(offsets)), labels[where]] = 1.0
+        return np.column_stack([offsets, all_cols[where], all_rows[where]])
+
+    coef = np.linalg.lstsq(design(fit), heights[fit], rcond=None)[0]
+    finite = np.isfinite(heights)
+    result = heights.copy()
+    result[finite] -= design(finite) @ coef
+    return result
 
 
 @dataclass(frozen=True)
