@@ -266,11 +266,8 @@ def integrate_slopes(
     from scipy.sparse import coo_matrix, diags
     from scipy.sparse.linalg import spsolve
 
-    dx, dz = (
-        (float(spacing_mm), float(spacing_mm))
-        if np.ndim(spacing_mm) == 0
-        else (float(spacing_mm[0]), float(spacing_mm[1]))  # type: ignore[index]
-    )
+    steps = np.broadcast_to(np.asarray(spacing_mm, np.float64), (2,))
+    dx, dz = float(steps[0]), float(steps[1])
     gx, gz = np.asarray(slope_x, np.float64), np.asarray(slope_z, np.float64)
     if gx.ndim != 2 or gx.shape != gz.shape:
         raise GlshadeError(
@@ -331,10 +328,10 @@ def remove_plane(
         fit &= np.asarray(outside, bool)
     if fit.sum() < 3:
         return heights
-    all_rows, all_cols = np.indices(heights.shape)
-    if regions is None:
-        labels = np.zeros(heights.shape, int)
-    else:
+    grid = np.indices(heights.shape)
+    all_rows, all_cols = grid[0], grid[1]
+    labels: np.ndarray = np.zeros(heights.shape, int)
+    if regions is not None:
         labels = np.unique(np.asarray(regions), return_inverse=True)[1].reshape(heights.shape)
     count = int(labels.max()) + 1
 
