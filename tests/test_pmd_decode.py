@@ -241,11 +241,20 @@ def test_heights_from_slopes_and_the_dent_they_hold():
     assert dent.depth == pytest.approx(depth, rel=0.02)
     assert dent.sigma_mm == pytest.approx(sigma, rel=0.05)
     assert abs(dent.x0_mm) < 0.05 and abs(dent.z0_mm) < 0.05
+    # Frankot-Chellappa on the same rectangle agrees
+    fourier = pmd.integrate_slopes(
+        slope_x, slope_z, spacing, outside=outside, method="frankot-chellappa"
+    )
+    assert np.max(np.abs(fourier - expected)) < 0.01 * depth
+    assert pmd.dent_from_height(fourier, xx, zz).depth == pytest.approx(depth, rel=0.02)
     # a hole in the valid region: the rest still integrates, the hole stays NaN
     valid = np.ones_like(outside)
     valid[:10, :10] = False
     holed = pmd.integrate_slopes(slope_x, slope_z, (spacing, spacing), valid, outside)
     assert np.isnan(holed[:10, :10]).all() and np.isfinite(holed[20:, 20:]).all()
+    assert np.nanmax(np.abs(holed - expected)) < 0.01 * depth
+    with pytest.raises(GlshadeError, match="frankot-chellappa needs every pixel valid, 100 of"):
+        pmd.integrate_slopes(slope_x, slope_z, spacing, valid, method="frankot-chellappa")
 
 
 def test_heights_over_two_separate_regions_and_unequal_spacings():

@@ -251,6 +251,7 @@ def integrate_slopes(
     spacing_mm: float | tuple[float, float],
     valid: np.ndarray | None = None,
     outside: np.ndarray | None = None,
+    method: str = "least-squares",
 ) -> np.ndarray:
     """Heights (the slopes' unit times mm) on a regular grid from the slopes ``∂h/∂x``
     (along columns, spacing ``dx``) and ``∂h/∂z`` (along rows, spacing ``dz``;
@@ -261,7 +262,11 @@ def integrate_slopes(
     squares solution comes from the normal equations, solved directly (SciPy's sparse
     ``spsolve``) with one height per connected valid region held at 0 (each region's
     free offset). Then the plane (tilt and offset) fitted over the valid pixels of
-    ``outside`` (default: every valid pixel) is removed. NaN where not valid."""
+    ``outside`` (default: every valid pixel) is removed. NaN where not valid.
+
+    ``method="frankot-chellappa"`` integrates in Fourier space instead (the slopes
+    mirrored to an even height of twice the size, so the grid's edges do not wrap): only
+    where every pixel is valid, a rectangle."""
     from scipy.ndimage import label
     from scipy.sparse import coo_matrix, diags
     from scipy.sparse.linalg import spsolve
@@ -276,6 +281,18 @@ def integrate_slopes(
     ok = np.isfinite(gx) & np.isfinite(gz)
     if valid is not None:
         ok &= np.asarray(valid, bool)
+    if method == "frankot-chellappa":
+        if not ok.all():
+            raise GlshadeError(
+                f"integrate_slopes: frankot-chellappa needs every pixel valid, "
+                f"{int((~ok).sum())} of {ok.size} are not"
+            )
+        return remove_plane(_frankot_chellappa(gx, gz, dx, dz), outside)
+    if method != "least-squares":
+        raise GlshadeError(
+            f"integrate_slopes: method must be 'least-squares' or 'frankot-chellappa', "
+            f"got {method!r}"
+        )
     unknowns = int(ok.sum())
     heights = np.full(gx.shape, np.nan)
     if unknowns == 0:
@@ -313,6 +330,21 @@ def integrate_slopes(
     normal = (matrix.T @ matrix + diags(pin)).tocsc()
     heights[ok] = spsolve(normal, matrix.T @ b)
     return remove_plane(heights, outside, regions if count > 1 else None)
+
+
+def _frankot_chellappa(gx: np.ndarray, gz: np.ndarray, dx: float, dz: float) -> np.ndarray:
+    """The height whose gradient is nearest ``(gx, gz)`` among periodic ones, on the
+    field mirrored about both edges (``gx`` odd across a column flip and even across a row
+    flip, ``gz`` the other way round): ``ĥ = -i (ω_x ĝx + ω_z ĝz) / (ω_x² + ω_z²)``."""
+    p = np.block([[gx, -gx[:, ::-1]], [gx[::-1, :], -gx[::-1, ::-1]]])
+    q = np.block([[gz, gz[:, ::-1]], [-gz[::-1, :], -gz[::-1, ::-1]]])
+    wx = 2.0 * np.pi * np.fft.fftfreq(p.shape[1], dx)[None, :]
+    wz = 2.0 * np.pi * np.fft.fftfreq(p.shape[0], dz)[:, None]
+    denominator = wx**2 + wz**2
+    denominator[0, 0] = 1.0
+    spectrum = -1j * (wx * np.fft.fft2(p) + wz * np.fft.fft2(q)) / denominator
+    spectrum[0, 0] = 0.0
+    return np.asarray(np.fft.ifft2(spectrum).real[: gx.shape[0], : gx.shape[1]])
 
 
 def remove_plane(
