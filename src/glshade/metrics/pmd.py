@@ -6,15 +6,18 @@ An inspection station shows sinusoidal fringes on a screen, at ``N`` phase shift
 This module is the station's side, pure NumPy/SciPy and independent of rendering:
 
 - :class:`FringeCoding`: the periods (finest first), shifts, offset, amplitude, the
-  screen's grey levels and gamma, and the screen's extent; :meth:`FringeCoding.radiance`
-  is what frame ``(k, n)`` displays at a screen coordinate (the oracle of a rendered frame
-  and the generator of synthetic sequences).
+  screen's grey levels and gamma, and the screen's extent.
+- :func:`commanded_to_displayed` (and :meth:`FringeCoding.radiance`): what a frame
+  displays at a screen coordinate (the oracle of a rendered frame and the generator of
+  synthetic sequences).
 - :func:`decode`: wrapped phases, modulation, offset and temporal unwrapping of a
   ``(K, N, H, W)`` sequence into the screen coordinate ``s`` (mm from the screen's edge).
 - :func:`unwrap_failures`, :func:`predicted_noise_mm`: against the exact map, and the
   noise a decoder should reach.
-- :func:`integrate_slopes`, :func:`dent_from_height`: least-squares heights from slope
-  maps, and the Gaussian dent they hold.
+- :func:`normals_from_points`, :func:`slope_deviation`: the measured normals from the
+  decoded screen points, and their slopes against the nominal normals.
+- :func:`integrate_slopes`, :func:`remove_plane`, :func:`dent_from_height`: least-squares
+  (or Frankot-Chellappa) heights from slope maps, and the Gaussian dent they hold.
 """
 
 from __future__ import annotations
