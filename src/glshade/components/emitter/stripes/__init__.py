@@ -2,9 +2,10 @@
 mirror position of the camera (it moves with the camera's elevation and the rig's azimuth).
 
 Table and pattern: :class:`~glshade.components.emitter.stripes.table.Emitter`. GLSL:
-``lib/emitter_plane.glsl`` (shared with the other emitters: where a reflected ray lands, how fast ``v`` moves), ``stripes.glsl`` (the
-radiance, and the stripes seen through a Gaussian or GGX lobe) and ``diffuse.glsl`` (a
-Lambertian reflection of the whole emitter), each only where the program needs it.
+``lib/emitter_plane.glsl`` (the plane, shared with the other emitters: where a reflected
+ray lands, how fast ``v`` moves), ``stripes.glsl`` (the radiance, and the stripes seen
+through a Gaussian or GGX lobe) and ``diffuse.glsl`` (a Lambertian reflection of the
+whole emitter), each only where the program needs it.
 Oracle: :meth:`Stripes.coordinates` and the pattern's radiance.
 """
 
