@@ -307,7 +307,14 @@ class Param:
         if self.value_type in ("choice", "text", "path") or text in self.keywords:
             return text
         if self.value_type == "names":
-            return tuple(p for p in text.strip("[]()").replace(",", " ").replace('"', " ").split())
+            return tuple(
+                p
+                for p in text.strip("[]()")
+                .replace(",", " ")
+                .replace('"', " ")
+                .replace("'", " ")
+                .split()
+            )
         if self.value_type == "table":
             return tuple(
                 (name.strip(), parse_quantity(number, "", f"{self.path}.{name.strip()}"))

@@ -57,7 +57,7 @@ class Fringes(EmitterComponent):
     @staticmethod
     def frame(scene) -> FringesTable:
         """The scene's emitter table, as the fringes read it."""
-        return scene.emitter  # type: ignore[no-any-return]
+        return scene.emitter
 
     def pattern(self, scene):
         raise GlshadeError(NO_STRIPE_METRIC)
