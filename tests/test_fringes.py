@@ -177,3 +177,10 @@ def test_render_and_measure_from_a_scene_file(tmp_path, capsys):
     assert main(["measure", str(path)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and NO_STRIPE_METRIC in err
+
+
+def test_a_stripes_scene_is_not_held_to_the_fringes_checks():
+    wide = paper_scene().updated(emitter={"half_size": [1e4, 1e4]})
+    assert wide.emitter.kind == "stripes"
+    with pytest.raises(SceneError, match="20000 mm"):
+        wide.updated(emitter={"kind": "fringes"})

@@ -46,6 +46,10 @@ def displayed(commanded: np.ndarray, levels: int, gamma: float) -> np.ndarray:
 
 
 def _check(values: dict[str, Any]) -> None:
+    """The sequence and the screen together, where the fringes are the scene's emitter
+    (a scene of another emitter keeps these values unchecked together, as it keeps them)."""
+    if values.get("kind") != "fringes":
+        return
     periods, half = values["periods"], values["half_size"]
     if any(b <= a for a, b in zip(periods, periods[1:], strict=False)) or periods[0] <= 0.0:
         raise SceneError(
