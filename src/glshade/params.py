@@ -28,8 +28,9 @@ from glshade.errors import SceneError
 from glshade.units import examples, parse_quantity
 
 #: How a value is typed: a real number, an integer, one of some names, a pair of numbers,
-#: a fixed-length list of numbers (``size`` of them), a text (a formula), a table of named numbers.
-VALUE_TYPES = ("real", "integer", "choice", "pair", "vector", "text", "table", "path")
+#: a fixed-length list of numbers (``size`` of them; 0: any non-empty list), a list of distinct
+#: names (each one of ``choices``), a text (a formula), a table of named numbers.
+VALUE_TYPES = ("real", "integer", "choice", "names", "pair", "vector", "text", "table", "path")
 #: The longest text value accepted.
 MAX_TEXT = 2000
 ROLES = ("feature", "uniform")
@@ -119,7 +120,11 @@ class Param:
         if self.value_type == "pair":
             return f"two numbers [u, v] > 0 ({self.unit})"
         if self.value_type == "vector":
+            if not self.size:
+                return "a non-empty list of finite numbers"
             return f"a list of {self.size} finite numbers"
+        if self.value_type == "names":
+            return "a non-empty list of distinct names, each one of " + ", ".join(self.choices)
         if self.value_type == "text":
             return f"a text of at most {MAX_TEXT} characters"
         if self.value_type == "path":
@@ -153,6 +158,19 @@ class Param:
             return value
         if self.value_type == "integer":
             return self._integer(value)
+        if self.value_type == "names":
+            if isinstance(value, str):
+                value = [value]
+            if (
+                not isinstance(value, (list, tuple))
+                or not value
+                or any(name not in self.choices for name in value)
+                or len(set(value)) != len(value)
+            ):
+                raise SceneError(
+                    self.path, self.allowed(), list(value) if isinstance(value, tuple) else value
+                )
+            return tuple(value)
         if self.value_type == "path":
             if isinstance(value, os.PathLike):
                 value = os.fspath(value)
@@ -183,7 +201,9 @@ class Param:
                 raise SceneError(self.path, self.allowed(), value)
             return (self._real(value[0]), self._real(value[1]))
         if self.value_type == "vector":
-            if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != self.size:
+            if not isinstance(value, (list, tuple, np.ndarray)) or (
+                len(value) != self.size if self.size else not len(value)
+            ):
                 raise SceneError(
                     self.path, self.allowed(), list(value) if isinstance(value, tuple) else value
                 )
@@ -286,6 +306,15 @@ class Param:
         text = text.strip()
         if self.value_type in ("choice", "text", "path") or text in self.keywords:
             return text
+        if self.value_type == "names":
+            return tuple(
+                p
+                for p in text.strip("[]()")
+                .replace(",", " ")
+                .replace('"', " ")
+                .replace("'", " ")
+                .split()
+            )
         if self.value_type == "table":
             return tuple(
                 (name.strip(), parse_quantity(number, "", f"{self.path}.{name.strip()}"))
@@ -315,6 +344,8 @@ class Param:
             )
         if self.value_type in ("pair", "vector"):
             return "[" + ", ".join(f"{number:g}" for number in self.default) + "]"
+        if self.value_type == "names":
+            return "[" + ", ".join(f'"{name}"' for name in self.default) + "]"
         return f"{self.default:g}"
 
 

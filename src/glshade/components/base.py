@@ -391,6 +391,20 @@ class EmitterComponent(Component):
         """The radiance (float64) where rays land at screen coordinate ``v`` (mm)."""
         return self.pattern(scene).radiance(v)
 
+    def along(self, scene: SceneView, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The screen coordinate :meth:`radiance` takes (mm): ``v``, along which the
+        stripes vary (an emitter varying along ``u`` says so)."""
+        return v
+
+    def finest_period_mm(self, scene: SceneView) -> float:
+        """The shortest period of the pattern shown (mm), for the warnings about blur."""
+        return float(self.pattern(scene).period_mm)
+
+    def radiance_step(self, scene: SceneView) -> float:
+        """The largest step between neighbouring radiance levels the emitter shows (0: a
+        continuous radiance): where float32 and float64 may differ by one level."""
+        return 0.0
+
     def pattern(self, scene: SceneView) -> Any:
         """The pattern shown: ``period_mm``, ``phase_mm``, ``feature_mm`` (the finest
         length over which it changes), ``radiance(v, phase_mm=None)``,

@@ -24,6 +24,7 @@ from types import ModuleType
 from typing import Any
 
 from glshade.components.base import Active, Component, SceneView, Slot
+from glshade.components.emitter.table import EmitterTable
 from glshade.components.fresnel.table import FresnelChoice
 from glshade.components.reflection.table import ReflectionChoice
 from glshade.components.surface.table import SurfaceTable
@@ -44,7 +45,8 @@ SLOTS: tuple[Slot, ...] = (
          "the base surface y = f(x, z) and its first hit", "surface.glsl"),
     Slot("defect", "defect", None, False,
          "the defect D(x, z) on the surface, and the hit it needs", "defect.glsl"),
-    Slot("emitter", "emitter", None, False, "the light source the rays land on", "emitter.glsl"),
+    Slot("emitter", "emitter", EmitterTable.declaration("kind"), False,
+         "the light source the rays land on", "emitter.glsl"),
     Slot("reflection", "render", ReflectionChoice.declaration("reflection"), False,
          "how the surface reflects", "reflection.glsl"),
     Slot("fresnel", "render", FresnelChoice.declaration("fresnel"), False,

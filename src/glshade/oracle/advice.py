@@ -37,7 +37,7 @@ def _lobe_warning(scene: Scene, component) -> tuple[str, ...]:
     if std is None:
         return ()
     width = footprint_mm(scene, std)
-    period = scene.active.emitter.pattern(scene).period_mm
+    period = scene.active.emitter.finest_period_mm(scene)
     if width is None or width <= 0.5 * period:
         return ()
     hint = component.sharpen_hint(scene, width / (0.5 * period))

@@ -372,7 +372,8 @@ def _shade(scene: Scene, origins: np.ndarray, d: np.ndarray, want_image: bool):
         uu, vv, okk = parts.emitter.coordinates(scene, p, _reflect(dh, n_s))
         u[idx], v[idx], ok[idx] = uu, vv, okk
         if want_image:
-            shaded = parts.reflection.shade(scene, p, dh, n_s, vv, okk)
+            along = parts.emitter.along(scene, uu, vv)
+            shaded = parts.reflection.shade(scene, p, dh, n_s, along, okk)
             value[idx] = shaded * parts.fresnel.reflectance(scene, -np.einsum("nk,nk->n", dh, n_s))
     return value, u, v, ok
 

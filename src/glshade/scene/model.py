@@ -29,7 +29,8 @@ import numpy as np
 from glshade.components.base import Active
 from glshade.components.camera.perspective.table import Camera
 from glshade.components.defect.gaussian.table import Defect
-from glshade.components.emitter.stripes.table import Emitter
+from glshade.components.emitter.stripes.table import Emitter as StripesTable
+from glshade.components.emitter.table import EmitterTable
 from glshade.components.image_scale import auto_period_mm
 from glshade.components.registry import registry
 from glshade.components.render.table import RenderTable
@@ -76,7 +77,14 @@ class RenderSettings(_Joined, RenderTable):
     ``fresnel`` (which components) and the parameters those declare."""
 
 
-_SHARED: tuple[type, ...] = (Surface, RenderSettings)
+@dataclass(frozen=True)
+class Emitter(_Joined, EmitterTable, StripesTable):
+    """The light source: ``kind`` names the emitter component (default the stripes,
+    whose parameters are typed here); the other kinds' parameters (the fringes'
+    ``periods``, ``shifts``, ...) are those the registered emitters declare."""
+
+
+_SHARED: tuple[type, ...] = (Surface, RenderSettings, Emitter)
 
 TABLE_CLASSES: dict[str, type[Table]] = {
     "camera": Camera,
@@ -374,7 +382,7 @@ def _file_values(scene: Scene, table: str, everything: bool = False) -> dict[str
             continue
         values[param.key] = (
             list(value)
-            if param.value_type in ("pair", "vector")
+            if param.value_type in ("pair", "vector", "names")
             else dict(value)
             if param.value_type == "table"
             else value

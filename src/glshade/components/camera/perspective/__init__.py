@@ -61,7 +61,10 @@ class Perspective(CameraComponent):
         return 2.0 * aperture_radius(cam) * abs(so - sf) / sf
 
     def warnings(self, scene):
-        blur, period = self.stripe_blur_mm(scene), scene.active.emitter.pattern(scene).period_mm
+        blur = self.stripe_blur_mm(scene)
+        if blur <= 0.0:
+            return ()
+        period = scene.active.emitter.finest_period_mm(scene)
         if blur <= 0.5 * period:
             return ()
         cam = scene.camera

@@ -1,0 +1,188 @@
+"""The fringe emitter's table: sinusoidal fringes of several periods, each shown at ``N``
+phase shifts along ``v`` and ``u``, and which one frame of that sequence the scene shows.
+
+Frame ``(d, k, n)`` commands ``L = offset + amplitude cos(2π s / periods[k] - 2π n / N)``
+with ``s`` the distance from the screen's edge along ``d`` (``v + half_size[1]`` or
+``u + half_size[0]``), quantised to ``levels`` grey levels and displayed as
+``commanded ** gamma`` (:func:`displayed`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from glshade.components.emitter.stripes.table import Emitter as StripesTable
+from glshade.errors import SceneError
+from glshade.params import PARAM_KEY, Control, Table, param
+
+#: The directions a frame's fringes vary along: ``"v"`` (lines of constant ``v``, like the
+#: stripes) and ``"u"`` (crossed).
+DIRECTIONS = ("v", "u")
+#: The most grey levels a screen may command (16 bits).
+MAX_LEVELS = 65536
+#: The most phase steps per period.
+MAX_SHIFTS = 1024
+
+
+def _shared(name: str) -> Any:
+    """The stripes' declaration of the screen's geometry (``distance``, ``half_size``):
+    the same parameter, shared by every emitter on that plane."""
+    item = next(f for f in fields(StripesTable) if f.name == name)
+    return field(default=item.default, metadata={PARAM_KEY: item.metadata[PARAM_KEY]})
+
+
+def displayed(commanded: np.ndarray, levels: int, gamma: float) -> np.ndarray:
+    """What the screen shows for commanded values (float64): clamped to ``[0, 1]``,
+    rounded to the nearest of ``levels`` grey levels ``j / (levels - 1)`` (halves up:
+    ``floor(c (levels - 1) + 0.5)``; ``levels = 0``: not rounded), then ``** gamma``."""
+    c = np.clip(np.asarray(commanded, np.float64), 0.0, 1.0)
+    if levels:
+        c = np.floor(c * (levels - 1) + 0.5) / (levels - 1)
+    return c**gamma
+
+
+def _check(values: dict[str, Any]) -> None:
+    """The sequence and the screen together, where the fringes are the scene's emitter
+    (a scene of another emitter keeps these values unchecked together, as it keeps them)."""
+    if values.get("kind") != "fringes":
+        return
+    periods, half = values["periods"], values["half_size"]
+    if any(b <= a for a, b in zip(periods, periods[1:], strict=False)) or periods[0] <= 0.0:
+        raise SceneError(
+            "emitter.periods", "positive periods increasing from the finest", list(periods)
+        )
+    if values["levels"] == 1:
+        raise SceneError("emitter.levels", "0 (continuous) or at least 2 grey levels", 1)
+    if values["offset"] + values["amplitude"] > 1.0:
+        raise SceneError(
+            "emitter.offset",
+            f"offset + amplitude <= 1 (the screen's full scale; amplitude is "
+            f"{values['amplitude']:g})",
+            values["offset"],
+        )
+    for direction in values["directions"]:
+        extent = 2.0 * half[DIRECTIONS.index(direction) ^ 1]
+        if periods[-1] < extent:
+            raise SceneError(
+                "emitter.periods",
+                f"a coarsest period of at least the screen's extent along {direction!r}, "
+                f"2 half_size = {extent:g} mm (else the phase is ambiguous)",
+                periods[-1],
+            )
+    if values["frame_direction"] not in values["directions"]:
+        raise SceneError(
+            "emitter.frame_direction",
+            "one of emitter.directions " + ", ".join(values["directions"]),
+            values["frame_direction"],
+        )
+    if values["frame_period_index"] >= len(periods):
+        raise SceneError(
+            "emitter.frame_period_index",
+            f"an index into emitter.periods, 0 to {len(periods) - 1}",
+            values["frame_period_index"],
+        )
+    if values["frame_shift_index"] >= values["shifts"]:
+        raise SceneError(
+            "emitter.frame_shift_index",
+            f"a phase step 0 to shifts - 1 = {values['shifts'] - 1}",
+            values["frame_shift_index"],
+        )
+
+
+@dataclass(frozen=True)
+class FringesTable(Table):
+    """The fringe sequence (``periods`` in mm, finest first; ``shifts`` phase steps;
+    ``directions``), the screen (``offset``, ``amplitude``, ``gamma``, ``levels``) and the
+    frame the scene shows (``frame_direction``, ``frame_period_index``,
+    ``frame_shift_index``)."""
+
+    table = "emitter"
+    table_checks = (_check,)
+
+    distance: float = _shared("distance")
+    half_size: tuple[float, float] = _shared("half_size")
+    periods: tuple[float, ...] = param(
+        "emitter.periods", "mm", (2.0, 16.0, 128.0, 1024.0),
+        "fringe periods, finest first; the coarsest at least the screen's extent "
+        "2 half_size along each direction", value_type="vector",
+    )  # fmt: skip
+    shifts: int = param(
+        "emitter.shifts", "", 4, "phase steps per period, N >= 3 (step 2π n / N)",
+        value_type="integer", lo=3, hi=MAX_SHIFTS,
+    )  # fmt: skip
+    directions: tuple[str, ...] = param(
+        "emitter.directions", "", DIRECTIONS,
+        'the sequence\'s directions: "v" (fringes of constant v, like the stripes), '
+        '"u" (crossed)', value_type="names", choices=DIRECTIONS,
+    )  # fmt: skip
+    offset: float = param(
+        "emitter.offset", "", 0.5, "mean commanded value (offset + amplitude <= 1)",
+        lo=0.0, closed=True, control=Control("offset", 0.0, 1.0, fmt="%.3f"),
+    )  # fmt: skip
+    amplitude: float = param(
+        "emitter.amplitude", "", 0.5, "commanded modulation (offset + amplitude <= 1)",
+        lo=0.0, closed=True, control=Control("amplitude", 0.0, 1.0, fmt="%.3f"),
+    )  # fmt: skip
+    gamma: float = param(
+        "emitter.gamma", "", 1.0, "the screen's response: displayed = commanded ** gamma",
+        lo=0.0, control=Control("gamma", 0.2, 5.0, log=True, fmt="%.2f"),
+    )  # fmt: skip
+    levels: int = param(
+        "emitter.levels", "", 256, "commanded grey levels of the screen (0: continuous; never 1)",
+        value_type="integer", lo=0, hi=MAX_LEVELS,
+    )  # fmt: skip
+    frame_direction: str = param(
+        "emitter.frame_direction", "", "v", "the frame shown: its direction (one of directions)",
+        value_type="choice", choices=DIRECTIONS,
+    )  # fmt: skip
+    frame_period_index: int = param(
+        "emitter.frame_period_index", "", 0, "the frame shown: its period, an index into periods",
+        value_type="integer", lo=0, hi=1023,
+    )  # fmt: skip
+    frame_shift_index: int = param(
+        "emitter.frame_shift_index", "", 0,
+        "the frame shown: its phase step n, 0 to shifts - 1", value_type="integer", lo=0,
+        hi=MAX_SHIFTS - 1,
+    )  # fmt: skip
+
+    def clamp(self, name: str, value: Any) -> Any:
+        """Offset and amplitude within the screen's full scale together."""
+        if name == "offset":
+            return min(value, 1.0 - self.amplitude)
+        if name == "amplitude":
+            return min(value, 1.0 - self.offset)
+        return super().clamp(name, value)
+
+    # ---------------------------------------------------------------- the frame
+    @property
+    def axis(self) -> int:
+        """The screen coordinate the frame's fringes vary along: 0 for ``u``, 1 for ``v``."""
+        return DIRECTIONS.index(self.frame_direction) ^ 1
+
+    @property
+    def frame_period(self) -> float:
+        return self.periods[self.frame_period_index]
+
+    @property
+    def frame_step(self) -> float:
+        """The frame's phase step ``2π n / N`` (rad)."""
+        return 2.0 * math.pi * self.frame_shift_index / self.shifts
+
+    def fringe_radiance(self, along: np.ndarray) -> np.ndarray:
+        """The displayed radiance (float64) at screen coordinate ``along`` (mm: ``v`` for a
+        ``"v"`` frame, ``u`` for a ``"u"`` frame); NaN propagates."""
+        s = np.asarray(along, np.float64) + self.half_size[self.axis]
+        x = s / self.frame_period
+        x = x - np.floor(x)
+        commanded = self.offset + self.amplitude * np.cos(2.0 * math.pi * x - self.frame_step)
+        return displayed(commanded, self.levels, self.gamma)
+
+    def largest_step(self) -> float:
+        """The largest difference between neighbouring displayed levels (0: continuous)."""
+        if not self.levels:
+            return 0.0
+        return float(np.diff(np.linspace(0.0, 1.0, self.levels) ** self.gamma).max())

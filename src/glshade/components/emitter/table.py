@@ -1,0 +1,21 @@
+"""The emitter table's selector (``[emitter]`` of a scene file): ``kind`` names the
+emitter component; the emitter components' parameters join it when the scene composes its
+tables (the stripes' own table is the default's)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from glshade.params import Table, param
+
+
+@dataclass(frozen=True)
+class EmitterTable(Table):
+    """The light source: ``kind`` names the emitter component."""
+
+    table = "emitter"
+
+    kind: str = param(
+        "emitter.kind", "", "stripes", "the light source: which emitter component",
+        value_type="choice", role="feature", flag="--emitter",
+    )  # fmt: skip
