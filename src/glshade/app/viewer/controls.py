@@ -148,7 +148,9 @@ def parse_sets(items: list[str], scene: Scene) -> tuple[Scene, dict[str, str]]:
         elif isinstance(by_name(name), Control):
             scene = apply_setting(scene, name, slider(name).param.parse(raw))
         elif "." in name:  # any parameter by its dotted path, as render's --set
-            scene = scene.with_value(name, registry().param(name).parse(raw))
+            from glshade.app.args import parse_setting
+
+            scene = scene.with_value(*parse_setting(f"{name}={raw}", scene))
         else:
             apply_setting(scene, name, raw)  # names the unknown setting and lists the known ones
     return scene, extra
