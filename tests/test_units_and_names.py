@@ -371,3 +371,18 @@ def test_checks_over_several_values_name_the_flag(args, named, capsys):
     assert main(["render", "-o", "never.png", *args]) == 2
     err = capsys.readouterr().err
     assert named in err and len(err.strip().splitlines()) == 1
+
+
+def test_the_viewers_settings_are_named_as_typed():
+    from glshade.app.viewer.controls import parse_sets
+
+    with pytest.raises(SceneError) as info:
+        parse_sets(["sigma2=0"], Scene())
+    assert str(info.value).startswith("--set sigma2 (defect.sigma2): must be a finite number > 0")
+    with pytest.raises(SceneError, match=r"^--set theta \(camera.theta_deg\): must be a number"):
+        parse_sets(["theta=abc"], Scene())
+    with pytest.raises(SceneError, match=r"^camera.theta_deg: must be in \(0, 90\)"):
+        parse_sets(["camera.theta_deg=95"], Scene())  # a dotted path is named as it is
+    result = cli("view", "--size", "0", "--frames", "1")
+    assert result.returncode == 2
+    assert "--size (camera.width): must be an integer in [1, 16384], got 0" in result.stderr
