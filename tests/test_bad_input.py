@@ -146,7 +146,11 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     (["measure", "--step", "0.3um"], "got 0.0003 mm = 6667 phases", {}),
     (["paper", "--thetas", "95", "--out", "p"], "thetas", {}),
     (["paper", "--dmaxs", "3xx"], "defect.dmax: must be a number in mm, or with a unit", {}),
-    (["view", "--set", "theta=120"], "camera.theta_deg: must be in (0, 90) degrees, got 120.0", {}),
+    (
+        ["view", "--set", "theta=120"],
+        "--set theta (camera.theta_deg): must be in (0, 90) degrees, got 120.0",
+        {},
+    ),
     (["view", "--screenshot", "fifo.png", "--frames", "1"], "--screenshot fifo.png: is a FIFO", {}),
     (
         ["view", "--frames", "1"],
