@@ -52,7 +52,7 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     (["render", "--dmax", "5xx"], "defect.dmax: must be a number in mm, or with a unit", {}),
     (["render", "--dmax", "5kg"], "units: cm, m, mm, nm, um", {}),
     (["render", "--sigma2", "-1"], "--sigma2 (defect.sigma2): must be a finite number > 0", {}),
-    (["render", "--size", "0"], "camera.width: must be an integer in [1, 16384]", {}),
+    (["render", "--size", "0"], "--size (camera.width): must be an integer in [1, 16384]", {}),
     (
         ["render", "--supersample", "17"],
         "--supersample (render.supersample): must be an integer in [1, 16]",
@@ -91,7 +91,7 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     ),
     (
         ["render", "--distortion=-20,0,0,0,0"],
-        "camera.distortion: must be coefficients whose map does not fold",
+        "--distortion (camera.distortion): must be coefficients whose map does not fold",
         {},
     ),
     (
@@ -99,7 +99,11 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
         "--distortion (camera.distortion): must be a list of 5 finite numbers",
         {},
     ),
-    (["render", "--bit-depth", "13"], "sensor.bit_depth: must be one of 8, 10, 12, 16, got 13", {}),
+    (
+        ["render", "--bit-depth", "13"],
+        "--bit-depth (sensor.bit_depth): must be one of 8, 10, 12, 16, got 13",
+        {},
+    ),
     (
         ["render", "--aperture-samples", "0"],
         "--aperture-samples (camera.aperture_samples): must be an integer in [1, 1024]",
@@ -142,7 +146,11 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     (["measure", "--step", "0.3um"], "got 0.0003 mm = 6667 phases", {}),
     (["paper", "--thetas", "95", "--out", "p"], "thetas", {}),
     (["paper", "--dmaxs", "3xx"], "defect.dmax: must be a number in mm, or with a unit", {}),
-    (["view", "--set", "theta=120"], "camera.theta_deg: must be in (0, 90) degrees, got 120.0", {}),
+    (
+        ["view", "--set", "theta=120"],
+        "--set theta (camera.theta_deg): must be in (0, 90) degrees, got 120.0",
+        {},
+    ),
     (["view", "--screenshot", "fifo.png", "--frames", "1"], "--screenshot fifo.png: is a FIFO", {}),
     (
         ["view", "--frames", "1"],

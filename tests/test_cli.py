@@ -106,7 +106,7 @@ def test_info_reports_renderer_and_fp64():
     "args, fragment",
     [
         (["render", "--theta", "95"], "--theta (camera.theta_deg): must be in (0, 90)"),
-        (["render", "--size", "0"], "camera.width: must be an integer in [1, 16384]"),
+        (["render", "--size", "0"], "--size (camera.width): must be an integer in [1, 16384]"),
         (
             ["render", "--surface", "sphere", "--radius", "0"],
             "--radius (surface.radius): must be non-zero",

@@ -87,7 +87,7 @@ def test_parse_sets():
         ("theta=abc", "a number in degrees"),
         ("view=movie", "--set view"),
         ("theta=nan", "finite"),
-        ("theta=120", r"camera.theta_deg: must be in \(0, 90\) degrees"),
+        ("theta=120", r"--set theta \(camera.theta_deg\): must be in \(0, 90\) degrees"),
         ("camera.distance=-1", "camera.distance"),
     ):
         with pytest.raises(GlshadeError, match=fragment):
@@ -434,7 +434,8 @@ def test_bad_scene_file_opens_nothing(tmp_path):
         timeout=60,
     )
     assert (
-        result.returncode == 2 and "camera.theta_deg: must be a number in degrees" in result.stderr
+        result.returncode == 2
+        and "--set theta (camera.theta_deg): must be a number in degrees" in result.stderr
     )
 
 

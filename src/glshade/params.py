@@ -221,11 +221,17 @@ class Param:
             return type(value)(self._quantity(v) if isinstance(v, str) else v for v in value)
         return value
 
-    def _quantity(self, text: str) -> float:
+    def _quantity(self, text: str, entry: str | None = None) -> float:
+        """``text`` as a number in the parameter's unit (or with its own); a malformed
+        value or an unknown unit is a SceneError naming the parameter (``entry``: the
+        named entry of a table), what it allows and how to write it."""
+        field = self.path if entry is None else f"{self.path}.{entry}"
         try:
-            return parse_quantity(text, self.unit, self.path)
+            return parse_quantity(text, self.unit, field)
         except SceneError:
-            raise SceneError(self.path, f"{self.allowed()} ({examples(self.unit)})", text) from None
+            allowed = "a finite number" if entry is not None else self.allowed()
+            how = examples(self.unit) + ("" if self.unit else ", without a unit")
+            raise SceneError(field, f"{allowed} ({how})", text) from None
 
     def _finite(self, value: Any) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
@@ -259,6 +265,8 @@ class Param:
         for name, number in pairs:
             if not isinstance(name, str):
                 raise SceneError(self.path, self.allowed(), value)
+            if isinstance(number, str):  # "0.5", or with a unit where the table has one
+                number = self._quantity(number, name)
             if (
                 isinstance(number, bool)
                 or not isinstance(number, (int, float))
@@ -317,7 +325,7 @@ class Param:
             )
         if self.value_type == "table":
             return tuple(
-                (name.strip(), parse_quantity(number, "", f"{self.path}.{name.strip()}"))
+                (name.strip(), self.parse_entry(name.strip(), number))
                 for name, _, number in (
                     part.partition("=") for part in text.split(",") if part.strip()
                 )
@@ -329,6 +337,12 @@ class Param:
         if self.value_type == "integer" and number.is_integer():
             return int(number)
         return number
+
+    def parse_entry(self, name: str, text: str) -> float:
+        """One named entry of a table parameter from command-line text
+        (``--set surface.parameters.a=0.2``), unchecked: a number in the table's unit,
+        or with its own where the table has one."""
+        return parse_quantity(text, self.unit, f"{self.path}.{name}")
 
     def default_text(self) -> str:
         """The default as a scene file would spell it."""

@@ -1,10 +1,11 @@
 """Quantities as a user types them: a number with an optional unit.
 
 A bare number is in the parameter's own unit (``docs/scene-format.md``: lengths in mm,
-areas in mm², angles in degrees), so ``--dmax 5`` is still 5 mm. A value may also carry
-its unit wherever a number is typed: on the command line (``--dmax 5um``, ``--sigma2
-4mm2``, ``--theta 0.5rad``, ``--family defect.dmax=3um..5um``) and, as a string, in a
-scene file or ``Scene.with_value`` (``dmax = "5 um"``; :meth:`glshade.params.Param.check`).
+a few in µm, areas in mm², angles in degrees), so ``--dmax 5`` is still 5 mm. A value may
+also carry its unit wherever a number is typed: on the command line (``--dmax 5um``,
+``--sigma2 4mm2``, ``--theta 0.5rad``, ``--family defect.dmax=3um..5um``) and, as a
+string, in a scene file, a sweep's grid or ``Scene.with_value`` (``dmax = "5 um"``;
+:meth:`glshade.params.Param.check`).
 """
 
 from __future__ import annotations
@@ -36,10 +37,12 @@ _QUANTITY = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([^\s
 
 
 def units_for(unit: str) -> dict[str, float]:
-    """The suffixes a value of ``unit`` (a parameter's unit: mm, mm², deg, px or "") may
-    carry, with their factor to ``unit``."""
+    """The suffixes a value of ``unit`` (a parameter's unit: mm, µm, mm², deg, px or "")
+    may carry, with their factor to ``unit``."""
     if unit == "mm":
         return dict(LENGTHS_MM)
+    if unit in ("µm", "um"):
+        return {name: factor * 1e3 for name, factor in LENGTHS_MM.items()}
     if unit == "mm²":
         return {
             name + suffix: factor**2
@@ -57,6 +60,7 @@ def examples(unit: str) -> str:
     """How a value of ``unit`` may be written, for error messages."""
     return {
         "mm": "a number in mm, or with a unit: 5um, 0.005mm, 2cm",
+        "µm": "a number in µm, or with a unit: 0.55um, 550nm",
         "mm²": "a number in mm², or with a unit: 4mm2, 4e6um2",
         "deg": "a number in degrees, or with a unit: 15deg, 0.26rad",
     }.get(unit, f"a number{f' in {unit}' if unit else ''}")
@@ -80,6 +84,7 @@ def parse_quantity(text: str, unit: str, field: str) -> float:
     if factor is None:
         factor = factors.get(suffix.lower())
     if factor is None:
-        allowed = ", ".join(sorted(set(factors))) if factors else "none (a bare number)"
-        raise SceneError(field, f"{examples(unit)} (units: {allowed})", text)
+        if not factors:
+            raise SceneError(field, f"{examples(unit)}, without a unit", text)
+        raise SceneError(field, f"{examples(unit)} (units: {', '.join(sorted(factors))})", text)
     return number * factor

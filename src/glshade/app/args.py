@@ -5,6 +5,7 @@ flags, typed values with units, and the scene a command line describes."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 from typing import Any
@@ -14,7 +15,6 @@ from glshade.errors import GlshadeError, SceneError, printable
 from glshade.metrics.visibility import MetricSettings
 from glshade.params import Param
 from glshade.scene import Scene
-from glshade.units import parse_quantity
 
 EXIT_USAGE = 2
 
@@ -87,11 +87,16 @@ def flag_dest(param: Param) -> str:
     return "flag_" + (param.flag or param.path).lstrip("-").replace("-", "_").replace(".", "_")
 
 
+#: A value with its unit, as a flag's help shows one, by the parameter's unit.
+_FLAG_EXAMPLES = {"mm": "5um", "µm": "550nm", "mm²": "4e6um2", "deg": "0.26rad"}
+
+
 def flag_options(param: Param) -> dict[str, Any]:
     """argparse options of a parameter's short flag, from its declaration."""
+    example = _FLAG_EXAMPLES.get(param.unit)
     unit = (
-        f" ({param.unit}, or a value with its unit: 5um)"
-        if param.unit == "mm"
+        f" ({param.unit}, or a value with its unit: {example})"
+        if example is not None
         else (f" ({param.unit})" if param.unit else "")
     )
     options: dict[str, Any] = {"help": f"{param.path}: {param.doc}{unit}"}
@@ -101,7 +106,8 @@ def flag_options(param: Param) -> dict[str, Any]:
         options.update(type=param_type(param), metavar="N")
     elif param.value_type == "real":
         options.update(
-            type=param_type(param), metavar=(param.unit or "X").upper().replace("²", "2")
+            type=param_type(param),
+            metavar=(param.unit or "X").replace("µ", "u").upper().replace("²", "2"),
         )
     elif param.value_type in ("pair", "vector"):
         count = 2 if param.value_type == "pair" else param.size
@@ -177,24 +183,43 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
     """The scene a ``render``/``measure``/``view`` call describes: the file (or the
     default scene), then the short flags, then ``--set PATH=VALUE`` in order, then
     ``--size``. A bad value is named as the user typed it (``--sigma2``, or the dotted
-    path of ``--set``), not by the fields it sets."""
+    path of ``--set``), not by the fields it sets, also where a check over several values
+    of a table refuses it (``--bit-depth``)."""
     # the file, or the scene every default makes (the paper's flat plate): a surface given
     # by a flag takes its parameters' defaults exactly as a file naming only its kind does
     scene = Scene.load(args.scene) if args.scene is not None else Scene()
     tables: dict[str, dict[str, object]] = {}
+    typed: dict[str, str] = {}  # parameter path -> the flag that set it
     for param in registry().params():
         value = getattr(args, flag_dest(param), None) if param.flag is not None else None
         if value is not None:
             tables.setdefault(param.table, {})[param.key] = checked(param, value, param.flag)
+            typed[param.path] = param.flag or param.path
     for item in args.settings:  # later settings win; all are applied at once, so values that
         # only make sense together (a kind and its file) can be given together
         path, value = parse_setting(item, scene, tables)
         table, _, key = path.partition(".")
         tables.setdefault(table, {})[key] = value
-    scene = scene.updated(**tables)
+        typed.pop(path, None)
+    with named_as_typed(typed):
+        scene = scene.updated(**tables)
     if args.size is not None:
-        scene = scene.with_size(args.size)
+        with named_as_typed({"camera.width": "--size", "camera.height": "--size"}):
+            scene = scene.with_size(args.size)
     return scene
+
+
+@contextlib.contextmanager
+def named_as_typed(typed: dict[str, str]):
+    """A SceneError raised inside names the flag the user typed (``--bit-depth
+    (sensor.bit_depth)``) where ``typed`` maps the field it names to one."""
+    try:
+        yield
+    except SceneError as exc:
+        flag = typed.get(exc.field)
+        if flag is None or flag == exc.field:
+            raise
+        raise SceneError(f"{flag} ({exc.field})", exc.allowed, exc.got) from None
 
 
 def checked(param: Param, value: object, typed: str | None = None) -> object:
@@ -224,31 +249,29 @@ def parse_setting(
         raise GlshadeError(
             f"--set {item!r}: expected PATH=VALUE with a dotted path such as camera.theta_deg=15"
         )
-    if path.count(".") == 2:
-        return _table_entry(path, text, scene, pending or {})
+    entry = registry().entry(path)
+    if entry is not None:
+        return _table_entry(entry[0], entry[1], text, scene, pending or {})
     param = registry().param(path)
     return path, checked(param, param.parse(text))
 
 
 def _table_entry(
-    path: str, text: str, scene: Scene | None, pending: dict[str, dict[str, object]]
+    param: Param,
+    name: str,
+    text: str,
+    scene: Scene | None,
+    pending: dict[str, dict[str, object]],
 ) -> tuple[str, object]:
     """``table.key.name=VALUE`` for a parameter holding named numbers (a formula's
-    ``parameters``): the whole table with ``name`` set."""
-    outer, _, name = path.rpartition(".")
-    param = registry().param(outer)
-    if param.value_type != "table" or not name.strip():
-        raise GlshadeError(
-            f"--set {path}: {outer} is not a table of named numbers; a dotted path has one "
-            "dot (camera.theta_deg=15), or two for an entry of such a table "
-            "(surface.parameters.a=0.2)"
-        )
+    ``parameters``): the whole table with ``name`` set (the number checked as the file's
+    would be, in the table's unit if it has one)."""
     given = pending.get(param.table, {}).get(param.key)
     if given is None and scene is not None:
-        given = scene.value(outer)
-    current = dict(given or ())  # type: ignore[call-overload]
-    current[name.strip()] = parse_quantity(text, "", path)
-    return outer, checked(param, tuple(current.items()))
+        given = scene.value(param.path)
+    current = dict(param.check(given or ()))
+    current[name] = param.parse_entry(name, text)
+    return param.path, checked(param, tuple(current.items()))
 
 
 def warn(lines) -> None:

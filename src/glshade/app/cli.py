@@ -24,6 +24,7 @@ from glshade.app.args import (
     add_scene_flags,
     check_save_scene,
     metric_settings,
+    named_as_typed,
     one_line,
     path_arg,
     quantity_list,
@@ -397,7 +398,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
     from glshade.app import viewer
 
     scene = Scene.load(args.scene) if args.scene is not None else paper_scene()
-    scene = scene.with_size(args.size)
+    with named_as_typed({"camera.width": "--size", "camera.height": "--size"}):
+        scene = scene.with_size(args.size)
     scene, extra = viewer.parse_sets(args.set, scene)
     if args.frames is not None and args.frames < 1:
         raise GlshadeError(f"--frames: must be an integer >= 1, got {args.frames}")

@@ -183,6 +183,26 @@ class Registry:
         keys = ", ".join(p.key for p in self.table_params(table))
         raise SceneError(path, f"one of the keys {keys} (unknown key)")
 
+    def entry(self, path: str) -> tuple[Param, str] | None:
+        """A named entry of a parameter that holds a table of named numbers
+        (``surface.parameters.a``: a formula's parameter ``a``) -> that parameter's
+        declaration and the entry's name; None for a ``table.key`` path. A SceneError
+        names a longer path whose ``table.key`` holds no such table."""
+        if path.count(".") < 2:
+            return None
+        table, key, name = path.split(".", 2)
+        param = self.param(f"{table}.{key}")
+        if param.value_type != "table":
+            raise SceneError(
+                path,
+                "a dotted path table.key (camera.theta_deg), or table.key.name for an entry "
+                f"of a table of named numbers (surface.parameters.a); {param.path} is not a "
+                "table",
+            )
+        if not name.isidentifier():
+            raise SceneError(path, f"{param.path}.NAME with NAME a name such as a or b2")
+        return param, name
+
     def choices(self, param: Param) -> tuple[str, ...] | None:
         """The allowed names of a selector parameter (the registered components)."""
         for slot in self._slots.values():

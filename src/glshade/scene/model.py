@@ -173,9 +173,20 @@ class Scene:
 
     def with_values(self, pairs: Any) -> Scene:
         """A copy with dotted keys set, all at once (keys that only make sense together,
-        a kind and its file, can be set together): ``[("camera.theta_deg", 5), ...]``."""
+        a kind and its file, can be set together): ``[("camera.theta_deg", 5), ...]``.
+        A value may be text with a unit (``"5 um"``). A named entry of a table of named
+        numbers, ``("surface.parameters.a", 0.002)``, sets that entry and keeps the
+        table's others."""
         tables: dict[str, dict[str, Any]] = {}
         for path, value in pairs:
+            entry = registry().entry(path)
+            if entry is not None:
+                param, name = entry
+                given = tables.get(param.table, {}).get(param.key, self.value(param.path))
+                current = dict(param.check(given))
+                current[name] = value  # checked with the table (named as the entry)
+                tables.setdefault(param.table, {})[param.key] = tuple(current.items())
+                continue
             registry().param(path)  # unknown table or key: a SceneError naming it
             table, _, key = path.partition(".")
             tables.setdefault(table, {})[key] = value
@@ -183,7 +194,10 @@ class Scene:
 
     def value(self, path: str) -> Any:
         """A parameter's value by its dotted path (``defect.sigma2`` of an anisotropic
-        defect: None)."""
+        defect: None; an entry of a table, ``surface.parameters.a``, that it lacks: None)."""
+        entry = registry().entry(path)
+        if entry is not None:
+            return dict(self.value(entry[0].path) or ()).get(entry[1])
         param = registry().param(path)
         table = getattr(self, param.table)
         if param.stored:

@@ -30,22 +30,33 @@ sigma2 = 4.0    # mm²
 ```
 
 Every parameter can also be set on the command line of `glshade render`, `glshade
-measure` and `glshade view` by its dotted path, `--set camera.theta_deg=15` (repeatable,
-applied after the file and the short flags), and the ones with a short flag by that flag
-(`--theta 15`). Sweeps name their axes by the same paths.
+measure`, `glshade optimize` and `glshade view` by its dotted path, `--set
+camera.theta_deg=15` (repeatable, applied after the file and the short flags), and the
+ones with a short flag by that flag (`--theta 15`; not in `view`). Sweeps name their axes
+by the same paths. `--save-scene SCENE.toml` on those commands writes the scene they
+used, every value resolved; loading it back gives the same scene.
 
 ## Units
 
-A bare number is in the unit of its row: lengths in mm, areas in mm², angles in degrees,
-so `dmax = 5` is a 5 mm dent. Any number may carry its unit instead, as a string in a
-scene file (`dmax = "5 um"`, `distance = "25.6 cm"`, `half_size = ["15 cm", 100]`), in
-`Scene.with_value("defect.dmax", "5um")`, in a sweep's grid, and on the command line:
-`--dmax 5um`, `--set defect.sigma2=4mm2`, `--theta 0.26rad`, `--dmaxs 3um,5um`,
-`--family defect.dmax=3um..5um`, `--over camera.theta_deg=5deg..0.5rad`. A file written
-by glshade (`--save-scene`) holds bare numbers. Where a row also accepts a word
-(`period = "auto"`, `exposure = "auto"`), its allowed range says so.
-Lengths take `nm`, `um` (or `µm`), `mm`, `cm`, `m`; areas the same followed by `2`, `^2`
-or `²`; angles `deg`, `rad`, `mrad`.
+A bare number is in the unit of its row: lengths in mm (a few in µm, as their row
+says), areas in mm², angles in degrees, so `dmax = 5` is a 5 mm dent. Any number may carry
+its unit instead, as a string in a scene file (`dmax = "5 um"`, `distance = "25.6 cm"`,
+`theta_deg = "0.2 rad"`, `half_size = ["15 cm", 100]`, `wavelength_um = "550 nm"`), in
+`Scene.with_value("defect.dmax", "5um")`, in a sweep's grid (a list or a range's `start`,
+`stop` and `step`), and on the command line: `--dmax 5um`, `--set defect.sigma2=4mm2`,
+`--theta 0.26rad`, `--dmaxs 3um,5um`, `--family defect.dmax=3um..5um`, `--over
+camera.theta_deg=5deg..0.5rad`. A file written by glshade (`--save-scene`) holds bare
+numbers. Where a row also accepts a word (`period = "auto"`, `exposure = "auto"`), its
+allowed range says so. Lengths take `nm`, `um` (or `µm`), `mm`, `cm`, `m`; areas the same
+followed by `2`, `^2` or `²`; angles `deg` (or `°`), `rad`, `mrad`; pixel counts `px`.
+A unitless row (a formula's parameters, an f-number) takes bare numbers only. A value in
+an unknown unit is refused with one line naming the key as it was typed, what the key
+allows and how to write it with a unit.
+
+A formula surface's parameters (`parameters = { a = 0.002, b = 5.0 }`) can be set one by
+one by their dotted path, the others kept: `--set surface.parameters.a=0.003`,
+`Scene.with_value("surface.parameters.a", 0.003)`, a sweep axis
+`"surface.parameters.a" = [0.001, 0.002]`, `--over surface.parameters.a=0..0.002`.
 
 ## Errors and warnings
 

@@ -37,7 +37,6 @@ from glshade.measure.engine import Case
 from glshade.measure.record import Measurement
 from glshade.metrics.status import concerns
 from glshade.metrics.visibility import MetricSettings
-from glshade.params import Param
 from glshade.scene import Scene
 from glshade.sweep.spec import canonical_key, case_id
 from glshade.units import examples, parse_quantity
@@ -122,7 +121,7 @@ def parse_over(text: str) -> tuple[Dimension, ...]:
     for item in _items(text, "--over"):
         given, _, span = item.partition("=")
         key = canonical_key(given)
-        unit = _numeric_param(key, "--over").unit
+        unit = _numeric_unit(key, "--over")
         if span:
             lo, hi = _span(span, f"--over {key}", unit=unit)
         elif key in DEFAULT_BOUNDS:
@@ -146,7 +145,7 @@ def parse_family(text: str | None, points: int = 3) -> list[dict[str, float]]:
         key = canonical_key(key)
         if not sep:
             raise GlshadeError(f"--family {item!r}: expected KEY=LO..HI or KEY=V1|V2")
-        unit = _numeric_param(key, "--family").unit
+        unit = _numeric_unit(key, "--family")
         if "|" in span:
             values = [_float(v, f"--family {key}", unit) for v in span.split("|")]
         else:
@@ -168,16 +167,19 @@ def _items(text: str, flag: str) -> list[str]:
     return items
 
 
-def _numeric_param(key: str, flag: str) -> Param:
+def _numeric_unit(key: str, flag: str) -> str:
+    """The unit of a numeric key (a real or integer parameter, or a formula's parameter,
+    ``surface.parameters.a``); any other key is an error naming the flag."""
     try:
-        param = registry().param(key)
+        entry = registry().entry(key)
+        param = entry[0] if entry is not None else registry().param(key)
     except SceneError as exc:
         raise GlshadeError(f"{flag}: {exc}") from None
-    if param.value_type not in ("real", "integer"):
+    if entry is None and param.value_type not in ("real", "integer"):
         raise GlshadeError(
             f"{flag} {key}: not a number ({param.value_type}); sweep it with glshade sweep instead"
         )
-    return param
+    return param.unit
 
 
 def _span(text: str, where: str, allow_equal: bool = False, unit: str = "") -> tuple[float, float]:

@@ -38,6 +38,7 @@ from glshade.measure.engine import Case
 from glshade.metrics.visibility import METRIC_VERSION, MetricSettings
 from glshade.scene import Scene, paper_scene
 from glshade.scene.model import read_toml
+from glshade.units import parse_quantity
 
 #: A grid of more cases than this needs ``--yes`` (about an hour of llvmpipe at 256 px).
 MAX_CASES_UNCONFIRMED = 5000
@@ -284,14 +285,25 @@ def _axis(name: str, value, source: str) -> Axis:
         if len(set(map(str, labels))) != len(labels):
             raise GlshadeError(f"{where}: the entries' labels must differ")
         return Axis(name, tuple(entries), tuple(labels))
-    checked = tuple(_value(name, v, where) for v in _values(value, where))
+    checked = tuple(_value(name, v, where) for v in _values(value, where, _unit(name)))
     if len({json.dumps(v, default=str) for v in checked}) != len(checked):
         raise GlshadeError(f"{where}: values must not repeat")
     return Axis(name, tuple(((name, v),) for v in checked), checked)
 
 
-def _values(value, where: str) -> list:
-    """A list, or a range ``{start, stop, num}`` / ``{start, stop, step}`` (inclusive)."""
+def _unit(key: str) -> str:
+    """The unit of a swept key's numbers (``""`` for ``size``, or one not known: its
+    values name it when they are checked)."""
+    try:
+        entry = registry().entry(key)
+        return (entry[0] if entry is not None else registry().param(key)).unit
+    except SceneError:
+        return ""
+
+
+def _values(value, where: str, unit: str = "") -> list:
+    """A list, or a range ``{start, stop, num}`` / ``{start, stop, step}`` (inclusive);
+    a range's numbers may carry a unit (``start = "3 um"``)."""
     if isinstance(value, list):
         if not value:
             raise GlshadeError(f"{where}: an empty list sweeps nothing; give at least one value")
@@ -303,13 +315,13 @@ def _values(value, where: str) -> list:
                 f"{where}: a range is {{start, stop, num}} or {{start, stop, step}}, got "
                 f"{{{', '.join(sorted(keys))}}}"
             )
-        start, stop = (_number(value[k], f"{where}.{k}") for k in ("start", "stop"))
+        start, stop = (_number(value[k], f"{where}.{k}", unit) for k in ("start", "stop"))
         if "num" in value:
             num = value["num"]
             if isinstance(num, bool) or not isinstance(num, int) or num < 1:
                 raise GlshadeError(f"{where}.num: must be an integer >= 1, got {num!r}")
         else:
-            step = _number(value["step"], f"{where}.step")
+            step = _number(value["step"], f"{where}.step", unit)
             if step <= 0:
                 raise GlshadeError(f"{where}.step: must be > 0, got {step:g}")
             num = math.floor((stop - start) / step + 1e-9) + 1
@@ -326,7 +338,13 @@ def _values(value, where: str) -> list:
     return [value]
 
 
-def _number(value, where: str) -> float:
+def _number(value, where: str, unit: str = "") -> float:
+    """A range's number: a number in ``unit``, or text with its own unit."""
+    if isinstance(value, str):
+        try:
+            value = parse_quantity(value, unit, where)
+        except SceneError as exc:
+            raise GlshadeError(str(exc)) from None
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise GlshadeError(f"{where}: must be a finite number, got {value!r}")
     return float(value)
@@ -343,6 +361,11 @@ def _value(key: str, value, where: str):
             "'size', or a list of tables (a linked axis)"
         )
     try:
+        entry = registry().entry(key)
+        if entry is not None:  # a formula's parameter: one number, checked with its table
+            param, name = entry
+            number = param.parse_entry(name, value) if isinstance(value, str) else value
+            return dict(param.check(((name, number),)))[name]
         param = registry().param(key)
         if isinstance(value, str) and param.value_type not in ("choice", "text", "path"):
             value = param.parse(value)
@@ -350,10 +373,17 @@ def _value(key: str, value, where: str):
             return param.check(value, registry().choices(param))
         return value
     except SceneError as exc:
-        raise GlshadeError(f"{where}: {exc}") from None
+        raise GlshadeError(f"{where}: {_without(exc, key)}") from None
+
+
+def _without(exc: SceneError, key: str) -> str:
+    """The error's text, without its field where ``where`` already names it."""
+    text = str(exc)
+    return text.removeprefix(f"{key}: ")
 
 
 def _check_keys_apart(axes: tuple[Axis, ...], source: str) -> None:
+    """No key is set by two axes, nor a whole table by one and an entry of it by another."""
     seen: dict[str, str] = {}
     for axis in axes:
         for key in axis.keys:
@@ -362,3 +392,9 @@ def _check_keys_apart(axes: tuple[Axis, ...], source: str) -> None:
                     f"{source}: {key} is set by two axes ({seen[key]} and {axis.name})"
                 )
             seen[key] = axis.name
+    for key, name in seen.items():
+        whole = ".".join(key.split(".")[:2])
+        if whole != key and seen.get(whole, name) != name:
+            raise GlshadeError(
+                f"{source}: {key} and {whole} are set by two axes ({name} and {seen[whole]})"
+            )

@@ -128,13 +128,17 @@ def apply_setting(scene: Scene, name: str, value, slider: bool = False) -> Scene
 def parse_sets(items: list[str], scene: Scene) -> tuple[Scene, dict[str, str]]:
     """``--set name=value`` items: scene settings are applied and validated as ``render``
     validates them (lengths may carry a unit: ``dmax=5um``); the viewer's own (``view``,
-    ``animate``) are returned."""
+    ``animate``) are returned. A bad value is named as typed: ``--set sigma2
+    (defect.sigma2): ...``."""
+    from glshade.app.args import named_as_typed, parse_setting
+
     extra: dict[str, str] = {}
     for item in items:
         name, sep, raw = item.partition("=")
         name = name.strip()
         if not sep or not name:
             raise GlshadeError(f"--set {item!r}: expected name=value")
+        control = by_name(name)
         if name == "view":
             if raw not in VIEWS:
                 raise GlshadeError(f"--set view: must be one of {', '.join(VIEWS)}, got {raw!r}")
@@ -142,13 +146,15 @@ def parse_sets(items: list[str], scene: Scene) -> tuple[Scene, dict[str, str]]:
         elif name == "animate":
             extra[name] = raw
         elif name == "concave":
-            scene = apply_setting(scene, name, raw.lower() in ("1", "true", "yes"))
-        elif isinstance(by_name(name), Choice):
-            scene = apply_setting(scene, name, raw)
-        elif isinstance(by_name(name), Control):
-            scene = apply_setting(scene, name, slider(name).param.parse(raw))
+            with named_as_typed({"surface.radius": "--set concave"}):
+                scene = apply_setting(scene, name, raw.lower() in ("1", "true", "yes"))
+        elif isinstance(control, (Choice, Control)):
+            path = control.param.path
+            with named_as_typed({path: f"--set {name}"} if name != path else {}):
+                value = raw if isinstance(control, Choice) else control.param.parse(raw)
+                scene = apply_setting(scene, name, value)
         elif "." in name:  # any parameter by its dotted path, as render's --set
-            scene = scene.with_value(name, registry().param(name).parse(raw))
+            scene = scene.with_value(*parse_setting(f"{name}={raw}", scene))
         else:
             apply_setting(scene, name, raw)  # names the unknown setting and lists the known ones
     return scene, extra
