@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glshade.components.emitter.fringes.table import displayed
 from glshade.errors import GlshadeError
 
 
@@ -126,20 +127,17 @@ def commanded_to_displayed(
     screen's edge), float64, every argument broadcast as NumPy arrays:
 
     - commanded ``c = offset + amplitude cos(2π s / period - δ)``;
-    - quantised to ``levels`` grey levels, ``c = round(c (levels - 1)) / (levels - 1)``
-      (``levels = 0``: continuous);
-    - displayed ``c ** gamma`` (``c`` clipped to [0, 1] first).
+    - clipped to [0, 1], quantised to ``levels`` grey levels (halves up, as the screen's
+      shader rounds) and displayed ``c ** gamma``: the fringe emitter's own rule
+      (:func:`glshade.components.emitter.fringes.table.displayed`), so a synthetic
+      sequence and a rendered frame are quantised alike.
 
-    NaN stays NaN. This is the synthetic sequences' generator and the oracle of a
-    rendered fringe frame."""
+    NaN stays NaN. This is the synthetic sequences' generator."""
     s = np.asarray(s_mm, np.float64)
     period = np.asarray(period_mm, np.float64)
     delta = np.asarray(shift_rad, np.float64)
     commanded = offset + amplitude * np.cos(2.0 * np.pi * s / period - delta)
-    if levels:
-        top = levels - 1
-        commanded = np.round(commanded * top) / top
-    return np.asarray(np.power(np.clip(commanded, 0.0, 1.0), gamma), np.float64)
+    return np.asarray(displayed(commanded, levels, gamma), np.float64)
 
 
 @dataclass(frozen=True)
