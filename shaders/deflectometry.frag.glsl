@@ -26,6 +26,9 @@ layout(location = {{ loop.index0 }}) out float out_distance; // camera to surfac
 layout(location = {{ loop.index0 }}) out float out_iterations; // evaluations of g by the dent solve
 {$ elif name == "rays" $}
 layout(location = {{ loop.index0 }}) out vec4 out_rays;     // rays traced whole, reaching the emitter, hitting the surface
+{$ elif name == "frames" $}
+// A stack of emitter frames, all shaded from each traced ray: one layer per frame.
+layout(r32f, binding = 0) uniform writeonly image2DArray out_frames;
 {$ endif $}
 {$ endfor $}
 
@@ -40,6 +43,9 @@ layout(location = {{ loop.index0 }}) out vec4 out_rays;     // rays traced whole
 
 {$ if "distance" in outputs $}
 float hit_distance;                          // of the last trace(): camera to hit, mm (-1: none)
+{$ endif $}
+{$ if "frames" in outputs $}
+float ray_weight;                            // of the last trace(): what the surface reflects (Fresnel)
 {$ endif $}
 
 // Trace ray k of sensor position (col, row) (pixel units, row 0 at the top).
@@ -65,6 +71,13 @@ bool trace(real col, real row, int k, out float radiance, out real2 uv) {
     real3 r = d - 2.0 * dot(d, n) * n;
     real dist;
     if (!emitter_hit(p, r, uv, dist)) return false;
+{$ if "frames" in outputs $}
+{$ if fresnel $}
+    ray_weight = fresnel(float(-dot(d, n)));
+{$ else $}
+    ray_weight = 1.0;
+{$ endif $}
+{$ endif $}
 {$ if "image" in outputs $}
     radiance = shade(p, d, n, r, uv, dist);
 {$ if fresnel $}
@@ -102,6 +115,10 @@ void main() {
     float radiance = 0.0;
     real2 uv = real2(0.0);
     bool reached = false;
+{$ if "frames" in outputs $}
+    float frame_sums[{{ frame_count }}];       // each frame's radiance, summed over the rays
+    for (int j = 0; j < {{ frame_count }}; ++j) frame_sums[j] = 0.0;
+{$ endif $}
 {$ if "distance" in outputs $}
     float distance_sum = 0.0;                // over the samples that hit the surface
     int surface_hits = 0;
@@ -139,6 +156,10 @@ void main() {
             radiance += sample_radiance;
             uv += sample_uv;
             hits += 1;
+{$ if "frames" in outputs $}
+            for (int j = 0; j < {{ frame_count }}; ++j)
+                frame_sums[j] += ray_weight * emitter_frame_radiance(sample_uv, j);
+{$ endif $}
         }
 {$ if "distance" in outputs $}
         if (hit_distance >= 0.0) {
@@ -154,6 +175,10 @@ void main() {
     radiance /= float(side * side * rays);
     reached = hits > 0;
     if (reached) uv /= real(hits);
+{$ if "frames" in outputs $}
+    for (int j = 0; j < {{ frame_count }}; ++j)   // this draw's share of each frame's mean
+        imageStore(out_frames, ivec3(gl_FragCoord.xy, j), vec4(frame_sums[j] / float(side * side * rays)));
+{$ endif $}
 {$ if "rays" in outputs $}
     // the ray being traced when the limiter ran out was cut short: not counted
     out_rays = vec4(float(loops_ran_whole() ? traced : traced - 1), float(hits), 0.0, 0.0);
@@ -163,6 +188,11 @@ void main() {
 {$ endif $}
 {$ else $}
     reached = trace(col + 0.5, row + 0.5, 0, radiance, uv);
+{$ if "frames" in outputs $}
+    for (int j = 0; j < {{ frame_count }}; ++j)
+        imageStore(out_frames, ivec3(gl_FragCoord.xy, j),
+                   vec4(reached ? ray_weight * emitter_frame_radiance(uv, j) : 0.0));
+{$ endif $}
 {$ if "distance" in outputs $}
     if (hit_distance >= 0.0) {
         distance_sum = hit_distance;

@@ -36,7 +36,9 @@ from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
 from glshade.scene.schema_doc import scene_format_markdown
 
-OUTPUT_SETS = [("image",), ("uv", "mask"), OUTPUTS]
+#: Every output a single frame has, and with a sequence emitter the frame stack too.
+SINGLE = tuple(name for name in OUTPUTS if name != "frames")
+OUTPUT_SETS = [("image",), ("uv", "mask"), SINGLE]
 UV_TOL = {"fp32": 5e-4, "fp64": 1e-6}
 VARIANTS = {
     "paper": lambda s: s,
@@ -92,22 +94,32 @@ COMPONENTS = registry().components()
 
 
 # ------------------------------------------------------------------ the contracts
+def output_sets(scene):
+    """The output sets a scene's program is checked with: a sequence emitter's (the
+    fringes) also with its frame stack."""
+    sets = [(outputs, ()) for outputs in OUTPUT_SETS]
+    if scene.emitter.kind == "fringes":
+        frames = scene.active.emitter.sequence(scene)[:3]
+        sets += [(("frames",), frames), ((*SINGLE, "frames"), frames)]
+    return sets
+
+
 def check_uniforms(renderer, component) -> None:
     for scene in scenes_for(component).values():
-        for outputs in OUTPUT_SETS:
-            features = ShaderFeatures.from_scene(scene, outputs)
+        for outputs, frames in output_sets(scene):
+            features = ShaderFeatures.from_scene(scene, outputs, len(frames))
             program = renderer.program(features)
             active = {
                 name
                 for name in program
                 if hasattr(program[name], "value") and name.startswith("u_")
             }
-            provided = scene_uniforms(scene, RootSolver(), features)
+            provided = scene_uniforms(scene, RootSolver(), features, frames)
             assert active <= set(provided), (
                 f"{features.selected()}: not provided {active - set(provided)}"
             )
             context = UniformContext(
-                scene.local_origin(), features.template_variables(), RootSolver()
+                scene.local_origin(), features.template_variables(), RootSolver(), frames
             )
             own = set(component.uniforms(scene, context))
             assert own <= active, (

@@ -1,6 +1,7 @@
 """The fringe emitter: its table (defaults, one-line refusals, TOML), the exact
 quantisation and gamma, GPU against the float64 oracle frame by frame, no code of one
-emitter in the other's program, and the command line (render works, measure refuses)."""
+emitter in the other's program, and the command line (render works, the stripe metric
+refuses, phase measuring is the default)."""
 
 from __future__ import annotations
 
@@ -174,9 +175,12 @@ def test_render_and_measure_from_a_scene_file(tmp_path, capsys):
     image = read_png(out)
     assert image.shape[:2] == (30, 40) and image.max() > image.min()
     capsys.readouterr()
-    assert main(["measure", str(path)]) == 2
+    assert main(["measure", str(path), "--method", "paper"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and NO_STRIPE_METRIC in err
+    # without --method, a scene of fringes is measured as a phase-measuring station does
+    assert main(["measure", str(path), "--json"]) == 0
+    assert "pmd_shift_mm" in capsys.readouterr().out
 
 
 def test_a_stripes_scene_is_not_held_to_the_fringes_checks():

@@ -20,7 +20,7 @@ def test_only_requested_outputs_are_computed_and_read(renderer):
     frame = renderer.render(scene, ("uv",))
     assert frame.image is None and frame.mask is None
     assert frame.uv.shape == (32, 32, 2) and frame.uv.dtype == np.float32
-    assert len(renderer._targets[(32, 32, ("uv",), False)].textures) == 1
+    assert len(renderer._targets[(32, 32, ("uv",), False, 0)].textures) == 1
     full = renderer.render(scene, ("image", "uv", "mask"))
     assert full.image.dtype == np.float32 and full.mask.dtype == np.bool_
     np.testing.assert_array_equal(full.uv, frame.uv)

@@ -16,3 +16,6 @@ float emitter_ggx_blur(real2 uv, float beta);           // through a GGX slope l
 float emitter_diffuse(real3 p, real3 n);     // Lambertian radiance at p with unit normal n
 {$ endif $}
 {$ endif $}
+{$ if "frames" in outputs $}
+float emitter_frame_radiance(real2 uv, int frame);   // frame number `frame` of this draw at uv
+{$ endif $}

@@ -1,4 +1,4 @@
 // The fresnel slot's contract: the reflectance at incidence cos_i.
-{$ if fresnel and "image" in outputs $}
+{$ if fresnel and shading $}
 float fresnel(float cos_i);
 {$ endif $}

@@ -36,7 +36,7 @@ def exposure_gain(exposure: float | str, radiance: np.ndarray) -> float:
 
 
 #: The outputs a render can be asked for.
-OUTPUTS: tuple[str, ...] = ("image", "uv", "mask", "distance", "iterations", "rays")
+OUTPUTS: tuple[str, ...] = ("image", "uv", "mask", "distance", "iterations", "rays", "frames")
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,12 @@ class Frame:
     most any sample needed, when supersampled); ``rays``, float32 (H, W), camera rays
     traced and summed into the pixel, all draws together (``render.supersample``² x the
     camera's aperture samples when every one was; a ray the driver's loop limit cut short
-    is not counted)."""
+    is not counted).
+
+    ``frames``: float32 (F, H, W), a stack of emitter frames shaded from the same rays
+    (the frames the render was asked for, in that order: a fringe sequence), each the
+    radiance the pixel sees as ``image`` would be for that frame alone; never developed by
+    a sensor (its caller records each frame with its own noise)."""
 
     image: np.ndarray | None = None
     uv: np.ndarray | None = None
@@ -61,12 +66,15 @@ class Frame:
     distance: np.ndarray | None = None
     iterations: np.ndarray | None = None
     rays: np.ndarray | None = None
+    frames: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
         for array in (self.image, self.uv, self.mask, self.distance, self.iterations, self.rays):
             if array is not None:
                 return (int(array.shape[0]), int(array.shape[1]))
+        if self.frames is not None:
+            return (int(self.frames.shape[1]), int(self.frames.shape[2]))
         raise ValueError("empty frame")
 
     def output(self, name: str) -> np.ndarray:

@@ -150,33 +150,48 @@ def length_mm(text: str) -> float:
     return parse_quantity(text, "mm", "length")
 
 
+#: The paper metric's flags: flag -> (destination, the setting it fills).
+METRIC_FLAGS = {
+    "--step": ("step", "step_mm"),
+    "--threshold": ("threshold", "threshold"),
+    "--keep-fraction": ("keep_fraction", "keep_fraction"),
+}
+
+
 def add_metric_flags(p: argparse.ArgumentParser) -> None:
-    """How visibility is measured (paper and measure)."""
+    """How visibility is measured (paper and measure); unset flags take the defaults of
+    :class:`MetricSettings`."""
+    defaults = MetricSettings()
     p.add_argument(
         "--step",
         type=argument_type("length", length_mm),
-        default=0.25,
         metavar="MM",
-        help="phase step of the metric, mm or with a unit (default 0.25)",
+        help=f"phase step of the metric, mm or with a unit (default {defaults.step_mm:g})",
     )
     p.add_argument(
         "--threshold",
         type=float,
-        default=0.5,
-        help="binarisation threshold, fraction of the peak (default 0.5)",
+        help=f"binarisation threshold, fraction of the peak (default {defaults.threshold:g})",
     )
     p.add_argument(
         "--keep-fraction",
         type=float,
-        default=0.5,
-        help="central fraction of the columns kept (default 0.5)",
+        help=f"central fraction of the columns kept (default {defaults.keep_fraction:g})",
     )
+
+
+def metric_flags_given(args: argparse.Namespace) -> list[str]:
+    """The paper metric's flags the command line set."""
+    return [flag for flag, (dest, _) in METRIC_FLAGS.items() if getattr(args, dest) is not None]
 
 
 def metric_settings(args: argparse.Namespace):
-    return MetricSettings(
-        threshold=args.threshold, keep_fraction=args.keep_fraction, step_mm=args.step
-    )
+    given = {
+        setting: getattr(args, dest)
+        for dest, setting in METRIC_FLAGS.values()
+        if getattr(args, dest) is not None
+    }
+    return MetricSettings(**given)
 
 
 def scene_from_args(args: argparse.Namespace) -> Scene:

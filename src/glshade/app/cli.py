@@ -23,6 +23,7 @@ from glshade.app.args import (
     add_save_scene,
     add_scene_flags,
     check_save_scene,
+    metric_flags_given,
     metric_settings,
     named_as_typed,
     one_line,
@@ -35,6 +36,8 @@ from glshade.app.args import (
 from glshade.app.cli_sweep import add_optimize, add_sweep
 from glshade.errors import GlshadeError, ShaderCompileError
 from glshade.files import atomic_write_bytes, check_output
+from glshade.measure.pmd_files import FRAME_FORMATS
+from glshade.measure.single import METHODS, as_method, method_for
 from glshade.metrics.status import concerns, contrast_warning
 from glshade.oracle.advice import scene_warnings
 from glshade.process import reuse_freed_memory
@@ -99,7 +102,64 @@ def _add_measure(sub: argparse._SubParsersAction) -> None:
         metavar="PNG",
         help="also write the Fig. 9 contour overlay at the best phase",
     )
+    add_pmd_flags(p)
     p.set_defaults(run=_cmd_measure)
+
+
+def add_pmd_flags(p: argparse.ArgumentParser) -> None:
+    """The instrument (--method) and phase measuring's own flags (docs/pmd.md)."""
+    p.add_argument(
+        "--method",
+        choices=METHODS,
+        help="the instrument: paper (binarised stripe edges) or pmd (phase-measuring "
+        "deflectometry: the fringe sequence decoded); default: pmd where the emitter shows "
+        "fringes, else paper. pmd on a scene of stripes shows the fringes on the same screen",
+    )
+    p.add_argument(
+        "--maps",
+        type=path_arg,
+        metavar="DIR",
+        help="pmd: write decoded.npy, modulation.npy, wrapped_phase.npy, error_mm.npy, "
+        "slopes.npy, height_um.npy and a PNG figure of each",
+    )
+    p.add_argument(
+        "--frames",
+        type=path_arg,
+        metavar="DIR",
+        help="pmd: write the recorded sequence and manifest.json (for external decoders)",
+    )
+    p.add_argument(
+        "--frame-format",
+        choices=tuple(FRAME_FORMATS),
+        default="png",
+        help="pmd --frames: 16-bit PNG (default) or 32-bit float TIFF",
+    )
+    p.add_argument(
+        "--modulation-share",
+        type=float,
+        metavar="X",
+        help="pmd: a pixel is valid where every period's modulation is at least X times the "
+        "amplitude times the brightest pixel's response to white (default 0.1)",
+    )
+    p.add_argument(
+        "--heights",
+        choices=("least-squares", "frankot-chellappa"),
+        help="pmd: how slopes are integrated into heights (default least-squares)",
+    )
+
+
+def pmd_settings(args: argparse.Namespace):
+    """The :class:`~glshade.measure.pmd.PmdSettings` of the command line's pmd flags."""
+    from glshade.measure.pmd import PmdSettings
+
+    given = {
+        "modulation_share": args.modulation_share,
+        "heights": args.heights,
+    }
+    try:
+        return PmdSettings(**{k: v for k, v in given.items() if v is not None})
+    except GlshadeError as exc:
+        raise GlshadeError(f"--{str(exc).replace('_', '-')}") from None
 
 
 def _cmd_measure(args: argparse.Namespace) -> int:
@@ -111,6 +171,21 @@ def _cmd_measure(args: argparse.Namespace) -> int:
     from glshade.measure.single import measure_scene
 
     scene = scene_from_args(args)
+    method = method_for(scene, args.method)
+    if method == "pmd":
+        return _cmd_measure_pmd(args, as_method(scene, "pmd"))
+    given = [
+        flag
+        for flag, value in (
+            ("--maps", args.maps),
+            ("--frames", args.frames),
+            ("--modulation-share", args.modulation_share),
+            ("--heights", args.heights),
+        )
+        if value is not None
+    ]
+    if given:
+        raise GlshadeError(f"{given[0]}: belongs to --method pmd (phase measuring)")
     settings = metric_settings(args)
     # a step longer than the period is refused before rendering
     settings.phases(scene.active.emitter.pattern(scene).period_mm)
@@ -143,6 +218,95 @@ def _cmd_measure(args: argparse.Namespace) -> int:
     if args.overlay is not None:
         print(f"  wrote {args.overlay}")
     return 0
+
+
+def _cmd_measure_pmd(args: argparse.Namespace, scene: Scene) -> int:
+    """``glshade measure --method pmd``: what a PMD station measures of the scene's dent."""
+    import json
+
+    from glshade.gpu.context import GLContext
+    from glshade.gpu.renderer import Renderer
+    from glshade.measure.pmd import check_scene, measure_pmd_scene
+    from glshade.measure.pmd_files import check_output_dir, write_frames, write_maps
+    from glshade.measure.record import PmdMeasurement
+
+    for flag in metric_flags_given(args) + (["--overlay"] if args.overlay is not None else []):
+        raise GlshadeError(f"{flag}: belongs to the paper's stripe metric, not to --method pmd")
+    settings = pmd_settings(args)
+    check_scene(scene)
+    for flag, directory in (("--maps", args.maps), ("--frames", args.frames)):
+        if directory is not None:
+            check_output_dir(directory, flag)
+    check_save_scene(args)
+    warn(scene_warnings(scene))
+    start = time.perf_counter()
+    with (
+        GLContext(device_index=args.device) as context,
+        Renderer(context, progress=True) as renderer,
+    ):
+        result = measure_pmd_scene(renderer, scene, settings)
+    seconds = time.perf_counter() - start
+    record = PmdMeasurement.of(scene, result)
+    if args.frames is not None:
+        write_frames(args.frames, scene, result.maps.recorded, args.frame_format)
+    if args.maps is not None:
+        write_maps(args.maps, scene, result)
+    save_scene(args, scene)
+    if args.json:
+        size = [scene.camera.width, scene.camera.height]
+        out = {**record.outputs(), "scene": scene.title(), "size": size}
+        print(json.dumps({**out, "seconds": round(seconds, 3)}))
+        return 0
+    _print_pmd(scene, record)
+    for flag, directory in (("--frames", args.frames), ("--maps", args.maps)):
+        if directory is not None:
+            print(f"  wrote {directory}/ ({flag})")
+    return 0
+
+
+def _print_pmd(scene: Scene, record) -> None:
+    """A PMD record as a small table; a number its status makes unreadable says so on
+    its own line."""
+    from glshade.components.emitter.fringes.table import fringes_of
+    from glshade.measure.pmd import pmd_concerns
+
+    em, cam = fringes_of(scene), scene.camera
+    frames = len(em.directions) * len(em.periods) * em.shifts
+    print(
+        f"{scene.title()} ({cam.width}x{cam.height}, phase measuring: {frames} frames, "
+        f"{len(em.directions)} directions x {len(em.periods)} periods x {em.shifts} shifts, "
+        f"finest {em.periods[0]:g} mm)"
+    )
+    reason = "" if record.status == "ok" else f": {record.status_reason}"
+    print(f"  status                  {record.status}{reason}")
+
+    def flag(column: str) -> str:
+        return f"  [{record.status}: not measurable]" if pmd_concerns(record.status, column) else ""
+
+    def number(value, fmt: str) -> str:
+        return "n/a" if value is None else format(value, fmt)
+
+    snr = "inf (no sensor: noise-free)" if record.pmd_snr is None else f"{record.pmd_snr:.1f}"
+    dmax_um, sigma_mm = 1e3 * scene.defect.dmax, scene.defect.sigma_z2**0.5
+    rows = [
+        ("pmd_shift_mm", f"{number(record.pmd_shift_mm, '.4f')} mm on the screen (closed form "
+         f"{number(record.pmd_shift_law_mm, '.4f')})"),
+        ("pmd_noise_mm", f"{number(record.pmd_noise_mm, '.2e')} mm (predicted "
+         f"{number(record.pmd_noise_predicted_mm, '.2e')}; noise alone shifts up to "
+         f"{number(record.pmd_noise_floor_mm, '.2e')})"),
+        ("pmd_snr", snr),
+        ("pmd_slope_urad", f"{number(record.pmd_slope_urad, '.1f')} µrad (largest in the dent)"),
+        ("pmd_depth_um", f"{number(record.pmd_depth_um, '.3f')} µm reconstructed (true "
+         f"{dmax_um:g} µm)"),
+        ("pmd_sigma_mm", f"{number(record.pmd_sigma_mm, '.3f')} mm (true {sigma_mm:.3g})"),
+        ("decode_rms_mm", f"{number(record.decode_rms_mm, '.2e')} mm (decoded - exact, "
+         "defect-free)"),
+        ("unwrap_failures", f"{record.unwrap_failures} pixels"),
+        ("valid_fraction", f"{record.valid_fraction:.4f} of the pixels that see the screen"),
+        ("modulation", f"{number(record.modulation, '.3f')} of a sharp mirror's, at the dent"),
+    ]  # fmt: skip
+    for name, text in rows:
+        print(f"  {name:<22}  {text}{flag(name)}")
 
 
 def _print_measurement(scene: Scene, record) -> None:

@@ -76,12 +76,15 @@ class Slot:
 @dataclass(frozen=True)
 class UniformContext:
     """What every component's uniforms are computed in: the local frame centred on the
-    dent (``origin``, world mm, float64), the composed program's ``variables`` and the
-    renderer's dent solver (``march_steps``, ``newton_iterations``, ``tolerance_for``)."""
+    dent (``origin``, world mm, float64), the composed program's ``variables``, the
+    renderer's dent solver (``march_steps``, ``newton_iterations``, ``tolerance_for``) and,
+    for a stack of emitter frames (the ``frames`` output), the frames of the draw, which
+    the emitter describes (:meth:`EmitterComponent.sequence`)."""
 
     origin: np.ndarray
     variables: Mapping[str, Hashable]
     solver: Any
+    frames: tuple[Any, ...] = ()
 
 
 class SceneView(Protocol):
@@ -381,6 +384,10 @@ class EmitterComponent(Component):
     the reflection models' oracles ask for radiance, binarisation level and scale."""
 
     slot = "emitter"
+    #: The instrument that measures what this emitter shows: ``paper`` (the stripes'
+    #: binarised edges) or ``pmd`` (a fringe sequence decoded; the emitter then describes
+    #: its frames, :meth:`sequence`).
+    measured_by: ClassVar[str] = "paper"
 
     def coordinates(
         self, scene: SceneView, points: np.ndarray, directions: np.ndarray
@@ -405,12 +412,41 @@ class EmitterComponent(Component):
         continuous radiance): where float32 and float64 may differ by one level."""
         return 0.0
 
+    def sequence(self, scene: SceneView) -> tuple[Any, ...]:
+        """The frames of the sequence this emitter shows, in order, for the ``frames``
+        output (a stack rendered in one trace). An emitter that shows one pattern has no
+        sequence: a one-line error says which emitter does."""
+        from glshade.errors import GlshadeError
+
+        raise GlshadeError(no_sequence(self.name))
+
+    def white(self, scene: SceneView) -> Any:
+        """The frame of the screen's uniform full scale (each pixel's response to it)."""
+        return self.sequence(scene)[0]
+
+    def showing(self, scene: SceneView, frame: Any) -> Any:
+        """The scene with its emitter showing ``frame`` of :meth:`sequence` alone."""
+        return scene
+
+    def exposure_scene(self, scene: SceneView) -> Any:
+        """The scene whose brightest pixel ``camera.exposure = "auto"`` exposes for (its
+        defect is removed by the caller): the pattern at phase 0 by default."""
+        return scene.with_phase(0.0)  # type: ignore[attr-defined]
+
     def pattern(self, scene: SceneView) -> Any:
         """The pattern shown: ``period_mm``, ``phase_mm``, ``feature_mm`` (the finest
         length over which it changes), ``radiance(v, phase_mm=None)``,
         ``binary_half_width(threshold)``, ``mean_radiance()`` (see
         :class:`glshade.metrics.visibility.Pattern`)."""
         raise NotImplementedError
+
+
+def no_sequence(emitter: str) -> str:
+    """Why an emitter that shows one pattern has no frame sequence."""
+    return (
+        f'emitter.kind = "{emitter}" shows one pattern, not a sequence of frames; '
+        'phase-measuring deflectometry needs emitter.kind = "fringes"'
+    )
 
 
 class ReflectionComponent(Component):

@@ -60,17 +60,32 @@ class ShaderFeatures:
     outputs: tuple[str, ...]
 
     @classmethod
-    def from_scene(cls, scene: Scene, outputs=("image",)) -> ShaderFeatures:
+    def from_scene(cls, scene: Scene, outputs=("image",), frame_count: int = 0) -> ShaderFeatures:
+        """The features of ``scene``'s program for ``outputs``; with the ``frames`` output,
+        ``frame_count`` emitter frames per draw (the template variable ``frame_count``)."""
         wanted = normalize_outputs(outputs)
+        variables = scene.active.features(scene)
+        if "frames" in wanted:
+            if frame_count < 1:
+                raise GlshadeError("the frames output needs frame_count >= 1 frames per draw")
+            variables = {**variables, "frame_count": frame_count}
         return cls(
             components=scene.active.components,
-            variables=tuple(sorted(scene.active.features(scene).items())),
+            variables=tuple(sorted(variables.items())),
             outputs=tuple(name for name in OUTPUTS if name in wanted),
         )
 
     def template_variables(self) -> dict[str, object]:
-        """The components' variables and ``outputs``: what every GLSL file may use."""
-        return {**dict(self.variables), "outputs": self.outputs}
+        """The components' variables, ``outputs`` and ``shading`` (a pixel value is
+        computed: the image, or a stack of emitter frames): what every GLSL file may use."""
+        shading = "image" in self.outputs or "frames" in self.outputs
+        return {**dict(self.variables), "outputs": self.outputs, "shading": shading}
+
+    @property
+    def frame_count(self) -> int:
+        """Emitter frames per draw (0 without the ``frames`` output)."""
+        count = dict(self.variables).get("frame_count", 0)
+        return count if isinstance(count, int) else 0
 
     @property
     def precision(self) -> str:

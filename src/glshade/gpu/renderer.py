@@ -54,6 +54,18 @@ _OUTPUT_BYTES_FP64 = {**_OUTPUT_BYTES, "uv": 16 + 32}
 #: Bytes per pixel a frame traced over several draws adds: each output's float64 sum and
 #: one draw's float64 copy beside it.
 _SUM_BYTES = {"image": 16, "uv": 32, "mask": 0, "distance": 16, "iterations": 4, "rays": 48}
+#: Bytes per pixel and emitter frame of the ``frames`` output: the GPU's layer and the host
+#: array; traced over several draws, a float32 sum beside them.
+_FRAME_BYTES, _FRAME_SUM_BYTES = 2 * 4, 4
+#: Most emitter frames one draw shades (one layer each, from the same rays); a longer
+#: stack is traced again for each further chunk of frames.
+MAX_FRAMES_PER_DRAW = 64
+
+
+def _attachments(outputs: tuple[str, ...]) -> tuple[str, ...]:
+    """The outputs drawn into colour attachments (the ``frames`` output is an image array
+    the shader stores into)."""
+    return tuple(name for name in outputs if name != "frames")
 
 
 def _target_format(name: str, precision: str) -> tuple[int, str]:
@@ -160,12 +172,19 @@ def pixel_samples(scene: Scene) -> int:
 
 
 def samples_per_draw(
-    scene: Scene, solver: RootSolver = RootSolver(), budget: int = PASS_LOOP_BUDGET
+    scene: Scene,
+    solver: RootSolver = RootSolver(),
+    budget: int = PASS_LOOP_BUDGET,
+    frame_count: int = 0,
 ) -> int:
     """Camera rays of a pixel one draw traces: as many as keep its loop iterations
     (:meth:`Active.loop_iterations <glshade.components.base.Active.loop_iterations>` per
-    ray) within ``budget``, at least one, at most all."""
+    ray, and with ``frame_count`` emitter frames a loop over them per ray and two per
+    pixel) within ``budget``, at least one, at most all."""
     per_ray = scene.active.loop_iterations(scene, solver)
+    if frame_count:
+        per_ray += frame_count + 1
+        budget = max(1, budget - 2 * (frame_count + 1))
     return max(1, min(pixel_samples(scene), budget // per_ray))
 
 
@@ -192,22 +211,32 @@ def check_work_budget(scene: Scene, max_rays: int) -> None:
 
 
 def frame_bytes(
-    width: int, height: int, outputs, precision: str = "fp32", summed: bool = False
+    width: int,
+    height: int,
+    outputs,
+    precision: str = "fp32",
+    summed: bool = False,
+    frame_count: int = 0,
 ) -> int:
     """Bytes one frame's render targets and host arrays take (``summed``: and the sums of
-    a frame traced over several draws)."""
+    a frame traced over several draws; ``frame_count``: emitter frames of the ``frames``
+    output)."""
     table = _OUTPUT_BYTES_FP64 if precision == "fp64" else _OUTPUT_BYTES
-    names = normalize_outputs(outputs)
+    names = normalize_outputs(outputs) - {"frames"}
     per_pixel = sum(table[name] for name in names)
     if summed:
         per_pixel += sum(_SUM_BYTES[name] for name in names)
+    if "frames" in normalize_outputs(outputs):
+        per_pixel += frame_count * (_FRAME_BYTES + (_FRAME_SUM_BYTES if summed else 0))
     return width * height * per_pixel
 
 
-def check_frame_budget(scene: Scene, outputs, budget_bytes: int, summed: bool = False) -> None:
+def check_frame_budget(
+    scene: Scene, outputs, budget_bytes: int, summed: bool = False, frame_count: int = 0
+) -> None:
     """Reject a frame whose buffers would exceed ``budget_bytes``, naming the fields."""
     cam = scene.camera
-    need = frame_bytes(cam.width, cam.height, outputs, scene.render.precision, summed)
+    need = frame_bytes(cam.width, cam.height, outputs, scene.render.precision, summed, frame_count)
     if need > budget_bytes:
         per_pixel = need // (cam.width * cam.height)
         max_pixels = budget_bytes // per_pixel
@@ -221,23 +250,31 @@ def check_frame_budget(scene: Scene, outputs, budget_bytes: int, summed: bool = 
 
 
 def scene_uniforms(
-    scene: Scene, solver: RootSolver = RootSolver(), features: ShaderFeatures | None = None
+    scene: Scene,
+    solver: RootSolver = RootSolver(),
+    features: ShaderFeatures | None = None,
+    frames: tuple = (),
 ) -> dict[str, object]:
     """Every uniform the program for ``scene`` (and ``features``, default: the image)
-    declares, computed in float64 by the active components.
+    declares, computed in float64 by the active components (``frames``: the emitter
+    frames of a draw of the ``frames`` output, as the emitter describes them).
 
     The local frame is the world shifted by the dent centre ``O`` (``Scene.local_origin``).
     The renderer's own: the slice of the samples a draw traces (``u_pass_first``,
-    ``u_pass_count``; here all of them) and ``u_pass_two`` (2, for the loop-limit check
-    behind the ``rays`` output).
+    ``u_pass_count``; here all of them), ``u_pass_two`` (2, for the loop-limit check
+    behind the ``rays`` output) and ``out_frames`` (the image unit of the frame stack).
     """
     features = features or ShaderFeatures.from_scene(scene)
-    context = UniformContext(scene.local_origin(), features.template_variables(), solver)
+    context = UniformContext(
+        scene.local_origin(), features.template_variables(), solver, tuple(frames)
+    )
     values = component_uniforms(scene, features, context)
     if sampled(features):
         values.update(u_pass_first=0, u_pass_count=pixel_samples(scene))
     if "rays" in features.outputs:
         values["u_pass_two"] = 2
+    if "frames" in features.outputs:
+        values["out_frames"] = 0
     return values
 
 
@@ -245,21 +282,36 @@ class _Targets:
     """Render targets of one size and output set, reused across frames."""
 
     def __init__(
-        self, context: GLContext, width: int, height: int, outputs: tuple[str, ...], precision: str
+        self,
+        context: GLContext,
+        width: int,
+        height: int,
+        outputs: tuple[str, ...],
+        precision: str,
+        frame_count: int = 0,
     ) -> None:
         self.context = context
         with context.current() as ctx:
             self.textures = []
-            for name in outputs:
+            for name in _attachments(outputs):
                 components, dtype = _target_format(name, precision)
                 self.textures.append(ctx.texture((width, height), components, dtype=dtype))
+            if not self.textures:  # a framebuffer needs an attachment; nothing reads this one
+                self.textures.append(ctx.texture((width, height), 1, dtype="f1"))
             self.fbo = ctx.framebuffer(color_attachments=self.textures)
+            self.frames = (
+                ctx.texture_array((width, height, frame_count), 1, dtype="f4")
+                if frame_count
+                else None
+            )
 
     def release(self) -> None:
         self.context.park()  # never delete the framebuffer moderngl thinks is bound
         self.fbo.release()
         for texture in self.textures:
             texture.release()
+        if self.frames is not None:
+            self.frames.release()
 
 
 class Renderer:
@@ -302,7 +354,7 @@ class Renderer:
         self.loop_budget = loop_budget
         self._programs: dict[ShaderFeatures, tuple[moderngl.Program, moderngl.VertexArray]] = {}
         self._gains: dict[str, float] = {}  # "auto" exposures, by defect-free scene
-        self._targets: dict[tuple[int, int, tuple[str, ...], bool], _Targets] = {}
+        self._targets: dict[tuple[int, int, tuple[str, ...], bool, int], _Targets] = {}
         self._uniform_names: dict[ShaderFeatures, tuple[str, ...]] = {}
         self._textures: dict[int, tuple[np.ndarray, moderngl.Texture]] = {}
         self._max_side = self.context.info().max_texture_size
@@ -371,33 +423,58 @@ class Renderer:
             self._uniform_names[features] = names
         return names
 
-    def _render_targets(
-        self, width: int, height: int, outputs: tuple[str, ...], precision: str
-    ) -> _Targets:
-        key = (width, height, outputs, precision == "fp64" and "uv" in outputs)
+    def _render_targets(self, width: int, height: int, features: ShaderFeatures) -> _Targets:
+        outputs, precision = features.outputs, features.precision
+        key = (
+            width,
+            height,
+            outputs,
+            precision == "fp64" and "uv" in outputs,
+            features.frame_count,
+        )
         targets = self._targets.get(key)
         if targets is None:
             if len(self._targets) >= 4:  # keep a few sizes, release the oldest
                 oldest = next(iter(self._targets))
                 self._targets.pop(oldest).release()
-            targets = _Targets(self.context, width, height, outputs, precision)
+            targets = _Targets(
+                self.context, width, height, outputs, precision, features.frame_count
+            )
             self._targets[key] = targets
         return targets
 
     # ---------------------------------------------------------------- render
     def render(
-        self, scene: Scene, outputs=("image",), *, out: Frame | None = None, exposure: int = 0
+        self,
+        scene: Scene,
+        outputs=("image",),
+        *,
+        out: Frame | None = None,
+        exposure: int = 0,
+        frames=None,
     ) -> Frame:
-        """Render ``scene``; ``outputs`` is a subset of image, uv, mask.
+        """Render ``scene``; ``outputs`` is a subset of :data:`glshade.frame.OUTPUTS`.
 
         ``out``: a frame whose arrays (float32 image, float32 uv, bool mask of the right
         shape) are filled in place instead of allocating new ones. With a sensor the image
         is what it records (``exposure``: which of several independent exposures).
+
+        ``frames`` (with the ``frames`` output): the emitter frames to shade, as the
+        emitter describes them (:meth:`~glshade.components.base.EmitterComponent.sequence`);
+        every ray is traced once and shaded for each, at most
+        :data:`MAX_FRAMES_PER_DRAW` a draw. The stack is radiance, never developed.
         """
-        features = ShaderFeatures.from_scene(scene, outputs)
+        wanted = normalize_outputs(outputs)
+        stack = tuple(frames or ())
+        if ("frames" in wanted) != bool(stack):
+            raise GlshadeError(
+                "render: the frames output and a non-empty list of frames go together"
+            )
+        per_draw = min(len(stack), MAX_FRAMES_PER_DRAW)
+        features = ShaderFeatures.from_scene(scene, outputs, per_draw)
         if sampled(features) and "rays" not in features.outputs:
             # a program that loops over a pixel's samples counts them: checked per draw
-            features = ShaderFeatures.from_scene(scene, (*features.outputs, "rays"))
+            features = ShaderFeatures.from_scene(scene, (*features.outputs, "rays"), per_draw)
         cam = scene.camera
         width, height = cam.width, cam.height
         if max(width, height) > self._max_side:
@@ -407,13 +484,17 @@ class Renderer:
                 max(width, height),
             )
         summed = sampled(features) and (
-            samples_per_draw(scene, self.root_solver, self.loop_budget) < pixel_samples(scene)
+            samples_per_draw(scene, self.root_solver, self.loop_budget, per_draw)
+            < pixel_samples(scene)
         )
-        check_frame_budget(scene, features.outputs, self.memory_budget_bytes, summed)
+        check_frame_budget(scene, features.outputs, self.memory_budget_bytes, summed, per_draw)
         check_work_budget(scene, self.max_rays)
         with self.context.current():
-            frame = self._draw(scene, features, out)
-        if frame.rays is not None and "rays" not in normalize_outputs(outputs):
+            if stack:
+                frame = self._draw_stack(scene, features, out, stack)
+            else:
+                frame = self._draw(scene, features, out)
+        if frame.rays is not None and "rays" not in wanted:
             frame = dataclasses.replace(frame, rays=None)
         if frame.image is not None and scene.active.records(scene):
             exposed = scene.with_value("camera.exposure", self.exposure_gain(scene))
@@ -422,13 +503,31 @@ class Renderer:
                 frame.image[...] = image
         return frame
 
+    def _draw_stack(
+        self, scene: Scene, features: ShaderFeatures, out: Frame | None, stack: tuple
+    ) -> Frame:
+        """Every frame of ``stack``, :attr:`ShaderFeatures.frame_count` a draw (the last
+        chunk padded with its own last frame); the other outputs come from the first."""
+        per_draw = features.frame_count
+        layers = np.empty((len(stack), scene.camera.height, scene.camera.width), np.float32)
+        first: Frame | None = None
+        for start in range(0, len(stack), per_draw):
+            chunk = stack[start : start + per_draw]
+            padded = chunk + (chunk[-1],) * (per_draw - len(chunk))
+            frame = self._draw(scene, features, out if first is None else None, padded)
+            layers[start : start + len(chunk)] = frame.output("frames")[: len(chunk)]
+            first = first or frame
+        assert first is not None
+        return dataclasses.replace(first, frames=layers)
+
     def exposure_gain(self, scene: Scene) -> float:
         """``camera.exposure`` as a number: for ``"auto"``, from the brightest point of
-        the defect-free scene's radiance at phase 0 (rendered once per geometry), so the
-        images with and without the dent, at every phase, are taken alike."""
+        the defect-free scene's radiance as its emitter says (the stripes at phase 0, the
+        fringe screen at its brightest level; rendered once per geometry), so the images
+        with and without the dent, at every phase or frame, are taken alike."""
         if scene.camera.exposure != "auto":
             return float(scene.camera.exposure)
-        normal = scene.without_defect().with_phase(0.0)
+        normal = scene.active.emitter.exposure_scene(scene.without_defect())
         key = json.dumps(normal.to_dict(), sort_keys=True, default=str)
         gain = self._gains.get(key)
         if gain is None:
@@ -441,13 +540,16 @@ class Renderer:
             self._gains[key] = gain
         return gain
 
-    def _draw(self, scene: Scene, features: ShaderFeatures, out: Frame | None) -> Frame:
-        """One frame of ``features.outputs``; a program that loops over a pixel's samples
-        also writes ``rays``, and its samples are traced over as many draws as
-        :func:`samples_per_draw` says (:meth:`_draw_sampled`)."""
+    def _draw(
+        self, scene: Scene, features: ShaderFeatures, out: Frame | None, frames: tuple = ()
+    ) -> Frame:
+        """One frame of ``features.outputs`` (``frames``: the emitter frames of the
+        ``frames`` output); a program that loops over a pixel's samples also writes
+        ``rays``, and its samples are traced over as many draws as :func:`samples_per_draw`
+        says (:meth:`_draw_sampled`)."""
         width, height = scene.camera.width, scene.camera.height
         program, vao = self._program(features)
-        uniforms = scene_uniforms(scene, self.root_solver, features)
+        uniforms = scene_uniforms(scene, self.root_solver, features, frames)
         textures = scene.active.textures(scene)
         for unit, (name, array) in enumerate(textures.items()):
             self._texture(array).use(location=unit)
@@ -458,9 +560,11 @@ class Renderer:
                     f"uniform {name} of {features.selected()} is provided by no active component"
                 )
             cast(moderngl.Uniform, program[name]).value = uniforms[name]  # only uniforms kept
-        targets = self._render_targets(width, height, features.outputs, features.precision)
+        targets = self._render_targets(width, height, features)
         targets.fbo.use()
         targets.fbo.viewport = (0, 0, width, height)
+        if targets.frames is not None:
+            targets.frames.bind_to_image(0, read=False, write=True)
         work = frame_rays(scene) * (4 if features.precision == "fp64" else 1)
         if not sampled(features):
             self._draw_once(vao, width, height, work)
@@ -490,7 +594,12 @@ class Renderer:
         with its four channels)."""
         arrays: dict[str, np.ndarray] = {}
         viewport = (0, 0, width, height)
-        for index, name in enumerate(features.outputs):
+        if targets.frames is not None:
+            self.context.gl.memory_barrier()
+            layers = np.empty((features.frame_count, height, width), np.float32)
+            targets.frames.read_into(layers)
+            arrays["frames"] = layers
+        for index, name in enumerate(_attachments(features.outputs)):
             components, dtype = _target_format(name, features.precision)
             if name == "rays":
                 array = np.empty((height, width, 4), np.float32)
@@ -531,7 +640,7 @@ class Renderer:
         draw a driver's loop limit cut short is traced again in halves."""
         width, height = scene.camera.width, scene.camera.height
         total = pixel_samples(scene)
-        size = samples_per_draw(scene, self.root_solver, self.loop_budget)
+        size = samples_per_draw(scene, self.root_solver, self.loop_budget, features.frame_count)
         first_uniform = cast(moderngl.Uniform, program["u_pass_first"])
         count_uniform = cast(moderngl.Uniform, program["u_pass_count"])
         sums: dict[str, np.ndarray] = {}
@@ -637,6 +746,8 @@ def _accumulate(sums: dict[str, np.ndarray], arrays: dict[str, np.ndarray]) -> N
     parts: dict[str, np.ndarray] = {"rays": counts}
     if "image" in arrays:
         parts["image"] = arrays["image"].astype(np.float64)
+    if "frames" in arrays:
+        parts["frames"] = arrays["frames"]  # float32 shares of each frame's mean
     if "uv" in arrays:
         uv = arrays["uv"].astype(np.float64)
         parts["uv"] = np.where(hits[..., None] > 0, uv * hits[..., None], 0.0)
@@ -662,6 +773,9 @@ def _finish(
     height, width = counts.shape[:2]
     arrays: dict[str, np.ndarray] = {}
     for name in features.outputs:
+        if name == "frames":
+            arrays[name] = sums["frames"]
+            continue
         array = output_array(name, height, width, features.precision, out)
         with np.errstate(invalid="ignore", divide="ignore"):
             if name == "image":

@@ -210,6 +210,138 @@ class Measurement:
         return self.row(("timing",))
 
 
+@dataclass(frozen=True)
+class PmdMeasurement:
+    """What a phase-measuring deflectometry station measures of one scene's dent: lengths
+    on the screen in mm, slopes in µrad, heights in µm (docs/pmd.md). The row of
+    ``glshade measure --method pmd``, of a PMD sweep and of the PMD study."""
+
+    pmd_shift_mm: float | None = column(
+        "mm",
+        "the largest distance between the decoded screen points with and without the dent, "
+        "over the pixels valid in both (unwrapping failures left out)",
+    )
+    pmd_noise_mm: float | None = column(
+        "mm",
+        "the decoded coordinate's noise: the standard deviation of the difference of two "
+        "decodes of the defect-free scene with different seeds, over sqrt 2 (0 without a "
+        "sensor)",
+    )
+    pmd_noise_predicted_mm: float | None = column(
+        "mm",
+        "periods[0] / 2π · sqrt(2 / N) · σ_I / B, σ_I the sensor's noise at each pixel's mean "
+        "level and B its modulation, pooled as a root mean square (0 without a sensor)",
+    )
+    pmd_noise_floor_mm: float | None = column(
+        "mm",
+        "the largest difference between the two noisy decodes of the defect-free scene: the "
+        "shift noise alone makes (0 without a sensor)",
+    )
+    pmd_snr: float | None = column(
+        "",
+        "pmd_shift_mm / pmd_noise_mm; empty without a sensor (noise-free: unbounded)",
+    )
+    pmd_slope_urad: float | None = column(
+        "µrad",
+        "the largest measured slope deviation (normals against the nominal surface's) in the "
+        "dent's region",
+    )
+    pmd_depth_um: float | None = column(
+        "µm",
+        "the depth of the Gaussian fitted to the heights integrated from the slopes (positive "
+        "for a dent), to compare with dmax",
+    )
+    pmd_sigma_mm: float | None = column(
+        "mm", "the σ of that Gaussian, to compare with sqrt(sigma2)"
+    )
+    decode_rms_mm: float | None = column(
+        "mm",
+        "root mean square of the decoded minus the exact screen points over the valid pixels "
+        "of the defect-free scene",
+    )
+    unwrap_failures: int = column(
+        "count",
+        "valid pixels of the dent's scene decoded more than half the finest period from the "
+        "exact map (the unwrapping chose another fringe)",
+    )
+    valid_fraction: float = column(
+        "fraction",
+        "valid pixels (modulation above the threshold) over the pixels that see the "
+        "screen, the dent's scene",
+    )
+    modulation: float | None = column(
+        "",
+        "the finest fringe's median modulation in the dent's region, over amplitude times the "
+        "brightest pixel's response to white: 1 for a sharp mirror, less where pixels average "
+        "the fringes out",
+    )
+    status: str = column(
+        "", "whether the numbers can be read: ok, or why not (docs/pmd.md, 'Status')"
+    )
+    status_reason: str = column(
+        "", "why the numbers cannot be read, and what to change (empty when status is ok)"
+    )
+    pmd_shift_law_mm: float | None = column(
+        "mm",
+        "closed form of pmd_shift_mm: 2 α_max (De + σ cos θ), α_max the dent's steepest slope "
+        "along the coded directions (docs/pmd.md)",
+        "law",
+    )
+    render_s: float = column("s", "time to render both sequences (GL)", "timing")
+    decode_s: float = column("s", "time to record and decode the dent's sequence", "timing")
+    heights_s: float = column("s", "time of the slopes, heights and dent fit", "timing")
+
+    def __post_init__(self) -> None:
+        for item in fields(self):
+            kind = item.type if isinstance(item.type, str) else item.type.__name__
+            object.__setattr__(self, item.name, PARSE[kind](getattr(self, item.name)))
+
+    @classmethod
+    def of(cls, scene: Scene, result: Any, baseline_seconds: float = 0.0) -> PmdMeasurement:
+        """The record of ``result`` (a :class:`glshade.measure.pmd.PmdResult`)."""
+        spent = result.seconds
+        return cls(
+            pmd_shift_mm=_finite(result.pmd_shift_mm, 6),
+            pmd_noise_mm=_finite(result.pmd_noise_mm, 7),
+            pmd_noise_predicted_mm=_finite(result.pmd_noise_predicted_mm, 7),
+            pmd_noise_floor_mm=_finite(result.pmd_noise_floor_mm, 6),
+            pmd_snr=_finite(result.pmd_snr, 3),
+            pmd_slope_urad=_finite(result.pmd_slope_urad, 2),
+            pmd_depth_um=_finite(result.pmd_depth_um, 4),
+            pmd_sigma_mm=_finite(result.pmd_sigma_mm, 4),
+            decode_rms_mm=_finite(result.decode_rms_mm, 7),
+            unwrap_failures=result.unwrap_failures,
+            valid_fraction=round(result.valid_fraction, 5),
+            modulation=_finite(result.modulation, 4),
+            status=result.status,
+            status_reason=result.status_reason,
+            pmd_shift_law_mm=_finite(physics.pmd_shift_mm(scene), 6),
+            render_s=round(spent.get("render", 0.0) + baseline_seconds, 4),
+            decode_s=round(spent.get("decode", 0.0), 4),
+            heights_s=round(spent.get("heights", 0.0), 4),
+        )
+
+    @classmethod
+    def from_row(cls, row: dict[str, Any]) -> PmdMeasurement:
+        """From a case file's object or a table's row; other keys are ignored, a missing
+        timing reads 0."""
+        return cls(
+            **{
+                name: row.get(name, 0.0) if name in PMD_TIMINGS else row[name]
+                for name in PMD_COLUMN_NAMES
+            }
+        )
+
+    def row(self, roles: tuple[str, ...] = ROLES) -> dict[str, Any]:
+        return {c.name: getattr(self, c.name) for c in PMD_COLUMNS if c.role in roles}
+
+    def outputs(self) -> dict[str, Any]:
+        return self.row(("measured", "law"))
+
+    def seconds(self) -> dict[str, float]:
+        return self.row(("timing",))
+
+
 def _finite(value: float, digits: int) -> float | None:
     """A closed form rounded as tables show it; None where it is not finite (JSON has no
     NaN)."""
@@ -223,6 +355,15 @@ COLUMNS: tuple[Column, ...] = tuple(
 COLUMN_NAMES: tuple[str, ...] = tuple(c.name for c in COLUMNS)
 TIMINGS: tuple[str, ...] = tuple(c.name for c in COLUMNS if c.role == "timing")
 OUTPUT_NAMES: tuple[str, ...] = tuple(c.name for c in COLUMNS if c.role != "timing")
+
+
+PMD_COLUMNS: tuple[Column, ...] = tuple(
+    Column(f.name, f.metadata["unit"], f.metadata["meaning"], f.metadata["role"])
+    for f in fields(PmdMeasurement)
+)
+PMD_COLUMN_NAMES: tuple[str, ...] = tuple(c.name for c in PMD_COLUMNS)
+PMD_TIMINGS: tuple[str, ...] = tuple(c.name for c in PMD_COLUMNS if c.role == "timing")
+PMD_OUTPUT_NAMES: tuple[str, ...] = tuple(c.name for c in PMD_COLUMNS if c.role != "timing")
 
 
 def columns_markdown(columns: tuple[Column, ...] = COLUMNS) -> str:

@@ -147,13 +147,45 @@ def measure_scene(
     return result
 
 
+#: The instruments a scene can be measured with: the paper's binarised stripe edges, or
+#: phase-measuring deflectometry (the fringe sequence decoded, docs/pmd.md).
+METHODS = ("paper", "pmd")
+
+
+def method_for(scene: Scene, method: str | None) -> str:
+    """The instrument to measure ``scene`` with: ``method`` itself, or the one its emitter
+    is measured by (the fringes are decoded, the stripes binarised) when None."""
+    if method is None:
+        return scene.active.emitter.measured_by
+    if method not in METHODS:
+        raise GlshadeError(f"method: must be one of {', '.join(METHODS)}, got {method!r}")
+    return method
+
+
+def as_method(scene: Scene, method: str) -> Scene:
+    """The scene as ``method`` measures it: where its emitter is measured by another
+    instrument, the first registered emitter measured by ``method`` takes the screen's
+    place (distance and size kept): phase measuring shows the fringe sequence where the
+    scene had stripes."""
+    if scene.active.emitter.measured_by == method:
+        return scene
+    from glshade.components.registry import registry
+
+    for emitter in registry().components("emitter"):
+        if emitter.measured_by == method:
+            return scene.updated(emitter={"kind": emitter.name})
+    raise GlshadeError(f"method {method!r}: no registered emitter is measured by it")
+
+
 def measure(
     scene: Scene | str | os.PathLike[str],
     *,
     renderer: Renderer | None = None,
     settings: MetricSettings | None = None,
     overlay: str | os.PathLike[str] | None = None,
-) -> Visibility:
+    method: str | None = None,
+    pmd_settings=None,
+):
     """How visible is this scene's defect? ``glshade.measure(paper_scene("flat", 5, 1.0, 0.005))``.
 
     Returns a :class:`glshade.metrics.visibility.Visibility`: ``visibility_px`` (the paper's
@@ -164,6 +196,12 @@ def measure(
     may also be the path of a scene file. Bad input (a malformed file, a value out of
     range, an overlay path that is not a writable regular ``.png``) raises a
     :class:`~glshade.errors.GlshadeError` with one line, before any rendering.
+
+    ``method="pmd"`` (the default for a scene whose emitter shows fringes) measures what
+    a phase-measuring deflectometry station measures instead: a
+    :class:`glshade.measure.pmd.PmdResult` (``pmd_settings``: a
+    :class:`~glshade.measure.pmd.PmdSettings`); a scene of stripes shows the fringe
+    sequence on the same screen.
     """
     from glshade.files import check_output
 
@@ -174,6 +212,17 @@ def measure(
             "scene: must be a glshade Scene or the path of a scene file, got "
             f"{type(scene).__name__}"
         )
+    if method_for(scene, method) == "pmd":
+        if overlay is not None or settings is not None:
+            raise GlshadeError(
+                "overlay and settings belong to the paper's stripe metric, not to method='pmd' "
+                "(its settings: pmd_settings)"
+            )
+        from glshade.measure.pmd import measure_pmd
+
+        return measure_pmd(as_method(scene, "pmd"), renderer=renderer, settings=pmd_settings)
+    if pmd_settings is not None:
+        raise GlshadeError("pmd_settings: only with method='pmd'")
     settings = settings or MetricSettings()
     if not isinstance(settings, MetricSettings):
         raise GlshadeError(f"settings: must be a MetricSettings, got {type(settings).__name__}")

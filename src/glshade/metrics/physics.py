@@ -33,7 +33,14 @@ from dataclasses import dataclass
 from glshade.components.image_scale import base_curvatures, magnification
 from glshade.scene import Scene
 
-__all__ = ["Laws", "base_curvatures", "fold_onset_theta_deg", "laws", "rig_inverse_covariance"]
+__all__ = [
+    "Laws",
+    "base_curvatures",
+    "fold_onset_theta_deg",
+    "laws",
+    "pmd_shift_mm",
+    "rig_inverse_covariance",
+]
 
 
 @dataclass(frozen=True)
@@ -154,3 +161,23 @@ def fold_onset_theta_deg(scene: Scene) -> float:
     if sine <= 0:
         return 0.0
     return 90.0 if sine >= 1.0 else math.degrees(math.asin(sine))
+
+
+def pmd_shift_mm(scene: Scene) -> float:
+    """The closed form of a PMD station's largest decoded shift on the screen (mm): a
+    slope ``α`` turns the reflected ray by ``2 α``, which lands ``2 α De`` away on the
+    screen, the steepest flank ``σ cos θ`` farther from it. ``α_max = |dmax| e^(-1/2) / σ``
+    along the steepest coded direction: the dent's steepest overall where both ``u`` and
+    ``v`` are coded (``σ²`` the covariance's smallest eigenvalue), along the plane of
+    incidence for ``v`` alone (``σ_z``), across it for ``u`` alone (``σ_x``)."""
+    inv_xx, inv_zz = rig_inverse_covariance(scene)
+    directions = set(getattr(scene.emitter, "directions", ("v",)))
+    if directions >= {"u", "v"}:
+        a, b, c = scene.defect.inverse_covariance()
+        largest = 0.5 * (a + c) + math.sqrt(0.25 * (a - c) ** 2 + b * b)
+        sigma = 1.0 / math.sqrt(largest)
+    else:
+        sigma = 1.0 / math.sqrt(inv_zz if "v" in directions else inv_xx)
+    slope = abs(scene.defect.dmax) * math.exp(-0.5) / sigma
+    de = scene.emitter.distance
+    return 2.0 * slope * (de + sigma * math.cos(scene.camera.theta_rad))

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glshade.components.emitter.fringes.table import displayed
+from glshade.components.emitter.fringes.table import DIRECTIONS, displayed
 from glshade.errors import GlshadeError
 
 
@@ -70,14 +70,33 @@ class FringeCoding:
             )
         if not (0.0 < self.amplitude and 0.0 <= self.offset - self.amplitude):
             raise GlshadeError(
-                f"offset, amplitude: need 0 < amplitude <= offset, got {self.offset:g}, "
-                f"{self.amplitude:g}"
+                f"amplitude: must be > 0 and at most the offset (the fringe stays above "
+                f"black), got offset {self.offset:g}, amplitude {self.amplitude:g}"
             )
         if self.offset + self.amplitude > 1.0:
             raise GlshadeError(
                 f"offset + amplitude: must be at most 1 (the screen's white), got "
                 f"{self.offset + self.amplitude:g}"
             )
+
+    @classmethod
+    def of(cls, emitter, direction: str) -> FringeCoding:
+        """The coding a fringe emitter's table (``emitter``: periods, shifts, offset,
+        amplitude, levels, gamma, half_size) shows along ``direction`` (``"v"`` or
+        ``"u"``); an error names the emitter's key where the table cannot be decoded."""
+        axis = DIRECTIONS.index(direction) ^ 1
+        try:
+            return cls(
+                tuple(emitter.periods),
+                int(emitter.shifts),
+                float(emitter.offset),
+                float(emitter.amplitude),
+                int(emitter.levels),
+                float(emitter.gamma),
+                2.0 * float(emitter.half_size[axis]),
+            )
+        except GlshadeError as exc:
+            raise GlshadeError(f"emitter.{exc} (phase decoding needs it)") from None
 
     def shift_rad(self, n: int | np.ndarray) -> float | np.ndarray:
         """``δ_n = 2π n / N`` for shift index ``n`` (an integer or an array of them)."""

@@ -57,10 +57,10 @@ class Reflectance(FresnelComponent):
         return {"fresnel": True}
 
     def glsl(self, variables):
-        return ("lib/fresnel.glsl",) if "image" in variables["outputs"] else ()
+        return ("lib/fresnel.glsl",) if variables["shading"] else ()
 
     def uniforms(self, scene, context):
-        if "image" not in context.variables["outputs"]:
+        if not context.variables["shading"]:
             return {}
         return {"u_fresnel_ior": scene.render.ior, "u_fresnel_extinction": self.extinction(scene)}
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from glshade.components.base import EmitterComponent
 from glshade.components.emitter import plane
-from glshade.components.emitter.fringes.table import FringesTable
+from glshade.components.emitter.fringes.table import FringeFrame, FringesTable
 from glshade.errors import GlshadeError
 
 #: Why a fringe scene has no stripe metric.
@@ -27,9 +27,11 @@ class Fringes(EmitterComponent):
     rank = 200
     doc = "a screen showing one frame of phase-shifted sinusoidal fringes (phase measuring)"
     table = FringesTable
+    measured_by = "pmd"
 
     def glsl(self, variables):
-        if "image" not in variables["outputs"]:
+        outputs = variables["outputs"]
+        if "image" not in outputs and "frames" not in outputs:
             return ("lib/emitter_plane.glsl",)
         if variables["blur"] != "none" or variables["diffuse"]:
             raise GlshadeError(
@@ -40,8 +42,11 @@ class Fringes(EmitterComponent):
 
     def uniforms(self, scene, context):
         values = plane.uniforms(scene, context)
-        if "image" in context.variables["outputs"]:
-            em = self.frame(scene)
+        outputs = context.variables["outputs"]
+        em = self.frame(scene)
+        if "image" in outputs or "frames" in outputs:
+            values.update(u_emitter_fringe_gamma=em.gamma, u_emitter_fringe_levels=float(em.levels))
+        if "image" in outputs:
             axis = (1.0, 0.0) if em.axis == 0 else (0.0, 1.0)
             values.update(
                 u_emitter_fringe_axis=axis,
@@ -49,10 +54,34 @@ class Fringes(EmitterComponent):
                 u_emitter_fringe_step=em.frame_step,
                 u_emitter_fringe_offset=em.offset,
                 u_emitter_fringe_amplitude=em.amplitude,
-                u_emitter_fringe_gamma=em.gamma,
-                u_emitter_fringe_levels=float(em.levels),
+            )
+        if "frames" in outputs:
+            frames = context.frames
+            values.update(
+                u_emitter_frame=[
+                    (float(f.axis), f.shift_rad, f.offset, f.amplitude) for f in frames
+                ],
+                u_emitter_frame_period=[f.period_mm for f in frames],
             )
         return values
+
+    def sequence(self, scene) -> tuple[FringeFrame, ...]:
+        """The coding's frames (:meth:`FringesTable.sequence`)."""
+        return self.frame(scene).sequence()
+
+    def white(self, scene) -> FringeFrame:
+        return self.frame(scene).white()
+
+    def showing(self, scene, frame: FringeFrame):
+        """The scene showing ``frame`` (its ``frame_*`` values, or the white screen's)."""
+        return scene.updated(emitter=self.frame(scene).showing(frame))
+
+    def exposure_scene(self, scene):
+        """The screen's brightest level over the whole screen: ``"auto"`` exposes every
+        frame of the sequence alike, for the brightest the screen displays."""
+        em = self.frame(scene)
+        top = min(1.0, em.offset + em.amplitude)
+        return scene.updated(emitter={"offset": top, "amplitude": 0.0})
 
     @staticmethod
     def frame(scene) -> FringesTable:

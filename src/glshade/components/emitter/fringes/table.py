@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -33,6 +33,32 @@ def _shared(name: str) -> Any:
     the same parameter, shared by every emitter on that plane."""
     item = next(f for f in fields(StripesTable) if f.name == name)
     return field(default=item.default, metadata={PARAM_KEY: item.metadata[PARAM_KEY]})
+
+
+@dataclass(frozen=True)
+class FringeFrame:
+    """One frame a fringe screen shows: ``offset + amplitude cos(2π s / period_mm -
+    shift_rad)`` along ``direction`` (``"v"`` or ``"u"``), quantised and displayed as every
+    frame is. ``period_index`` and ``shift_index`` place it in its sequence (``-1``: a
+    frame outside the coding, the uniform white screen of :meth:`FringesTable.white`)."""
+
+    direction: str
+    period_index: int
+    shift_index: int
+    period_mm: float
+    shift_rad: float
+    offset: float
+    amplitude: float
+
+    @property
+    def axis(self) -> int:
+        """The screen coordinate it varies along: 0 for ``u``, 1 for ``v``."""
+        return DIRECTIONS.index(self.direction) ^ 1
+
+    @property
+    def coded(self) -> bool:
+        """A frame of the coding (not the white screen)."""
+        return self.period_index >= 0
 
 
 def displayed(commanded: np.ndarray, levels: int, gamma: float) -> np.ndarray:
@@ -181,8 +207,56 @@ class FringesTable(Table):
         commanded = self.offset + self.amplitude * np.cos(2.0 * math.pi * x - self.frame_step)
         return displayed(commanded, self.levels, self.gamma)
 
+    # ------------------------------------------------------------- the sequence
+    def sequence(self) -> tuple[FringeFrame, ...]:
+        """Every frame of the coding, in the order a station shows them: direction by
+        direction (``directions``), period by period (finest first), shift by shift; frame
+        ``(d, k, n)`` is number ``(d K + k) N + n``."""
+        return tuple(
+            FringeFrame(
+                direction,
+                k,
+                n,
+                period,
+                2.0 * math.pi * n / self.shifts,
+                self.offset,
+                self.amplitude,
+            )
+            for direction in self.directions
+            for k, period in enumerate(self.periods)
+            for n in range(self.shifts)
+        )
+
+    def white(self) -> FringeFrame:
+        """The screen's uniform white (commanded 1, displayed 1): the frame whose image is
+        each pixel's response to the screen's full scale."""
+        return FringeFrame(self.directions[0], -1, -1, self.periods[-1], 0.0, 1.0, 0.0)
+
+    def showing(self, frame: FringeFrame) -> dict[str, Any]:
+        """The table's values that make the scene show ``frame`` (a coded frame: its
+        ``frame_*`` indices; the white screen: offset 1 and amplitude 0)."""
+        if frame.coded:
+            return {
+                "frame_direction": frame.direction,
+                "frame_period_index": frame.period_index,
+                "frame_shift_index": frame.shift_index,
+            }
+        return {"offset": frame.offset, "amplitude": frame.amplitude}
+
+    def brightest(self) -> float:
+        """The brightest radiance the sequence displays: ``offset + amplitude`` (at most
+        the screen's white), quantised and through the gamma."""
+        top = np.array([min(1.0, self.offset + self.amplitude)])
+        return float(displayed(top, self.levels, self.gamma)[0])
+
     def largest_step(self) -> float:
         """The largest difference between neighbouring displayed levels (0: continuous)."""
         if not self.levels:
             return 0.0
         return float(np.diff(np.linspace(0.0, 1.0, self.levels) ** self.gamma).max())
+
+
+def fringes_of(scene: Any) -> FringesTable:
+    """A scene's emitter table as the fringes' (typed: the scene declares the stripes'
+    table, the fringes' fields join it at run time)."""
+    return cast(FringesTable, scene.emitter)

@@ -11,9 +11,10 @@ Oracle: :meth:`Stripes.coordinates` and the pattern's radiance.
 
 from __future__ import annotations
 
-from glshade.components.base import EmitterComponent
+from glshade.components.base import EmitterComponent, no_sequence
 from glshade.components.emitter import plane
 from glshade.components.emitter.stripes.table import Emitter
+from glshade.errors import GlshadeError
 
 
 class Stripes(EmitterComponent):
@@ -22,6 +23,8 @@ class Stripes(EmitterComponent):
     table = Emitter
 
     def glsl(self, variables):
+        if "frames" in variables["outputs"]:
+            raise GlshadeError(no_sequence(self.name))
         if "image" not in variables["outputs"]:
             return ("lib/emitter_plane.glsl",)
         return (

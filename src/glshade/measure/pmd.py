@@ -1,0 +1,786 @@
+"""Phase-measuring deflectometry, measured: what a PMD station would measure of a scene's
+dent (docs/pmd.md).
+
+A case renders the fringe sequence of the scene and of its defect-free twin through the
+whole imaging chain (one trace each: every ray is shaded for every frame,
+:meth:`Renderer.render <glshade.gpu.renderer.Renderer.render>` with the ``frames``
+output), records each frame with the sensor's own noise, decodes both like a station
+(:mod:`glshade.metrics.pmd`), and compares:
+
+- the decoded screen points with and without the dent (``pmd_shift_mm``), against the
+  noise of two decodes of the defect-free scene with different seeds (``pmd_noise_mm``)
+  and its prediction from the modulation;
+- the decoded points against the exact map the renderer traced (``decode_rms_mm``,
+  ``unwrap_failures``);
+- the measured normals (each pixel's point taken on the nominal surface, as a station
+  takes it on the part's CAD model) against the nominal ones: the slope map, integrated
+  on a regular ``(x, z)`` grid around the dent into heights, and the Gaussian fitted to
+  them (``pmd_depth_um``).
+
+The defect-free analysis (:class:`PmdBaseline`) is shared by every dent on one geometry,
+as the paper metric's :class:`~glshade.metrics.visibility.Baseline` is.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from glshade.components.base import no_sequence
+from glshade.components.emitter.fringes.table import DIRECTIONS, FringeFrame, fringes_of
+from glshade.errors import GlshadeError
+from glshade.metrics import pmd
+from glshade.metrics.status import STATUSES, Status, combined, dent_window, touches_edge
+from glshade.scene import Scene
+
+if TYPE_CHECKING:
+    from glshade.gpu.renderer import Renderer
+
+#: The share of its largest move above which a pixel belongs to the dent's region.
+REGION_SHARE = 0.2
+#: The share of the dent's seen region that may be invalid (modulation too low) before
+#: its numbers cannot be read.
+INVALID_SHARE = 0.25
+
+
+@dataclass(frozen=True)
+class PmdSettings:
+    """How a PMD case is decoded and reconstructed.
+
+    ``modulation_share``: a pixel is valid where every period's modulation is at least
+    this share of ``amplitude`` times the image's response to the screen's white (its
+    brightest pixel); ``min_modulation`` (recorded units) replaces that threshold when
+    given. ``heights``: ``least-squares`` or ``frankot-chellappa`` (a rectangle of valid
+    grid points only). ``grid_points``: the height grid's samples along its longer side;
+    ``window_sigmas``: the grid spans the dent's centre ± this many σ (its largest);
+    ``plane_sigmas``: tilt and offset are fitted where the Mahalanobis distance to the
+    dent exceeds this."""
+
+    modulation_share: float = 0.1
+    min_modulation: float | None = None
+    heights: str = "least-squares"
+    grid_points: int = 160
+    window_sigmas: float = 5.0
+    plane_sigmas: float = 3.5
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.modulation_share < 1.0:
+            raise GlshadeError(
+                f"modulation_share: must be in (0, 1), got {self.modulation_share!r}"
+            )
+        if self.min_modulation is not None and not self.min_modulation > 0.0:
+            raise GlshadeError(f"min_modulation: must be > 0, got {self.min_modulation!r}")
+        if self.heights not in ("least-squares", "frankot-chellappa"):
+            raise GlshadeError(
+                f"heights: must be least-squares or frankot-chellappa, got {self.heights!r}"
+            )
+        if not 16 <= self.grid_points <= 1024:
+            raise GlshadeError(f"grid_points: must be in [16, 1024], got {self.grid_points!r}")
+        if not 0.0 < self.plane_sigmas < self.window_sigmas <= 20.0:
+            raise GlshadeError(
+                "plane_sigmas, window_sigmas: need 0 < plane_sigmas < window_sigmas <= 20, got "
+                f"{self.plane_sigmas!r}, {self.window_sigmas!r}"
+            )
+
+
+def check_scene(scene: Scene) -> None:
+    """Refuse, in one line, a scene a PMD station cannot decode: another emitter than the
+    fringes, or a coding that cannot be decoded (an amplitude of 0 or above the offset)."""
+    if scene.active.emitter.measured_by != "pmd":
+        raise GlshadeError(no_sequence(scene.emitter.kind))
+    for direction in fringes_of(scene).directions:
+        pmd.FringeCoding.of(scene.emitter, direction)
+
+
+# --------------------------------------------------------------------------- capture
+@dataclass(frozen=True)
+class Capture:
+    """One scene's fringe sequence, shaded in one trace: ``radiance`` (F, H, W) of the
+    coded ``frames`` in order, ``white`` (H, W) the response to the screen's full scale,
+    ``uv`` (H, W, 2) the exact screen points (mm, NaN where none), ``gain`` the exposure
+    (recorded units per radiance; 1 without a sensor)."""
+
+    scene: Scene
+    frames: tuple[FringeFrame, ...]
+    radiance: np.ndarray
+    white: np.ndarray
+    uv: np.ndarray
+    gain: float
+    seconds: float
+
+    def recorded(self, seed_offset: int = 0) -> np.ndarray:
+        """The sequence as the sensor records it (float32, F × H × W; the radiance itself
+        without a sensor): each frame with its own noise, drawn from the sensor's seed
+        (plus ``seed_offset``), the scene and the frame shown."""
+        scene = self.scene
+        if not scene.active.records(scene):
+            return self.radiance
+        base = scene.with_value("camera.exposure", self.gain)
+        if seed_offset:
+            base = base.with_value("sensor.seed", (scene.sensor.seed + seed_offset) % 2**63)
+        emitter = scene.active.emitter
+        out = np.empty_like(self.radiance)
+        for index, frame in enumerate(self.frames):
+            shown = emitter.showing(base, frame)
+            out[index] = shown.active.develop(shown, self.radiance[index].copy())
+        return out
+
+    @property
+    def peak_response(self) -> float:
+        """The recorded response of the brightest pixel to the screen's white."""
+        white = self.white[np.isfinite(self.white)]
+        peak = float(white.max()) * self.gain if white.size else 0.0
+        return min(peak, 1.0) if self.scene.active.records(self.scene) else peak
+
+
+def capture(renderer: Renderer, scene: Scene) -> Capture:
+    """Render ``scene``'s whole coded sequence and its white frame in one trace."""
+    start = time.perf_counter()
+    emitter = scene.active.emitter
+    frames = tuple(emitter.sequence(scene))
+    stack = renderer.render(scene, ("frames", "uv"), frames=(*frames, emitter.white(scene)))
+    layers = stack.output("frames")
+    gain = renderer.exposure_gain(scene) if scene.active.records(scene) else 1.0
+    return Capture(
+        scene,
+        frames,
+        layers[:-1],
+        layers[-1],
+        stack.output("uv").astype(np.float64),
+        gain,
+        time.perf_counter() - start,
+    )
+
+
+# --------------------------------------------------------------------------- decoding
+@dataclass(frozen=True)
+class Decoding:
+    """A recorded sequence decoded: ``uv`` (H, W, 2) the decoded screen points in mm (NaN
+    where a direction is not coded or not valid), ``valid`` (H, W) valid in every coded
+    direction, per direction ``modulation``, ``offset`` and ``wrapped`` (D, K, H, W),
+    ``threshold`` the modulation a valid pixel needs (recorded units)."""
+
+    uv: np.ndarray
+    valid: np.ndarray
+    modulation: np.ndarray
+    offset: np.ndarray
+    wrapped: np.ndarray
+    threshold: float
+
+
+def decode_sequence(
+    scene: Scene, recorded: np.ndarray, peak_response: float, settings: PmdSettings
+) -> Decoding:
+    """Decode every coded direction of a recorded ``(F, H, W)`` sequence."""
+    em = fringes_of(scene)
+    periods, shifts = len(em.periods), em.shifts
+    height, width = recorded.shape[1:]
+    uv = np.full((height, width, 2), np.nan)
+    valid = np.ones((height, width), bool)
+    threshold = (
+        settings.min_modulation
+        if settings.min_modulation is not None
+        else settings.modulation_share * em.amplitude * peak_response
+    )
+    parts: list[pmd.Decoded] = []
+    for d, direction in enumerate(em.directions):
+        coding = pmd.FringeCoding.of(em, direction)
+        block = recorded[d * periods * shifts : (d + 1) * periods * shifts]
+        decoded = pmd.decode(
+            block.reshape(periods, shifts, height, width), coding, min_modulation=threshold
+        )
+        axis = DIRECTIONS.index(direction) ^ 1
+        uv[..., axis] = decoded.s_mm - em.half_size[axis]
+        valid &= decoded.valid
+        parts.append(decoded)
+    uv[~valid] = np.nan
+    return Decoding(
+        uv,
+        valid,
+        np.stack([p.modulation for p in parts]).astype(np.float32),
+        np.stack([p.offset for p in parts]).astype(np.float32),
+        np.stack([p.wrapped for p in parts]).astype(np.float32),
+        float(threshold),
+    )
+
+
+def coded_axes(scene: Scene) -> list[int]:
+    """The screen coordinates the sequence codes (0: u, 1: v)."""
+    return [DIRECTIONS.index(d) ^ 1 for d in fringes_of(scene).directions]
+
+
+def failures(decoded_uv: np.ndarray, exact_uv: np.ndarray, scene: Scene) -> np.ndarray:
+    """Valid pixels where some coded direction decodes more than half the finest period
+    away from the exact map (the unwrapping picked another fringe)."""
+    half = 0.5 * fringes_of(scene).periods[0]
+    bad = np.zeros(decoded_uv.shape[:2], bool)
+    for axis in coded_axes(scene):
+        with np.errstate(invalid="ignore"):
+            bad |= np.abs(decoded_uv[..., axis] - exact_uv[..., axis]) > half
+    return bad
+
+
+# --------------------------------------------------------------------------- geometry
+@dataclass(frozen=True)
+class Nominal:
+    """What the station knows of each pixel: ``points`` (H, W, 3) where its chief ray
+    meets the nominal surface (the part without the defect; NaN where it meets none),
+    ``normals`` (H, W, 3) the nominal unit normals there, ``camera`` the principal point."""
+
+    points: np.ndarray
+    normals: np.ndarray
+    camera: np.ndarray
+
+
+def nominal_geometry(renderer: Renderer, scene: Scene) -> Nominal:
+    """Each pixel's point on the nominal surface along its chief (pinhole) ray, and the
+    surface's unit normal there (the surface component's float64 oracle)."""
+    chief = scene.without_defect().updated(camera={"f_number": 0.0}, render={"supersample": 1})
+    distance = renderer.render(chief, ("distance",)).output("distance").astype(np.float64)
+    origin, directions = scene.active.camera.pixel_rays(chief)
+    points = np.asarray(origin) + distance[..., None] * directions
+    surface = scene.active.surface
+    flat = np.zeros(distance.shape)
+    normals = np.asarray(
+        surface.normal(chief, points[..., 0], points[..., 2], flat, flat), np.float64
+    )
+    normals = normals / np.linalg.norm(normals, axis=-1, keepdims=True)
+    normals[~np.isfinite(distance)] = np.nan
+    return Nominal(points, normals, np.asarray(origin, np.float64))
+
+
+def screen_points(scene: Scene, uv: np.ndarray) -> np.ndarray:
+    """World points (mm) of screen coordinates ``uv`` (…, 2)."""
+    plane = scene.emitter_plane()
+    return plane.centre + uv[..., :1] * plane.e_u + uv[..., 1:] * plane.e_v
+
+
+def slope_map(scene: Scene, nominal: Nominal, decoded_uv: np.ndarray) -> np.ndarray:
+    """The measured slope deviation ``(∂d/∂x, ∂d/∂z)`` (H, W, 2), rad: the normal that
+    bisects the directions to the camera and to the decoded screen point, against the
+    nominal normal. A sequence coding one direction leaves the other coordinate at the
+    nominal surface's (the exact map of the defect-free scene is not known to a station:
+    the missing coordinate is taken from the nominal mirror, so only one slope is
+    measured)."""
+    measured = pmd.normals_from_points(
+        nominal.points, nominal.camera, screen_points(scene, decoded_uv)
+    )
+    gx, gz = pmd.slope_deviation(measured, nominal.normals)
+    return np.stack([gx, gz], axis=-1)
+
+
+# --------------------------------------------------------------------------- heights
+@dataclass(frozen=True)
+class HeightGrid:
+    """The regular ``(x, z)`` grid the slopes are integrated on: centre, spacing (mm),
+    shape (rows along z, columns along x)."""
+
+    x: np.ndarray
+    z: np.ndarray
+
+    @property
+    def spacing(self) -> tuple[float, float]:
+        return float(self.x[1] - self.x[0]), float(self.z[1] - self.z[0])
+
+
+def height_grid(scene: Scene, nominal: Nominal, settings: PmdSettings) -> HeightGrid:
+    """A square grid over the dent's centre ± ``window_sigmas`` of its largest σ, at the
+    pixels' own spacing on the surface (their median), at most ``grid_points`` across."""
+    defect = scene.defect
+    cov = np.array([[defect.sigma_x2, defect.sigma_xz], [defect.sigma_xz, defect.sigma_z2]])
+    half = settings.window_sigmas * math.sqrt(float(np.linalg.eigvalsh(cov).max()))
+    p = nominal.points
+    steps = [
+        np.abs(np.diff(p[..., 0], axis=1)),
+        np.abs(np.diff(p[..., 2], axis=0)),
+    ]
+    found = [float(np.nanmedian(s)) for s in steps if np.isfinite(s).any()]
+    pitch = min(found) if found else 2.0 * half / settings.grid_points
+    count = int(min(settings.grid_points, max(16, math.ceil(2.0 * half / pitch) + 1)))
+    x = defect.x0 + np.linspace(-half, half, count)
+    z = defect.z0 + np.linspace(-half, half, count)
+    return HeightGrid(x, z)
+
+
+def project(scene: Scene, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Image ``(rows, cols)`` (pixel units, centres at integers) of world points (…, 3)
+    through the camera, its distortion included; NaN behind the camera."""
+    from glshade.components.camera.perspective.optics import distort
+
+    cam = scene.camera
+    pose = cam.pose()
+    d = np.asarray(points, np.float64) - pose.position
+    depth = d @ pose.forward
+    with np.errstate(invalid="ignore", divide="ignore"):
+        x = np.where(depth > 0, (d @ pose.right) / depth, np.nan)
+        y = np.where(depth > 0, -(d @ pose.up) / depth, np.nan)
+    if any(cam.distortion):
+        x, y = distort(cam.distortion, x, y)
+    cols = x * cam.focal / cam.pixel_pitch + cam.width / 2.0 - 0.5
+    rows = y * cam.focal / cam.pixel_pitch + cam.height / 2.0 - 0.5
+    return rows, cols
+
+
+def sample(image: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Bilinear samples of ``image`` at fractional ``(rows, cols)``; NaN outside, or where
+    a neighbour is NaN."""
+    from scipy.ndimage import map_coordinates
+
+    height, width = image.shape
+    inside = (rows >= 0) & (rows <= height - 1) & (cols >= 0) & (cols <= width - 1)
+    values = np.full(rows.shape, np.nan)
+    if not inside.any():
+        return values
+    coords = np.stack([rows[inside], cols[inside]])
+    finite = np.isfinite(image)
+    filled = np.where(finite, image, 0.0)
+    values[inside] = map_coordinates(filled, coords, order=1, mode="nearest")
+    weight = map_coordinates(finite.astype(np.float64), coords, order=1, mode="nearest")
+    values[inside] = np.where(weight > 1.0 - 1e-9, values[inside], np.nan)
+    return values
+
+
+@dataclass(frozen=True)
+class Heights:
+    """The reconstructed defect: ``grid`` and its heights (µm, rows along z), the fitted
+    Gaussian (``dent``, None where the fit failed) and the heights at each pixel (µm)."""
+
+    grid: HeightGrid
+    height_um: np.ndarray
+    dent: pmd.Dent | None
+    per_pixel_um: np.ndarray
+
+
+def reconstruct(
+    scene: Scene, nominal: Nominal, slopes: np.ndarray, settings: PmdSettings
+) -> Heights:
+    """Slopes → heights on the grid → the dent: the slope map sampled at the grid's points
+    (projected through the camera onto the image), integrated by least squares (tilt and
+    offset removed beyond ``plane_sigmas``), and the Gaussian fitted to it."""
+    from scipy.interpolate import RegularGridInterpolator
+
+    grid = height_grid(scene, nominal, settings)
+    xx, zz = np.meshgrid(grid.x, grid.z)
+    yy = np.asarray(scene.active.surface.height(scene, xx, zz), np.float64)
+    rows, cols = project(scene, np.stack([xx, yy, zz], axis=-1))
+    gx = sample(slopes[..., 0], rows, cols)
+    gz = sample(slopes[..., 1], rows, cols)
+    defect = scene.defect
+    cov = np.array([[defect.sigma_x2, defect.sigma_xz], [defect.sigma_xz, defect.sigma_z2]])
+    rel = np.stack([xx - defect.x0, zz - defect.z0], axis=-1)
+    mahalanobis = np.sqrt(np.einsum("...i,ij,...j->...", rel, np.linalg.inv(cov), rel))
+    outside = mahalanobis > settings.plane_sigmas
+    valid = np.isfinite(gx) & np.isfinite(gz)
+    if settings.heights == "frankot-chellappa" and not valid.all():
+        raise GlshadeError(
+            "heights = frankot-chellappa needs every grid point seen and valid; "
+            f"{int((~valid).sum())} of {valid.size} are not (use least-squares)"
+        )
+    height_mm = pmd.integrate_slopes(
+        gx, gz, grid.spacing, valid=valid, outside=outside, method=settings.heights
+    )
+    height_um = 1e3 * height_mm
+    try:
+        dent = pmd.dent_from_height(height_um, xx, zz)
+    except (GlshadeError, RuntimeError, ValueError):
+        dent = None
+    lookup = RegularGridInterpolator(
+        (grid.z, grid.x), height_um, bounds_error=False, fill_value=np.nan
+    )
+    p = nominal.points
+    per_pixel = lookup(np.stack([p[..., 2], p[..., 0]], axis=-1)).astype(np.float32)
+    return Heights(grid, height_um, dent, per_pixel)
+
+
+# --------------------------------------------------------------------------- baseline
+@dataclass
+class PmdBaseline:
+    """The defect-free analysis of one geometry, shared by every dent on it: its capture,
+    decoded from one recording and again from a second with another seed (the noise),
+    the nominal geometry, and the prediction of the noise."""
+
+    scene: Scene
+    settings: PmdSettings
+    capture: Capture
+    decoding: Decoding
+    twin: Decoding | None
+    nominal: Nominal
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def noise_mm(self) -> float:
+        """The decoded coordinate's noise: the standard deviation of the difference of two
+        decodes with different seeds, over the pixels valid in both and in every coded
+        coordinate, over sqrt 2 (0 without a sensor)."""
+        if self.twin is None:
+            return 0.0
+        both = self.decoding.valid & self.twin.valid
+        axes = coded_axes(self.scene)
+        diff = (self.decoding.uv - self.twin.uv)[both][:, axes]
+        return float(np.std(diff) / math.sqrt(2.0)) if diff.size else math.nan
+
+    @property
+    def noise_floor_mm(self) -> float:
+        """The largest shift noise alone makes: the largest difference of the two decodes
+        (0 without a sensor)."""
+        if self.twin is None:
+            return 0.0
+        both = self.decoding.valid & self.twin.valid
+        diff = np.abs(self.decoding.uv - self.twin.uv)[both][:, coded_axes(self.scene)]
+        return float(diff.max()) if diff.size else math.nan
+
+
+def pmd_baseline(
+    renderer: Renderer, scene: Scene, settings: PmdSettings = PmdSettings()
+) -> PmdBaseline:
+    """The defect-free analysis of ``scene``'s geometry (its defect is ignored)."""
+    check_scene(scene)
+    normal = scene.without_defect()
+    shot = capture(renderer, normal)
+    start = time.perf_counter()
+    decoding = decode_sequence(normal, shot.recorded(), shot.peak_response, settings)
+    twin = None
+    if normal.active.records(normal):
+        twin = decode_sequence(normal, shot.recorded(seed_offset=1), shot.peak_response, settings)
+    decode_s = time.perf_counter() - start
+    nominal = nominal_geometry(renderer, scene)
+    return PmdBaseline(
+        normal,
+        settings,
+        shot,
+        decoding,
+        twin,
+        nominal,
+        {"render": shot.seconds, "decode": decode_s},
+    )
+
+
+# --------------------------------------------------------------------------- noise
+def predicted_noise_mm(scene: Scene, decoding: Decoding, mask: np.ndarray) -> float:
+    """``periods[0] / 2π · sqrt(2 / N) · σ_I / B`` per pixel of ``mask`` (valid ones),
+    pooled as the root mean square (what the measured standard deviation estimates):
+    ``σ_I`` the sensor's noise at the pixel's mean level ``A`` (photon noise
+    ``sqrt(A / full_well)``, read noise and the quantisation's ``q / sqrt 12``, recorded
+    units), ``B`` its modulation of the finest period, each coded direction counted. 0
+    without a sensor."""
+    sensor, em = scene.sensor, fringes_of(scene)
+    if sensor.full_well_e is None:
+        return 0.0
+    full_well = sensor.full_well_e
+    q = 1.0 / (2**sensor.bit_depth - 1)
+    scale = em.periods[0] / (2.0 * math.pi)
+    variances = []
+    for d in range(len(em.directions)):
+        level = decoding.offset[d, 0][mask].astype(np.float64)
+        modulation = decoding.modulation[d, 0][mask].astype(np.float64)
+        sigma2 = (
+            np.maximum(level, 0.0) / full_well
+            + (sensor.read_noise_e / full_well) ** 2
+            + q * q / 12.0
+        )
+        variances.append(scale**2 * (2.0 / em.shifts) * sigma2 / modulation**2)
+    pooled = np.concatenate(variances)
+    return float(math.sqrt(pooled.mean())) if pooled.size else math.nan
+
+
+# --------------------------------------------------------------------------- one case
+@dataclass(frozen=True)
+class PmdResult:
+    """What a PMD station measures of one scene's dent (lengths on the screen in mm,
+    slopes in µrad, heights in µm) with its status, the maps behind the numbers and the
+    seconds spent."""
+
+    pmd_shift_mm: float
+    pmd_noise_mm: float
+    pmd_noise_floor_mm: float
+    pmd_noise_predicted_mm: float
+    pmd_snr: float
+    pmd_slope_urad: float
+    pmd_depth_um: float
+    pmd_sigma_mm: float
+    decode_rms_mm: float
+    unwrap_failures: int
+    valid_fraction: float
+    modulation: float
+    status: str
+    status_reason: str
+    maps: PmdMaps
+    seconds: dict[str, float]
+
+
+@dataclass(frozen=True)
+class PmdMaps:
+    """The maps of one case, image-aligned (H, W[, 2]) unless said: ``decoded`` the
+    decoded screen points (mm, NaN invalid), ``exact`` the traced ones, ``error`` decoded
+    minus exact (mm), ``modulation`` and ``wrapped`` (D, K, H, W), ``slopes`` (µrad),
+    ``height_um`` and the heights' grid, ``failed`` (unwrapping failures), ``region`` (the
+    dent's region), ``recorded`` the case's recorded sequence (F, H, W)."""
+
+    decoded: np.ndarray
+    exact: np.ndarray
+    error: np.ndarray
+    modulation: np.ndarray
+    wrapped: np.ndarray
+    slopes_urad: np.ndarray
+    height_um: np.ndarray
+    heights: Heights
+    failed: np.ndarray
+    region: np.ndarray
+    recorded: np.ndarray
+
+
+def dent_region(scene: Scene, exact0: np.ndarray, exact1: np.ndarray) -> np.ndarray:
+    """Where, inside its window, the dent moves the exact screen points by at least
+    :data:`REGION_SHARE` of its largest move."""
+    window = dent_window(scene, exact0.shape[:2])
+    axes = coded_axes(scene)
+    moved = np.linalg.norm((exact1 - exact0)[..., axes], axis=-1)
+    moved = np.where(window & np.isfinite(moved), moved, 0.0)
+    peak = float(moved.max()) if moved.size else 0.0
+    if peak <= 0.0:
+        return np.zeros(moved.shape, bool)
+    return moved >= REGION_SHARE * peak
+
+
+def measure_pmd_scene(
+    renderer: Renderer,
+    scene: Scene,
+    settings: PmdSettings = PmdSettings(),
+    baseline: PmdBaseline | None = None,
+) -> PmdResult:
+    """What a PMD station measures of ``scene``'s dent, on an existing renderer
+    (``baseline``: the defect-free analysis of the same geometry, when the caller has
+    it)."""
+    check_scene(scene)
+    if baseline is None:
+        baseline = pmd_baseline(renderer, scene, settings)
+    shot = capture(renderer, scene)
+    start = time.perf_counter()
+    recorded = shot.recorded()
+    decoding = decode_sequence(scene, recorded, baseline.capture.peak_response, settings)
+    decode_s = time.perf_counter() - start
+    start = time.perf_counter()
+    slopes = slope_map(scene, baseline.nominal, decoding.uv)
+    heights = reconstruct(scene, baseline.nominal, slopes, settings)
+    heights_s = time.perf_counter() - start
+    return _result(
+        scene,
+        baseline,
+        shot,
+        recorded,
+        decoding,
+        slopes,
+        heights,
+        {"render": shot.seconds, "decode": decode_s, "heights": heights_s},
+    )
+
+
+def _result(scene, baseline, shot, recorded, decoding, slopes, heights, seconds) -> PmdResult:
+    axes = coded_axes(scene)
+    base = baseline.decoding
+    failed = failures(decoding.uv, shot.uv, scene)
+    failed0 = failures(base.uv, baseline.capture.uv, scene)
+    both = decoding.valid & base.valid & ~failed & ~failed0
+    shift = np.linalg.norm((decoding.uv - base.uv)[..., axes], axis=-1)
+    shift_mm = float(shift[both].max()) if both.any() else math.nan
+    noise = baseline.noise_mm
+    region = dent_region(scene, baseline.capture.uv, shot.uv)
+    slope = np.hypot(slopes[..., 0], slopes[..., 1])
+    in_region = region & decoding.valid & ~failed
+    slope_urad = float(1e6 * slope[in_region].max()) if in_region.any() else math.nan
+    ok0 = base.valid & ~failed0
+    error0 = (base.uv - baseline.capture.uv)[..., axes][ok0]
+    seen = np.isfinite(shot.uv[..., axes[0]])
+    dent = heights.dent
+    modulation = _modulation_share(scene, decoding, region, baseline.capture.peak_response)
+    status = assess_pmd(scene, baseline, shot, decoding, region, failed, shift_mm)
+    return PmdResult(
+        pmd_shift_mm=shift_mm,
+        pmd_noise_mm=noise,
+        pmd_noise_floor_mm=baseline.noise_floor_mm,
+        pmd_noise_predicted_mm=predicted_noise_mm(
+            baseline.scene, base, base.valid & (baseline.twin.valid if baseline.twin else True)
+        ),
+        pmd_snr=shift_mm / noise if noise > 0 else math.inf,
+        pmd_slope_urad=slope_urad,
+        pmd_depth_um=dent.depth if dent is not None else math.nan,
+        pmd_sigma_mm=dent.sigma_mm if dent is not None else math.nan,
+        decode_rms_mm=float(np.sqrt(np.mean(error0**2))) if error0.size else math.nan,
+        unwrap_failures=int(failed.sum()),
+        valid_fraction=float(decoding.valid[seen].mean()) if seen.any() else 0.0,
+        modulation=modulation,
+        status=status.status,
+        status_reason=status.reason,
+        maps=PmdMaps(
+            decoded=decoding.uv,
+            exact=shot.uv,
+            error=decoding.uv - shot.uv,
+            modulation=decoding.modulation,
+            wrapped=decoding.wrapped,
+            slopes_urad=(1e6 * slopes).astype(np.float32),
+            height_um=heights.per_pixel_um,
+            heights=heights,
+            failed=failed,
+            region=region,
+            recorded=recorded,
+        ),
+        seconds=seconds,
+    )
+
+
+def _modulation_share(scene: Scene, decoding: Decoding, region: np.ndarray, peak: float) -> float:
+    """The finest period's median modulation in the dent's region (else over the seen
+    pixels), as a share of ``amplitude`` times the peak response: 1 for a sharp mirror,
+    less where the pixels' footprints average the fringes out."""
+    finest = decoding.modulation[:, 0]
+    where = region if region.any() else np.isfinite(finest).all(axis=0)
+    values = finest[:, where]
+    values = values[np.isfinite(values)]
+    scale = fringes_of(scene).amplitude * peak
+    return float(np.median(values) / scale) if values.size and scale > 0 else math.nan
+
+
+# --------------------------------------------------------------------------- status
+def assess_pmd(
+    scene: Scene,
+    baseline: PmdBaseline,
+    shot: Capture,
+    decoding: Decoding,
+    region: np.ndarray,
+    failed: np.ndarray,
+    shift_mm: float,
+) -> Status:
+    """Whether a PMD case's numbers can be read: ``outside`` (the dent moves no seen
+    pixel), ``edge`` (its region touches the image's border or the edge of what sees the
+    screen, or a height map's holes or edge), ``unresolved`` (more than
+    :data:`INVALID_SHARE` of its region is not valid: the fringes are averaged out),
+    ``saturated``/``underexposed`` (the recorded frames), ``noise`` (the shift is not above
+    what noise alone makes, or the unwrapping fails in the dent's region)."""
+    if scene.defect.dmax != 0.0 and not region.any():
+        return Status(
+            "outside",
+            "the dent is not seen: no pixel that sees the screen moves (move the dent, "
+            "defect.x0/z0, or the camera)",
+        )
+    found = [_pmd_edge(scene, region, shot), _pmd_resolution(scene, region, decoding)]
+    if scene.active.records(scene):
+        found.append(_pmd_exposure(baseline))
+    floor = baseline.noise_floor_mm
+    if baseline.twin is not None and not shift_mm > floor:
+        found.append(
+            Status(
+                "noise",
+                f"the shift {shift_mm:.3g} mm is not above the {floor:.3g} mm two noisy "
+                "decodes of the defect-free scene differ by",
+            )
+        )
+    in_region = int((failed & region).sum())
+    if in_region:
+        found.append(
+            Status(
+                "noise",
+                f"{in_region} pixels of the dent's region fail to unwrap (noise or a "
+                "period ratio too large for it)",
+            )
+        )
+    return combined(found)
+
+
+def _pmd_edge(scene: Scene, region: np.ndarray, shot: Capture) -> Status:
+    coverage = scene.active.surface.coverage(scene)
+    if coverage is not None and coverage.nan_near_dent:
+        return Status(
+            "edge",
+            "unmeasured (NaN) samples of the height map lie in the dent's region (fill them: "
+            'surface.fill = "harmonic" or "nearest")',
+        )
+    if coverage is not None and coverage.dent_at_edge:
+        return Status("edge", "the dent's region reaches the height map's edge")
+    seen = np.all(np.isfinite(shot.uv), axis=-1)
+    where = touches_edge(region, seen)
+    return Status("edge", f"the dent's region touches {where}") if where else Status()
+
+
+def _pmd_resolution(scene: Scene, region: np.ndarray, decoding: Decoding) -> Status:
+    count = int(region.sum())
+    if not count:
+        return Status()
+    share = float((region & ~decoding.valid).sum() / count)
+    if share <= INVALID_SHARE:
+        return Status()
+    return Status(
+        "unresolved",
+        f"{share:.0%} of the dent's region has a modulation below {decoding.threshold:.3g}: "
+        f"the pixels average the {fringes_of(scene).periods[0]:g} mm fringes out there (a longer "
+        "emitter.periods[0], a sharper focus or a finer camera resolves them)",
+    )
+
+
+def _pmd_exposure(baseline: PmdBaseline) -> Status:
+    recorded_peak = baseline.capture.white * baseline.capture.gain
+    recorded_peak = recorded_peak * fringes_of(baseline.scene).brightest()
+    seen = np.isfinite(recorded_peak) & (baseline.capture.white > 0)
+    values = recorded_peak[seen]
+    if not values.size:
+        return Status()
+    clipped = float((values >= 1.0).mean())
+    if clipped > 0.01:
+        return Status(
+            "saturated",
+            f"{clipped:.1%} of the seen pixels clip at full scale on the brightest fringe; "
+            'lower camera.exposure or set it to "auto"',
+        )
+    peak = float(np.percentile(values, 99.5))
+    if peak < 0.1:
+        return Status(
+            "underexposed",
+            f"the fringes peak at {peak:.1%} of full scale; raise camera.exposure or set it "
+            'to "auto"',
+        )
+    return Status()
+
+
+assert "unresolved" in STATUSES  # the statuses are the paper metric's, in its order
+
+
+def measure_pmd(
+    scene: Scene, *, renderer: Renderer | None = None, settings: PmdSettings | None = None
+) -> PmdResult:
+    """:func:`measure_pmd_scene` with a renderer of its own unless one is given."""
+    settings = settings or PmdSettings()
+    check_scene(scene)
+    if renderer is not None:
+        return measure_pmd_scene(renderer, scene, settings)
+    from glshade.gpu.renderer import Renderer
+
+    with Renderer() as own:
+        return measure_pmd_scene(own, scene, settings)
+
+
+#: The numbers of the dent itself: a status other than ok makes them unreadable (the
+#: station's own numbers, its noise, decoding error and valid share, stay readable).
+DENT_COLUMNS = (
+    "pmd_shift_mm",
+    "pmd_snr",
+    "pmd_slope_urad",
+    "pmd_depth_um",
+    "pmd_sigma_mm",
+)
+
+
+def pmd_concerns(status: str, column: str) -> bool:
+    """True when ``status`` makes ``column`` of a PMD record unreadable."""
+    return status != "ok" and column in DENT_COLUMNS
+
+
+def summary(result: PmdResult) -> dict[str, Any]:
+    """The result's numbers (no maps)."""
+    return {
+        name: getattr(result, name)
+        for name in PmdResult.__dataclass_fields__
+        if name not in ("maps", "seconds")
+    }
