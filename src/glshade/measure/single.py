@@ -172,7 +172,7 @@ def as_method(scene: Scene, method: str) -> Scene:
     from glshade.components.registry import registry
 
     for emitter in registry().components("emitter"):
-        if emitter.measured_by == method:
+        if getattr(emitter, "measured_by", None) == method:
             return scene.updated(emitter={"kind": emitter.name})
     raise GlshadeError(f"method {method!r}: no registered emitter is measured by it")
 
