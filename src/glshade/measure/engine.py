@@ -24,7 +24,8 @@ from typing import Any
 import numpy as np
 
 from glshade.gpu.compose import ShaderFeatures
-from glshade.measure.record import Measurement
+from glshade.measure.pmd import PmdBaseline, PmdResult, PmdSettings, measure_pmd_scene, pmd_baseline
+from glshade.measure.record import Measurement, PmdMeasurement
 from glshade.measure.single import (
     baseline_for,
     emitter_map,
@@ -57,13 +58,16 @@ class Measured:
     what the caller's ``extra`` hook made of it."""
 
     case: Case
-    result: vis.Visibility
+    result: vis.Visibility | PmdResult
     trace_s: float
     extra: Any = None
 
     @property
-    def record(self) -> Measurement:
-        """The case's row (:class:`glshade.measure.record.Measurement`)."""
+    def record(self) -> Measurement | PmdMeasurement:
+        """The case's row: :class:`glshade.measure.record.Measurement` of the paper's
+        metric, or :class:`~glshade.measure.record.PmdMeasurement` of phase measuring."""
+        if isinstance(self.result, PmdResult):
+            return PmdMeasurement.of(self.case.scene, self.result)
         return Measurement.of(self.case.scene, self.result, self.trace_s)
 
 
@@ -113,14 +117,23 @@ def grouped(cases: Sequence[Case]) -> list[list[Case]]:
 def measure_many(
     renderer,
     cases: Sequence[Case],
-    settings: vis.MetricSettings,
+    settings: vis.MetricSettings | PmdSettings,
     *,
     pool: Executor | None = None,
     extra: Extra | None = None,
 ) -> Iterator[Measured]:
     """Measure every case; yields one :class:`Measured` per case, geometry by geometry
     (:func:`grouped`), as each is done. ``pool``: threads for the analysis of map-shaded
-    cases (None: this thread). GL work stays on the calling thread."""
+    cases (None: this thread). GL work stays on the calling thread.
+
+    ``settings`` says the instrument: :class:`~glshade.metrics.visibility.MetricSettings`
+    the paper's stripe metric, :class:`~glshade.measure.pmd.PmdSettings` phase measuring
+    (every case's emitter shows the fringe sequence; one defect-free analysis per
+    geometry; ``extra`` gets a :class:`PmdView`)."""
+    if isinstance(settings, PmdSettings):
+        for group in grouped(cases):
+            yield from _phase_measured(renderer, group, settings, extra)
+        return
     for group in grouped(cases):
         if shades_from_map(group[0].scene):
             yield from _mapped(renderer, group, settings, pool, extra)
@@ -169,3 +182,20 @@ def _rendered(renderer, group, settings, extra) -> Iterator[Measured]:
             view = CaseView(baseline, v1, phase_images(renderer, case.scene))
             made = extra(case, result, view)
         yield Measured(case, result, trace_s, made)
+
+
+@dataclass(frozen=True)
+class PmdView:
+    """What an ``extra`` hook of a phase-measured case may look at: its defect-free
+    analysis (the result carries the case's maps)."""
+
+    baseline: PmdBaseline
+
+
+def _phase_measured(renderer, group, settings: PmdSettings, extra) -> Iterator[Measured]:
+    """One geometry measured as a PMD station measures it, its defect-free analysis once."""
+    baseline = pmd_baseline(renderer, group[0].scene, settings)
+    for case in group:
+        result = measure_pmd_scene(renderer, case.scene, settings, baseline)
+        made = extra(case, result, PmdView(baseline)) if extra is not None else None
+        yield Measured(case, result, result.seconds.get("render", 0.0), made)

@@ -16,12 +16,12 @@ from typing import Any, Self
 
 from glshade.errors import GlshadeError
 from glshade.measure.engine import Case, CaseView, measure_many
-from glshade.measure.record import Measurement
+from glshade.measure.record import Measurement, PmdMeasurement
 from glshade.metrics.visibility import MetricSettings, Visibility
 
 #: What every executor yields per case: its key, its record, its best-phase image as PNG
 #: bytes (when images were asked for) or None.
-Row = tuple[Any, Measurement, bytes | None]
+Row = tuple[Any, Measurement | PmdMeasurement, bytes | None]
 
 
 @dataclass(frozen=True)

@@ -28,6 +28,7 @@ from glshade.files import encode_png
 from glshade.gpu.renderer import Renderer
 from glshade.measure.engine import Case, CaseView, Measured, measure_many
 from glshade.measure.locks import run_lock
+from glshade.measure.record import Measurement
 from glshade.metrics import contours
 from glshade.metrics import visibility as vis
 from glshade.study.plan import (
@@ -256,4 +257,5 @@ def case_result(measured: Measured) -> CaseResult:
     """A case's row: its point of the plan and its measurement's record."""
     case = measured.case
     point = cast(PlanPoint, case.key)
-    return CaseResult.of_point(point, case.scene.emitter.period, measured.record)
+    record = cast(Measurement, measured.record)  # the paper's study: the stripe metric
+    return CaseResult.of_point(point, case.scene.emitter.period, record)

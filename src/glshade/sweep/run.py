@@ -13,11 +13,12 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from glshade.errors import GlshadeError
 from glshade.measure.executors import Distribution, Row
 from glshade.measure.locks import run_lock
+from glshade.measure.record import Measurement
 from glshade.measure.where import open_executor
 from glshade.sweep import store
 from glshade.sweep.spec import MAX_CASES_UNCONFIRMED, GridPoint, SweepSpec
@@ -69,7 +70,7 @@ def run_sweep(
         try:
             for row in _rows(spec, pending, distribution, renderer):
                 case_id, record, image = row
-                store.write_case(out_dir, case_id, record, image)
+                store.write_case(out_dir, case_id, cast(Measurement, record), image)
                 done[case_id] = {"case_id": case_id, "outputs": record.outputs()}
                 if bar is not None:
                     bar.update(1)
