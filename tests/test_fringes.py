@@ -46,7 +46,6 @@ def test_defaults_and_the_stripes_stay_the_default():
         ({"gamma": -1.0}, ["emitter.gamma", "-1"]),
         ({"levels": 1}, ["emitter.levels", "1"]),
         ({"offset": 0.6}, ["emitter.offset", "offset + amplitude <= 1", "0.6"]),
-        ({"frame_direction": "u", "directions": ["v"]}, ["emitter.frame_direction", "u"]),
         ({"frame_period_index": 4}, ["emitter.frame_period_index", "4"]),
         ({"frame_shift_index": 4}, ["emitter.frame_shift_index", "4"]),
         ({"directions": ["v", "w"]}, ["emitter.directions", "w"]),
@@ -59,6 +58,11 @@ def test_refusals_are_one_line_naming_the_value(values, words):
     assert "\n" not in text
     for word in words:
         assert word in text, text
+
+
+def test_the_frame_shown_need_not_be_one_the_sequence_codes():
+    # a sequence of u alone keeps the default frame (v): setting the directions is enough
+    assert fringes(directions=["u"]).emitter.frame_direction == "v"
 
 
 def test_the_coarsest_period_is_checked_along_each_listed_direction():

@@ -495,6 +495,7 @@ class PmdResult:
     seconds spent."""
 
     pmd_shift_mm: float
+    pmd_shift_exact_mm: float
     pmd_noise_mm: float
     pmd_noise_floor_mm: float
     pmd_noise_predicted_mm: float
@@ -589,6 +590,8 @@ def _result(scene, baseline, shot, recorded, decoding, slopes, heights, seconds)
     shift_mm = float(shift[both].max()) if both.any() else math.nan
     noise = baseline.noise_mm
     region = dent_region(scene, baseline.capture.uv, shot.uv)
+    moved = np.linalg.norm((shot.uv - baseline.capture.uv)[..., axes], axis=-1)
+    exact_mm = float(np.nanmax(moved)) if np.isfinite(moved).any() else math.nan
     slope = np.hypot(slopes[..., 0], slopes[..., 1])
     in_region = region & decoding.valid & ~failed
     slope_urad = float(1e6 * slope[in_region].max()) if in_region.any() else math.nan
@@ -597,9 +600,10 @@ def _result(scene, baseline, shot, recorded, decoding, slopes, heights, seconds)
     seen = np.isfinite(shot.uv[..., axes[0]])
     dent = heights.dent
     modulation = _modulation_share(scene, decoding, region, baseline.capture.peak_response)
-    status = assess_pmd(scene, baseline, shot, decoding, region, failed, shift_mm)
+    status = assess_pmd(scene, baseline, shot, decoding, region, failed, exact_mm)
     return PmdResult(
         pmd_shift_mm=shift_mm,
+        pmd_shift_exact_mm=exact_mm,
         pmd_noise_mm=noise,
         pmd_noise_floor_mm=baseline.noise_floor_mm,
         pmd_noise_predicted_mm=predicted_noise_mm(
@@ -652,14 +656,16 @@ def assess_pmd(
     decoding: Decoding,
     region: np.ndarray,
     failed: np.ndarray,
-    shift_mm: float,
+    exact_mm: float,
 ) -> Status:
     """Whether a PMD case's numbers can be read: ``outside`` (the dent moves no seen
     pixel), ``edge`` (its region touches the image's border or the edge of what sees the
     screen, or a height map's holes or edge), ``unresolved`` (more than
     :data:`INVALID_SHARE` of its region is not valid: the fringes are averaged out),
-    ``saturated``/``underexposed`` (the recorded frames), ``noise`` (the shift is not above
-    what noise alone makes, or the unwrapping fails in the dent's region)."""
+    ``saturated``/``underexposed`` (the recorded frames), ``noise`` (the shift the dent
+    makes, ``exact_mm`` from the traced maps, is not above the largest shift noise alone
+    makes, so the decoded shift is noise's; or the unwrapping fails in the dent's
+    region)."""
     if scene.defect.dmax != 0.0 and not region.any():
         return Status(
             "outside",
@@ -670,12 +676,12 @@ def assess_pmd(
     if scene.active.records(scene):
         found.append(_pmd_exposure(baseline))
     floor = baseline.noise_floor_mm
-    if baseline.twin is not None and not shift_mm > floor:
+    if baseline.twin is not None and not exact_mm > floor:
         found.append(
             Status(
                 "noise",
-                f"the shift {shift_mm:.3g} mm is not above the {floor:.3g} mm two noisy "
-                "decodes of the defect-free scene differ by",
+                f"the dent shifts the screen points by {exact_mm:.3g} mm, not above the "
+                f"{floor:.3g} mm two noisy decodes of the defect-free scene differ by",
             )
         )
     in_region = int((failed & region).sum())

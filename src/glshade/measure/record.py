@@ -221,6 +221,11 @@ class PmdMeasurement:
         "the largest distance between the decoded screen points with and without the dent, "
         "over the pixels valid in both (unwrapping failures left out)",
     )
+    pmd_shift_exact_mm: float | None = column(
+        "mm",
+        "the same shift of the exact (traced) screen points: what a noise-free station "
+        "would decode; the status compares it with pmd_noise_floor_mm",
+    )
     pmd_noise_mm: float | None = column(
         "mm",
         "the decoded coordinate's noise: the standard deviation of the difference of two "
@@ -302,6 +307,7 @@ class PmdMeasurement:
         spent = result.seconds
         return cls(
             pmd_shift_mm=_finite(result.pmd_shift_mm, 6),
+            pmd_shift_exact_mm=_finite(result.pmd_shift_exact_mm, 6),
             pmd_noise_mm=_finite(result.pmd_noise_mm, 7),
             pmd_noise_predicted_mm=_finite(result.pmd_noise_predicted_mm, 7),
             pmd_noise_floor_mm=_finite(result.pmd_noise_floor_mm, 6),

@@ -188,21 +188,18 @@ def decode(
     s_{k+1} / p_k - φ_k) / 2π)) / 2π``; the result is ``s_1``. Valid where every ``B_k >=
     min_modulation`` (default 0.1 of ``amplitude`` times ``peak_response``, the image's
     response to the screen's white)."""
-    frames = np.asarray(frames, np.float64)
+    frames = np.asarray(frames)
     periods = np.asarray(coding.periods_mm)
     if frames.ndim < 3 or frames.shape[:2] != (len(periods), coding.shifts):
         raise GlshadeError(
             f"decode: frames must have shape ({len(periods)}, {coding.shifts}, ...) for this "
             f"coding, got {frames.shape}"
         )
-    delta = coding.shifts_rad.reshape((1, -1) + (1,) * (frames.ndim - 2))
-    sine = (frames * np.sin(delta)).sum(axis=1)
-    cosine = (frames * np.cos(delta)).sum(axis=1)
+    sine, cosine, offset = _phasor_sums(frames, coding.shifts_rad)
     wrapped = np.mod(np.arctan2(sine, cosine), 2.0 * np.pi)
     modulation = (2.0 / coding.shifts) * np.hypot(sine, cosine)
-    offset = frames.mean(axis=1)
     threshold = 0.1 * coding.amplitude * peak_response if min_modulation is None else min_modulation
-    valid = np.all(modulation >= threshold, axis=0) & np.all(np.isfinite(frames), axis=(0, 1))
+    valid = np.all(modulation >= threshold, axis=0) & np.isfinite(offset).all(axis=0)
     s = periods[-1] * wrapped[-1] / (2.0 * np.pi)
     # the screen spans [0, extent] of the coarsest period: a coordinate past the middle of
     # the gap beyond it is one just below 0 that the noise wrapped round
@@ -211,6 +208,22 @@ def decode(
         turns = np.round((2.0 * np.pi * s / periods[k] - wrapped[k]) / (2.0 * np.pi))
         s = periods[k] * (wrapped[k] + 2.0 * np.pi * turns) / (2.0 * np.pi)
     return Decoded(np.where(valid, s, np.nan), modulation, offset, wrapped, valid)
+
+
+def _phasor_sums(
+    frames: np.ndarray, steps_rad: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``Σ_n I_n sin δ_n``, ``Σ_n I_n cos δ_n`` and the mean over ``n`` of a ``(K, N, ...)``
+    sequence, in float64, one shift at a time (no float64 copy of the whole sequence: the
+    frames may be float32); NaN in a frame stays NaN."""
+    shape = frames.shape[:1] + frames.shape[2:]
+    sine, cosine, total = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+    for n, step in enumerate(steps_rad):
+        frame = frames[:, n]
+        sine += math.sin(step) * frame
+        cosine += math.cos(step) * frame
+        total += frame
+    return sine, cosine, total / len(steps_rad)
 
 
 def unwrap_failures(decoded_s: np.ndarray, exact_s: np.ndarray, finest_period_mm: float) -> int:

@@ -99,12 +99,6 @@ def _check(values: dict[str, Any]) -> None:
                 f"2 half_size = {extent:g} mm (else the phase is ambiguous)",
                 periods[-1],
             )
-    if values["frame_direction"] not in values["directions"]:
-        raise SceneError(
-            "emitter.frame_direction",
-            "one of emitter.directions " + ", ".join(values["directions"]),
-            values["frame_direction"],
-        )
     if values["frame_period_index"] >= len(periods):
         raise SceneError(
             "emitter.frame_period_index",
@@ -162,7 +156,8 @@ class FringesTable(Table):
         value_type="integer", lo=0, hi=MAX_LEVELS,
     )  # fmt: skip
     frame_direction: str = param(
-        "emitter.frame_direction", "", "v", "the frame shown: its direction (one of directions)",
+        "emitter.frame_direction", "", "v",
+        "the frame shown: its direction (v or u; it need not be one the sequence codes)",
         value_type="choice", choices=DIRECTIONS,
     )  # fmt: skip
     frame_period_index: int = param(
