@@ -194,6 +194,15 @@ def sampled(features: ShaderFeatures) -> bool:
     return bool(variables.get("supersample") or variables.get("aperture"))
 
 
+def drawn_features(scene: Scene, outputs, frame_count: int = 0) -> ShaderFeatures:
+    """The features a draw of ``outputs`` uses: a program that loops over a pixel's
+    samples also counts them (``rays``), which every draw checks."""
+    features = ShaderFeatures.from_scene(scene, outputs, frame_count)
+    if sampled(features) and "rays" not in features.outputs:
+        features = ShaderFeatures.from_scene(scene, (*features.outputs, "rays"), frame_count)
+    return features
+
+
 def check_work_budget(scene: Scene, max_rays: int) -> None:
     """Refuse, before any work, a frame that would trace more than ``max_rays`` rays."""
     rays = frame_rays(scene)
@@ -471,10 +480,7 @@ class Renderer:
                 "render: the frames output and a non-empty list of frames go together"
             )
         per_draw = min(len(stack), MAX_FRAMES_PER_DRAW)
-        features = ShaderFeatures.from_scene(scene, outputs, per_draw)
-        if sampled(features) and "rays" not in features.outputs:
-            # a program that loops over a pixel's samples counts them: checked per draw
-            features = ShaderFeatures.from_scene(scene, (*features.outputs, "rays"), per_draw)
+        features = drawn_features(scene, outputs, per_draw)
         cam = scene.camera
         width, height = cam.width, cam.height
         if max(width, height) > self._max_side:
@@ -531,7 +537,7 @@ class Renderer:
         key = json.dumps(normal.to_dict(), sort_keys=True, default=str)
         gain = self._gains.get(key)
         if gain is None:
-            features = ShaderFeatures.from_scene(normal, ("image",))
+            features = drawn_features(normal, ("image",))
             with self.context.current():
                 radiance = self._draw(normal, features, None).output("image")
             gain = exposure_gain("auto", radiance)

@@ -344,6 +344,29 @@ def sample(image: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     return values
 
 
+def fitted_dent(height_um: np.ndarray, x: np.ndarray, z: np.ndarray) -> pmd.Dent | None:
+    """The Gaussian fitted to the heights, or None where the fit fails or lands where no
+    dent of these heights can be: a depth beyond twice the heights' range, or a σ or a
+    centre beyond the grid."""
+    finite = height_um[np.isfinite(height_um)]
+    if finite.size < 5:
+        return None
+    try:
+        dent = pmd.dent_from_height(height_um, x, z)
+    except (GlshadeError, RuntimeError, ValueError):
+        return None
+    span = float(finite.max() - finite.min())
+    reach = max(float(np.ptp(x)), float(np.ptp(z)))
+    plausible = (
+        math.isfinite(dent.depth)
+        and abs(dent.depth) <= 2.0 * span
+        and 0.0 < dent.sigma_mm <= reach
+        and float(np.min(x)) <= dent.x0_mm <= float(np.max(x))
+        and float(np.min(z)) <= dent.z0_mm <= float(np.max(z))
+    )
+    return dent if plausible else None
+
+
 @dataclass(frozen=True)
 class Heights:
     """The reconstructed defect: ``grid`` and its heights (µm, rows along z), the fitted
@@ -384,10 +407,7 @@ def reconstruct(
         gx, gz, grid.spacing, valid=valid, outside=outside, method=settings.heights
     )
     height_um = 1e3 * height_mm
-    try:
-        dent = pmd.dent_from_height(height_um, xx, zz)
-    except (GlshadeError, RuntimeError, ValueError):
-        dent = None
+    dent = fitted_dent(height_um, xx, zz)
     lookup = RegularGridInterpolator(
         (grid.z, grid.x), height_um, bounds_error=False, fill_value=np.nan
     )
@@ -411,27 +431,43 @@ class PmdBaseline:
     nominal: Nominal
     seconds: dict[str, float] = field(default_factory=dict)
 
-    @property
-    def noise_mm(self) -> float:
-        """The decoded coordinate's noise: the standard deviation of the difference of two
-        decodes with different seeds, over the pixels valid in both and in every coded
-        coordinate, over sqrt 2 (0 without a sensor)."""
+    def noise_pixels(self, window: np.ndarray) -> np.ndarray:
+        """The pixels of ``window`` the noise is measured on: valid in both noisy decodes,
+        and decoded by neither on another fringe than the exact map's (an unwrapping
+        failure is counted, not taken for noise). None are without a sensor."""
         if self.twin is None:
-            return 0.0
-        both = self.decoding.valid & self.twin.valid
-        axes = coded_axes(self.scene)
-        diff = (self.decoding.uv - self.twin.uv)[both][:, axes]
-        return float(np.std(diff) / math.sqrt(2.0)) if diff.size else math.nan
+            return np.zeros(window.shape, bool)
+        exact = self.capture.uv
+        both = window & self.decoding.valid & self.twin.valid
+        both &= ~failures(self.decoding.uv, exact, self.scene)
+        return both & ~failures(self.twin.uv, exact, self.scene)
 
-    @property
-    def noise_floor_mm(self) -> float:
-        """The largest shift noise alone makes: the largest difference of the two decodes
-        (0 without a sensor)."""
+    def noise(self, window: np.ndarray) -> Noise:
+        """The decoded coordinate's noise over the pixels of ``window``
+        (:meth:`noise_pixels`), each coded coordinate counted: the standard deviation of
+        the two noisy decodes' differences over sqrt 2, the largest difference, and the
+        prediction from the modulation (all 0 without a sensor)."""
         if self.twin is None:
-            return 0.0
-        both = self.decoding.valid & self.twin.valid
-        diff = np.abs(self.decoding.uv - self.twin.uv)[both][:, coded_axes(self.scene)]
-        return float(diff.max()) if diff.size else math.nan
+            return Noise(0.0, 0.0, 0.0)
+        pixels = self.noise_pixels(window)
+        diff = (self.decoding.uv - self.twin.uv)[pixels][:, coded_axes(self.scene)]
+        if not diff.size:
+            return Noise(math.nan, math.nan, math.nan)
+        return Noise(
+            float(np.std(diff) / math.sqrt(2.0)),
+            float(np.abs(diff).max()),
+            predicted_noise_mm(self.scene, self.decoding, pixels),
+        )
+
+
+@dataclass(frozen=True)
+class Noise:
+    """The decoded coordinate's noise (mm): ``std``, ``floor`` (the largest shift noise
+    alone makes) and ``predicted`` (:func:`predicted_noise_mm`)."""
+
+    std: float
+    floor: float
+    predicted: float
 
 
 def pmd_baseline(
@@ -582,41 +618,37 @@ def measure_pmd_scene(
 
 def _result(scene, baseline, shot, recorded, decoding, slopes, heights, seconds) -> PmdResult:
     axes = coded_axes(scene)
-    base = baseline.decoding
+    base, exact0 = baseline.decoding, baseline.capture.uv
+    window = dent_window(scene, decoding.valid.shape)
     failed = failures(decoding.uv, shot.uv, scene)
-    failed0 = failures(base.uv, baseline.capture.uv, scene)
-    both = decoding.valid & base.valid & ~failed & ~failed0
+    both = window & decoding.valid & base.valid & ~failed & ~failures(base.uv, exact0, scene)
     shift = np.linalg.norm((decoding.uv - base.uv)[..., axes], axis=-1)
-    shift_mm = float(shift[both].max()) if both.any() else math.nan
-    noise = baseline.noise_mm
-    region = dent_region(scene, baseline.capture.uv, shot.uv)
-    moved = np.linalg.norm((shot.uv - baseline.capture.uv)[..., axes], axis=-1)
-    exact_mm = float(np.nanmax(moved)) if np.isfinite(moved).any() else math.nan
-    slope = np.hypot(slopes[..., 0], slopes[..., 1])
-    in_region = region & decoding.valid & ~failed
-    slope_urad = float(1e6 * slope[in_region].max()) if in_region.any() else math.nan
-    ok0 = base.valid & ~failed0
-    error0 = (base.uv - baseline.capture.uv)[..., axes][ok0]
-    seen = np.isfinite(shot.uv[..., axes[0]])
+    moved = np.linalg.norm((shot.uv - exact0)[..., axes], axis=-1)
+    moved = np.where(window, moved, np.nan)
+    noise = baseline.noise(window)
+    region = dent_region(scene, exact0, shot.uv)
+    status = assess_pmd(scene, baseline, shot, decoding, region, failed, _largest(moved), noise)
+    shift_mm = _largest(np.where(both, shift, np.nan))
     dent = heights.dent
-    modulation = _modulation_share(scene, decoding, region, baseline.capture.peak_response)
-    status = assess_pmd(scene, baseline, shot, decoding, region, failed, exact_mm)
     return PmdResult(
         pmd_shift_mm=shift_mm,
-        pmd_shift_exact_mm=exact_mm,
-        pmd_noise_mm=noise,
-        pmd_noise_floor_mm=baseline.noise_floor_mm,
-        pmd_noise_predicted_mm=predicted_noise_mm(
-            baseline.scene, base, base.valid & (baseline.twin.valid if baseline.twin else True)
+        pmd_shift_exact_mm=_largest(moved),
+        pmd_noise_mm=noise.std,
+        pmd_noise_floor_mm=noise.floor,
+        pmd_noise_predicted_mm=noise.predicted,
+        pmd_snr=shift_mm / noise.std if noise.std > 0 else math.inf,
+        pmd_slope_urad=1e6
+        * _largest(
+            np.where(
+                region & decoding.valid & ~failed, np.hypot(slopes[..., 0], slopes[..., 1]), np.nan
+            )
         ),
-        pmd_snr=shift_mm / noise if noise > 0 else math.inf,
-        pmd_slope_urad=slope_urad,
         pmd_depth_um=dent.depth if dent is not None else math.nan,
         pmd_sigma_mm=dent.sigma_mm if dent is not None else math.nan,
-        decode_rms_mm=float(np.sqrt(np.mean(error0**2))) if error0.size else math.nan,
+        decode_rms_mm=_decode_rms(scene, baseline),
         unwrap_failures=int(failed.sum()),
-        valid_fraction=float(decoding.valid[seen].mean()) if seen.any() else 0.0,
-        modulation=modulation,
+        valid_fraction=_valid_share(decoding, shot.uv[..., axes[0]]),
+        modulation=_modulation_share(scene, decoding, region, baseline.capture.peak_response),
         status=status.status,
         status_reason=status.reason,
         maps=PmdMaps(
@@ -634,6 +666,27 @@ def _result(scene, baseline, shot, recorded, decoding, slopes, heights, seconds)
         ),
         seconds=seconds,
     )
+
+
+def _largest(values: np.ndarray) -> float:
+    """The largest finite value (NaN for none)."""
+    finite = values[np.isfinite(values)]
+    return float(finite.max()) if finite.size else math.nan
+
+
+def _decode_rms(scene: Scene, baseline: PmdBaseline) -> float:
+    """Root mean square of the defect-free scene's decoded minus exact points over its valid
+    pixels that did not fail to unwrap, each coded coordinate counted."""
+    base, exact = baseline.decoding, baseline.capture.uv
+    ok = base.valid & ~failures(base.uv, exact, scene)
+    error = (base.uv - exact)[ok][:, coded_axes(scene)]
+    return float(np.sqrt(np.mean(error**2))) if error.size else math.nan
+
+
+def _valid_share(decoding: Decoding, exact: np.ndarray) -> float:
+    """Valid pixels over the pixels that see the screen."""
+    seen = np.isfinite(exact)
+    return float(decoding.valid[seen].mean()) if seen.any() else 0.0
 
 
 def _modulation_share(scene: Scene, decoding: Decoding, region: np.ndarray, peak: float) -> float:
@@ -657,6 +710,7 @@ def assess_pmd(
     region: np.ndarray,
     failed: np.ndarray,
     exact_mm: float,
+    noise: Noise,
 ) -> Status:
     """Whether a PMD case's numbers can be read: ``outside`` (the dent moves no seen
     pixel), ``edge`` (its region touches the image's border or the edge of what sees the
@@ -675,13 +729,13 @@ def assess_pmd(
     found = [_pmd_edge(scene, region, shot), _pmd_resolution(scene, region, decoding)]
     if scene.active.records(scene):
         found.append(_pmd_exposure(baseline))
-    floor = baseline.noise_floor_mm
+    floor = noise.floor
     if baseline.twin is not None and not exact_mm > floor:
         found.append(
             Status(
                 "noise",
                 f"the dent shifts the screen points by {exact_mm:.3g} mm, not above the "
-                f"{floor:.3g} mm two noisy decodes of the defect-free scene differ by",
+                f"{floor:.3g} mm two noisy decodes of the defect-free scene differ by near it",
             )
         )
     in_region = int((failed & region).sum())
