@@ -731,11 +731,19 @@ def assess_pmd(
         found.append(_pmd_exposure(baseline))
     floor = noise.floor
     if baseline.twin is not None and not exact_mm > floor:
+        hint = ""
+        if noise.std > 2.0 * noise.predicted:
+            hint = (
+                f" (the noise is {noise.std / noise.predicted:.3g} times its prediction: the "
+                f"{fringes_of(scene).periods[0]:g} mm fringes alias or nearly fail to unwrap "
+                "there; a longer emitter.periods[0] or a smaller period ratio helps)"
+            )
         found.append(
             Status(
                 "noise",
                 f"the dent shifts the screen points by {exact_mm:.3g} mm, not above the "
-                f"{floor:.3g} mm two noisy decodes of the defect-free scene differ by near it",
+                f"{floor:.3g} mm two noisy decodes of the defect-free scene differ by near it"
+                + hint,
             )
         )
     in_region = int((failed & region).sum())
