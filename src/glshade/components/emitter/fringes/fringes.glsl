@@ -11,7 +11,8 @@ float fringe_displayed(float commanded) {
     commanded = clamp(commanded, 0.0, 1.0);
     float levels = float(u_emitter_fringe_levels);
     if (levels > 0.0) commanded = floor(commanded * (levels - 1.0) + 0.5) / (levels - 1.0);
-    return pow(commanded, float(u_emitter_fringe_gamma));
+    float gamma = float(u_emitter_fringe_gamma);
+    return gamma == 1.0 ? commanded : pow(commanded, gamma);
 }
 
 // The fringe at screen coordinate s (mm from the screen's edge) of period P (mm).

@@ -1,0 +1,99 @@
+"""What one phase-measuring case costs (docs/BENCHMARKS.md, "Phase measuring").
+
+1. The sequence render: the default coding's 32 frames and the screen's white shaded from
+   one trace (the ``frames`` output), against the same 33 frames rendered one by one (an
+   image each): frames per second both ways, for the paper's dented flat plate and sphere,
+   pinhole and 2 x 2 supersampling.
+2. One whole case (``measure_pmd_scene``, its defect-free analysis included) through a
+   10 000 e- sensor: the seconds of each stage.
+
+Median of ``--repeats`` after a warm-up, fp32.
+
+    python benchmarks/pmd_case.py [--size N] [--repeats K]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+from glshade.gpu.renderer import Renderer
+from glshade.measure.pmd import PmdSettings, measure_pmd_scene, pmd_baseline
+from glshade.scene import Scene, paper_scene
+
+
+def station(surface: str, size: int, supersample: int = 1) -> Scene:
+    scene = paper_scene(surface, 45.0, 4.0, 0.005).with_size(size)
+    periods = [2.0, 16.0, 128.0, 1024.0] if surface == "flat" else [10.0, 80.0, 640.0]
+    return scene.updated(
+        emitter={"kind": "fringes", "periods": periods}, render={"supersample": supersample}
+    )
+
+
+def median_s(action, repeats: int) -> float:
+    action()  # warm-up: compile, allocate
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        action()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def sequence_rates(renderer: Renderer, scene: Scene, repeats: int) -> tuple[float, float]:
+    """Frames per second: the stack in one trace, and frame by frame."""
+    emitter = scene.active.emitter
+    frames = (*emitter.sequence(scene), emitter.white(scene))
+    stacked = median_s(lambda: renderer.render(scene, ("frames",), frames=frames), repeats)
+    shown = [emitter.showing(scene, frame) for frame in frames]
+
+    def one_by_one() -> None:
+        for each in shown:
+            renderer.render(each, ("image",))
+
+    single = median_s(one_by_one, max(1, repeats // 2))
+    return len(frames) / stacked, len(frames) / single
+
+
+def case_stages(renderer: Renderer, scene: Scene) -> dict[str, float]:
+    scene = scene.updated(sensor={"full_well_e": 10000.0})
+    measure_pmd_scene(renderer, scene.with_size(64))  # warm-up
+    start = time.perf_counter()
+    baseline = pmd_baseline(renderer, scene, PmdSettings())
+    base_s = time.perf_counter() - start
+    result = measure_pmd_scene(renderer, scene, PmdSettings(), baseline)
+    total = time.perf_counter() - start
+    return {
+        "defect-free analysis (render, 2 recordings, 2 decodes, nominal geometry)": base_s,
+        "dent: render": result.seconds["render"],
+        "dent: record and decode": result.seconds["decode"],
+        "dent: slopes, heights, fit": result.seconds["heights"],
+        "whole case": total,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--size", type=int, default=1024)
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+    with Renderer() as renderer:
+        print(f"{renderer.context.info().renderer}, {args.size}²")
+        print("| scene | frames/s, one trace | frames/s, frame by frame | ratio |")
+        print("|---|---|---|---|")
+        for surface in ("flat", "sphere"):
+            for supersample in (1, 2):
+                scene = station(surface, args.size, supersample)
+                stacked, single = sequence_rates(renderer, scene, args.repeats)
+                label = f"{surface}, dent, {supersample}² rays/px"
+                print(f"| {label} | {stacked:.1f} | {single:.1f} | {stacked / single:.1f} |")
+        print()
+        print("| stage (flat, 10 000 e- sensor) | s |")
+        print("|---|---|")
+        for stage, seconds in case_stages(renderer, station("flat", args.size)).items():
+            print(f"| {stage} | {seconds:.2f} |")
+
+
+if __name__ == "__main__":
+    main()
