@@ -149,9 +149,11 @@ def test_supersampling_averages_sub_pixels(renderer):
 
 
 def test_auto_exposure_of_a_supersampled_sensor_scene(renderer):
-    """"auto" exposes a supersampled scene from its own rays (its draws count them)."""
-    scene = paper_scene().with_size(32).updated(
-        render={"supersample": 2}, sensor={"full_well_e": 1e6, "read_noise_e": 0.0}
+    """ "auto" exposes a supersampled scene from its own rays (its draws count them)."""
+    scene = (
+        paper_scene()
+        .with_size(32)
+        .updated(render={"supersample": 2}, sensor={"full_well_e": 1e6, "read_noise_e": 0.0})
     )
     image = renderer.render(scene, ("image",)).output("image")
     assert 0.85 < float(image.max()) < 0.95  # the brightest stripe at 0.9 of full scale
