@@ -33,6 +33,7 @@ from glshade.app.args import (
     scene_from_args,
     warn,
 )
+from glshade.app.cli_coding import add_coding
 from glshade.app.cli_sweep import add_optimize, add_sweep
 from glshade.errors import GlshadeError, ShaderCompileError
 from glshade.files import atomic_write_bytes, check_output
@@ -741,6 +742,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_bench(sub)
     add_sweep(sub)
     add_optimize(sub)
+    add_coding(sub)
     return parser
 
 

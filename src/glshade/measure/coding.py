@@ -1,0 +1,916 @@
+"""Choosing a PMD station's fringe coding for a scene (docs/coding.md).
+
+A station designer asks, for one part and one camera:
+
+1. the finest fringe period the imaging chain resolves: every pixel averages the fringe
+   over its footprint on the screen (and a lens over its blur disc), so the modulation
+   falls as the period shrinks. The defect-free scene is rendered with
+   :data:`PROBE_SHIFTS` phase steps of a log-spaced series of candidate periods (one
+   trace per :data:`~glshade.gpu.renderer.MAX_FRAMES_PER_DRAW` frames: every ray shaded
+   for every frame) and each period's modulation is decoded with the N-step formula, as
+   a share of what a sharp mirror shows (the screen's fundamental times the pixel's
+   response to the screen's white), its median taken in the dent's window
+   (:func:`~glshade.metrics.status.dent_window`). Beside it, the closed form of a box
+   pixel footprint sampled as the renderer samples it (``render.supersample``) times a
+   lens's blur disc (:func:`closed_form_share`).
+2. how many phase shifts ``N`` reach a target noise and which period ladder unwraps
+   safely: the noise law ``σ_s = p1 / 2π · sqrt(2 / N) · σ_I / B`` (``σ_I`` the
+   sensor's noise at the pixel's mean level, ``B`` its modulation, both recorded
+   units), and ratios between neighbouring periods small enough that a period's phase
+   error times the ratio stays below π with a margin of :attr:`CodingSettings.margin_sigmas`.
+3. the ranges: the unambiguous range (the coarsest period), the slopes the screen can
+   measure around the dent's screen point, and the dent's shift against the noise.
+
+Everything here is per coded direction (``emitter.directions``); a scene of stripes is
+measured with the fringes on the same screen (:func:`~glshade.measure.single.as_method`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from glshade.components.emitter.fringes.table import (
+    DIRECTIONS,
+    MAX_SHIFTS,
+    FringeFrame,
+    FringesTable,
+    displayed,
+    fringes_of,
+)
+from glshade.components.image_scale import base_curvatures, emitter_mm_per_row
+from glshade.errors import GlshadeError
+from glshade.measure.pmd import check_scene
+from glshade.measure.single import as_method
+from glshade.metrics.physics import pmd_shift_mm
+from glshade.metrics.status import dent_window
+from glshade.scene import Scene
+
+if TYPE_CHECKING:
+    from glshade.gpu.renderer import Renderer
+
+#: Phase steps of the probe's frames (four steps cancel a gamma's 2nd harmonic).
+PROBE_SHIFTS = 4
+#: The recommended coarsest period is this many times the screen's extent: a little
+#: beyond the screen, so the decoder tells a coordinate just below 0 that noise wrapped
+#: round from one near the far edge (docs/pmd.md, the guard).
+COARSEST_MARGIN = 1.1
+#: Significant digits the recommended periods are rounded to.
+PERIOD_DIGITS = 2
+#: The most periods a recommended ladder may hold.
+MAX_PERIODS = 32
+
+
+@dataclass(frozen=True)
+class CodingSettings:
+    """What the coding is chosen for. ``target_noise_mm``: the decoded coordinate's
+    noise to reach (mm on the screen; None: keep the scene's ``emitter.shifts``);
+    ``resolved_share``: a period is resolved where its modulation is at least this share
+    of a sharp mirror's; ``margin_sigmas``: the unwrapping's margin (a period's phase
+    error, random noise times this plus the systematic bounds, times the ratio to the
+    next finer period, stays below π); ``candidates``: probed periods."""
+
+    target_noise_mm: float | None = None
+    resolved_share: float = 0.5
+    margin_sigmas: float = 6.0
+    candidates: int = 24
+
+    def __post_init__(self) -> None:
+        target = self.target_noise_mm
+        if target is not None and not (math.isfinite(target) and target > 0.0):
+            raise GlshadeError(f"target_noise_mm: must be a length > 0 mm, got {target!r}")
+        if not 0.0 < self.resolved_share < 1.0:
+            raise GlshadeError(f"resolved_share: must be in (0, 1), got {self.resolved_share!r}")
+        if not (math.isfinite(self.margin_sigmas) and 1.0 <= self.margin_sigmas <= 20.0):
+            raise GlshadeError(f"margin_sigmas: must be in [1, 20], got {self.margin_sigmas!r}")
+        if not 8 <= self.candidates <= 96:
+            raise GlshadeError(
+                f"candidates: must be an integer in [8, 96], got {self.candidates!r}"
+            )
+
+
+# --------------------------------------------------------------------------- closed forms
+def coded_axis(direction: str) -> int:
+    """The screen coordinate a direction's fringes vary along (0: u, 1: v)."""
+    return DIRECTIONS.index(direction) ^ 1
+
+
+def footprint_mm(scene: Scene, direction: str) -> float:
+    """The screen length (mm) one pixel sees along ``direction``'s coordinate at the gaze
+    point: ``(Dc + De) δ m`` with the tangential magnification ``m`` for ``v``
+    (:func:`~glshade.components.image_scale.emitter_mm_per_row`) and the sagittal one
+    ``1 - 2 κ_s sin θ Dc De / (Dc + De)`` for ``u``; NaN where the base focuses the
+    screen (no finite scale)."""
+    if direction == "v":
+        return emitter_mm_per_row(scene)
+    cam = scene.camera
+    dc, de = cam.distance, scene.emitter.distance
+    m = 1.0 - 2.0 * base_curvatures(scene)[1] * math.sin(cam.theta_rad) * dc * de / (dc + de)
+    return (dc + de) * cam.pixel_pitch / cam.focal * m if m > 0.0 else math.nan
+
+
+def blur_mm(scene: Scene, direction: str) -> float:
+    """The diameter (mm) of a thin lens's blur disc on the screen along ``direction``:
+    ``A |L - F| / F`` (``A = focal / f_number``, ``L = Dc + De`` the screen's mirror image,
+    ``F`` the focus distance) times the magnification; 0 for a pinhole."""
+    cam = scene.camera
+    if cam.f_number <= 0.0:
+        return 0.0
+    focus = cam.focus_distance if cam.focus_distance is not None else cam.distance
+    image = cam.distance + scene.emitter.distance
+    flat = (cam.distance + scene.emitter.distance) * cam.pixel_pitch / cam.focal
+    scale = footprint_mm(scene, direction) / flat
+    return cam.focal / cam.f_number * abs(image - focus) / focus * scale
+
+
+def box_share(footprint: float, periods: np.ndarray, samples: int = 0) -> np.ndarray:
+    """The modulation share a box footprint of ``footprint`` mm keeps of fringes of
+    ``periods`` (mm): ``|sin x / (n sin(x / n))|``, ``x = π w / p``, for ``n`` samples
+    spread evenly over the pixel (the renderer's ``render.supersample``: ``n = 1`` point-
+    samples and keeps everything); ``samples = 0``: a real pixel, ``|sin x / x|``."""
+    x = math.pi * footprint / np.asarray(periods, np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        if samples:
+            share = np.sin(x) / (samples * np.sin(x / samples))
+        else:
+            share = np.sin(x) / x
+    return np.abs(np.where(x == 0.0, 1.0, share))
+
+
+def disc_share(blur: float, periods: np.ndarray) -> np.ndarray:
+    """The share a uniform blur disc of diameter ``blur`` mm keeps: ``|2 J1(x) / x|``,
+    ``x = π b / p``."""
+    from scipy.special import j1
+
+    x = math.pi * blur / np.asarray(periods, np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = 2.0 * j1(x) / x
+    return np.abs(np.where(x == 0.0, 1.0, share))
+
+
+def closed_form_share(scene: Scene, direction: str, periods: np.ndarray) -> np.ndarray:
+    """The chain's closed form at the gaze point: the box footprint as the renderer
+    samples it times the lens's blur disc (the transfer functions multiply)."""
+    w = footprint_mm(scene, direction)
+    return box_share(w, periods, scene.render.supersample) * disc_share(
+        blur_mm(scene, direction), periods
+    )
+
+
+def screen_harmonics(em: FringesTable, count: int = 4096) -> np.ndarray:
+    """The displayed fringe's Fourier amplitudes ``b_h`` (h = 0 … count/2; ``b_1`` the
+    fundamental a sharp mirror shows), quantisation and gamma included."""
+    theta = 2.0 * np.pi * np.arange(count) / count
+    shown = displayed(em.offset + em.amplitude * np.cos(theta), em.levels, em.gamma)
+    spectrum = np.fft.rfft(shown) / count
+    spectrum[1:] *= 2.0
+    return np.asarray(spectrum.real, np.float64)  # an even function: cosines only
+
+
+def gamma_error_rad(harmonics: np.ndarray, shifts: int) -> float:
+    """The phase error ``N`` steps leave of the screen's harmonics: ``|b_(N+1) -
+    b_(N-1)| / b_1`` (the harmonics ``N ± 1`` alias into the phase; docs/pmd.md)."""
+    top = len(harmonics) - 1
+    plus = harmonics[shifts + 1] if shifts + 1 <= top else 0.0
+    return float(abs(plus - harmonics[shifts - 1]) / harmonics[1])
+
+
+def quantisation_rms_rad(em: FringesTable, share: float, fundamental: float, shifts: int) -> float:
+    """The screen's quantisation as a phase error's root mean square over the pixels:
+    ``sqrt(2 / N) (q / sqrt 12) / B`` (each frame's rounding taken as uniform over a grey
+    step ``q``; the pixels' footprints average it further, so this is an upper
+    estimate)."""
+    modulation = share * fundamental
+    if not em.largest_step():
+        return 0.0
+    if not modulation > 0.0:
+        return math.inf
+    return math.sqrt(2.0 / shifts) * em.largest_step() / math.sqrt(12.0) / modulation
+
+
+def quantisation_error_rad(em: FringesTable, share: float, fundamental: float) -> float:
+    """The screen's quantisation bound ``asin(q / B)``, ``q`` its largest displayed grey
+    step and ``B = share · b_1`` the pixel's modulation (displayed units): a fixed
+    pattern, the same in every capture."""
+    q = em.largest_step()
+    modulation = share * fundamental
+    if not q:
+        return 0.0
+    return math.asin(min(1.0, q / modulation)) if modulation > 0 else math.pi / 2
+
+
+# --------------------------------------------------------------------------- the probe
+@dataclass(frozen=True)
+class Probe:
+    """The rendered modulation of the defect-free scene. ``periods_mm`` (C,), per coded
+    direction ``share`` (D, C) the median modulation share and ``noise_ratio`` (D, C)
+    the root mean square of ``σ_I / B`` (recorded units; 0 without a sensor) over
+    ``pixels`` pixels: the dent's window where it sees the screen (``in_window``), else
+    every pixel that does. ``screen_point`` (2,) the median screen point (u, v) mm
+    those pixels see; ``level`` the median recorded mean level ``A``; ``gain`` the
+    exposure; ``seconds`` the render's."""
+
+    directions: tuple[str, ...]
+    periods_mm: np.ndarray
+    share: np.ndarray
+    noise_ratio: np.ndarray
+    pixels: int
+    in_window: bool
+    screen_point: np.ndarray
+    level: float
+    gain: float
+    seconds: float
+
+
+def probe_periods(scene: Scene, settings: CodingSettings) -> np.ndarray:
+    """The candidate periods (mm), log-spaced from one pixel's footprint (where a real
+    pixel's modulation vanishes) to :func:`coarsest_period_mm`."""
+    widths = [footprint_mm(scene, d) for d in fringes_of(scene).directions]
+    finite = [w for w in widths if math.isfinite(w)]
+    cam = scene.camera
+    flat = (cam.distance + scene.emitter.distance) * cam.pixel_pitch / cam.focal
+    lo = min(finite) if finite else flat
+    return np.geomspace(lo, coarsest_period_mm(scene), settings.candidates)
+
+
+def coarsest_period_mm(scene: Scene) -> float:
+    """:data:`COARSEST_MARGIN` times the screen's largest coded extent, rounded up."""
+    em = fringes_of(scene)
+    extent = max(2.0 * em.half_size[coded_axis(d)] for d in em.directions)
+    return round_up(COARSEST_MARGIN * extent)
+
+
+def probe_frames(em: FringesTable, periods: np.ndarray) -> tuple[FringeFrame, ...]:
+    """The probe's frames: direction by direction, period by period, shift by shift."""
+    return tuple(
+        FringeFrame(
+            direction,
+            c,
+            n,
+            float(period),
+            2.0 * math.pi * n / PROBE_SHIFTS,
+            em.offset,
+            em.amplitude,
+        )
+        for direction in em.directions
+        for c, period in enumerate(periods)
+        for n in range(PROBE_SHIFTS)
+    )
+
+
+def render_probe(renderer: Renderer, scene: Scene, periods: np.ndarray) -> Probe:
+    """Render the probe frames of the defect-free ``scene`` (the white screen and the uv
+    map with the first chunk, a chunk of whole periods per trace) and reduce each period
+    to its modulation share and noise ratio on the chosen pixels."""
+    from glshade.gpu.renderer import MAX_FRAMES_PER_DRAW
+
+    start = time.perf_counter()
+    normal = scene.without_defect()
+    em = fringes_of(normal)
+    frames = probe_frames(em, periods)
+    per_chunk = max(1, (MAX_FRAMES_PER_DRAW - 1) // PROBE_SHIFTS) * PROBE_SHIFTS
+    first = renderer.render(normal, ("frames", "uv"), frames=(em.white(), *frames[:per_chunk]))
+    layers = first.output("frames")
+    uv = first.output("uv").astype(np.float64)
+    white = layers[0].astype(np.float64)
+    where, in_window = probe_pixels(normal, uv, white)
+    gain = renderer.exposure_gain(normal) if normal.active.records(normal) else 1.0
+    fundamental = screen_harmonics(em)[1]
+    stats: list[tuple[float, float, float]] = []
+    stack = layers[1:]
+    for offset in range(0, len(frames), per_chunk):
+        if offset:
+            chunk = frames[offset : offset + per_chunk]
+            stack = renderer.render(normal, ("frames",), frames=chunk).output("frames")
+        groups = stack[:, where].astype(np.float64).reshape(-1, PROBE_SHIFTS, int(where.sum()))
+        for group in groups:
+            stats.append(_period_stats(normal, group, white[where], gain, fundamental))
+    shape = (len(em.directions), len(periods))
+    share, noise, level = (np.array(column).reshape(shape) for column in zip(*stats, strict=True))
+    return Probe(
+        tuple(em.directions),
+        np.asarray(periods, np.float64),
+        share,
+        noise,
+        int(where.sum()),
+        in_window,
+        np.median(uv[where], axis=0),
+        float(np.median(level)),
+        float(gain),
+        time.perf_counter() - start,
+    )
+
+
+def probe_pixels(scene: Scene, uv: np.ndarray, white: np.ndarray) -> tuple[np.ndarray, bool]:
+    """The pixels the probe reads: the dent's window where it sees the screen (True),
+    else every pixel that sees it (False); an error where none does."""
+    seen = np.all(np.isfinite(uv), axis=-1) & np.isfinite(white) & (white > 0.0)
+    if not seen.any():
+        raise GlshadeError(
+            "no pixel sees the screen: the coding cannot be chosen (check camera.theta_deg, "
+            "emitter.distance and emitter.half_size)"
+        )
+    window = dent_window(scene, seen.shape) & seen
+    return (window, True) if window.any() else (seen, False)
+
+
+def _period_stats(
+    scene: Scene, frames: np.ndarray, white: np.ndarray, gain: float, fundamental: float
+) -> tuple[float, float, float]:
+    """One period's ``(N, P)`` radiance samples: the median modulation share (of the
+    sharp mirror's ``b_1`` times the pixel's white), the root mean square of ``σ_I / B``
+    in recorded units (0 without a sensor) and the median recorded mean level."""
+    delta = 2.0 * np.pi * np.arange(PROBE_SHIFTS) / PROBE_SHIFTS
+    sine = np.sin(delta) @ frames
+    cosine = np.cos(delta) @ frames
+    modulation = (2.0 / PROBE_SHIFTS) * np.hypot(sine, cosine)
+    level = np.clip(frames.mean(axis=0) * gain, 0.0, 1.0)
+    share = float(np.median(modulation / (fundamental * white)))
+    variance = intensity_variance(scene, level)
+    if not np.any(variance > 0.0):
+        return share, 0.0, float(np.median(level))
+    with np.errstate(divide="ignore"):
+        ratio2 = variance / (modulation * gain) ** 2
+    return share, float(math.sqrt(np.mean(ratio2))), float(np.median(level))
+
+
+def intensity_variance(scene: Scene, level: np.ndarray) -> np.ndarray:
+    """The recorded intensity's variance at the mean ``level`` (recorded units): photon
+    noise ``A / full_well``, read noise ``(read / full_well)²`` and the sensor's
+    quantisation ``q² / 12``; 0 without a sensor (as
+    :func:`glshade.measure.pmd.predicted_noise_mm`)."""
+    sensor = scene.sensor
+    if not scene.active.records(scene) or sensor.full_well_e is None:
+        return np.zeros_like(level)
+    full_well = sensor.full_well_e
+    q = 1.0 / (2**sensor.bit_depth - 1)
+    return np.maximum(level, 0.0) / full_well + (sensor.read_noise_e / full_well) ** 2 + q * q / 12
+
+
+# --------------------------------------------------------------------------- resolution
+@dataclass(frozen=True)
+class Resolved:
+    """The finest resolved period of one direction (or of all: the longest of theirs):
+    ``period_mm`` (NaN where none), ``status`` (``ok``; ``below_range``: every probed
+    period is resolved, the limit is at most the finest probed; ``unresolved``: none
+    is) and ``reason``."""
+
+    period_mm: float
+    status: str = "ok"
+    reason: str = ""
+
+
+def finest_resolved(periods: np.ndarray, share: np.ndarray, level: float) -> Resolved:
+    """The period below which the modulation share first drops under ``level``, coming
+    from the coarsest: log-linear between the two probed periods that straddle it."""
+    below = np.flatnonzero(~(share >= level))
+    if not below.size:
+        return Resolved(
+            float(periods[0]),
+            "below_range",
+            f"every probed period keeps a share >= {level:g}: the limit is at most "
+            f"{periods[0]:.3g} mm",
+        )
+    last = int(below[-1])
+    if last == len(periods) - 1:
+        return Resolved(
+            math.nan,
+            "unresolved",
+            f"even the coarsest probed period, {periods[-1]:.3g} mm, keeps a share of "
+            f"{share[-1]:.3g} < {level:g} (a sharper focus or a finer camera resolves more)",
+        )
+    lo, hi = share[last], share[last + 1]
+    t = (level - lo) / (hi - lo) if hi != lo else 1.0
+    log_p = math.log(periods[last]) + t * (math.log(periods[last + 1]) - math.log(periods[last]))
+    return Resolved(float(math.exp(log_p)))
+
+
+def resolution(probe: Probe, level: float) -> tuple[dict[str, Resolved], Resolved]:
+    """Each direction's finest resolved period and the coding's (the longest)."""
+    each = {
+        d: finest_resolved(probe.periods_mm, probe.share[i], level)
+        for i, d in enumerate(probe.directions)
+    }
+    values = list(each.values())
+    if any(r.status == "unresolved" for r in values):
+        return each, next(r for r in values if r.status == "unresolved")
+    longest = max(values, key=lambda r: r.period_mm)
+    return each, longest
+
+
+# --------------------------------------------------------------------------- the noise law
+def interpolated(probe: Probe, values: np.ndarray, period_mm: float) -> np.ndarray:
+    """Per direction, ``values`` (D, C) at ``period_mm`` (log-linear; NaN below the
+    probed range, the coarsest probed value above it)."""
+    if period_mm < probe.periods_mm[0] * (1.0 - 1e-9):
+        return np.full(len(probe.directions), math.nan)
+    x = np.log(probe.periods_mm)
+    return np.array([np.interp(math.log(period_mm), x, row) for row in values])
+
+
+def phase_noise_rad(probe: Probe, period_mm: float, shifts: int) -> np.ndarray:
+    """Per direction, the phase noise ``sqrt(2 / N) · rms(σ_I / B)`` (rad)."""
+    return math.sqrt(2.0 / shifts) * interpolated(probe, probe.noise_ratio, period_mm)
+
+
+def coordinate_noise_mm(probe: Probe, period_mm: float, shifts: int) -> float:
+    """The decoded coordinate's noise ``p1 / 2π · sqrt(2 / N) · σ_I / B``, pooled over
+    the coded directions as their root mean square (what ``pmd_noise_mm`` measures)."""
+    phase = phase_noise_rad(probe, period_mm, shifts)
+    return float(period_mm / (2.0 * math.pi) * math.sqrt(np.mean(phase**2)))
+
+
+def shifts_for(probe: Probe, period_mm: float, target_mm: float) -> int:
+    """The smallest ``N >= 3`` whose noise at ``period_mm`` is at most ``target_mm``
+    (:data:`~glshade.components.emitter.fringes.table.MAX_SHIFTS` + 1 where none is)."""
+    at_two = coordinate_noise_mm(probe, period_mm, 2)  # σ ∝ 1 / sqrt(N)
+    if not math.isfinite(at_two):
+        return MAX_SHIFTS + 1
+    needed = max(3, math.ceil(2.0 * (at_two / target_mm) ** 2 - 1e-9))
+    while needed > 3 and coordinate_noise_mm(probe, period_mm, needed - 1) <= target_mm:
+        needed -= 1
+    while needed <= MAX_SHIFTS and coordinate_noise_mm(probe, period_mm, needed) > target_mm:
+        needed += 1
+    return min(needed, MAX_SHIFTS + 1)
+
+
+def best_finest(probe: Probe, resolved: Resolved, level: float) -> float:
+    """The finest period with the least noise among the resolved probed ones (every
+    direction's share at least ``level``): the smallest ``p · rms(σ_I / B)``; without
+    a sensor, the finest resolved. Rounded up to :data:`PERIOD_DIGITS` digits."""
+    ok = np.all(probe.share >= level, axis=0) & (probe.periods_mm >= resolved.period_mm * 0.999)
+    pooled = np.sqrt(np.mean(probe.noise_ratio**2, axis=0))
+    if not np.any(pooled[ok] > 0.0):
+        return round_up(resolved.period_mm)
+    merit = np.where(ok, probe.periods_mm * pooled, np.inf)
+    return round_up(float(probe.periods_mm[int(np.argmin(merit))]))
+
+
+def round_up(value: float, digits: int = PERIOD_DIGITS) -> float:
+    """``value`` rounded up to ``digits`` significant digits."""
+    if not (math.isfinite(value) and value > 0.0):
+        return value
+    scale = 10.0 ** (math.floor(math.log10(value)) - digits + 1)
+    return float(round(math.ceil(value / scale - 1e-9) * scale, 12))
+
+
+def round_near(value: float, digits: int = PERIOD_DIGITS) -> float:
+    """``value`` rounded to ``digits`` significant digits."""
+    scale = 10.0 ** (math.floor(math.log10(value)) - digits + 1)
+    return float(round(round(value / scale) * scale, 12))
+
+
+# --------------------------------------------------------------------------- unwrapping
+@dataclass(frozen=True)
+class ErrorBudget:
+    """A coding's phase errors at each period (rad, the worst coded direction):
+    ``random`` the noise (one σ), ``systematic`` the screen's bounds (quantisation and
+    gamma aliasing) at the period's modulation."""
+
+    periods_mm: tuple[float, ...]
+    random: tuple[float, ...]
+    systematic: tuple[float, ...]
+
+    def margins(self) -> tuple[float, ...]:
+        """Per step ``k -> k+1``, the σ of noise the unwrapping tolerates: ``M`` such
+        that ``r (M σ_(k+1) + ε_(k+1)) + M σ_k + ε_k = π`` (``r`` the ratio, ``ε`` the
+        systematic bounds); infinite where there is no noise and the bounds fit."""
+        out = []
+        for k in range(len(self.periods_mm) - 1):
+            r = self.periods_mm[k + 1] / self.periods_mm[k]
+            room = math.pi - r * self.systematic[k + 1] - self.systematic[k]
+            noise = r * self.random[k + 1] + self.random[k]
+            if room <= 0.0:
+                out.append(0.0)
+            else:
+                out.append(room / noise if noise > 0.0 else math.inf)
+        return tuple(out)
+
+
+def error_budget(probe: Probe, em: FringesTable, periods: tuple[float, ...], shifts: int):
+    """The :class:`ErrorBudget` of ``periods`` at ``shifts`` steps."""
+    harmonics = screen_harmonics(em)
+    gamma = gamma_error_rad(harmonics, shifts)
+    random, systematic = [], []
+    for p in periods:
+        random.append(float(np.max(phase_noise_rad(probe, p, shifts))))
+        share = float(np.min(interpolated(probe, probe.share, p)))
+        systematic.append(quantisation_error_rad(em, share, harmonics[1]) + gamma)
+    return ErrorBudget(tuple(periods), tuple(random), tuple(systematic))
+
+
+def ladder(finest: float, coarsest: float, count: int) -> tuple[float, ...]:
+    """``count`` periods from ``finest`` to ``coarsest`` at one ratio, the inner ones
+    rounded to :data:`PERIOD_DIGITS` digits."""
+    if count == 1:
+        return (finest,)
+    ratio = (coarsest / finest) ** (1.0 / (count - 1))
+    inner = [round_near(finest * ratio**k) for k in range(1, count - 1)]
+    return (finest, *inner, coarsest)
+
+
+def choose_ladder(
+    probe: Probe, em: FringesTable, finest: float, coarsest: float, shifts: int, margin: float
+) -> tuple[tuple[float, ...], ErrorBudget | None]:
+    """The shortest geometric ladder from ``finest`` to ``coarsest`` whose every step
+    keeps ``margin`` σ (None: none of up to :data:`MAX_PERIODS` periods does)."""
+    for count in range(2, MAX_PERIODS + 1):
+        periods = ladder(finest, coarsest, count)
+        if any(b <= a for a, b in zip(periods, periods[1:], strict=False)):
+            break
+        budget = error_budget(probe, em, periods, shifts)
+        if min(budget.margins()) >= margin:
+            return periods, budget
+    return ladder(finest, coarsest, 2), None
+
+
+# --------------------------------------------------------------------------- the answer
+@dataclass(frozen=True)
+class CodingPlan:
+    """One coding judged: ``periods_mm`` finest first, ``shifts``, its predicted noise
+    (mm on the screen, pooled over the directions), the worst unwrapping margin (σ), the
+    screen's fixed patterns at the finest period (mm: the quantisation's estimated root
+    mean square and its bound, the gamma's aliasing), the finest period's modulation
+    share, and a status (``ok``; ``unreachable``: no ``N`` up to
+    :data:`MAX_SHIFTS` reaches the target; ``unsafe``: a step's margin is below the
+    settings'; ``unresolved``: its finest period is not resolved or below the probe)."""
+
+    periods_mm: tuple[float, ...]
+    shifts: int
+    noise_mm: float
+    margin_sigmas: float
+    quantisation_mm: float
+    quantisation_bound_mm: float
+    gamma_mm: float
+    share: float
+    status: str = "ok"
+    reason: str = ""
+
+    @classmethod
+    def unavailable(cls, periods: tuple[float, ...], shifts: int, reason: str) -> CodingPlan:
+        """A coding the probe cannot judge (its finest period is not resolved)."""
+        nan = math.nan
+        return cls(tuple(periods), shifts, nan, nan, nan, nan, nan, nan, "unresolved", reason)
+
+    @property
+    def ratios(self) -> tuple[float, ...]:
+        p = self.periods_mm
+        return tuple(b / a for a, b in zip(p, p[1:], strict=False))
+
+
+@dataclass(frozen=True)
+class Ranges:
+    """What the coding and the screen can measure around the dent. ``unambiguous_mm``:
+    the recommended coarsest period (decodable screen span); ``screen_mm`` per coded
+    direction the screen's extent; ``screen_point_mm`` (u, v) the dent's screen point;
+    ``slope_range_mrad`` per coded direction the largest slope (either sign) that keeps
+    the dent's screen point on the screen, ``(half_size - |point|) / 2 De``;
+    ``dent_shift_mm`` the dent's closed-form shift
+    (:func:`~glshade.metrics.physics.pmd_shift_mm`) and ``dent_slope_mrad`` the slope
+    it means, ``shift / 2 De``; ``status``/``reason``: ``outside`` where the dent's
+    window sees no screen (its numbers are NaN)."""
+
+    unambiguous_mm: float
+    screen_mm: dict[str, float]
+    screen_point_mm: tuple[float, float]
+    slope_range_mrad: dict[str, float]
+    dent_shift_mm: float
+    dent_slope_mrad: float
+    status: str = "ok"
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class CodingReport:
+    """The answer to a station designer for one scene (see the module's docstring)."""
+
+    scene: Scene
+    settings: CodingSettings
+    probe: Probe
+    closed_form: np.ndarray
+    pixel_box: np.ndarray
+    footprint_mm: dict[str, float]
+    blur_mm: dict[str, float]
+    resolved_each: dict[str, Resolved]
+    resolved: Resolved
+    recommended: CodingPlan
+    current: CodingPlan
+    ranges: Ranges
+    sensor: bool
+    notes: tuple[str, ...]
+
+
+def choose_coding(
+    renderer: Renderer, scene: Scene, settings: CodingSettings = CodingSettings()
+) -> CodingReport:
+    """Render the probe of ``scene`` (a scene of stripes: the fringes on its screen) and
+    choose its coding (:class:`CodingReport`)."""
+    scene = as_method(scene, "pmd")
+    check_scene(scene)
+    periods = probe_periods(scene, settings)
+    probe = render_probe(renderer, scene, periods)
+    return judge(scene, probe, settings)
+
+
+def judge(scene: Scene, probe: Probe, settings: CodingSettings) -> CodingReport:
+    """The report of a rendered probe: closed forms, resolution, the codings, ranges."""
+    em = fringes_of(scene)
+    directions = probe.directions
+    closed = np.stack([closed_form_share(scene, d, probe.periods_mm) for d in directions])
+    box = np.stack([box_share(footprint_mm(scene, d), probe.periods_mm) for d in directions])
+    each, resolved = resolution(probe, settings.resolved_share)
+    sensor = bool(np.any(probe.noise_ratio > 0.0))
+    recommended = recommend(scene, probe, resolved, settings, sensor)
+    current = judge_plan(scene, probe, tuple(em.periods), em.shifts, settings)
+    return CodingReport(
+        scene,
+        settings,
+        probe,
+        closed,
+        box,
+        {d: footprint_mm(scene, d) for d in directions},
+        {d: blur_mm(scene, d) for d in directions},
+        each,
+        resolved,
+        recommended,
+        current,
+        ranges(scene, probe, recommended),
+        sensor,
+        notes(scene, probe, settings, sensor),
+    )
+
+
+def recommend(
+    scene: Scene, probe: Probe, resolved: Resolved, settings: CodingSettings, sensor: bool
+) -> CodingPlan:
+    """The coding for ``settings``: the best resolved finest period, the smallest ``N``
+    reaching the target (the scene's own without a target or a sensor), the shortest
+    safe ladder to :func:`coarsest_period_mm`."""
+    em = fringes_of(scene)
+    coarsest = coarsest_period_mm(scene)
+    if resolved.status == "unresolved":
+        return CodingPlan.unavailable((coarsest,), em.shifts, resolved.reason)
+    finest = best_finest(probe, resolved, settings.resolved_share)
+    shifts, status, reason = em.shifts, "ok", ""
+    target = settings.target_noise_mm
+    if target is not None and sensor:
+        shifts = shifts_for(probe, finest, target)
+        if shifts > MAX_SHIFTS:
+            shifts, status = MAX_SHIFTS, "unreachable"
+            reason = (
+                f"no N up to {MAX_SHIFTS} reaches {target:.3g} mm at {finest:g} mm (a "
+                "brighter exposure, a larger full well or a finer resolved period does)"
+            )
+    periods, budget = choose_ladder(probe, em, finest, coarsest, shifts, settings.margin_sigmas)
+    plan = judge_plan(scene, probe, periods, shifts, settings)
+    if budget is None and status == "ok":
+        status, reason = "unsafe", plan.reason or "no ladder keeps the unwrapping margin"
+    return replace(plan, status=status if status != "ok" else plan.status,
+                   reason=reason or plan.reason)  # fmt: skip
+
+
+def judge_plan(
+    scene: Scene, probe: Probe, periods: tuple[float, ...], shifts: int, settings: CodingSettings
+) -> CodingPlan:
+    """``periods`` at ``shifts`` steps judged by the probe: noise, margin, bounds."""
+    em = fringes_of(scene)
+    finest = periods[0]
+    share = float(np.min(interpolated(probe, probe.share, finest)))
+    if not math.isfinite(share):
+        reason = (
+            f"its finest period {finest:g} mm is below the probed range "
+            f"({probe.periods_mm[0]:.3g} mm and up)"
+        )
+        return CodingPlan.unavailable(periods, shifts, reason)
+    budget = error_budget(probe, em, periods, shifts)
+    margin = min(budget.margins()) if len(periods) > 1 else math.inf
+    harmonics = screen_harmonics(em)
+    scale = finest / (2.0 * math.pi)
+    status, reason = "ok", ""
+    if share < settings.resolved_share:
+        status = "unresolved"
+        reason = (
+            f"its finest period {finest:g} mm keeps a modulation share of {share:.2f} < "
+            f"{settings.resolved_share:g}"
+        )
+    elif margin < settings.margin_sigmas:
+        status = "unsafe"
+        reason = (
+            f"its worst step unwraps with {margin:.3g} σ of margin < {settings.margin_sigmas:g}"
+        )
+    return CodingPlan(
+        tuple(periods),
+        shifts,
+        coordinate_noise_mm(probe, finest, shifts),
+        margin,
+        scale * quantisation_rms_rad(em, share, harmonics[1], shifts),
+        scale * quantisation_error_rad(em, share, harmonics[1]),
+        scale * gamma_error_rad(harmonics, shifts),
+        share,
+        status,
+        reason,
+    )
+
+
+def ranges(scene: Scene, probe: Probe, plan: CodingPlan) -> Ranges:
+    """The :class:`Ranges` of ``scene`` with the coding ``plan``."""
+    em = fringes_of(scene)
+    de = scene.emitter.distance
+    shift = pmd_shift_mm(scene)
+    screen = {d: 2.0 * em.half_size[coded_axis(d)] for d in probe.directions}
+    point = (float(probe.screen_point[0]), float(probe.screen_point[1]))
+    slopes = {
+        d: 1e3 * (em.half_size[coded_axis(d)] - abs(point[coded_axis(d)])) / (2.0 * de)
+        for d in probe.directions
+    }
+    status, reason = "ok", ""
+    if not probe.in_window:
+        status = "outside"
+        reason = (
+            "the dent's window sees no screen point (the dent is outside the image or its "
+            "rays miss the screen): its screen point and slope range cannot be read"
+        )
+        slopes = dict.fromkeys(slopes, math.nan)
+        point = (math.nan, math.nan)
+    return Ranges(
+        plan.periods_mm[-1],
+        screen,
+        point,
+        slopes,
+        shift,
+        1e3 * shift / (2.0 * de),
+        status,
+        reason,
+    )
+
+
+def notes(scene: Scene, probe: Probe, settings: CodingSettings, sensor: bool) -> tuple[str, ...]:
+    """What the reader should know about how these numbers were made."""
+    out = []
+    if scene.render.supersample == 1:
+        out.append(
+            "render.supersample is 1: each pixel is sampled at its centre, so the pixel's "
+            "own footprint does not average the fringes (a real pixel does: give "
+            "--supersample 4 or more for its modulation)"
+        )
+    if not sensor:
+        out.append(
+            "no sensor: the decoded points carry no random noise (pmd_noise_mm is 0); only "
+            "the screen's quantisation errs, a fixed pattern; the shifts stay the scene's "
+            "(give a [sensor], e.g. --set sensor.full_well_e=10000, to choose N)"
+        )
+    elif settings.target_noise_mm is None:
+        out.append("no --target-noise: the shifts stay the scene's emitter.shifts")
+    if not probe.in_window:
+        out.append(
+            "the dent's window sees no screen point: the modulation and noise are taken "
+            "over every pixel that sees the screen"
+        )
+    return tuple(out)
+
+
+# --------------------------------------------------------------------------- JSON
+def _number(value: float) -> float | None:
+    """A JSON number (None where not finite)."""
+    return round(float(value), 6) if math.isfinite(value) else None
+
+
+def _plan(plan: CodingPlan) -> dict[str, Any]:
+    return {
+        "periods_mm": [_number(p) for p in plan.periods_mm],
+        "shifts": plan.shifts,
+        "ratios": [_number(r) for r in plan.ratios],
+        "noise_mm": _number(plan.noise_mm),
+        "margin_sigmas": _number(plan.margin_sigmas),
+        "finest_share": _number(plan.share),
+        "quantisation_mm": _number(plan.quantisation_mm),
+        "quantisation_bound_mm": _number(plan.quantisation_bound_mm),
+        "gamma_mm": _number(plan.gamma_mm),
+        "status": plan.status,
+        "status_reason": plan.reason,
+    }
+
+
+def summary(report: CodingReport) -> dict[str, Any]:
+    """The report's numbers as one JSON-ready dict (NaN as None)."""
+    probe, cam = report.probe, report.scene.camera
+    rec, rng = report.recommended, report.ranges
+    de = report.scene.emitter.distance
+    return {
+        "scene": report.scene.title(),
+        "size": [cam.width, cam.height],
+        "supersample": report.scene.render.supersample,
+        "directions": list(probe.directions),
+        "sensor": report.sensor,
+        "target_noise_mm": report.settings.target_noise_mm,
+        "resolved_share": report.settings.resolved_share,
+        "margin_sigmas": report.settings.margin_sigmas,
+        "modulation": {
+            "periods_mm": [_number(p) for p in probe.periods_mm],
+            "pixels": probe.pixels,
+            "in_window": probe.in_window,
+            **{
+                d: {
+                    "rendered": [_number(s) for s in probe.share[i]],
+                    "closed_form": [_number(s) for s in report.closed_form[i]],
+                    "pixel_box": [_number(s) for s in report.pixel_box[i]],
+                    "footprint_mm": _number(report.footprint_mm[d]),
+                    "blur_mm": _number(report.blur_mm[d]),
+                    "finest_resolved_mm": _number(report.resolved_each[d].period_mm),
+                }
+                for i, d in enumerate(probe.directions)
+            },
+        },
+        "finest_resolved_mm": _number(report.resolved.period_mm),
+        "finest_resolved_status": report.resolved.status,
+        "finest_resolved_reason": report.resolved.reason,
+        "recommended": _plan(rec),
+        "current": _plan(report.current),
+        "slope_noise_urad": _number(1e6 * rec.noise_mm / (2.0 * de)),
+        "ranges": {
+            "unambiguous_mm": _number(rng.unambiguous_mm),
+            "screen_mm": {d: _number(v) for d, v in rng.screen_mm.items()},
+            "screen_point_mm": [_number(v) for v in rng.screen_point_mm],
+            "slope_range_mrad": {d: _number(v) for d, v in rng.slope_range_mrad.items()},
+            "dent_shift_mm": _number(rng.dent_shift_mm),
+            "dent_slope_mrad": _number(rng.dent_slope_mrad),
+            "snr_recommended": _number(_snr(rng.dent_shift_mm, rec.noise_mm)),
+            "snr_current": _number(_snr(rng.dent_shift_mm, report.current.noise_mm)),
+            "status": rng.status,
+            "status_reason": rng.reason,
+        },
+        "level": _number(probe.level),
+        "gain": _number(probe.gain),
+        "notes": list(report.notes),
+        "seconds": round(probe.seconds, 3),
+    }
+
+
+def _snr(shift: float, noise: float) -> float:
+    """The dent's shift over the noise (infinite without noise)."""
+    if not math.isfinite(noise):
+        return math.nan
+    return shift / noise if noise > 0.0 else math.inf
+
+
+# --------------------------------------------------------------------------- outputs
+def coded_scene(report: CodingReport) -> Scene:
+    """The report's scene with the recommended coding (``emitter.periods``, ``shifts``);
+    an error where there is none (no period is resolved)."""
+    rec = report.recommended
+    if rec.status == "unresolved":
+        raise GlshadeError(f"no coding to write: {rec.reason}")
+    return report.scene.updated(emitter={"periods": list(rec.periods_mm), "shifts": rec.shifts})
+
+
+#: The plot's colours per direction (rendered markers, closed-form lines).
+DIRECTION_COLOURS = {"v": (0.0, 0.35, 0.75), "u": (0.85, 0.2, 0.0)}
+
+
+def write_plot(report: CodingReport, path) -> None:
+    """Modulation share against period (log axis, mm; pixels on the top axis): rendered
+    per direction (markers; the title says so where they are not read in the dent's
+    window), the chain's closed form (lines), a real pixel's box (dashed), the resolved
+    level, the finest resolved period and the recommended finest period."""
+    from glshade.measure.figures import new_figure, save_figure
+
+    probe = report.probe
+    fig = new_figure(7.0, 4.2)
+    ax = fig.add_subplot(1, 1, 1)
+    dense = np.geomspace(probe.periods_mm[0], probe.periods_mm[-1], 400)
+    for i, d in enumerate(probe.directions):
+        colour = DIRECTION_COLOURS.get(d, (0.3, 0.3, 0.3))
+        marker = "o" if i == 0 else "x"
+        ax.plot(probe.periods_mm, probe.share[i], marker, color=colour, ms=5,
+                label=f"rendered, fringes along {d}")  # fmt: skip
+        ax.plot(dense, closed_form_share(report.scene, d, dense), "-", color=colour, lw=1.0,
+                label=f"closed form along {d} (as rendered)")  # fmt: skip
+    w = report.footprint_mm[probe.directions[0]]
+    ax.plot(dense, box_share(w, dense), "--", color="0.4", lw=1.0,
+            label="real pixel, pinhole: |sin x / x|")  # fmt: skip
+    level = report.settings.resolved_share
+    ax.axhline(level, color="0.6", lw=0.8, ls=":", label=f"resolved level {level:g}")
+    if math.isfinite(report.resolved.period_mm):
+        ax.axvline(report.resolved.period_mm, color="0.2", lw=0.8, ls=":",
+                   label=f"finest resolved {report.resolved.period_mm:.3g} mm")  # fmt: skip
+    if report.recommended.status != "unresolved":
+        p1 = report.recommended.periods_mm[0]
+        ax.axvline(p1, color=(0.0, 0.6, 0.45), lw=1.0, label=f"recommended p1 {p1:g} mm")
+    ax.set_xscale("log")
+    ax.set_ylim(-0.02, 1.05)
+    ax.set_xlabel("fringe period on the screen (mm)")
+    ax.set_ylabel("modulation (share of a sharp mirror's)")
+    if math.isfinite(w) and w > 0:
+        top = ax.secondary_xaxis("top", functions=(lambda p: p / w, lambda n: n * w))
+        top.set_xlabel("pixels per period (along the first coded direction)")
+    title = report.scene.title()
+    if not probe.in_window:
+        title += " [outside: over every pixel that sees the screen]"
+    ax.set_title(title, fontsize=9)
+    ax.grid(True, which="both", alpha=0.25)
+    ax.legend(fontsize=7, loc="lower right")
+    save_figure(fig, path)
