@@ -15,9 +15,10 @@ import pytest
 from glshade.app.cli import main
 from glshade.components.emitter.fringes.table import FringesTable, fringes_of
 from glshade.errors import GlshadeError
-from glshade.measure import coding
+from glshade.measure import coding, coding_files
 from glshade.measure.coding import CodingSettings, choose_coding
 from glshade.measure.pmd import measure_pmd_scene
+from glshade.metrics import coding_laws as laws
 from glshade.scene import Scene, paper_scene
 
 SENSOR = {"full_well_e": 10000.0, "read_noise_e": 5.0, "bit_depth": 12}
@@ -42,34 +43,34 @@ def pinhole(_session_renderer):
 # --------------------------------------------------------------------------- closed forms
 def test_box_share_is_the_sampled_sinc():
     periods = np.array([0.5, 1.0, 2.0, 4.0])
-    assert np.allclose(coding.box_share(1.0, periods, samples=1), 1.0)  # point samples
+    assert np.allclose(laws.box_share(1.0, periods, samples=1), 1.0)  # point samples
     x = math.pi / periods
-    assert np.allclose(coding.box_share(1.0, periods), np.abs(np.sin(x) / x))
-    assert np.allclose(coding.box_share(1.0, periods, samples=2), np.abs(np.cos(x / 2)))
-    assert np.allclose(coding.box_share(1.0, periods, samples=4096), coding.box_share(1.0, periods))
-    assert coding.box_share(1.0, np.array([1.0]), samples=4)[0] == pytest.approx(0.0, abs=1e-12)
+    assert np.allclose(laws.box_share(1.0, periods), np.abs(np.sin(x) / x))
+    assert np.allclose(laws.box_share(1.0, periods, samples=2), np.abs(np.cos(x / 2)))
+    assert np.allclose(laws.box_share(1.0, periods, samples=4096), laws.box_share(1.0, periods))
+    assert laws.box_share(1.0, np.array([1.0]), samples=4)[0] == pytest.approx(0.0, abs=1e-12)
 
 
 def test_disc_share_is_the_jinc():
     from scipy.special import j1
 
-    assert np.allclose(coding.disc_share(0.0, np.array([1.0, 3.0])), 1.0)
+    assert np.allclose(laws.disc_share(0.0, np.array([1.0, 3.0])), 1.0)
     x = math.pi * 2.0 / 5.0
-    assert coding.disc_share(2.0, np.array([5.0]))[0] == pytest.approx(2 * j1(x) / x)
+    assert laws.disc_share(2.0, np.array([5.0]))[0] == pytest.approx(2 * j1(x) / x)
     # the first zero of J1 at 3.8317: a disc of 1.2197 periods averages the fringe out
-    assert coding.disc_share(3.8317 / math.pi, np.array([1.0]))[0] == pytest.approx(0, abs=1e-4)
+    assert laws.disc_share(3.8317 / math.pi, np.array([1.0]))[0] == pytest.approx(0, abs=1e-4)
 
 
 def test_the_footprint_and_blur_closed_forms():
     scene = flat(size=1024)
     dc, de = 175.6, 256.0
-    assert coding.footprint_mm(scene, "v") == pytest.approx((dc + de) * 0.005 / 25.0)
-    assert coding.footprint_mm(scene, "u") == pytest.approx((dc + de) * 0.005 / 25.0)
-    assert coding.blur_mm(scene, "v") == 0.0
+    assert laws.footprint_mm(scene, "v") == pytest.approx((dc + de) * 0.005 / 25.0)
+    assert laws.footprint_mm(scene, "u") == pytest.approx((dc + de) * 0.005 / 25.0)
+    assert laws.blur_mm(scene, "v") == 0.0
     lens = scene.updated(camera={"f_number": 8.0})  # focused on the surface, Dc
-    assert coding.blur_mm(lens, "v") == pytest.approx(25.0 / 8.0 * de / dc)
+    assert laws.blur_mm(lens, "v") == pytest.approx(25.0 / 8.0 * de / dc)
     sharp = scene.updated(camera={"f_number": 8.0, "focus_distance": dc + de})
-    assert coding.blur_mm(sharp, "u") == pytest.approx(0.0, abs=1e-12)
+    assert laws.blur_mm(sharp, "u") == pytest.approx(0.0, abs=1e-12)
 
 
 @pytest.mark.parametrize(("surface", "theta"), [("cylinder", 45.0), ("sphere", 25.0)])
@@ -80,25 +81,25 @@ def test_the_footprint_is_the_traced_maps_step_at_the_gaze_point(renderer, surfa
     step_v = abs(uv[32, 31, 1] - uv[31, 31, 1])  # one row down, across the gaze point
     step_u = abs(uv[31, 32, 0] - uv[31, 31, 0])  # one column right
     # a finite step of a curved map: its closed form at the gaze point within 2 %
-    assert coding.footprint_mm(scene, "v") == pytest.approx(step_v, rel=0.02)
-    assert coding.footprint_mm(scene, "u") == pytest.approx(step_u, rel=0.02)
+    assert laws.footprint_mm(scene, "v") == pytest.approx(step_v, rel=0.02)
+    assert laws.footprint_mm(scene, "u") == pytest.approx(step_u, rel=0.02)
 
 
 def test_the_screen_gamma_aliasing_of_docs_pmd():
     em = screen(gamma=2.2, levels=0)  # continuous: no rounding
-    harmonics = coding.screen_harmonics(em)
-    assert coding.gamma_error_rad(harmonics, 3) == pytest.approx(0.28, rel=0.05)
-    assert coding.gamma_error_rad(harmonics, 4) == pytest.approx(0.011, rel=0.05)
-    assert coding.gamma_error_rad(harmonics, 8) == pytest.approx(4e-5, rel=0.1)
-    linear = coding.screen_harmonics(screen(levels=0))
-    assert linear[1] == pytest.approx(0.5) and coding.gamma_error_rad(linear, 3) < 1e-12
+    harmonics = laws.screen_harmonics(em)
+    assert laws.gamma_error_rad(harmonics, 3) == pytest.approx(0.28, rel=0.05)
+    assert laws.gamma_error_rad(harmonics, 4) == pytest.approx(0.011, rel=0.05)
+    assert laws.gamma_error_rad(harmonics, 8) == pytest.approx(4e-5, rel=0.1)
+    linear = laws.screen_harmonics(screen(levels=0))
+    assert linear[1] == pytest.approx(0.5) and laws.gamma_error_rad(linear, 3) < 1e-12
 
 
 def test_rounding_and_ladders():
-    assert coding.round_up(0.1837) == 0.19 and coding.round_up(330.0) == 330.0
-    assert coding.round_up(301.0) == 310.0 and coding.round_near(22.57) == 23.0
-    assert coding.ladder(0.2, 330.0, 2) == (0.2, 330.0)
-    four = coding.ladder(0.18, 330.0, 4)
+    assert laws.round_up(0.1837) == 0.19 and laws.round_up(330.0) == 330.0
+    assert laws.round_up(301.0) == 310.0 and laws.round_near(22.57) == 23.0
+    assert laws.ladder(0.2, 330.0, 2) == (0.2, 330.0)
+    four = laws.ladder(0.18, 330.0, 4)
     assert four[0] == 0.18 and four[-1] == 330.0 and len(four) == 4
     ratios = np.diff(np.log(four))
     assert np.allclose(ratios, ratios.mean(), atol=0.05)
@@ -106,19 +107,19 @@ def test_rounding_and_ladders():
 
 def test_finest_resolved_interpolates_from_the_coarse_side():
     periods = np.array([1.0, 2.0, 4.0, 8.0])
-    found = coding.finest_resolved(periods, np.array([0.9, 0.2, 0.4, 0.8]), 0.5)
+    found = laws.finest_resolved(periods, np.array([0.9, 0.2, 0.4, 0.8]), 0.5)
     # 0.4 at 4 mm, 0.8 at 8 mm: the level 0.5 a quarter of the way in log period
     assert found.period_mm == pytest.approx(4.0 * 2.0**0.25)
     assert found.status == "ok"  # the side lobe at 1 mm does not count
-    assert coding.finest_resolved(periods, np.full(4, 0.9), 0.5).status == "below_range"
-    none = coding.finest_resolved(periods, np.full(4, 0.3), 0.5)
+    assert laws.finest_resolved(periods, np.full(4, 0.9), 0.5).status == "below_range"
+    none = laws.finest_resolved(periods, np.full(4, 0.3), 0.5)
     assert none.status == "unresolved" and math.isnan(none.period_mm)
 
 
 def test_the_margin_of_an_error_budget():
-    budget = coding.ErrorBudget((1.0, 10.0), (0.01, 0.02), (0.0, 0.0))
+    budget = laws.ErrorBudget((1.0, 10.0), (0.01, 0.02), (0.0, 0.0))
     assert budget.margins() == pytest.approx((math.pi / (10 * 0.02 + 0.01),))
-    tight = coding.ErrorBudget((1.0, 10.0), (0.01, 0.02), (0.1, 0.31))
+    tight = laws.ErrorBudget((1.0, 10.0), (0.01, 0.02), (0.1, 0.31))
     assert tight.margins()[0] == 0.0  # 10 · 0.31 + 0.1 > π: no room left
 
 
@@ -134,8 +135,8 @@ def test_settings_refuse_in_one_line():
 def test_the_rendered_modulation_follows_the_box_footprint(pinhole):
     probe = pinhole.probe
     assert probe.in_window and probe.pixels > 100
-    w = coding.footprint_mm(flat(), "v")
-    expected = coding.box_share(w, probe.periods_mm, samples=4)
+    w = laws.footprint_mm(flat(), "v")
+    expected = laws.box_share(w, probe.periods_mm, samples=4)
     for i in range(2):
         assert np.abs(probe.share[i] - expected).max() < 0.01
     assert np.allclose(pinhole.closed_form, expected)
@@ -165,7 +166,7 @@ def test_the_recommended_shifts_reach_the_target_when_measured(_session_renderer
     assert rec.shifts > 4  # the target asks for more than the default
     fewer = coding.coordinate_noise_mm(report.probe, rec.periods_mm[0], rec.shifts - 1)
     assert fewer > target  # the smallest N
-    measured = measure_pmd_scene(_session_renderer, coding.coded_scene(report))
+    measured = measure_pmd_scene(_session_renderer, coding_files.coded_scene(report))
     assert measured.status == "ok" and measured.unwrap_failures == 0
     assert 0.8 * target < measured.pmd_noise_mm < 1.15 * target
     assert measured.pmd_noise_mm == pytest.approx(rec.noise_mm, rel=0.1)
@@ -181,16 +182,16 @@ def test_the_ladder_keeps_the_unwrapping_margin(_session_renderer):
     # 1 on this mirror) at 0.9, so the mean level A = 0.45 and the modulation 0.45 × share
     level, full_well = 0.45, 2000.0
     sigma_i = math.sqrt(level / full_well + (5.0 / full_well) ** 2 + (1 / 4095) ** 2 / 12)
-    w = coding.footprint_mm(scene, "v")
+    w = laws.footprint_mm(scene, "v")
     for fine, coarse in zip(rec.periods_mm, rec.periods_mm[1:], strict=False):
         ratio = coarse / fine
         noise = [
-            math.sqrt(2 / rec.shifts) * sigma_i / (level * coding.box_share(w, [p], 4)[0])
+            math.sqrt(2 / rec.shifts) * sigma_i / (level * laws.box_share(w, [p], 4)[0])
             for p in (fine, coarse)
         ]
         assert settings.margin_sigmas * (ratio * noise[1] + noise[0]) < 0.95 * math.pi
     # one period fewer breaks it: the ladder is the shortest
-    shorter = coding.ladder(rec.periods_mm[0], rec.periods_mm[-1], len(rec.periods_mm) - 1)
+    shorter = laws.ladder(rec.periods_mm[0], rec.periods_mm[-1], len(rec.periods_mm) - 1)
     judged = coding.judge_plan(report.scene, report.probe, shorter, rec.shifts, settings)
     assert judged.margin_sigmas < settings.margin_sigmas and judged.status == "unsafe"
 

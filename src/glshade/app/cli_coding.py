@@ -110,7 +110,8 @@ def field_dest(flag: str) -> str:
 def _cmd_coding(args: argparse.Namespace) -> int:
     from glshade.gpu.context import GLContext
     from glshade.gpu.renderer import Renderer
-    from glshade.measure.coding import choose_coding, coded_scene, summary, write_plot
+    from glshade.measure.coding import choose_coding
+    from glshade.measure.coding_files import coded_scene, summary, write_plot
     from glshade.measure.pmd import check_scene
     from glshade.measure.single import as_method
 

@@ -12,7 +12,7 @@ A station designer asks, for one part and one camera:
    response to the screen's white), its median taken in the dent's window
    (:func:`~glshade.metrics.status.dent_window`). Beside it, the closed form of a box
    pixel footprint sampled as the renderer samples it (``render.supersample``) times a
-   lens's blur disc (:func:`closed_form_share`).
+   lens's blur disc (:func:`~glshade.metrics.coding_laws.closed_form_share`).
 2. how many phase shifts ``N`` reach a target noise and which period ladder unwraps
    safely: the noise law ``σ_s = p1 / 2π · sqrt(2 / N) · σ_I / B`` (``σ_I`` the
    sensor's noise at the pixel's mean level, ``B`` its modulation, both recorded
@@ -23,6 +23,8 @@ A station designer asks, for one part and one camera:
 
 Everything here is per coded direction (``emitter.directions``); a scene of stripes is
 measured with the fringes on the same screen (:func:`~glshade.measure.single.as_method`).
+The closed forms are :mod:`glshade.metrics.coding_laws`; the outputs (JSON, the coded
+scene, the plot) :mod:`glshade.measure.coding_files`.
 """
 
 from __future__ import annotations
@@ -30,22 +32,35 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from glshade.components.emitter.fringes.table import (
-    DIRECTIONS,
     MAX_SHIFTS,
     FringeFrame,
     FringesTable,
-    displayed,
     fringes_of,
 )
-from glshade.components.image_scale import base_curvatures, emitter_mm_per_row
 from glshade.errors import GlshadeError
 from glshade.measure.pmd import check_scene
 from glshade.measure.single import as_method
+from glshade.metrics.coding_laws import (
+    ErrorBudget,
+    Resolved,
+    blur_mm,
+    box_share,
+    closed_form_share,
+    coded_axis,
+    finest_resolved,
+    footprint_mm,
+    gamma_error_rad,
+    ladder,
+    quantisation_error_rad,
+    quantisation_rms_rad,
+    round_up,
+    screen_harmonics,
+)
 from glshade.metrics.physics import pmd_shift_mm
 from glshade.metrics.status import dent_window
 from glshade.scene import Scene
@@ -59,8 +74,6 @@ PROBE_SHIFTS = 4
 #: beyond the screen, so the decoder tells a coordinate just below 0 that noise wrapped
 #: round from one near the far edge (docs/pmd.md, the guard).
 COARSEST_MARGIN = 1.1
-#: Significant digits the recommended periods are rounded to.
-PERIOD_DIGITS = 2
 #: The most periods a recommended ladder may hold.
 MAX_PERIODS = 32
 
@@ -91,116 +104,6 @@ class CodingSettings:
             raise GlshadeError(
                 f"candidates: must be an integer in [8, 96], got {self.candidates!r}"
             )
-
-
-# --------------------------------------------------------------------------- closed forms
-def coded_axis(direction: str) -> int:
-    """The screen coordinate a direction's fringes vary along (0: u, 1: v)."""
-    return DIRECTIONS.index(direction) ^ 1
-
-
-def footprint_mm(scene: Scene, direction: str) -> float:
-    """The screen length (mm) one pixel sees along ``direction``'s coordinate at the gaze
-    point: ``(Dc + De) δ m`` with the tangential magnification ``m`` for ``v``
-    (:func:`~glshade.components.image_scale.emitter_mm_per_row`) and the sagittal one
-    ``1 - 2 κ_s sin θ Dc De / (Dc + De)`` for ``u``; NaN where the base focuses the
-    screen (no finite scale)."""
-    if direction == "v":
-        return emitter_mm_per_row(scene)
-    cam = scene.camera
-    dc, de = cam.distance, scene.emitter.distance
-    m = 1.0 - 2.0 * base_curvatures(scene)[1] * math.sin(cam.theta_rad) * dc * de / (dc + de)
-    return (dc + de) * cam.pixel_pitch / cam.focal * m if m > 0.0 else math.nan
-
-
-def blur_mm(scene: Scene, direction: str) -> float:
-    """The diameter (mm) of a thin lens's blur disc on the screen along ``direction``:
-    ``A |L - F| / F`` (``A = focal / f_number``, ``L = Dc + De`` the screen's mirror image,
-    ``F`` the focus distance) times the magnification; 0 for a pinhole."""
-    cam = scene.camera
-    if cam.f_number <= 0.0:
-        return 0.0
-    focus = cam.focus_distance if cam.focus_distance is not None else cam.distance
-    image = cam.distance + scene.emitter.distance
-    flat = (cam.distance + scene.emitter.distance) * cam.pixel_pitch / cam.focal
-    scale = footprint_mm(scene, direction) / flat
-    return cam.focal / cam.f_number * abs(image - focus) / focus * scale
-
-
-def box_share(footprint: float, periods: np.ndarray, samples: int = 0) -> np.ndarray:
-    """The modulation share a box footprint of ``footprint`` mm keeps of fringes of
-    ``periods`` (mm): ``|sin x / (n sin(x / n))|``, ``x = π w / p``, for ``n`` samples
-    spread evenly over the pixel (the renderer's ``render.supersample``: ``n = 1`` point-
-    samples and keeps everything); ``samples = 0``: a real pixel, ``|sin x / x|``."""
-    x = math.pi * footprint / np.asarray(periods, np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        if samples:
-            share = np.sin(x) / (samples * np.sin(x / samples))
-        else:
-            share = np.sin(x) / x
-    return np.abs(np.where(x == 0.0, 1.0, share))
-
-
-def disc_share(blur: float, periods: np.ndarray) -> np.ndarray:
-    """The share a uniform blur disc of diameter ``blur`` mm keeps: ``|2 J1(x) / x|``,
-    ``x = π b / p``."""
-    from scipy.special import j1
-
-    x = math.pi * blur / np.asarray(periods, np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        share = 2.0 * j1(x) / x
-    return np.abs(np.where(x == 0.0, 1.0, share))
-
-
-def closed_form_share(scene: Scene, direction: str, periods: np.ndarray) -> np.ndarray:
-    """The chain's closed form at the gaze point: the box footprint as the renderer
-    samples it times the lens's blur disc (the transfer functions multiply)."""
-    w = footprint_mm(scene, direction)
-    return box_share(w, periods, scene.render.supersample) * disc_share(
-        blur_mm(scene, direction), periods
-    )
-
-
-def screen_harmonics(em: FringesTable, count: int = 4096) -> np.ndarray:
-    """The displayed fringe's Fourier amplitudes ``b_h`` (h = 0 … count/2; ``b_1`` the
-    fundamental a sharp mirror shows), quantisation and gamma included."""
-    theta = 2.0 * np.pi * np.arange(count) / count
-    shown = displayed(em.offset + em.amplitude * np.cos(theta), em.levels, em.gamma)
-    spectrum = np.fft.rfft(shown) / count
-    spectrum[1:] *= 2.0
-    return np.asarray(spectrum.real, np.float64)  # an even function: cosines only
-
-
-def gamma_error_rad(harmonics: np.ndarray, shifts: int) -> float:
-    """The phase error ``N`` steps leave of the screen's harmonics: ``|b_(N+1) -
-    b_(N-1)| / b_1`` (the harmonics ``N ± 1`` alias into the phase; docs/pmd.md)."""
-    top = len(harmonics) - 1
-    plus = harmonics[shifts + 1] if shifts + 1 <= top else 0.0
-    return float(abs(plus - harmonics[shifts - 1]) / harmonics[1])
-
-
-def quantisation_rms_rad(em: FringesTable, share: float, fundamental: float, shifts: int) -> float:
-    """The screen's quantisation as a phase error's root mean square over the pixels:
-    ``sqrt(2 / N) (q / sqrt 12) / B`` (each frame's rounding taken as uniform over a grey
-    step ``q``; the pixels' footprints average it further, so this is an upper
-    estimate)."""
-    modulation = share * fundamental
-    if not em.largest_step():
-        return 0.0
-    if not modulation > 0.0:
-        return math.inf
-    return math.sqrt(2.0 / shifts) * em.largest_step() / math.sqrt(12.0) / modulation
-
-
-def quantisation_error_rad(em: FringesTable, share: float, fundamental: float) -> float:
-    """The screen's quantisation bound ``asin(q / B)``, ``q`` its largest displayed grey
-    step and ``B = share · b_1`` the pixel's modulation (displayed units): a fixed
-    pattern, the same in every capture."""
-    q = em.largest_step()
-    modulation = share * fundamental
-    if not q:
-        return 0.0
-    return math.asin(min(1.0, q / modulation)) if modulation > 0 else math.pi / 2
 
 
 # --------------------------------------------------------------------------- the probe
@@ -351,44 +254,6 @@ def intensity_variance(scene: Scene, level: np.ndarray) -> np.ndarray:
     return np.maximum(level, 0.0) / full_well + (sensor.read_noise_e / full_well) ** 2 + q * q / 12
 
 
-# --------------------------------------------------------------------------- resolution
-@dataclass(frozen=True)
-class Resolved:
-    """The finest resolved period of one direction (or of all: the longest of theirs):
-    ``period_mm`` (NaN where none), ``status`` (``ok``; ``below_range``: every probed
-    period is resolved, the limit is at most the finest probed; ``unresolved``: none
-    is) and ``reason``."""
-
-    period_mm: float
-    status: str = "ok"
-    reason: str = ""
-
-
-def finest_resolved(periods: np.ndarray, share: np.ndarray, level: float) -> Resolved:
-    """The period below which the modulation share first drops under ``level``, coming
-    from the coarsest: log-linear between the two probed periods that straddle it."""
-    below = np.flatnonzero(~(share >= level))
-    if not below.size:
-        return Resolved(
-            float(periods[0]),
-            "below_range",
-            f"every probed period keeps a share >= {level:g}: the limit is at most "
-            f"{periods[0]:.3g} mm",
-        )
-    last = int(below[-1])
-    if last == len(periods) - 1:
-        return Resolved(
-            math.nan,
-            "unresolved",
-            f"even the coarsest probed period, {periods[-1]:.3g} mm, keeps a share of "
-            f"{share[-1]:.3g} < {level:g} (a sharper focus or a finer camera resolves more)",
-        )
-    lo, hi = share[last], share[last + 1]
-    t = (level - lo) / (hi - lo) if hi != lo else 1.0
-    log_p = math.log(periods[last]) + t * (math.log(periods[last + 1]) - math.log(periods[last]))
-    return Resolved(float(math.exp(log_p)))
-
-
 def resolution(probe: Probe, level: float) -> tuple[dict[str, Resolved], Resolved]:
     """Each direction's finest resolved period and the coding's (the longest)."""
     each = {
@@ -441,54 +306,14 @@ def shifts_for(probe: Probe, period_mm: float, target_mm: float) -> int:
 def best_finest(probe: Probe, resolved: Resolved, level: float) -> float:
     """The finest period with the least noise among the resolved probed ones (every
     direction's share at least ``level``): the smallest ``p · rms(σ_I / B)``; without
-    a sensor, the finest resolved. Rounded up to :data:`PERIOD_DIGITS` digits."""
+    a sensor, the finest resolved. Rounded up to two significant digits
+    (:func:`~glshade.metrics.coding_laws.round_up`)."""
     ok = np.all(probe.share >= level, axis=0) & (probe.periods_mm >= resolved.period_mm * 0.999)
     pooled = np.sqrt(np.mean(probe.noise_ratio**2, axis=0))
     if not np.any(pooled[ok] > 0.0):
         return round_up(resolved.period_mm)
     merit = np.where(ok, probe.periods_mm * pooled, np.inf)
     return round_up(float(probe.periods_mm[int(np.argmin(merit))]))
-
-
-def round_up(value: float, digits: int = PERIOD_DIGITS) -> float:
-    """``value`` rounded up to ``digits`` significant digits."""
-    if not (math.isfinite(value) and value > 0.0):
-        return value
-    scale = 10.0 ** (math.floor(math.log10(value)) - digits + 1)
-    return float(round(math.ceil(value / scale - 1e-9) * scale, 12))
-
-
-def round_near(value: float, digits: int = PERIOD_DIGITS) -> float:
-    """``value`` rounded to ``digits`` significant digits."""
-    scale = 10.0 ** (math.floor(math.log10(value)) - digits + 1)
-    return float(round(round(value / scale) * scale, 12))
-
-
-# --------------------------------------------------------------------------- unwrapping
-@dataclass(frozen=True)
-class ErrorBudget:
-    """A coding's phase errors at each period (rad, the worst coded direction):
-    ``random`` the noise (one σ), ``systematic`` the screen's bounds (quantisation and
-    gamma aliasing) at the period's modulation."""
-
-    periods_mm: tuple[float, ...]
-    random: tuple[float, ...]
-    systematic: tuple[float, ...]
-
-    def margins(self) -> tuple[float, ...]:
-        """Per step ``k -> k+1``, the σ of noise the unwrapping tolerates: ``M`` such
-        that ``r (M σ_(k+1) + ε_(k+1)) + M σ_k + ε_k = π`` (``r`` the ratio, ``ε`` the
-        systematic bounds); infinite where there is no noise and the bounds fit."""
-        out = []
-        for k in range(len(self.periods_mm) - 1):
-            r = self.periods_mm[k + 1] / self.periods_mm[k]
-            room = math.pi - r * self.systematic[k + 1] - self.systematic[k]
-            noise = r * self.random[k + 1] + self.random[k]
-            if room <= 0.0:
-                out.append(0.0)
-            else:
-                out.append(room / noise if noise > 0.0 else math.inf)
-        return tuple(out)
 
 
 def error_budget(probe: Probe, em: FringesTable, periods: tuple[float, ...], shifts: int):
@@ -501,16 +326,6 @@ def error_budget(probe: Probe, em: FringesTable, periods: tuple[float, ...], shi
         share = float(np.min(interpolated(probe, probe.share, p)))
         systematic.append(quantisation_error_rad(em, share, harmonics[1]) + gamma)
     return ErrorBudget(tuple(periods), tuple(random), tuple(systematic))
-
-
-def ladder(finest: float, coarsest: float, count: int) -> tuple[float, ...]:
-    """``count`` periods from ``finest`` to ``coarsest`` at one ratio, the inner ones
-    rounded to :data:`PERIOD_DIGITS` digits."""
-    if count == 1:
-        return (finest,)
-    ratio = (coarsest / finest) ** (1.0 / (count - 1))
-    inner = [round_near(finest * ratio**k) for k in range(1, count - 1)]
-    return (finest, *inner, coarsest)
 
 
 def choose_ladder(
@@ -771,146 +586,3 @@ def notes(scene: Scene, probe: Probe, settings: CodingSettings, sensor: bool) ->
             "over every pixel that sees the screen"
         )
     return tuple(out)
-
-
-# --------------------------------------------------------------------------- JSON
-def _number(value: float) -> float | None:
-    """A JSON number (None where not finite)."""
-    return round(float(value), 6) if math.isfinite(value) else None
-
-
-def _plan(plan: CodingPlan) -> dict[str, Any]:
-    return {
-        "periods_mm": [_number(p) for p in plan.periods_mm],
-        "shifts": plan.shifts,
-        "ratios": [_number(r) for r in plan.ratios],
-        "noise_mm": _number(plan.noise_mm),
-        "margin_sigmas": _number(plan.margin_sigmas),
-        "finest_share": _number(plan.share),
-        "quantisation_mm": _number(plan.quantisation_mm),
-        "quantisation_bound_mm": _number(plan.quantisation_bound_mm),
-        "gamma_mm": _number(plan.gamma_mm),
-        "status": plan.status,
-        "status_reason": plan.reason,
-    }
-
-
-def summary(report: CodingReport) -> dict[str, Any]:
-    """The report's numbers as one JSON-ready dict (NaN as None)."""
-    probe, cam = report.probe, report.scene.camera
-    rec, rng = report.recommended, report.ranges
-    de = report.scene.emitter.distance
-    return {
-        "scene": report.scene.title(),
-        "size": [cam.width, cam.height],
-        "supersample": report.scene.render.supersample,
-        "directions": list(probe.directions),
-        "sensor": report.sensor,
-        "target_noise_mm": report.settings.target_noise_mm,
-        "resolved_share": report.settings.resolved_share,
-        "margin_sigmas": report.settings.margin_sigmas,
-        "modulation": {
-            "periods_mm": [_number(p) for p in probe.periods_mm],
-            "pixels": probe.pixels,
-            "in_window": probe.in_window,
-            **{
-                d: {
-                    "rendered": [_number(s) for s in probe.share[i]],
-                    "closed_form": [_number(s) for s in report.closed_form[i]],
-                    "pixel_box": [_number(s) for s in report.pixel_box[i]],
-                    "footprint_mm": _number(report.footprint_mm[d]),
-                    "blur_mm": _number(report.blur_mm[d]),
-                    "finest_resolved_mm": _number(report.resolved_each[d].period_mm),
-                }
-                for i, d in enumerate(probe.directions)
-            },
-        },
-        "finest_resolved_mm": _number(report.resolved.period_mm),
-        "finest_resolved_status": report.resolved.status,
-        "finest_resolved_reason": report.resolved.reason,
-        "recommended": _plan(rec),
-        "current": _plan(report.current),
-        "slope_noise_urad": _number(1e6 * rec.noise_mm / (2.0 * de)),
-        "ranges": {
-            "unambiguous_mm": _number(rng.unambiguous_mm),
-            "screen_mm": {d: _number(v) for d, v in rng.screen_mm.items()},
-            "screen_point_mm": [_number(v) for v in rng.screen_point_mm],
-            "slope_range_mrad": {d: _number(v) for d, v in rng.slope_range_mrad.items()},
-            "dent_shift_mm": _number(rng.dent_shift_mm),
-            "dent_slope_mrad": _number(rng.dent_slope_mrad),
-            "snr_recommended": _number(_snr(rng.dent_shift_mm, rec.noise_mm)),
-            "snr_current": _number(_snr(rng.dent_shift_mm, report.current.noise_mm)),
-            "status": rng.status,
-            "status_reason": rng.reason,
-        },
-        "level": _number(probe.level),
-        "gain": _number(probe.gain),
-        "notes": list(report.notes),
-        "seconds": round(probe.seconds, 3),
-    }
-
-
-def _snr(shift: float, noise: float) -> float:
-    """The dent's shift over the noise (infinite without noise)."""
-    if not math.isfinite(noise):
-        return math.nan
-    return shift / noise if noise > 0.0 else math.inf
-
-
-# --------------------------------------------------------------------------- outputs
-def coded_scene(report: CodingReport) -> Scene:
-    """The report's scene with the recommended coding (``emitter.periods``, ``shifts``);
-    an error where there is none (no period is resolved)."""
-    rec = report.recommended
-    if rec.status == "unresolved":
-        raise GlshadeError(f"no coding to write: {rec.reason}")
-    return report.scene.updated(emitter={"periods": list(rec.periods_mm), "shifts": rec.shifts})
-
-
-#: The plot's colours per direction (rendered markers, closed-form lines).
-DIRECTION_COLOURS = {"v": (0.0, 0.35, 0.75), "u": (0.85, 0.2, 0.0)}
-
-
-def write_plot(report: CodingReport, path) -> None:
-    """Modulation share against period (log axis, mm; pixels on the top axis): rendered
-    per direction (markers; the title says so where they are not read in the dent's
-    window), the chain's closed form (lines), a real pixel's box (dashed), the resolved
-    level, the finest resolved period and the recommended finest period."""
-    from glshade.measure.figures import new_figure, save_figure
-
-    probe = report.probe
-    fig = new_figure(7.0, 4.2)
-    ax = fig.add_subplot(1, 1, 1)
-    dense = np.geomspace(probe.periods_mm[0], probe.periods_mm[-1], 400)
-    for i, d in enumerate(probe.directions):
-        colour = DIRECTION_COLOURS.get(d, (0.3, 0.3, 0.3))
-        marker = "o" if i == 0 else "x"
-        ax.plot(probe.periods_mm, probe.share[i], marker, color=colour, ms=5,
-                label=f"rendered, fringes along {d}")  # fmt: skip
-        ax.plot(dense, closed_form_share(report.scene, d, dense), "-", color=colour, lw=1.0,
-                label=f"closed form along {d} (as rendered)")  # fmt: skip
-    w = report.footprint_mm[probe.directions[0]]
-    ax.plot(dense, box_share(w, dense), "--", color="0.4", lw=1.0,
-            label="real pixel, pinhole: |sin x / x|")  # fmt: skip
-    level = report.settings.resolved_share
-    ax.axhline(level, color="0.6", lw=0.8, ls=":", label=f"resolved level {level:g}")
-    if math.isfinite(report.resolved.period_mm):
-        ax.axvline(report.resolved.period_mm, color="0.2", lw=0.8, ls=":",
-                   label=f"finest resolved {report.resolved.period_mm:.3g} mm")  # fmt: skip
-    if report.recommended.status != "unresolved":
-        p1 = report.recommended.periods_mm[0]
-        ax.axvline(p1, color=(0.0, 0.6, 0.45), lw=1.0, label=f"recommended p1 {p1:g} mm")
-    ax.set_xscale("log")
-    ax.set_ylim(-0.02, 1.05)
-    ax.set_xlabel("fringe period on the screen (mm)")
-    ax.set_ylabel("modulation (share of a sharp mirror's)")
-    if math.isfinite(w) and w > 0:
-        top = ax.secondary_xaxis("top", functions=(lambda p: p / w, lambda n: n * w))
-        top.set_xlabel("pixels per period (along the first coded direction)")
-    title = report.scene.title()
-    if not probe.in_window:
-        title += " [outside: over every pixel that sees the screen]"
-    ax.set_title(title, fontsize=9)
-    ax.grid(True, which="both", alpha=0.25)
-    ax.legend(fontsize=7, loc="lower right")
-    save_figure(fig, path)
