@@ -150,6 +150,16 @@ def _mm(value: float, fmt: str = ".3g") -> str:
     return "n/a" if not math.isfinite(value) else format(value, fmt)
 
 
+def _share(value: float, width: int) -> str:
+    """A share in a table column (``n/a`` where there is no closed form)."""
+    return f"{value:{width}.3f}" if math.isfinite(value) else f"{'n/a':>{width}}"
+
+
+def _margin(value: float) -> str:
+    """An unwrapping margin in σ (infinite: no noise to count it in)."""
+    return "∞ (no noise)" if value == math.inf else _mm(value)
+
+
 def report_lines(report) -> list[str]:
     """The report as text: each number with its unit and meaning; an unreadable one says
     why."""
@@ -190,13 +200,18 @@ def _modulation_lines(report) -> list[str]:
     ]
     for c, period in enumerate(probe.periods_mm):
         cells = "".join(
-            f"{probe.share[i, c]:10.3f}  {report.closed_form[i, c]:11.3f}  "
+            f"{_share(probe.share[i, c], 10)}  {_share(report.closed_form[i, c], 11)}  "
             for i in range(len(dirs))
         )
-        lines.append(f"  {period:9.4g}  {cells}{report.pixel_box[0, c]:10.3f}")
+        lines.append(f"  {period:9.4g}  {cells}{_share(report.pixel_box[0, c], 10)}")
     seen = ", ".join(f"{_mm(report.footprint_mm[d], '.4g')} mm along {d}" for d in dirs)
     blur = ", ".join(f"{_mm(report.blur_mm[d], '.4g')} mm along {d}" for d in dirs)
     lines.append(f"  one pixel sees {seen} of the screen; the lens blurs over {blur}")
+    if not all(math.isfinite(report.footprint_mm[d]) for d in dirs):
+        lines.append(
+            "  closed form n/a: the base focuses the screen at the gaze point (no finite "
+            "magnification); the rendered shares stand alone"
+        )
     lines.append(
         "  closed form: box footprint w sampled as rendered, |sin x / (n sin(x/n))|, x = π w / "
         "p, times a lens's disc 2 J1(π b / p) / (π b / p); real pixel: |sin x / x|"
@@ -236,9 +251,10 @@ def _coding_lines(report) -> list[str]:
         f"  finest period p1         {rec.periods_mm[0]:g} mm ({why}; share {rec.share:.2f})",
         f"  shifts N                 {rec.shifts} ({how}){flag}",
         f"  predicted noise          {_mm(rec.noise_mm)} mm on the screen, p1/2π sqrt(2/N) "
-        f"σ_I/B (a slope noise of {_mm(1e6 * rec.noise_mm / (2 * de))} µrad)",
+        f"σ_I/B (a slope noise of {_mm(1e6 * rec.noise_mm / (2 * de))} µrad)"
+        + ("" if report.sensor else "; no sensor, no noise"),
         f"  periods (K = {len(rec.periods_mm)})          {periods} mm (ratios {ratios}; the "
-        f"worst step keeps {_mm(rec.margin_sigmas)} σ of margin)",
+        f"worst step keeps {_margin(rec.margin_sigmas)} σ of margin)",
         f"  screen's fixed patterns  quantisation {_mm(rec.quantisation_mm)} mm rms (at most "
         f"{_mm(rec.quantisation_bound_mm)}), gamma aliasing {_mm(rec.gamma_mm)} mm (the same in "
         "every capture: not in the noise)",
@@ -260,7 +276,7 @@ def _current_lines(report) -> list[str]:
     return [
         f"The scene's own coding (periods {periods} mm, N {cur.shifts}){flag}",
         f"  predicted noise {_mm(cur.noise_mm)} mm; worst unwrapping margin "
-        f"{_mm(cur.margin_sigmas)} σ; finest period's share {_mm(cur.share, '.2f')}",
+        f"{_margin(cur.margin_sigmas)} σ; finest period's share {_mm(cur.share, '.2f')}",
     ]
 
 
