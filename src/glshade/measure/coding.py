@@ -424,11 +424,25 @@ def choose_coding(
 ) -> CodingReport:
     """Render the probe of ``scene`` (a scene of stripes: the fringes on its screen) and
     choose its coding (:class:`CodingReport`)."""
-    scene = as_method(scene, "pmd")
+    scene = integrating(as_method(scene, "pmd"))
     check_scene(scene)
     periods = probe_periods(scene, settings)
     probe = render_probe(renderer, scene, periods)
     return judge(scene, probe, settings)
+
+
+#: Rays per pixel side the probe traces where the scene samples each pixel at its centre.
+PIXEL_RAYS = 4
+
+
+def integrating(scene: Scene) -> Scene:
+    """The scene as a camera's pixels see it: a real pixel integrates the light over its
+    area, so a scene sampled at the pixels' centres (``render.supersample`` 1) is probed
+    with :data:`PIXEL_RAYS` x :data:`PIXEL_RAYS` rays a pixel (else its point samples
+    would resolve fringes down to a pixel's own footprint)."""
+    if scene.render.supersample > 1:
+        return scene
+    return scene.updated(render={"supersample": PIXEL_RAYS})
 
 
 def judge(scene: Scene, probe: Probe, settings: CodingSettings) -> CodingReport:
@@ -566,11 +580,11 @@ def ranges(scene: Scene, probe: Probe, plan: CodingPlan) -> Ranges:
 def notes(scene: Scene, probe: Probe, settings: CodingSettings, sensor: bool) -> tuple[str, ...]:
     """What the reader should know about how these numbers were made."""
     out = []
-    if scene.render.supersample == 1:
+    if scene.render.supersample == PIXEL_RAYS:
         out.append(
-            "render.supersample is 1: each pixel is sampled at its centre, so the pixel's "
-            "own footprint does not average the fringes (a real pixel does: give "
-            "--supersample 4 or more for its modulation)"
+            f"each pixel is probed with {PIXEL_RAYS} x {PIXEL_RAYS} rays, as a real pixel "
+            "integrates the fringes over its area (a scene sampled at the pixels' centres "
+            "is probed so; give --supersample to choose another)"
         )
     if not sensor:
         out.append(
