@@ -26,15 +26,18 @@ from glshade.app.viewer import (
     readout_lines,
 )
 from glshade.app.viewer.colourbar import (
+    NO_VALUE_RGB,
     colour_bar_layout,
     colour_bar_ticks,
     colour_index,
     colour_lut,
 )
 from glshade.app.viewer.model import IDLE_WAIT_S, POLL_S, SETTLE_FRAMES, FrameSchedule
+from glshade.app.viewer.pmd_view import PmdReadout, pmd_readout_lines, pmd_scene
 from glshade.errors import GlshadeError, SceneError
 from glshade.files import read_png
-from glshade.gpu.renderer import render
+from glshade.gpu.renderer import Renderer, render
+from glshade.measure.pmd import PmdSettings, measure_pmd_scene
 from glshade.measure.single import measure
 from glshade.metrics.visibility import Visibility
 from glshade.scene import paper_scene
@@ -82,6 +85,10 @@ def test_parse_sets():
     )
     assert scene.camera.theta_deg == 5.0 and scene.surface.kind == "sphere"
     assert extra == {"view": "overlay", "animate": "1"}
+    _, extra = parse_sets(["view=pmd-error", "pmd_size=64"], paper_scene().with_size(128))
+    assert extra == {"view": "pmd-error", "pmd_size": "64"}
+    with pytest.raises(GlshadeError, match=r"--set pmd_size: must be an integer in \[16, 128\]"):
+        parse_sets(["pmd_size=256"], paper_scene().with_size(128))
     for bad, fragment in (
         ("theta", "expected name=value"),
         ("theta=abc", "a number in degrees"),
@@ -168,6 +175,19 @@ def test_colour_bar_ticks_follow_the_displacement_scale():
     assert not colour_bar_layout(512, 512, 600).overlaid
     low = colour_bar_layout(512, 512, 512)
     assert low.overlaid and low.strip_bottom == 512
+
+
+def test_colour_bar_ticks_of_signed_and_cyclic_scales():
+    """A scale symmetric about 0 (the PMD error) has 0 at its middle and ticks paired
+    about it; the wrapped phase's 0 to 2π has the whole radians."""
+    ticks = colour_bar_ticks(1.3, bottom=-1.3)
+    assert [t.label for t in ticks] == ["-1", "0", "1"]
+    for tick in ticks:
+        assert tick.at == pytest.approx((tick.value + 1.3) / 2.6)
+    assert [t.value for t in ticks] == [-t.value for t in reversed(ticks)]
+    assert [t.label for t in colour_bar_ticks(2 * np.pi)] == ["0", "2", "4", "6"]
+    # the LUT index on a shifted scale: the bottom at 0, the middle at the middle
+    assert colour_index(np.array([-1.3, 0.0, 1.3]), 1.3, -1.3).tolist() == [0, 127, 255]
 
 
 def test_idle_schedule_draws_only_on_change():
@@ -309,6 +329,61 @@ def test_metric_refusal_is_shown_not_raised():
     model.close()
 
 
+def test_pmd_view_measures_once_per_change_in_its_own_thread():
+    """A PMD view: the station measures the scene (the fringes on its screen, at the PMD
+    size) in its own thread, with the numbers measure_pmd_scene gives for that scene;
+    the phase, another PMD map or a rest submit nothing; a new dent does; the image
+    view shows the paper's readout again."""
+    scene = paper_scene("flat", 45.0, 1.0, 0.005).with_size(96)
+    model = ViewerModel(scene, view="pmd-slope", pmd_size=64)
+    model.traced(
+        render(scene, ("uv",)).uv, render(scene.without_defect(), ("uv",)).uv[..., 1].copy()
+    )
+    model.start_metrics()
+    assert model.metrics_pending and model.readout_text()[-1] == "PMD at 64 px: computing..."
+    model.wait_for_metrics()
+    measured = pmd_scene(scene, 64)
+    assert measured.camera.width == 64 and measured.active.emitter.measured_by == "pmd"
+    with Renderer() as renderer:
+        truth = measure_pmd_scene(renderer, measured, PmdSettings())
+    result = model.pmd.result
+    assert model.pmd.scene == measured and result is not None
+    for name in ("pmd_shift_mm", "pmd_depth_um", "pmd_snr", "unwrap_failures", "status"):
+        assert getattr(result, name) == getattr(truth, name), name
+    expected = pmd_readout_lines(PmdReadout(measured, truth), False, 64)
+    assert model.readout_text()[:5] == expected[:5]
+    assert expected[0] == f"PMD shift: {truth.pmd_shift_mm:.4g} mm on the screen"
+    assert expected[2] == f"PMD depth: {truth.pmd_depth_um:.4g} um (dmax 5 um)"
+    # the picture: the slope map at the image's size, its peak at the top of the scale
+    rgba, scale = model.pmd_rgba()
+    slope = np.hypot(*np.moveaxis(result.maps.slopes_urad, -1, 0))
+    assert rgba.shape == (96, 96, 4) and scale.unit == "urad" and scale.bottom == 0.0
+    assert scale.top == pytest.approx(np.nanmax(slope[~result.maps.failed]))
+    lut = colour_lut(scale.cmap)
+    assert (rgba[..., :3] == lut[255]).all(axis=-1).any()
+    assert (rgba[..., :3] == lut[0]).all(axis=-1).sum() > 96 * 96 // 4  # the flat plate
+    assert not (rgba[..., :3] == NO_VALUE_RGB).all(axis=-1).any()  # every pixel decoded
+    assert "slope" in model.hover(48, 48) and "urad" in model.hover(48, 48)
+    # nothing changed for the station: no job (the phase is the stripes', not the fringes')
+    for change in (lambda: None, lambda: model.set("phase", 0.7)):
+        change()
+        model.start_metrics()
+        assert model._pmd_job is None
+    model.view = "pmd-phase"  # another map of the same case
+    model.start_metrics()
+    assert model._pmd_job is None and model.pmd_rgba()[1].top == pytest.approx(2 * np.pi)
+    model.set("dmax", 0.003)  # a new dent: one case
+    model.start_metrics()
+    assert model._pmd_job is not None
+    model.wait_for_metrics()
+    # the heights are linear in the slopes: the depth scales with dmax
+    assert model.pmd.result.pmd_depth_um == pytest.approx(0.6 * truth.pmd_depth_um, rel=0.02)
+    model.view = "image"
+    model.start_metrics()
+    assert model._pmd_job is None and model.readout_text() == readout_lines(model.readout)
+    model.close()
+
+
 # --------------------------------------------------------------------------- window
 def _viewer_available() -> str | None:
     try:
@@ -411,6 +486,80 @@ def test_scripted_run_ends_with_the_measured_readout():
     assert float(best.group(1)) == truth.visibility_px > 0
     assert float(continuous.group(1)) == round(truth.visibility_continuous_px, 2)
     assert float(moved.group(1)) == round(truth.deflection_px, 2)
+
+
+@needs_display
+def test_scripted_pmd_view_shows_the_map_its_colour_bar_and_the_station_numbers(tmp_path):
+    """``--set view=pmd-phase``: the wrapped phase of the fringes the station decodes
+    (the stripes' screen shows the fringe sequence), its colour bar with numbered
+    ticks beneath the image, and the readout line of measure_pmd_scene's numbers."""
+    path = tmp_path / "pmd.png"
+    result = view(
+        "--size", "128", "--frames", "2", "--set", "view=pmd-phase", "--screenshot", str(path)
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr[-3000:]
+    line = next(x for x in result.stdout.splitlines() if x.startswith("readout: "))
+    scene = paper_scene().with_size(128)
+    with Renderer() as renderer:
+        truth = measure_pmd_scene(renderer, pmd_scene(scene), PmdSettings())
+    lines = pmd_readout_lines(PmdReadout(pmd_scene(scene), truth), False, 128)
+    assert line.startswith("readout: " + "; ".join(lines[:5])), line
+    assert "PMD at 128 px: " in line and "..." not in line
+    pixels = read_png(path)
+    image = pixels[:128, :128].astype(int)
+    assert image.std() > 30  # fringes, not a blank picture
+    twilight = colour_lut("twilight").astype(int)  # every pixel a colour of the phase map
+    near = np.abs(image[:, :, None, :] - twilight[None, None]).max(axis=-1).min(axis=-1)
+    assert (near <= 3).mean() > 0.99
+    layout = colour_bar_layout(128, 128, pixels.shape[0])
+    assert not layout.overlaid
+    row = int(layout.top + layout.height / 2)
+    for tick in colour_bar_ticks(2 * np.pi):
+        x = int(layout.left + tick.at * (layout.width - 1))
+        expected = twilight[colour_index(tick.value, 2 * np.pi)]
+        assert np.abs(pixels[row, x].astype(int) - expected).max() <= 12, tick
+        label = pixels[
+            int(layout.top + layout.height + 5) : int(layout.top + layout.height + 18),
+            max(0, x - 8) : x + 8,
+        ]
+        assert (label.min(axis=2) > 180).sum() >= 5, tick  # its number beneath the ramp
+
+
+_SWITCH = """
+import sys
+from pathlib import Path
+import moderngl_window as mglw
+from glshade.app.viewer import ViewerOptions, window
+from glshade.scene import paper_scene
+name, value, shot = sys.argv[1:]
+options = ViewerOptions(scene=paper_scene().with_size(128), frames=8, screenshot=Path(shot))
+app, _ = window.make_app(options)
+class Switch(app):
+    def on_render(self, time_s, frame_time):
+        if self.stats["frames"] == 3:  # the panel has been drawn: a change while running
+            assert self.model.set(name, value), self.model.refused
+        super().on_render(time_s, frame_time)
+window.loop(mglw.create_window_config_instance(Switch, args=["--window", "pyglet"]))
+"""
+
+
+@needs_display
+@pytest.mark.parametrize(("name", "value"), [("reflection", "ggx"), ("fresnel", "conductor")])
+def test_a_shading_model_changed_while_running_shows_the_batch_renderer_image(
+    tmp_path, name, value
+):
+    """The old bug: the panel left imgui's alpha blending on, and a shading model that
+    re-renders the image (rather than re-shading the uv map) came out black."""
+    shot = tmp_path / "switch.png"
+    command = [sys.executable, "-c", _SWITCH, name, value, str(shot)]
+    if not os.environ.get("DISPLAY"):
+        command = ["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24", *command]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=180)
+    assert result.returncode == 0, result.stderr[-3000:]
+    shown = read_png(shot)[:128, :128, 0].astype(np.float64) / 255.0
+    scene = apply_setting(paper_scene().with_size(128), name, value)
+    offscreen = np.clip(render(scene).image, 0, 1)
+    assert offscreen.max() > 0.05 and np.abs(shown - offscreen).mean() < 2 / 255
 
 
 def test_bad_scene_file_opens_nothing(tmp_path):
@@ -570,9 +719,17 @@ second = shot()
 press("o")
 time.sleep(0.5)
 third = shot()
+press("p")  # the PMD phase view: the station measures, then the window rests again
+time.sleep(float(sys.argv[3]))
+fourth = shot()
+time.sleep(float(sys.argv[2]))
+fifth = shot()
+press("p")  # back to the image
+time.sleep(0.5)
+sixth = shot()
 viewer.terminate()
 viewer.wait()
-print("shots: " + json.dumps([first, second, third]))
+print("shots: " + json.dumps([first, second, third, fourth, fifth, sixth]))
 """
 
 
@@ -585,8 +742,10 @@ def test_untouched_window_draws_nothing_and_still_answers_keys(tmp_path):
     """The real window, with keys pressed through XTest: the frame number in the
     screenshot's name counts the frames drawn. Seconds at rest between two presses
     draw no frame beyond the few that follow the first press; O still toggles the
-    overlay, and the next screenshot shows it."""
-    command = [sys.executable, "-c", _DRIVE_IDLE, str(tmp_path), "3"]
+    overlay, and the next screenshot shows it. P shows the PMD phase map (the station's
+    result), at rest the PMD view draws nothing either, and P again shows the image as
+    it was."""
+    command = [sys.executable, "-c", _DRIVE_IDLE, str(tmp_path), "3", "2"]
     if not os.environ.get("DISPLAY"):
         command = ["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24", *command]
     # the viewer runs in tmp_path: the glshade under test, wherever the path said it is
@@ -597,13 +756,19 @@ def test_untouched_window_draws_nothing_and_still_answers_keys(tmp_path):
     assert result.returncode == 0, result.stderr[-3000:]
     line = next(x for x in result.stdout.splitlines() if x.startswith("shots: "))
     names = json.loads(line.removeprefix("shots: "))
-    first, second, third = (int(re.search(r"_(\d+)\.png", n).group(1)) for n in names)
-    assert second - first <= SETTLE_FRAMES + 1  # 3 s at rest: no frames of its own
-    assert third > second
-    overlay = read_png(tmp_path / names[2])[:256, :256].astype(int)
+    frames = [int(re.search(r"_(\d+)\.png", n).group(1)) for n in names]
+    assert frames[1] - frames[0] <= SETTLE_FRAMES + 1  # 3 s at rest: no frames of its own
+    assert frames[2] > frames[1]
+    assert frames[4] - frames[3] <= SETTLE_FRAMES + 1  # at rest in the PMD view too
+    shots = [read_png(tmp_path / n)[:256, :256].astype(int) for n in names]
+    overlay = shots[2]
     red = (overlay[..., 0] > 200) & (overlay[..., 2] < 80)
     blue = (overlay[..., 2] > 200) & (overlay[..., 0] < 80)
     assert red.any() and blue.any()  # the Fig. 9 contours: the key reached the viewer
+    twilight = colour_lut("twilight").astype(int)  # the phase map: its colours only
+    near = np.abs(shots[4][:, :, None, :] - twilight[None, None]).max(axis=-1).min(axis=-1)
+    assert (near <= 3).mean() > 0.99 and shots[4].std() > 30
+    assert np.array_equal(shots[5], shots[0])  # the image again, as it was
 
 
 def test_the_readout_marks_numbers_it_cannot_read():

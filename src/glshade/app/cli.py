@@ -519,10 +519,11 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
         help="open the interactive viewer (needs the viewer extra)",
         description="Open a window that renders the scene with the batch renderer's shaders, with "
         "a control "
-        "panel, four views (image, defect-free, contour overlay, displacement) and live "
-        "visibility readouts. "
+        "panel, views (image, defect-free, contour overlay, displacement, and the maps of a "
+        "phase-measuring station: pmd-phase, pmd-modulation, pmd-error, pmd-slope) and live "
+        "readouts. "
         "Keys: S screenshot, T save the scene as TOML, R reset to the paper's defaults, O toggle "
-        "the overlay. "
+        "the overlay, P toggle the PMD phase view. "
         "Scripted mode: --frames N [--screenshot out.png] [--set theta=5 ...].",
     )
     p.add_argument(
@@ -540,8 +541,8 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
         action="append",
         default=[],
         metavar="NAME=VALUE",
-        help="a setting, e.g. theta=5, sigma2=9, surface=sphere, view=overlay, animate=1 "
-        "(repeatable)",
+        help="a setting, e.g. theta=5, sigma2=9, surface=sphere, view=overlay, animate=1, "
+        "view=pmd-phase, pmd_size=256 (the PMD views' pixels across) (repeatable)",
     )
     p.add_argument("--frames", type=int, metavar="N", help="draw N frames, then exit")
     p.add_argument(
@@ -584,6 +585,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
         screenshot=args.screenshot,
         benchmark=args.benchmark,
         panel=not args.no_panel,
+        pmd_size=int(extra.get("pmd_size", viewer.PMD_SIZE)),
     )
     stats = viewer.run(options)
     if args.benchmark and stats["seconds"] > 0:
@@ -594,7 +596,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
             f"{stats['frames']} frames ({stats['traces']} traces, {stats['reshades']} re-shades)"
         )
     if args.frames is not None and "readout" in stats:
-        print("readout: " + "; ".join(viewer.readout_lines(stats["readout"])))
+        print("readout: " + "; ".join(stats["readout_lines"]))
     if args.screenshot is not None:
         print(f"wrote {args.screenshot}")
     return 0

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -112,71 +113,220 @@ def write_maps(directory: Path, scene: Scene, result) -> list[Path]:
         path = check_output(directory / f"{name}.npy", "--maps")
         write_npy(path, array)
         written.append(path)
-    for name, (image, label, cmap, symmetric) in map_images(scene, result).items():
+    for name, shown in map_images(scene, result).items():
         path = check_output(directory / f"{name}.png", "--maps")
-        map_figure(image, label, cmap, symmetric, f"{scene.title()}: {name}", path, result)
+        map_figure(shown, scene, result, path)
         written.append(path)
     return written
 
 
-def map_images(scene: Scene, result) -> dict[str, tuple[np.ndarray, str, str, bool]]:
-    """What each figure shows: ``name -> (image, colour bar label, colour map, symmetric
-    about 0)``; the first coded direction's finest period for the phase and modulation."""
-    maps = result.maps
-    direction = fringes_of(scene).directions[0]
-    finest = fringes_of(scene).periods[0]
-    axes = [0 if d == "u" else 1 for d in fringes_of(scene).directions]
-    error = np.linalg.norm(maps.error[..., axes], axis=-1) * 1e3
+# --------------------------------------------------------------------------- figures
+#: How a figure's colour scale is set: ``cyclic`` 0 to 2π; ``symmetric`` about 0 (a
+#: signed quantity: ±the largest magnitude, or its 99.5th percentile when ``robust``);
+#: ``magnitude`` 0 to the largest value (the dent's own peak always on the scale);
+#: ``range`` the smallest to the largest value.
+SCALES = ("cyclic", "symmetric", "magnitude", "range")
+#: The colour of a pixel with no value.
+NO_VALUE = (0.75, 0.75, 0.75)
+
+
+@dataclass(frozen=True)
+class MapView:
+    """What one figure shows: ``title`` (the map in words), ``panels`` (a title and an
+    image-aligned map each, on one colour scale), the colour bar's ``label`` (with its
+    unit), ``cmap``, ``scale`` (one of :data:`SCALES`), ``robust`` (a symmetric scale
+    from the 99.5th percentile: unwrapping failures would swamp it), ``no_value`` (what
+    a grey pixel means) and ``zoom``: ``window`` adds the dent's window of the first
+    panel, ``grid`` the heights on their ``(x, z)`` grid, ``none`` nothing."""
+
+    title: str
+    panels: tuple[tuple[str, np.ndarray], ...]
+    label: str
+    cmap: str
+    scale: str
+    no_value: str = "not decoded (modulation too low, or no screen seen)"
+    robust: bool = False
+    zoom: str = "window"
+
+
+def map_images(scene: Scene, result) -> dict[str, MapView]:
+    """What each figure shows (:class:`MapView`, by file name): the first coded
+    direction's finest period for the phase and the modulation, every coded coordinate
+    for the error."""
+    maps, em = result.maps, fringes_of(scene)
+    finest, direction = em.periods[0], em.directions[0]
+    axes = [0 if d == "u" else 1 for d in em.directions]
+    frame = f"the image, {scene.camera.width}x{scene.camera.height} px"
     slope = np.hypot(maps.slopes_urad[..., 0], maps.slopes_urad[..., 1])
+    records = "recorded units, full scale 1" if scene.active.records(scene) else "radiance"
     return {
-        "wrapped_phase": (
-            maps.wrapped[0, 0],
-            f"wrapped phase, {finest:g} mm fringes along {direction} (rad)",
-            "twilight",
-            False,
+        "wrapped_phase": MapView(
+            f"wrapped phase of the {finest:g} mm fringes along {direction}",
+            ((frame, decoded_only(maps.wrapped[0, 0], maps.decoded)),),
+            "wrapped phase (rad)", "twilight", "cyclic",
         ),
-        "modulation": (
-            maps.modulation[0, 0],
-            f"modulation B of the {finest:g} mm fringes (recorded units)",
-            "viridis",
-            False,
+        "modulation": MapView(
+            f"modulation B of the {finest:g} mm fringes along {direction}",
+            ((frame, maps.modulation[0, 0]),),
+            f"modulation B ({records})", "viridis", "magnitude",
         ),
-        "error_mm": (error, "|decoded - exact| (µm on the screen)", "magma", False),
-        "slopes": (slope, "slope deviation |∇d| (µrad)", "magma", False),
-        "height_um": (maps.height_um, "reconstructed height (µm)", "RdBu_r", True),
-        "decoded": (
-            maps.decoded[..., axes[0]],
-            f"decoded {'uv'[axes[0]]} (mm on the screen)",
-            "cividis",
-            False,
+        "error_mm": MapView(
+            "decoding error: decoded - exact screen point",
+            tuple((f"along {'uv'[a]}, {frame}", 1e3 * maps.error[..., a]) for a in axes),
+            "decoded - exact (µm on the screen)", "RdBu_r", "symmetric",
+            robust=True, zoom="none",
         ),
-    }
+        "slopes": MapView(
+            "slope deviation |∇d| from the nominal surface",
+            ((frame, slope),),
+            "slope deviation |∇d| (µrad)", "magma", "magnitude",
+        ),
+        "height_um": MapView(
+            "reconstructed height (slopes integrated)",
+            ((frame, maps.height_um),),
+            "height (µm)", "RdBu_r", "symmetric",
+            no_value="outside the height grid, or not decoded", zoom="grid",
+        ),
+        "decoded": MapView(
+            f"decoded screen coordinate {'uv'[axes[0]]}",
+            ((frame, maps.decoded[..., axes[0]]),),
+            f"decoded {'uv'[axes[0]]} (mm on the screen)", "cividis", "range", zoom="none",
+        ),
+    }  # fmt: skip
 
 
-def map_figure(
-    image: np.ndarray, label: str, cmap: str, symmetric: bool, title: str, path: Path, result
-) -> None:
-    """One map with a colour bar in its unit; NaN (no valid decode) drawn grey. The title
-    carries the case's status when its numbers cannot be read."""
-    fig = new_figure(6.4, 5.4)
-    ax = fig.add_subplot(1, 1, 1)
-    finite = image[np.isfinite(image)]
-    lo, hi = np.percentile(finite, [0.5, 99.5]) if finite.size else (0.0, 1.0)
-    if symmetric:
-        top = max(abs(lo), abs(hi)) or 1.0
-        lo, hi = -top, top
-    if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
-        hi = lo + 1.0
+def decoded_only(values: np.ndarray, decoded: np.ndarray) -> np.ndarray:
+    """``values`` (H, W) with NaN where the pixel has no valid decode (``decoded``: the
+    decoded screen points, NaN there): a wrapped phase of no signal reads 0."""
+    return np.where(np.isfinite(decoded).any(axis=-1), values, np.nan)
+
+
+def dent_box(scene: Scene, shape: tuple[int, int]) -> tuple[int, int, int, int] | None:
+    """The dent's window in the image (first row, last row, first column, last column),
+    None where the dent is not in the frame or its window fills most of it (a zoom
+    would show nothing new)."""
+    from glshade.metrics.status import dent_window
+
+    window = dent_window(scene, shape)
+    rows, cols = np.flatnonzero(window.any(axis=1)), np.flatnonzero(window.any(axis=0))
+    if not rows.size:
+        return None
+    box = (int(rows[0]), int(rows[-1]), int(cols[0]), int(cols[-1]))
+    if rows.size > 0.7 * shape[0] and cols.size > 0.7 * shape[1]:
+        return None
+    return box
+
+
+def map_scale(shown: MapView, values: np.ndarray, box) -> tuple[float, float]:
+    """The colour scale ``(lo, hi)`` of a figure over all its ``values`` (the finite
+    ones), per :data:`SCALES`; ``box``: the dent's window (its peak stays on a magnitude
+    scale however an outlier elsewhere clips the rest)."""
+    finite = values[np.isfinite(values)]
+    if shown.scale == "cyclic":
+        return 0.0, 2.0 * math.pi
+    if not finite.size:
+        return (-1.0, 1.0) if shown.scale == "symmetric" else (0.0, 1.0)
+    if shown.scale == "symmetric":
+        top = float(np.percentile(np.abs(finite), 99.5) if shown.robust else np.abs(finite).max())
+        return -(top or 1.0), top or 1.0
+    if shown.scale == "magnitude":
+        top = float(np.percentile(finite, 99.9))
+        if box is not None:
+            r0, r1, c0, c1 = box
+            near = shown.panels[0][1][r0 : r1 + 1, c0 : c1 + 1]
+            top = max(top, float(np.nanmax(near)) if np.isfinite(near).any() else 0.0)
+        return 0.0, top or 1.0
+    lo, hi = float(finite.min()), float(finite.max())
+    return (lo, hi) if hi > lo else (lo, lo + 1.0)
+
+
+def map_figure(shown: MapView, scene: Scene, result, path: Path) -> tuple[float, float]:
+    """One figure: the map's panels (and the dent's window or the height grid beside
+    them) on one colour scale with a colour bar in its unit, grey where there is no
+    value (said under the figure), the case and the map in the title, which carries the
+    case's status when its numbers cannot be read. Returns the colour scale drawn."""
+    box = dent_box(scene, shown.panels[0][1].shape) if shown.zoom == "window" else None
+    count = len(shown.panels) + (box is not None or shown.zoom == "grid")
+    fig = new_figure(0.6 + 4.6 * count, 4.9)
+    fig.set_layout_engine("constrained")
+    axes = [fig.add_subplot(1, count, i + 1) for i in range(count)]
+    everything = [image for _, image in shown.panels]
+    if shown.zoom == "grid":
+        everything.append(result.maps.heights.height_um)
+    values = np.concatenate([np.ravel(a) for a in everything])
+    lo, hi = map_scale(shown, values, box)
+    style = {"cmap": _colours(shown.cmap), "vmin": lo, "vmax": hi, "interpolation": "nearest"}
+    for ax, (title, image) in zip(axes, shown.panels, strict=False):
+        picture = _pixels(ax, image, title, style)
+    if box is not None:
+        _window(axes[0], axes[-1], shown.panels[0][1], box, style)
+    if shown.zoom == "grid":
+        _grid(axes[-1], result.maps.heights, style)
+    _colour_bar(fig, axes, picture, shown, values)
+    status = "" if result.status == "ok" else f"  [{result.status}: not measurable]"
+    fig.suptitle(f"PMD: {shown.title}\n{scene.title()}{status}", fontsize=10)
+    if not np.isfinite(values).all():
+        fig.text(0.01, -0.01, f"grey: no value, {shown.no_value}", fontsize=8, va="top")
+    save_figure(fig, path)
+    return lo, hi
+
+
+def _colours(cmap: str):
     from matplotlib import colormaps
 
-    colours = colormaps[cmap].with_extremes(bad=(0.75, 0.75, 0.75))
-    shown = ax.imshow(image, cmap=colours, vmin=lo, vmax=hi, interpolation="nearest")
-    bar = fig.colorbar(shown, ax=ax, shrink=0.85)
-    bar.set_label(label)
-    height, width = image.shape
-    ax.set_xlabel(f"column (of {width} px)")
-    ax.set_ylabel(f"row (of {height} px)")
-    if result.status != "ok":
-        title = f"{title} [{result.status}: not measurable]"
+    return colormaps[cmap].with_extremes(bad=NO_VALUE)
+
+
+def _pixels(ax, image: np.ndarray, title: str, style: dict):
+    """A map over the whole frame, in pixel coordinates."""
+    shown = ax.imshow(image, **style)
+    ax.set_xlabel("column (px)")
+    ax.set_ylabel("row (px)")
     ax.set_title(title, fontsize=9)
-    save_figure(fig, path)
+    return shown
+
+
+def _window(full, ax, image: np.ndarray, box, style: dict) -> None:
+    """The dent's window of ``image`` in ``ax`` (its pixel coordinates kept), outlined in
+    the full frame."""
+    from matplotlib.patches import Rectangle
+
+    r0, r1, c0, c1 = box
+    extent = (c0 - 0.5, c1 + 0.5, r1 + 0.5, r0 - 0.5)
+    ax.imshow(image[r0 : r1 + 1, c0 : c1 + 1], extent=extent, **style)
+    corner, size = (c0 - 0.5, r0 - 0.5), (c1 - c0 + 1, r1 - r0 + 1)
+    dashed = Rectangle(corner, *size, fill=False, edgecolor="#00d5ff", linestyle="--", lw=1.2)
+    full.add_patch(dashed)
+    ax.set_xlabel("column (px)")
+    ax.set_ylabel("row (px)")
+    ax.set_title(f"the dent's window (dashed), rows {r0}-{r1}, columns {c0}-{c1}", fontsize=9)
+
+
+def _grid(ax, heights, style: dict) -> None:
+    """The heights on their regular ``(x, z)`` grid on the surface (mm), with the
+    fitted dent."""
+    x, z = heights.grid.x, heights.grid.z
+    dx, dz = heights.grid.spacing
+    extent = (x[0] - dx / 2, x[-1] + dx / 2, z[0] - dz / 2, z[-1] + dz / 2)
+    ax.imshow(heights.height_um, origin="lower", extent=extent, **style)
+    ax.set_xlabel("x on the surface (mm)")
+    ax.set_ylabel("z on the surface (mm)")
+    dent = heights.dent
+    fit = "no dent fitted" if dent is None else (
+        f"fit: depth {dent.depth:.3g} µm, σ {dent.sigma_mm:.3g} mm"
+    )  # fmt: skip
+    ax.set_title(f"on the surface grid ({len(x)}x{len(z)}); {fit}", fontsize=9)
+
+
+def _colour_bar(fig, axes, picture, shown: MapView, values: np.ndarray) -> None:
+    """The colour bar of the figure's scale, with arrows where values lie beyond it."""
+    finite = values[np.isfinite(values)]
+    lo, hi = picture.get_clim()
+    below = bool(finite.size and finite.min() < lo - 1e-12 * abs(lo))
+    above = bool(finite.size and finite.max() > hi + 1e-12 * abs(hi))
+    extend = {(0, 0): "neither", (1, 0): "min", (0, 1): "max", (1, 1): "both"}
+    bar = fig.colorbar(picture, ax=axes, shrink=0.9, extend=extend[below, above])
+    bar.set_label(shown.label)
+    if shown.scale == "cyclic":
+        bar.set_ticks([0, math.pi / 2, math.pi, 1.5 * math.pi, 2 * math.pi])
+        bar.set_ticklabels(["0", "π/2", "π", "3π/2", "2π"])

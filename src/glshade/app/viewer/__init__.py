@@ -12,7 +12,9 @@ window's own GL context. What is recomputed is only what changed:
   Blinn-Phong or supersampling, where the picture is not a function of the uv map, the
   image is re-rendered instead;
 - the visibility metrics run in a worker thread, never on the render thread, and the
-  panel shows the latest finished result;
+  panel shows the latest finished result; in a PMD view the station measures the scene
+  (its fringe sequence rendered and decoded) in a thread of its own, whenever the scene
+  changed;
 - nothing changed, nothing is drawn: the window waits for input, the worker's result or
   the animation (``FrameSchedule``), and a frame for the panel alone copies the kept
   picture instead of running the display pass again.
@@ -20,8 +22,10 @@ window's own GL context. What is recomputed is only what changed:
 The package: ``controls`` (the controls, generated from the parameter schema),
 ``model`` (``ViewerModel`` and ``FrameSchedule``: everything but the window, tested
 without a display), ``panel`` (the imgui panel, and the window height it needs),
-``colourbar`` (the displacement view's labelled colour bar) and ``window`` (the
-moderngl-window window and its event-driven loop). The
+``colourbar`` (the colour-mapped views' labelled colour bar), ``pmd_view`` (the PMD
+views: a phase-measuring station's maps and numbers, measured in a thread of its own
+with a renderer of its own) and ``window`` (the moderngl-window window and its
+event-driven loop). The
 scripted mode (``--frames N --screenshot out.png --set theta=5``) runs a real window for
 tests and demos. Needs the ``viewer`` extra: ``pip install "glshade[viewer]"``.
 """
@@ -40,6 +44,7 @@ from glshade.app.viewer.controls import (
     parse_sets,
 )
 from glshade.app.viewer.model import Readout, ViewerModel, ViewerOptions, readout_lines
+from glshade.app.viewer.pmd_view import PMD_SIZE, PMD_VIEWS
 from glshade.errors import GlshadeError
 
 
@@ -90,6 +95,8 @@ def _check_display() -> None:
 
 
 __all__ = [
+    "PMD_SIZE",
+    "PMD_VIEWS",
     "VIEWS",
     "Choice",
     "Control",

@@ -16,7 +16,19 @@ from glshade.errors import GlshadeError, SceneError
 from glshade.params import Param
 from glshade.scene import Scene
 
-VIEWS = ("image", "defect-free", "overlay", "displacement")
+#: The views: the camera image, its defect-free twin, the Fig. 9 contour overlay, the
+#: displacement, and the maps a phase-measuring station measures
+#: (:data:`glshade.app.viewer.pmd_view.PMD_VIEWS`).
+VIEWS = (
+    "image",
+    "defect-free",
+    "overlay",
+    "displacement",
+    "pmd-phase",
+    "pmd-modulation",
+    "pmd-error",
+    "pmd-slope",
+)
 
 
 @dataclass(frozen=True)
@@ -128,7 +140,7 @@ def apply_setting(scene: Scene, name: str, value, slider: bool = False) -> Scene
 def parse_sets(items: list[str], scene: Scene) -> tuple[Scene, dict[str, str]]:
     """``--set name=value`` items: scene settings are applied and validated as ``render``
     validates them (lengths may carry a unit: ``dmax=5um``); the viewer's own (``view``,
-    ``animate``) are returned. A bad value is named as typed: ``--set sigma2
+    ``animate``, ``pmd_size``) are returned. A bad value is named as typed: ``--set sigma2
     (defect.sigma2): ...``."""
     from glshade.app.args import named_as_typed, parse_setting
 
@@ -145,6 +157,8 @@ def parse_sets(items: list[str], scene: Scene) -> tuple[Scene, dict[str, str]]:
             extra[name] = raw
         elif name == "animate":
             extra[name] = raw
+        elif name == "pmd_size":
+            extra[name] = str(_pmd_size(raw, scene))
         elif name == "concave":
             with named_as_typed({"surface.radius": "--set concave"}):
                 scene = apply_setting(scene, name, raw.lower() in ("1", "true", "yes"))
@@ -158,6 +172,18 @@ def parse_sets(items: list[str], scene: Scene) -> tuple[Scene, dict[str, str]]:
         else:
             apply_setting(scene, name, raw)  # names the unknown setting and lists the known ones
     return scene, extra
+
+
+def _pmd_size(raw: str, scene: Scene) -> int:
+    """``--set pmd_size=N``: pixels across the PMD views' case, 16 to the image's width."""
+    width = scene.camera.width
+    try:
+        size = int(raw)
+    except ValueError:
+        size = -1
+    if not 16 <= size <= width:
+        raise GlshadeError(f"--set pmd_size: must be an integer in [16, {width}], got {raw!r}")
+    return size
 
 
 def geometry_key(scene: Scene) -> Scene:

@@ -11,8 +11,18 @@ from pathlib import Path
 
 import numpy as np
 
-from glshade.app.viewer.colourbar import colour_index, colour_lut
+from glshade.app.viewer.colourbar import ColourScale, colour_index, colour_lut
 from glshade.app.viewer.controls import apply_setting, geometry_key
+from glshade.app.viewer.pmd_view import (
+    PMD_SIZE,
+    PMD_VIEWS,
+    PmdReadout,
+    PmdStation,
+    pmd_hover,
+    pmd_readout_lines,
+    pmd_rgba,
+    pmd_scene,
+)
 from glshade.errors import GlshadeError, SceneError
 from glshade.measure.single import judged, map_baseline
 from glshade.metrics import contours
@@ -112,11 +122,16 @@ class ViewerModel:
     reshades: int = 0
     scene_passes: int = 0  # the window's display pass run (not per frame: on a change)
     refused: str = ""
+    pmd_size: int = PMD_SIZE  # pixels across the PMD views' case is measured on (at most)
+    pmd: PmdReadout = field(default_factory=PmdReadout)
+    pmd_results: int = 0  # PMD results taken (a new one changes the picture)
     _baseline: _Once | None = None
     _pool: ThreadPoolExecutor | None = None
     _case_job: Future | None = None
     _phase_job: Future | None = None
     _case_done: bool = False
+    _station: PmdStation | None = None
+    _pmd_job: Future | None = None
 
     # ---------------------------------------------------------------- edits
     def set(self, name: str, value, slider: bool = False) -> bool:
@@ -226,10 +241,27 @@ class ViewerModel:
         rgba[..., :3] = np.where(finite[..., None], lut[index], 0)
         return rgba, top
 
+    def pmd_rgba(self) -> tuple[np.ndarray, ColourScale]:
+        """The PMD view's map as a colour map at the image's size, and its scale (the
+        latest case the station finished; dark, captioned, before the first)."""
+        shape = self.traced_map().shape
+        pmd = self.pmd
+        if pmd.result is None or pmd.scene is None:
+            rgba = np.zeros((*shape, 4), np.uint8)
+            rgba[..., 3] = 255
+            doing = "not measured (see the readout)" if pmd.error else "computing..."
+            return rgba, ColourScale(0.0, 0.0, "", f"phase measuring: {doing}")
+        return pmd_rgba(self.view, pmd.scene, pmd.result, shape)
+
     def hover(self, col: int, row: int) -> str:
         if self.uv1 is None or not (0 <= row < self.uv1.shape[0] and 0 <= col < self.uv1.shape[1]):
             return ""
         u, v = self.uv1[row, col]
+        if self.view in PMD_VIEWS and self.pmd.result is not None and self.pmd.scene is not None:
+            value = pmd_hover(
+                self.view, self.pmd.scene, self.pmd.result, row, col, self.uv1.shape[:2]
+            )
+            return f"pixel ({col}, {row}): {value}"
         if not np.isfinite(v):
             return f"pixel ({col}, {row}): no emitter hit"
         text = f"pixel ({col}, {row}): u {u:.3f} mm, v {v:.3f} mm"
@@ -237,16 +269,30 @@ class ViewerModel:
             text += f", displacement {self.displacement[row, col]:.2f} px"
         return text
 
+    def readout_text(self) -> list[str]:
+        """The panel's readout for the view: the station's numbers in a PMD view, the
+        paper's otherwise."""
+        if self.view not in PMD_VIEWS:
+            return readout_lines(self.readout)
+        shown = self.pmd.scene
+        size = shown.camera.width if shown is not None else min(self.pmd_size, self.width)
+        return pmd_readout_lines(self.pmd, self._pmd_job is not None, size)
+
+    @property
+    def width(self) -> int:
+        return self.scene.camera.width
+
     # ---------------------------------------------------------------- metrics
     @property
     def metrics_pending(self) -> bool:
         """A job is in the worker (the window polls for it instead of sleeping)."""
-        return self._case_job is not None or self._phase_job is not None
+        jobs = (self._case_job, self._phase_job, self._pmd_job)
+        return any(job is not None for job in jobs)
 
     def collect_metrics(self) -> bool:
-        """Take whatever the worker finished (call before :meth:`start_metrics`); True
+        """Take whatever the workers finished (call before :meth:`start_metrics`); True
         when something was taken (the panel has news to show)."""
-        taken = False
+        taken = self._collect_pmd()
         if self._case_job is not None and self._case_job.done():
             trace, result, error = self._case_job.result()
             self._case_job, taken = None, True
@@ -279,9 +325,11 @@ class ViewerModel:
         return taken
 
     def start_metrics(self) -> None:
-        """Give the worker what is missing: the whole case once per trace, and the
-        comparison at the current phase whenever the phase changed. A job is never
-        replaced before it was collected (throttled, never queued up)."""
+        """Give the workers what is missing: the whole case once per trace, the
+        comparison at the current phase whenever the phase changed, and in a PMD view
+        the station's case whenever the scene changed. A job is never replaced before it
+        was collected (throttled, never queued up)."""
+        self._start_pmd()
         if self.v0 is None or self._baseline is None or self.readout.error is not None:
             return
         if self._pool is None:
@@ -301,10 +349,35 @@ class ViewerModel:
                 _attempt, key, lambda: baseline.get().at_phase(v1, phase)
             )
 
+    def _start_pmd(self) -> None:
+        """In a PMD view, measure the scene with the station unless its latest case was
+        of this scene or one is in flight (a scene the fringes refuse is shown refused)."""
+        if self.view not in PMD_VIEWS or self._pmd_job is not None:
+            return
+        try:
+            scene = pmd_scene(self.scene, self.pmd_size)
+        except GlshadeError as exc:
+            error = " ".join(str(exc).split())
+            if self.pmd.error != error:
+                self.pmd, self.pmd_results = PmdReadout(error=error), self.pmd_results + 1
+            return
+        if scene == self.pmd.scene:
+            return
+        if self._station is None:
+            self._station = PmdStation()
+        self._pmd_job = self._station.submit(scene)
+
+    def _collect_pmd(self) -> bool:
+        if self._pmd_job is None or not self._pmd_job.done():
+            return False
+        self.pmd, self._pmd_job = self._pmd_job.result(), None
+        self.pmd_results += 1
+        return True
+
     def wait_for_metrics(self, timeout_s: float = 60.0) -> None:
         """Block until the jobs in flight are done and collected (tests, scripted runs)."""
-        jobs = [job for job in (self._case_job, self._phase_job) if job is not None]
-        _, pending = wait_for(jobs, timeout=timeout_s)
+        jobs = (self._case_job, self._phase_job, self._pmd_job)
+        _, pending = wait_for([job for job in jobs if job is not None], timeout=timeout_s)
         if pending:
             raise TimeoutError(f"the visibility metrics took more than {timeout_s:g} s")
         self.collect_metrics()
@@ -321,6 +394,9 @@ class ViewerModel:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+        if self._station is not None:
+            self._station.close()
+            self._station = None
 
 
 #: Frames drawn after the last input event: imgui answers an event a frame or two later
@@ -371,3 +447,4 @@ class ViewerOptions:
     benchmark: str | None = None  # "phase" or "theta": time frames and print fps
     panel: bool = True
     out_dir: Path = Path(".")
+    pmd_size: int = PMD_SIZE

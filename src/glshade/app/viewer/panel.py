@@ -8,12 +8,14 @@ before the window exists), so no item sits below the fold."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from imgui_bundle import imgui
 
 from glshade.app.viewer.colourbar import colour_bar_layout, draw_colour_bar
 from glshade.app.viewer.controls import VIEWS, combo, panel_params, slider
-from glshade.app.viewer.model import ViewerModel, readout_lines
+from glshade.app.viewer.model import ViewerModel
+from glshade.app.viewer.pmd_view import PMD_VIEWS
 from glshade.params import Param
 
 PANEL_WIDTH = 360
@@ -24,6 +26,7 @@ SAMPLE_STATUS = {
     "message": "wrote glshade_view_10000.png",
     "scale_top": 0.0,
     "frame_ms": 0.0,
+    "scale": None,
 }
 #: The panel lists the tables in this order (the surface first: it changes the most).
 PANEL_TABLES = ("surface", "camera", "defect", "emitter", "render", "sensor")
@@ -41,8 +44,9 @@ def panel_style() -> None:
 
 
 def panel_height(model: ViewerModel, image: tuple[int, int]) -> int:
-    """The window height the panel needs for ``model``'s scene, laid out by imgui
-    without a window (its own context, destroyed after)."""
+    """The window height the panel needs for ``model``'s scene, in its view and in a PMD
+    view (whose readout is a line longer), laid out by imgui without a window (its own
+    context, destroyed after)."""
     previous = imgui.get_current_context()
     context = imgui.create_context()
     try:
@@ -51,12 +55,15 @@ def panel_height(model: ViewerModel, image: tuple[int, int]) -> int:
         io.display_size = imgui.ImVec2(image[0] + PANEL_WIDTH, 4096)
         io.fonts.build()
         panel_style()
-        bottom, _ = draw_panel(model, image[0], 4096, dict(SAMPLE_STATUS), image)
+        bottoms = []
+        for view in (model.view, PMD_VIEWS[0]):  # room for the PMD readout too
+            shown = replace(model, view=view)
+            bottoms.append(draw_panel(shown, image[0], 4096, dict(SAMPLE_STATUS), image)[0])
     finally:
         imgui.destroy_context(context)
         if previous is not None:
             imgui.set_current_context(previous)
-    return math.ceil(bottom)
+    return math.ceil(max(bottoms))
 
 
 def draw_panel(
@@ -82,8 +89,8 @@ def draw_panel(
     bottom = imgui.get_item_rect_max().y + imgui.get_style().window_padding.y
     scroll = imgui.get_scroll_max_y()
     imgui.end()
-    if model.view == "displacement":
-        draw_colour_bar(colour_bar_layout(*image, height), image[0], status["scale_top"])
+    if status["scale"] is not None:
+        draw_colour_bar(colour_bar_layout(*image, height), image[0], status["scale"])
     imgui.render()
     return bottom, scroll
 
@@ -170,9 +177,9 @@ def _view_and_readout(model: ViewerModel, status: dict) -> None:
     if changed:
         model.view = VIEWS[index]
     imgui.separator()
-    for line in readout_lines(model.readout):
+    for line in model.readout_text():
         if not line.startswith("status: "):
-            imgui.text(line)
+            imgui.text_wrapped(line)  # a flagged number's line is long
             continue
         word, _, why = line.removeprefix("status: ").partition(": ")
         ok = word in ("ok", "...", "-")
@@ -187,7 +194,7 @@ def _view_and_readout(model: ViewerModel, status: dict) -> None:
         )
     imgui.text_wrapped(status["hover"] or "hover over the image")
     imgui.text(f"last frame {status['frame_ms']:.1f} ms, {model.traces} traces")
-    imgui.text_wrapped("keys: S screenshot, T save scene, R reset, O overlay")
+    imgui.text_wrapped("keys: S screenshot, T save scene, R reset, O overlay, P PMD phase")
     if status["message"]:
         imgui.text_wrapped(status["message"])
     if model.refused:

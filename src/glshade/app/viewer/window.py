@@ -22,9 +22,10 @@ import numpy as np
 from imgui_bundle import imgui
 from moderngl_window.integrations.imgui_bundle import ModernglWindowRenderer
 
-from glshade.app.viewer.colourbar import BAR_HEIGHT
+from glshade.app.viewer.colourbar import BAR_HEIGHT, displacement_scale
 from glshade.app.viewer.model import FrameSchedule, ViewerModel, ViewerOptions
 from glshade.app.viewer.panel import PANEL_WIDTH, draw_panel, panel_height, panel_style
+from glshade.app.viewer.pmd_view import PMD_VIEWS
 from glshade.errors import GlshadeError
 from glshade.files import write_png
 from glshade.gpu.compose import compose_display, display_features, display_uniforms
@@ -64,7 +65,10 @@ class ViewerWindow(mglw.WindowConfig):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.model = ViewerModel(
-            self.options.scene, view=self.options.view, animate=self.options.animate
+            self.options.scene,
+            view=self.options.view,
+            animate=self.options.animate,
+            pmd_size=self.options.pmd_size,
         )
         self.renderer = Renderer(GLContext.wrap(self.ctx))
         self._programs: dict = {}  # the display pass, per the emitter's features
@@ -78,6 +82,7 @@ class ViewerWindow(mglw.WindowConfig):
             panel_style()
             self.gui = ModernglWindowRenderer(self.wnd)
         self.status = {"hover": "", "message": "", "scale_top": 0.0, "frame_ms": 0.0}
+        self.status["scale"] = None  # the colour bar's scale, in the colour-mapped views
         self.started = self.last = time.perf_counter()
         self.shown_for = None
         self.drawn_for: tuple | None = None  # what the last frame's picture showed
@@ -104,8 +109,17 @@ class ViewerWindow(mglw.WindowConfig):
         self._copy = (copy, self.ctx.vertex_array(copy, []))
 
     # ------------------------------------------------------------ work
+    def renderer_state(self) -> None:
+        """The GL state the batch renderer draws with (GL's defaults: no blending, no
+        scissor). The panel leaves blending on (imgui's alpha blend), which turned the
+        renderer's image black when a change of reflection or Fresnel model re-rendered
+        it after the panel had been drawn."""
+        self.ctx.enable_only(moderngl.NOTHING)
+        self.ctx.scissor = None
+
     def trace(self):
         m = self.model
+        self.renderer_state()
         frame = self.renderer.render(m.scene, ("uv",))
         normal = self.renderer.render(m.scene.without_defect(), ("uv",))
         uv = frame.output("uv").astype(np.float32)
@@ -117,21 +131,26 @@ class ViewerWindow(mglw.WindowConfig):
     def picture(self):
         """Fill the texture the current view draws from; returns the display mode."""
         m = self.model
+        self.status["scale"] = None
         if m.view == "overlay":
             self.tex_rgba.write(m.overlay_rgba().tobytes())
             return 2
         if m.view == "displacement":
-            rgba, self.status["scale_top"] = m.displacement_rgba()
+            rgba, top = m.displacement_rgba()
+            self.status["scale_top"], self.status["scale"] = top, displacement_scale(top)
             self.tex_rgba.write(rgba.tobytes())
+            return 2
+        if m.view in PMD_VIEWS:
+            rgba, self.status["scale"] = m.pmd_rgba()
+            self.tex_rgba.write(np.ascontiguousarray(rgba).tobytes())
             return 2
         scene = m.scene if m.view == "image" else m.scene.without_defect()
         if m.shades_from_uv:  # a phase change only re-shades the traced map
             self.shown_uv = self.tex_uv if m.view == "image" else self.tex_uv0
             m.reshades += 1
             return 0
-        image = self.renderer.render(
-            scene
-        ).image  # Blinn-Phong, supersampling, or the defect-free view
+        self.renderer_state()
+        image = self.renderer.render(scene).image  # Blinn-Phong, supersampling, defect-free
         self.wnd.fbo.use()
         self.tex_gray.write(np.ascontiguousarray(image).tobytes())
         return 1
@@ -139,7 +158,8 @@ class ViewerWindow(mglw.WindowConfig):
     def _state(self):
         m = self.model
         measured = m.view == "displacement" and m.displacement is not None
-        return (m.traced_for, m.scene.emitter.phase, m.view, measured)
+        pmd = m.pmd_results if m.view in PMD_VIEWS else None
+        return (m.traced_for, m.scene.emitter.phase, m.view, measured, pmd)
 
     # ------------------------------------------------------------ frame
     def on_render(self, time_s, frame_time):
@@ -267,6 +287,8 @@ class ViewerWindow(mglw.WindowConfig):
             self.model.reset()
         elif key == keys.O:
             self.model.view = "image" if self.model.view == "overlay" else "overlay"
+        elif key == keys.P:
+            self.model.view = "image" if self.model.view in PMD_VIEWS else PMD_VIEWS[0]
 
     def _save(self, screenshot: bool, out_dir: Path) -> None:
         """S and T: a screenshot or the scene; a refusal (an unwritable directory, a
@@ -287,7 +309,8 @@ class ViewerWindow(mglw.WindowConfig):
         self.schedule.poke()
         if self.gui is not None:
             self.gui.mouse_position_event(x, y, dx, dy)
-        self.status["hover"] = self.model.hover(int(x), int(y))
+        # moderngl-window flips pyglet's y as height - y: the top row comes as 1, not 0
+        self.status["hover"] = self.model.hover(int(x), int(y) - 1)
 
     def on_mouse_drag_event(self, x, y, dx, dy):
         self.schedule.poke()
@@ -353,6 +376,7 @@ class ViewerWindow(mglw.WindowConfig):
         if redraw:
             self.draw()
         stats["readout"] = replace(m.readout)
+        stats["readout_lines"] = m.readout_text()
         stats["traces"], stats["reshades"] = m.traces, m.reshades
         stats["scene_passes"], stats["window_size"] = m.scene_passes, tuple(self.wnd.size)
         stats["scale_top"] = self.status["scale_top"]

@@ -132,7 +132,7 @@ class FringesTable(Table):
     )  # fmt: skip
     shifts: int = param(
         "emitter.shifts", "", 4, "phase steps per period, N >= 3 (step 2π n / N)",
-        value_type="integer", lo=3, hi=MAX_SHIFTS,
+        value_type="integer", lo=3, hi=MAX_SHIFTS, control=Control("shifts", 3, 16, fmt="%d"),
     )  # fmt: skip
     directions: tuple[str, ...] = param(
         "emitter.directions", "", DIRECTIONS,
@@ -154,6 +154,7 @@ class FringesTable(Table):
     levels: int = param(
         "emitter.levels", "", 256, "commanded grey levels of the screen (0: continuous; never 1)",
         value_type="integer", lo=0, hi=MAX_LEVELS,
+        control=Control("levels", 0, 4096, log=True, fmt="%d"),
     )  # fmt: skip
     frame_direction: str = param(
         "emitter.frame_direction", "", "v",
@@ -162,21 +163,27 @@ class FringesTable(Table):
     )  # fmt: skip
     frame_period_index: int = param(
         "emitter.frame_period_index", "", 0, "the frame shown: its period, an index into periods",
-        value_type="integer", lo=0, hi=1023,
+        value_type="integer", lo=0, hi=1023, control=Control("frame_period", 0, 7, fmt="%d"),
     )  # fmt: skip
     frame_shift_index: int = param(
         "emitter.frame_shift_index", "", 0,
         "the frame shown: its phase step n, 0 to shifts - 1", value_type="integer", lo=0,
-        hi=MAX_SHIFTS - 1,
+        hi=MAX_SHIFTS - 1, control=Control("frame_shift", 0, 15, fmt="%d"),
     )  # fmt: skip
 
     def clamp(self, name: str, value: Any) -> Any:
-        """Offset and amplitude within the screen's full scale together."""
-        if name == "offset":
-            return min(value, 1.0 - self.amplitude)
-        if name == "amplitude":
-            return min(value, 1.0 - self.offset)
-        return super().clamp(name, value)
+        """Offset and amplitude within the screen's full scale together; the frame shown
+        one of the sequence's (its shift below ``shifts``, its period one of
+        ``periods``); never 1 grey level."""
+        limits = {
+            "offset": lambda v: min(v, 1.0 - self.amplitude),
+            "amplitude": lambda v: min(v, 1.0 - self.offset),
+            "shifts": lambda v: max(v, self.frame_shift_index + 1),
+            "frame_shift_index": lambda v: min(v, self.shifts - 1),
+            "frame_period_index": lambda v: min(v, len(self.periods) - 1),
+            "levels": lambda v: 2 if v == 1 else v,
+        }
+        return limits[name](value) if name in limits else super().clamp(name, value)
 
     # ---------------------------------------------------------------- the frame
     @property
