@@ -34,7 +34,14 @@ from glshade.components.base import no_sequence
 from glshade.components.emitter.fringes.table import DIRECTIONS, FringeFrame, fringes_of
 from glshade.errors import GlshadeError
 from glshade.metrics import pmd
-from glshade.metrics.status import STATUSES, Status, combined, dent_window, touches_edge
+from glshade.metrics.status import (
+    STATUSES,
+    Status,
+    combined,
+    coverage_edge,
+    dent_window,
+    touches_edge,
+)
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
@@ -759,15 +766,9 @@ def assess_pmd(
 
 
 def _pmd_edge(scene: Scene, region: np.ndarray, shot: Capture) -> Status:
-    coverage = scene.active.surface.coverage(scene)
-    if coverage is not None and coverage.nan_near_dent:
-        return Status(
-            "edge",
-            "unmeasured (NaN) samples of the height map lie in the dent's region (fill them: "
-            'surface.fill = "harmonic" or "nearest")',
-        )
-    if coverage is not None and coverage.dent_at_edge:
-        return Status("edge", "the dent's region reaches the height map's edge")
+    covered = coverage_edge(scene)
+    if covered is not None:
+        return covered
     seen = np.all(np.isfinite(shot.uv), axis=-1)
     where = touches_edge(region, seen)
     return Status("edge", f"the dent's region touches {where}") if where else Status()

@@ -318,8 +318,11 @@ def _exposure(scene, baseline, seen: np.ndarray) -> Status:
     return found
 
 
-def _edge(scene, baseline, region: Region, result, noisy: bool) -> Status:
-    coverage = scene.active.surface.coverage(scene)  # a height map's: the most specific
+def coverage_edge(scene) -> Status | None:
+    """``edge`` where the surface's measured data do not cover the dent (a height map's
+    unmeasured samples in the dent's region, or the dent at the map's edge): the most
+    specific reason, checked first by every instrument; None where they cover it."""
+    coverage = scene.active.surface.coverage(scene)
     if coverage is not None and coverage.nan_near_dent:
         return Status(
             "edge",
@@ -328,6 +331,13 @@ def _edge(scene, baseline, region: Region, result, noisy: bool) -> Status:
         )
     if coverage is not None and coverage.dent_at_edge:
         return Status("edge", "the dent's region reaches the height map's edge")
+    return None
+
+
+def _edge(scene, baseline, region: Region, result, noisy: bool) -> Status:
+    covered = coverage_edge(scene)
+    if covered is not None:
+        return covered
     where = touches_edge(region.mask, np.isfinite(baseline.v0))
     if where is not None:
         return Status("edge", f"the dent's region touches {where}")
