@@ -577,13 +577,32 @@ class PmdMaps:
     recorded: np.ndarray
 
 
+def interior(seen: np.ndarray) -> np.ndarray:
+    """The pixels of ``seen`` whose eight neighbours are in it too. A pixel on the edge of
+    what sees the screen straddles it: with several rays a pixel its exact screen point is
+    the mean of the rays that reach the screen, and the least move of the screen's edge
+    across its footprint (a dent's faint tail) changes which rays those are and jumps the
+    mean by a share of the footprint. Its move is not the dent's."""
+    from scipy.ndimage import binary_erosion
+
+    return binary_erosion(seen, structure=np.ones((3, 3), bool), border_value=1)
+
+
+def seen_in_both(exact0: np.ndarray, exact1: np.ndarray, axes: list[int]) -> np.ndarray:
+    """Pixels whose every coded coordinate is finite in both exact maps, off their edge
+    (:func:`interior`)."""
+    seen = np.all(np.isfinite(exact0[..., axes]), axis=-1)
+    return interior(seen & np.all(np.isfinite(exact1[..., axes]), axis=-1))
+
+
 def dent_region(scene: Scene, exact0: np.ndarray, exact1: np.ndarray) -> np.ndarray:
-    """Where, inside its window, the dent moves the exact screen points by at least
+    """Where, inside its window and off the edge of what sees the screen
+    (:func:`interior`), the dent moves the exact screen points by at least
     :data:`REGION_SHARE` of its largest move."""
     window = dent_window(scene, exact0.shape[:2])
     axes = coded_axes(scene)
     moved = np.linalg.norm((exact1 - exact0)[..., axes], axis=-1)
-    moved = np.where(window & np.isfinite(moved), moved, 0.0)
+    moved = np.where(window & seen_in_both(exact0, exact1, axes), moved, 0.0)
     peak = float(moved.max()) if moved.size else 0.0
     if peak <= 0.0:
         return np.zeros(moved.shape, bool)
@@ -628,10 +647,13 @@ def _result(scene, baseline, shot, recorded, decoding, slopes, heights, seconds)
     base, exact0 = baseline.decoding, baseline.capture.uv
     window = dent_window(scene, decoding.valid.shape)
     failed = failures(decoding.uv, shot.uv, scene)
-    both = window & decoding.valid & base.valid & ~failed & ~failures(base.uv, exact0, scene)
+    # valid in both decodes and off the edge of that region (a pixel straddling it mixes
+    # the screen with the curtain: :func:`interior`)
+    both = window & interior(decoding.valid & base.valid)
+    both &= ~failed & ~failures(base.uv, exact0, scene)
     shift = np.linalg.norm((decoding.uv - base.uv)[..., axes], axis=-1)
     moved = np.linalg.norm((shot.uv - exact0)[..., axes], axis=-1)
-    moved = np.where(window, moved, np.nan)
+    moved = np.where(window & seen_in_both(exact0, shot.uv, axes), moved, np.nan)
     noise = baseline.noise(window)
     region = dent_region(scene, exact0, shot.uv)
     status = assess_pmd(scene, baseline, shot, decoding, region, failed, _largest(moved), noise)
@@ -769,7 +791,7 @@ def _pmd_edge(scene: Scene, region: np.ndarray, shot: Capture) -> Status:
     covered = coverage_edge(scene)
     if covered is not None:
         return covered
-    seen = np.all(np.isfinite(shot.uv), axis=-1)
+    seen = interior(np.all(np.isfinite(shot.uv), axis=-1))  # its edge pixels straddle it
     where = touches_edge(region, seen)
     return Status("edge", f"the dent's region touches {where}") if where else Status()
 

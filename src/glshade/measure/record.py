@@ -219,7 +219,8 @@ class PmdMeasurement:
     pmd_shift_mm: float | None = column(
         "mm",
         "the largest distance between the decoded screen points with and without the dent, "
-        "over the pixels valid in both (unwrapping failures left out)",
+        "near the dent, over the pixels valid in both and off the edge of that region "
+        "(unwrapping failures left out)",
     )
     pmd_shift_exact_mm: float | None = column(
         "mm",
