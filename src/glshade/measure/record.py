@@ -11,10 +11,11 @@ sweep keeps them in its case files, not in its table).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
-from typing import Any
+from typing import Any, ClassVar
 
 from glshade.metrics import physics
 from glshade.metrics.visibility import Visibility
@@ -59,9 +60,62 @@ PARSE: dict[str, Callable[[Any], Any]] = {
 }
 
 
+class Record:
+    """What every result record shares: its columns are its own dataclass's fields (a
+    subclass that adds fields, a study's row, keeps its record's columns), each typed
+    whatever it was read from (JSON, CSV text, NumPy), and read back from a row."""
+
+    #: Set on each record class: its own fields are the record's columns.
+    record: ClassVar[bool] = False
+
+    @classmethod
+    def columns(cls) -> tuple[Column, ...]:
+        """The record's columns, in order."""
+        owner = next(c for c in cls.__mro__ if c.__dict__.get("record"))
+        return _columns(owner)
+
+    def __post_init__(self) -> None:
+        for column_ in self.columns():
+            item = next(f for f in fields(self) if f.name == column_.name)  # type: ignore[arg-type]
+            kind = item.type if isinstance(item.type, str) else item.type.__name__
+            object.__setattr__(self, item.name, PARSE[kind](getattr(self, item.name)))
+
+    @classmethod
+    def from_row(cls, row: dict[str, Any]) -> Any:
+        """From a case file's object or a table's row (text); other keys are ignored, a
+        missing timing reads 0."""
+        return cls(
+            **{
+                c.name: row.get(c.name, 0.0) if c.role == "timing" else row[c.name]
+                for c in cls.columns()
+            }
+        )
+
+    def row(self, roles: tuple[str, ...] = ROLES) -> dict[str, Any]:
+        """The columns of these roles, in order, as plain values (None stays None)."""
+        return {c.name: getattr(self, c.name) for c in self.columns() if c.role in roles}
+
+    def outputs(self) -> dict[str, Any]:
+        """What a case measured, the same wherever it ran: the measured and law columns."""
+        return self.row(("measured", "law"))
+
+    def seconds(self) -> dict[str, float]:
+        return self.row(("timing",))
+
+
+@functools.cache
+def _columns(owner: type) -> tuple[Column, ...]:
+    return tuple(
+        Column(f.name, f.metadata["unit"], f.metadata["meaning"], f.metadata["role"])
+        for f in fields(owner)
+    )
+
+
 @dataclass(frozen=True)
-class Measurement:
+class Measurement(Record):
     """What was measured of one scene's defect, every length in pixels of its image."""
+
+    record = True
 
     visibility_px: float = column(
         "px",
@@ -153,12 +207,6 @@ class Measurement:
     )
     continuous_s: float = column("s", "time of the deflection and the continuous limit", "timing")
 
-    def __post_init__(self) -> None:
-        for item in fields(self):  # typed whatever it was read from (JSON, CSV text, NumPy)
-            if item.name in COLUMN_NAMES:
-                kind = item.type if isinstance(item.type, str) else item.type.__name__
-                object.__setattr__(self, item.name, PARSE[kind](getattr(self, item.name)))
-
     @classmethod
     def of(cls, scene: Scene, result: Visibility, trace_s: float = 0.0) -> Measurement:
         """The record of ``result``, the metric's measurement of ``scene``: its numbers
@@ -190,31 +238,14 @@ class Measurement:
             continuous_s=round(spent.continuous, 4),
         )
 
-    @classmethod
-    def from_row(cls, row: dict[str, Any]) -> Measurement:
-        """From a case file's object or a table's row (text); other keys are ignored, a
-        missing timing reads 0."""
-        return cls(
-            **{name: row.get(name, 0.0) if name in TIMINGS else row[name] for name in COLUMN_NAMES}
-        )
-
-    def row(self, roles: tuple[str, ...] = ROLES) -> dict[str, Any]:
-        """The columns of these roles, in order, as plain values (None stays None)."""
-        return {c.name: getattr(self, c.name) for c in COLUMNS if c.role in roles}
-
-    def outputs(self) -> dict[str, Any]:
-        """What a case measured, the same wherever it ran: the measured and law columns."""
-        return self.row(("measured", "law"))
-
-    def seconds(self) -> dict[str, float]:
-        return self.row(("timing",))
-
 
 @dataclass(frozen=True)
-class PmdMeasurement:
+class PmdMeasurement(Record):
     """What a phase-measuring deflectometry station measures of one scene's dent: lengths
     on the screen in mm, slopes in µrad, heights in µm (docs/pmd.md). The row of
     ``glshade measure --method pmd``, of a PMD sweep and of the PMD study."""
+
+    record = True
 
     pmd_shift_mm: float | None = column(
         "mm",
@@ -297,11 +328,6 @@ class PmdMeasurement:
     decode_s: float = column("s", "time to record and decode the dent's sequence", "timing")
     heights_s: float = column("s", "time of the slopes, heights and dent fit", "timing")
 
-    def __post_init__(self) -> None:
-        for item in fields(self):
-            kind = item.type if isinstance(item.type, str) else item.type.__name__
-            object.__setattr__(self, item.name, PARSE[kind](getattr(self, item.name)))
-
     @classmethod
     def of(cls, scene: Scene, result: Any, baseline_seconds: float = 0.0) -> PmdMeasurement:
         """The record of ``result`` (a :class:`glshade.measure.pmd.PmdResult`)."""
@@ -328,26 +354,6 @@ class PmdMeasurement:
             heights_s=round(spent.get("heights", 0.0), 4),
         )
 
-    @classmethod
-    def from_row(cls, row: dict[str, Any]) -> PmdMeasurement:
-        """From a case file's object or a table's row; other keys are ignored, a missing
-        timing reads 0."""
-        return cls(
-            **{
-                name: row.get(name, 0.0) if name in PMD_TIMINGS else row[name]
-                for name in PMD_COLUMN_NAMES
-            }
-        )
-
-    def row(self, roles: tuple[str, ...] = ROLES) -> dict[str, Any]:
-        return {c.name: getattr(self, c.name) for c in PMD_COLUMNS if c.role in roles}
-
-    def outputs(self) -> dict[str, Any]:
-        return self.row(("measured", "law"))
-
-    def seconds(self) -> dict[str, float]:
-        return self.row(("timing",))
-
 
 def _finite(value: float, digits: int) -> float | None:
     """A closed form rounded as tables show it; None where it is not finite (JSON has no
@@ -355,19 +361,13 @@ def _finite(value: float, digits: int) -> float | None:
     return round(value, digits) if math.isfinite(value) else None
 
 
-COLUMNS: tuple[Column, ...] = tuple(
-    Column(f.name, f.metadata["unit"], f.metadata["meaning"], f.metadata["role"])
-    for f in fields(Measurement)
-)
+COLUMNS: tuple[Column, ...] = Measurement.columns()
 COLUMN_NAMES: tuple[str, ...] = tuple(c.name for c in COLUMNS)
 TIMINGS: tuple[str, ...] = tuple(c.name for c in COLUMNS if c.role == "timing")
 OUTPUT_NAMES: tuple[str, ...] = tuple(c.name for c in COLUMNS if c.role != "timing")
 
 
-PMD_COLUMNS: tuple[Column, ...] = tuple(
-    Column(f.name, f.metadata["unit"], f.metadata["meaning"], f.metadata["role"])
-    for f in fields(PmdMeasurement)
-)
+PMD_COLUMNS: tuple[Column, ...] = PmdMeasurement.columns()
 PMD_COLUMN_NAMES: tuple[str, ...] = tuple(c.name for c in PMD_COLUMNS)
 PMD_TIMINGS: tuple[str, ...] = tuple(c.name for c in PMD_COLUMNS if c.role == "timing")
 PMD_OUTPUT_NAMES: tuple[str, ...] = tuple(c.name for c in PMD_COLUMNS if c.role != "timing")
