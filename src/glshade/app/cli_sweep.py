@@ -14,6 +14,7 @@ from glshade.app.args import (
     add_metric_flags,
     add_scene_flags,
     check_save_scene,
+    metric_flags_given,
     metric_settings,
     path_arg,
     save_scene,
@@ -26,6 +27,7 @@ from glshade.measure.executors import Distribution
 from glshade.measure.where import open_executor
 from glshade.oracle.advice import scene_warnings
 from glshade.process import reuse_freed_memory
+from glshade.sweep.optimize import METRICS
 
 #: Pixels across of the optimiser's scenes unless --size says otherwise.
 OPTIMIZE_SIZE = 256
@@ -79,7 +81,8 @@ def add_sweep(sub: argparse._SubParsersAction) -> None:
         "sweep",
         help="measure every case of a grid over any scene keys (results.parquet)",
         description="Measure the visibility of every case of a sweep file's grid (docs/sweeps.md) "
-        "and write "
+        'by the paper\'s stripe metric or, with [metric] method = "pmd", as a phase-measuring '
+        "deflectometry station does, and write "
         "results.parquet and results.csv (one row per case: every swept key, every output). In "
         "this process by "
         "default, on local Dask workers with --workers, or on a cluster with --scheduler; the "
@@ -131,7 +134,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     )
     print(
         f"wrote {out / 'results.parquet'} and results.csv: {len(result.rows)} cases "
-        f"({result.computed} measured, "
+        f"measured by {spec.method} ({result.computed} measured, "
         f"{result.skipped} already done) in {result.seconds:.1f} s{rate}"
     )
     counts = Counter(str(row.get("status", "ok")) for row in result.rows)
@@ -145,10 +148,11 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 def add_optimize(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "optimize",
-        help="find the viewpoint that maximises (worst-case) visibility",
+        help="find the viewpoint that maximises (worst-case) visibility or a PMD station's SNR",
         description="Find the values of the --over keys (camera elevation, rig azimuth, stripe "
         "period, ...) that "
-        "maximise the dent's visibility, or its worst case over a --family of dents: a coarse "
+        "maximise the dent's visibility (or a phase-measuring station's number, --metric pmd_*), "
+        "or its worst case over a --family of dents: a coarse "
         "grid on the sweep "
         "machinery, then a bounded Nelder-Mead refinement (docs/sweeps.md). Prints the optimum, "
         "its visibility, "
@@ -178,10 +182,12 @@ def add_optimize(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--metric",
-        choices=("paper", "continuous"),
+        choices=METRICS,
         default="paper",
-        help="paper: whole-pixel contour shift (docs/study.md); continuous: its sub-pixel limit "
-        "(default paper)",
+        help="paper: whole-pixel contour shift (docs/study.md); continuous: its sub-pixel limit; "
+        "pmd_snr, pmd_shift_mm, pmd_depth_um, pmd_slope_urad: a phase-measuring station's "
+        "numbers, maximised; pmd_noise_mm: its noise, minimised (pmd_snr and pmd_noise_mm "
+        "need a sensor). pmd_* show the fringe sequence on the scene's screen (default paper)",
     )
     p.add_argument(
         "--grid",
@@ -206,12 +212,22 @@ def add_optimize(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_optimize(args: argparse.Namespace) -> int:
+    from glshade.measure.single import as_method
     from glshade.sweep.optimize import (
+        goal_of,
         objective_figure,
         optimize_scene,
         parse_family,
         parse_over,
+        settings_for,
     )
+
+    goal = goal_of(args.metric)
+    if goal.method != "paper":
+        for flag in metric_flags_given(args):
+            raise GlshadeError(
+                f"{flag}: belongs to the paper's stripe metric, not to --metric {args.metric}"
+            )
 
     if args.size is None:
         args.size = OPTIMIZE_SIZE
@@ -227,9 +243,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     if args.plot is not None:
         check_output(args.plot, "--plot", (".png",))
     check_save_scene(args)
-    settings = metric_settings(args)
+    settings = metric_settings(args) if goal.method == "paper" else settings_for(args.metric)
     distribution = _distribution(args)
-    warn(scene_warnings(scene))
+    warn(scene_warnings(as_method(scene, goal.method)))
     reuse_freed_memory()
     start = time.perf_counter()
     with open_executor(distribution) as executor:
@@ -250,10 +266,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps({**result.summary(), "seconds": round(seconds, 2)}))
         return 0
-    worst = "worst case over " + f"{len(family)} dents" if len(family) > 1 else "visibility"
     where = ", ".join(f"{key} = {value:g}" for key, value in result.optimum.items())
     print(f"optimum: {where}")
-    print(f"{worst} ({args.metric}): {result.visibility_px:.3f} px")
+    print(_value_line(result, len(family)))
     for key, (lo, hi) in result.near_optimal.items():
         print(f"  {result.near_text()}: {key} in [{lo:g}, {hi:g}]")
     print(
@@ -262,9 +277,29 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         file=sys.stdout,
     )
     if result.unmeasurable:
+        shown = ", ".join(f"{n} {status}" for status, n in result.unmeasurable_statuses.items())
         print(
-            f"{result.unmeasurable} of {result.cases} cases were not measurable (stripes "
-            "unresolved, the dent at an edge or out of view, or under the noise floor): their "
-            "viewpoints were left out of the search"
+            f"{result.unmeasurable} of {result.cases} cases were not measurable ({shown}: "
+            f"{_STATUS_WORDS[goal.method]}): their viewpoints were left out of the search"
         )
     return 0
+
+
+#: What makes a case unreadable, by instrument, in words.
+_STATUS_WORDS = {
+    "paper": "stripes unresolved, the dent at an edge or out of view, or under the noise floor",
+    "pmd": "fringes averaged out, the dent at an edge or out of view, the exposure, or under "
+    "the noise floor",
+}
+
+
+def _value_line(result, members: int) -> str:
+    """The optimum's objective: the worst case over the family, in its unit."""
+    goal = result.goal
+    if goal.method == "paper":
+        worst = f"worst case over {members} dents" if members > 1 else "visibility"
+        return f"{worst} ({result.metric}): {result.value:.3f} px"
+    unit = f" {goal.unit}" if goal.unit else ""
+    worst = f", worst case over {members} dents" if members > 1 else ""
+    sense = "maximised" if goal.sense > 0 else "minimised"
+    return f"{goal.column} ({sense}{worst}): {result.value:.4g}{unit}"

@@ -15,12 +15,14 @@ from dataclasses import dataclass
 from typing import Any, Self
 
 from glshade.errors import GlshadeError
-from glshade.measure.engine import Case, CaseView, measure_many
+from glshade.measure.engine import Case, CaseView, PmdView, measure_many
+from glshade.measure.pmd import PmdResult, PmdSettings
 from glshade.measure.record import Measurement, PmdMeasurement
 from glshade.metrics.visibility import MetricSettings, Visibility
 
-#: What every executor yields per case: its key, its record, its best-phase image as PNG
-#: bytes (when images were asked for) or None.
+#: What every executor yields per case: its key, its record, its image as PNG bytes (when
+#: images were asked for: the paper metric's best phase, phase measuring's first recorded
+#: frame) or None.
 Row = tuple[Any, Measurement | PmdMeasurement, bytes | None]
 
 
@@ -66,7 +68,9 @@ class LocalExecutor:
     def __init__(self, threads: int = 2, renderer=None) -> None:
         self.threads, self.renderer, self._owns = threads, renderer, renderer is None
 
-    def rows(self, cases: Sequence[Case], settings: MetricSettings, images: bool) -> Iterator[Row]:
+    def rows(
+        self, cases: Sequence[Case], settings: MetricSettings | PmdSettings, images: bool
+    ) -> Iterator[Row]:
         if self.renderer is None:
             from glshade.gpu.renderer import Renderer
 
@@ -87,7 +91,11 @@ class LocalExecutor:
 
 
 def measure_rows(
-    renderer, cases: Sequence[Case], settings, images: bool, pool=None
+    renderer,
+    cases: Sequence[Case],
+    settings: MetricSettings | PmdSettings,
+    images: bool,
+    pool=None,
 ) -> Iterator[Row]:
     """The engine's results as rows: what a worker returns, what the caller writes."""
     extra = _best_image_png if images else None
@@ -95,7 +103,12 @@ def measure_rows(
         yield measured.case.key, measured.record, measured.extra
 
 
-def _best_image_png(case: Case, result: Visibility, view: CaseView) -> bytes:
+def _best_image_png(case: Case, result: Visibility | PmdResult, view: CaseView | PmdView) -> bytes:
+    """The paper metric's image at its best phase; phase measuring's first recorded frame
+    (the finest fringes of the first direction, shift 0), as the camera records it."""
     from glshade.files import encode_png
 
+    if isinstance(result, PmdResult):
+        return encode_png(result.maps.recorded[0], bits=8)
+    assert isinstance(view, CaseView)
     return encode_png(view.best_image(case.scene, result), bits=8)

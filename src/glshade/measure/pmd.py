@@ -52,6 +52,9 @@ REGION_SHARE = 0.2
 #: The share of the dent's seen region that may be invalid (modulation too low) before
 #: its numbers cannot be read.
 INVALID_SHARE = 0.25
+#: The version of what a PMD case measures: part of a PMD sweep case's identity and of its
+#: manifest. Raise it with any change that alters a number of a PMD record.
+PMD_VERSION = 1
 
 
 @dataclass(frozen=True)

@@ -9,14 +9,21 @@ worst-case visibility over a family of dents (``glshade optimize``, docs/sweeps.
    half a step wide, at most ``refine_evaluations`` points.
 
 The objective at a point is the worst case over the family (the minimum of the members'
-visibilities). The paper's metric is piecewise constant (whole pixels): a gradient
-method would see zero slope almost everywhere. Nelder–Mead only ranks points, so it works
-on plateaus, and ties are broken by the continuous visibility, which every case computes
-anyway: the score is ``visibility_px + TIE · visibility_continuous_px`` (``TIE = 1e-3``
-keeps the order of whole pixels for any continuous value under 1000 px). The refinement
-never returns worse than the grid: the optimum is the best point evaluated.
+visibilities). ``--metric`` chooses it (:data:`GOALS`): the paper's metric or its
+continuous limit, or a number a phase-measuring station reads (``pmd_snr``,
+``pmd_shift_mm``, ``pmd_depth_um``, ``pmd_slope_urad`` maximised; ``pmd_noise_mm``
+minimised, its worst case the largest); a pmd metric measures every scene as the station
+does (the fringe sequence on the scene's screen). A case whose number cannot be read (its
+status) makes its point unusable.
+
+The paper's metric is piecewise constant (whole pixels): a gradient method would see zero
+slope almost everywhere. Nelder–Mead only ranks points, so it works on plateaus, and ties
+are broken by the continuous visibility, which every case computes anyway: the score is
+``visibility_px + TIE · visibility_continuous_px`` (``TIE = 1e-3`` keeps the order of
+whole pixels for any continuous value under 1000 px). The refinement never returns worse
+than the grid: the optimum is the best point evaluated.
 **Flatness**: the near-optimal set is every evaluated point within ``tolerance`` of the
-optimum (paper metric: 0, the points of the optimum's whole-pixel plateau; continuous: 5 %);
+optimum (paper metric: 0, the points of the optimum's whole-pixel plateau; the others: 5 %);
 per key, the range of those points tells how far the camera may move without losing more
 than that.
 """
@@ -25,6 +32,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -34,14 +42,65 @@ import numpy as np
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
 from glshade.measure.engine import Case
-from glshade.measure.record import Measurement
+from glshade.measure.pmd import PmdSettings, check_scene
+from glshade.measure.record import COLUMNS, PMD_COLUMNS, Measurement, PmdMeasurement
+from glshade.measure.single import as_method
 from glshade.metrics.status import concerns
 from glshade.metrics.visibility import MetricSettings
 from glshade.scene import Scene
-from glshade.sweep.spec import canonical_key, case_id
+from glshade.sweep.spec import Settings, canonical_key, case_id
 from glshade.units import examples, parse_quantity
 
-METRICS = ("paper", "continuous")
+#: Every record column's unit.
+_UNITS = {c.name: c.unit for c in (*COLUMNS, *PMD_COLUMNS)}
+
+
+@dataclass(frozen=True)
+class Goal:
+    """One objective of ``--metric``: the record ``column`` it reads, the instrument
+    (``method``) that measures it, ``sense`` +1 when more is better (the worst case over a
+    family is the least) or -1 when less is (the worst case the most), and whether it
+    needs a sensor (a number of noise: unbounded or 0 without one)."""
+
+    name: str
+    column: str
+    method: str = "paper"
+    sense: int = 1
+    needs_sensor: bool = False
+
+    @property
+    def unit(self) -> str:
+        return _UNITS[self.column]
+
+    def unreadable(self, status: str) -> bool:
+        """True when a case of ``status`` cannot give this objective: the paper metric's
+        rules (:func:`glshade.metrics.status.concerns`); for phase measuring any status
+        but ok (a viewpoint whose dent cannot be read is no place for the station, however
+        low its noise)."""
+        if self.method == "paper":
+            return concerns(status, self.column)
+        return status != "ok"
+
+    def words(self) -> str:
+        """How the objective reads in a line of text and on a plot's axis."""
+        if self.method == "paper":
+            return f"visibility ({self.name}), px"
+        return f"{self.column}{f' ({self.unit})' if self.unit else ''}"
+
+
+GOALS = {
+    goal.name: goal
+    for goal in (
+        Goal("paper", "visibility_px"),
+        Goal("continuous", "visibility_continuous_px"),
+        Goal("pmd_snr", "pmd_snr", "pmd", needs_sensor=True),
+        Goal("pmd_shift_mm", "pmd_shift_mm", "pmd"),
+        Goal("pmd_depth_um", "pmd_depth_um", "pmd"),
+        Goal("pmd_slope_urad", "pmd_slope_urad", "pmd"),
+        Goal("pmd_noise_mm", "pmd_noise_mm", "pmd", sense=-1, needs_sensor=True),
+    )
+}
+METRICS = tuple(GOALS)
 #: Tie-break weight of the continuous visibility in the paper metric's score.
 TIE = 1e-3
 #: Bounds of keys an engineer sweeps most, when ``--over`` gives none (the paper's θ range).
@@ -68,16 +127,16 @@ class Dimension:
 
 @dataclass(frozen=True)
 class OptimizeResult:
-    """The optimum (a value per key), its objective (``visibility_px``: the chosen
-    metric, worst case over the family), the near-optimal ranges, and every evaluated
-    point (``points``: (n, k) array, ``values``: (n,) objective; the first ``grid_count``
-    are the coarse grid)."""
+    """The optimum (a value per key), its objective (``value``: the chosen metric, worst
+    case over the family, in :attr:`unit`), the near-optimal ranges (within ``tolerance``
+    of it, the same unit), and every evaluated point (``points``: (n, k) array,
+    ``values``: (n,) objective; the first ``grid_count`` are the coarse grid)."""
 
     dimensions: tuple[Dimension, ...]
     optimum: dict[str, float]
-    visibility_px: float
+    value: float
     metric: str
-    tolerance_px: float
+    tolerance: float
     near_optimal: dict[str, tuple[float, float]]
     points: np.ndarray
     values: np.ndarray
@@ -86,31 +145,58 @@ class OptimizeResult:
     cases: int = 0
     unmeasurable: int = 0  # cases whose number could not be read (their points excluded)
     members: list[dict[str, float]] = field(default_factory=list)
-    member_values: np.ndarray | None = None  # (n, members): each member's visibility
+    member_values: np.ndarray | None = None  # (n, members): each member's value
+    unmeasurable_statuses: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def goal(self) -> Goal:
+        return GOALS[self.metric]
+
+    @property
+    def unit(self) -> str:
+        return self.goal.unit
+
+    @property
+    def visibility_px(self) -> float:
+        """The objective's value under the paper metrics' name."""
+        return self.value
 
     def near_text(self) -> str:
         """What the near-optimal set is, in words."""
-        if self.tolerance_px == 0.0:
+        if self.tolerance == 0.0:
             return "on the optimum's whole-pixel plateau"
-        return f"within {self.tolerance_px:g} px of the optimum"
+        return f"within {self.tolerance:g}{f' {self.unit}' if self.unit else ''} of the optimum"
 
     @property
     def evaluations(self) -> int:
         return len(self.values)
 
     def summary(self) -> dict:
-        """``glshade optimize --json``."""
+        """``glshade optimize --json``: the paper metrics' value as ``visibility_px``
+        (tolerance ``tolerance_px``), a phase-measuring one under its column's name; every
+        metric's also as ``value`` (in ``unit``)."""
+        goal = self.goal
+        if goal.method == "paper":
+            named = {"visibility_px": round(self.value, 4)}
+            tolerance = {"tolerance_px": self.tolerance}
+        else:
+            named = {goal.column: self.value}
+            tolerance = {"tolerance": self.tolerance}
         return {
             "optimum": self.optimum,
-            "visibility_px": round(self.visibility_px, 4),
+            **named,
+            "value": named[goal.column if goal.method == "pmd" else "visibility_px"],
+            "unit": self.unit,
             "metric": self.metric,
+            "maximised": goal.sense > 0,
             "evaluations": self.evaluations,
             "grid_evaluations": self.grid_count,
             "cases": self.cases,
             "unmeasurable_cases": self.unmeasurable,
+            "unmeasurable_statuses": self.unmeasurable_statuses,
             "family_members": len(self.members) or 1,
             "near_optimal": {key: list(span) for key, span in self.near_optimal.items()},
-            "tolerance_px": self.tolerance_px,
+            **tolerance,
         }
 
 
@@ -232,9 +318,12 @@ def search(
     metric: str = "continuous",
     members: list[dict[str, float]] | None = None,
 ) -> OptimizeResult:
-    """Maximise ``objective`` over the box of ``dimensions``: coarse grid, then bounded
-    Nelder–Mead in the best grid cell (module doc). ``objective`` is called with a batch of
-    points (the whole grid at once, so it may distribute it)."""
+    """Maximise ``objective``'s score over the box of ``dimensions``: coarse grid, then
+    bounded Nelder–Mead in the best grid cell (module doc). ``objective`` is called with a
+    batch of points (the whole grid at once, so it may distribute it). ``metric`` names the
+    values (:data:`GOALS`): whether less of them is better, and the near-optimal set's
+    tolerance (``tolerance_px``, in their unit; default: 0 for the paper metric's whole
+    pixels, 5 % of the optimum's value for the others)."""
     from scipy.optimize import minimize
 
     axes = grid_axes(dimensions, grid_points)
@@ -281,21 +370,22 @@ def search(
     points_all = np.vstack(points)
     scores_all, values_all = np.concatenate(all_scores), np.concatenate(all_values)
     winner = int(np.argmax(scores_all))
+    sense = GOALS[metric].sense
     tolerance = (
         tolerance_px
         if tolerance_px is not None
-        else (0.0 if metric == "paper" else 0.05 * max(values_all[winner], 1e-9))
+        else (0.0 if metric == "paper" else 0.05 * max(abs(values_all[winner]), 1e-9))
     )
-    near = points_all[values_all >= values_all[winner] - tolerance]
+    near = points_all[sense * values_all >= sense * values_all[winner] - tolerance]
     if not len(near):  # no point could be read: the caller says so
         near = points_all[:0].reshape(0, len(dimensions))
         near = np.vstack([near, np.full((1, len(dimensions)), np.nan)])
     return OptimizeResult(
         dimensions=tuple(dimensions),
         optimum={d.name: round(float(points_all[winner, i]), 4) for i, d in enumerate(dimensions)},
-        visibility_px=float(values_all[winner]),
+        value=float(values_all[winner]),
         metric=metric,
-        tolerance_px=round(float(tolerance), 4),
+        tolerance=float(f"{tolerance:.4g}"),
         near_optimal={
             d.name: (round(float(near[:, i].min()), 4), round(float(near[:, i].max()), 4))
             for i, d in enumerate(dimensions)
@@ -310,30 +400,67 @@ def search(
 
 
 # --------------------------------------------------------------------------- scenes
+def goal_of(metric: str) -> Goal:
+    """The objective ``--metric`` names (one line naming the allowed ones otherwise)."""
+    if metric not in GOALS:
+        raise GlshadeError(f"--metric: must be one of {', '.join(METRICS)}, got {metric!r}")
+    return GOALS[metric]
+
+
+def settings_for(metric: str, settings: Settings | None = None) -> Settings:
+    """The instrument's settings of ``metric``: ``settings`` when they are that
+    instrument's, its defaults when None."""
+    goal = goal_of(metric)
+    kind = PmdSettings if goal.method == "pmd" else MetricSettings
+    if settings is None:
+        return kind()
+    if not isinstance(settings, kind):
+        raise GlshadeError(
+            f"settings: --metric {metric} is measured with {kind.__name__}, got "
+            f"{type(settings).__name__}"
+        )
+    return settings
+
+
 class SceneObjective:
-    """The worst-case visibility over a family, measured by an executor (in-process or
+    """The worst case of ``metric`` over a family, measured by an executor (in-process or
     Dask: :func:`glshade.measure.where.open_executor`); every case measured once (by
-    id)."""
+    id). A phase-measuring metric measures each scene as a station does (its screen shows
+    the fringe sequence)."""
 
     def __init__(
         self,
         base: Scene,
         dimensions: Sequence[Dimension],
         family: list[dict[str, float]],
-        settings: MetricSettings,
+        settings: Settings,
         metric: str,
         executor,
     ) -> None:
-        if metric not in METRICS:
-            raise GlshadeError(f"--metric: must be one of {', '.join(METRICS)}, got {metric!r}")
-        self.base, self.dimensions, self.family = base, tuple(dimensions), family
+        self.goal = goal_of(metric)
+        settings = settings_for(metric, settings)
+        self.base = as_method(base, self.goal.method)
+        self.dimensions, self.family = tuple(dimensions), family
         self.settings, self.metric, self.executor = settings, metric, executor
-        self.records: dict[str, Measurement] = {}
+        self.records: dict[str, Measurement | PmdMeasurement] = {}
         #: Case id -> why its number cannot be read (status: reason).
         self.unreadable: dict[str, str] = {}
         for point in (tuple(d.lo for d in dimensions), tuple(d.hi for d in dimensions)):
             for member in family:  # every corner and member is a valid scene before any work
-                settings.phases(self.scene(point, member).emitter.period)
+                self._check(self.scene(point, member))
+
+    def _check(self, scene: Scene) -> None:
+        """A scene the objective's instrument can measure, one line otherwise."""
+        if isinstance(self.settings, MetricSettings):
+            self.settings.phases(scene.emitter.period)
+            return
+        check_scene(scene)
+        if self.goal.needs_sensor and not scene.active.records(scene):
+            raise GlshadeError(
+                f"--metric {self.metric}: needs a sensor (without one the decoded points carry "
+                "no noise: pmd_noise_mm is 0 and pmd_snr unbounded); give one, e.g. --set "
+                "sensor.full_well_e=10000"
+            )
 
     def scene(self, point: Sequence[float], member: dict[str, float]) -> Scene:
         pairs = [*zip((d.key for d in self.dimensions), point, strict=True), *member.items()]
@@ -353,31 +480,47 @@ class SceneObjective:
         }
         for key, record, _ in self.executor.rows(list(todo.values()), self.settings, False):
             self.records[key] = record
-        paper = np.array(
-            [[self.records[i].visibility_px for i in row] for row in ids], dtype=np.float64
-        )
-        continuous = np.array(
-            [[self.records[i].visibility_continuous_px for i in row] for row in ids]
-        )
-        chosen = paper if self.metric == "paper" else continuous
-        score = paper + TIE * continuous if self.metric == "paper" else continuous
-        column = "visibility_px" if self.metric == "paper" else "visibility_continuous_px"
-        readable = np.array(
-            [[not concerns(self.records[i].status, column) for i in row] for row in ids], bool
-        )
-        for i in (i for row in ids for i in row):
-            record = self.records[i]
-            if concerns(record.status, column):
-                self.unreadable[i] = f"{record.status}: {record.status_reason}"
+        goal = self.goal
+        chosen = self._numbers(ids, goal.column)
+        if self.metric == "paper":  # whole pixels, ties broken by the continuous limit
+            score = chosen + TIE * self._numbers(ids, "visibility_continuous_px")
+        else:
+            score = goal.sense * chosen
+        readable = np.array([[self._readable(i) for i in row] for row in ids], bool)
         # a point is only as good as its worst member, and a member whose number cannot be
         # read makes the point unusable: never the optimum, never near it
-        worst = np.where(readable.all(axis=1), score.min(axis=1), -np.inf)
-        value = np.where(readable.all(axis=1), chosen.min(axis=1), np.nan)
+        usable = readable.all(axis=1)
+        with np.errstate(invalid="ignore"):  # unusable points' NaNs are replaced
+            worst = np.where(usable, score.min(axis=1), -np.inf)
+            value = np.where(usable, goal.sense * (goal.sense * chosen).min(axis=1), np.nan)
         return worst, value, chosen
+
+    def _numbers(self, ids: list[list[str]], column: str) -> np.ndarray:
+        """A column of the records of ``ids`` (NaN where a record has no number)."""
+        return np.array(
+            [[_number(getattr(self.records[i], column)) for i in row] for row in ids],
+            dtype=np.float64,
+        )
+
+    def _readable(self, key: str) -> bool:
+        """Whether a case gives the objective a number; if not, why is kept."""
+        record = self.records[key]
+        number = _number(getattr(record, self.goal.column))
+        if self.goal.unreadable(record.status):
+            self.unreadable[key] = f"{record.status}: {record.status_reason}"
+            return False
+        if not math.isfinite(number):
+            self.unreadable[key] = f"{record.status}: {self.goal.column} has no value"
+            return False
+        return True
 
     @property
     def cases(self) -> int:
         return len(self.records)
+
+
+def _number(value) -> float:
+    return math.nan if value is None else float(value)
 
 
 def optimize_scene(
@@ -386,13 +529,14 @@ def optimize_scene(
     family: list[dict[str, float]],
     *,
     metric: str = "paper",
-    settings: MetricSettings | None = None,
+    settings: Settings | None = None,
     executor,
     grid_points: int | None = None,
     refine_evaluations: int = 30,
 ) -> OptimizeResult:
-    """The viewpoint search on a real scene (module doc)."""
-    settings = settings or MetricSettings()
+    """The viewpoint search on a real scene (module doc); ``settings``: the instrument's
+    of ``metric`` (None: its defaults)."""
+    settings = settings_for(metric, settings)
     objective = SceneObjective(base, dimensions, family, settings, metric, executor)
     result = search(
         objective,
@@ -402,13 +546,19 @@ def optimize_scene(
         metric=metric,
         members=family if family != [{}] else [],
     )
-    if not math.isfinite(result.visibility_px):
+    if not math.isfinite(result.value):
         why = next(iter(objective.unreadable.values()), "")
         raise GlshadeError(
             f"optimize: no point of the search could be measured ({len(objective.unreadable)} "
             f"of {objective.cases} cases not measurable; first: {why})"
         )
-    return replace(result, cases=objective.cases, unmeasurable=len(objective.unreadable))
+    statuses = Counter(why.partition(":")[0] for why in objective.unreadable.values())
+    return replace(
+        result,
+        cases=objective.cases,
+        unmeasurable=len(objective.unreadable),
+        unmeasurable_statuses=dict(statuses),
+    )
 
 
 # --------------------------------------------------------------------------- figure
@@ -425,7 +575,7 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
     dims, n = result.dimensions, result.grid_count
     grid, values = result.points[:n], result.values[:n]
     label = "worst-case " if result.members else ""
-    ylabel = f"{label}visibility ({result.metric}), px"
+    ylabel = f"{label}{result.goal.words()}"
     if len(dims) == 2:
         fig, ax = plt.subplots(figsize=(6.4, 5.0))
         shape = result.grid_shape
@@ -473,7 +623,7 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
                         label="family members" if j == 0 else None,
                     )
             shown = values[on_line][order]
-            ax.plot(x, shown, "o-", color="C0", label=f"{label}visibility")
+            ax.plot(x, shown, "o-", color="C0", label=f"{label}{result.goal.column}")
             lost = ~np.isfinite(shown)
             if lost.any():  # unreadable viewpoints: marked on the axis, never a number
                 ax.plot(
@@ -494,8 +644,7 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
         axes[0][0].legend(loc="best", fontsize=8)
     where = ", ".join(f"{key} = {value:g}" for key, value in result.optimum.items())
     fig.suptitle(
-        title
-        or f"optimum {where}\n{label}{result.metric} visibility {result.visibility_px:.3g} px",
+        title or f"optimum {where}\n{label}{result.goal.words()}: {result.value:.4g}",
         fontsize=10,
     )
     fig.tight_layout()

@@ -13,12 +13,11 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 from glshade.errors import GlshadeError
 from glshade.measure.executors import Distribution, Row
 from glshade.measure.locks import run_lock
-from glshade.measure.record import Measurement
 from glshade.measure.where import open_executor
 from glshade.sweep import store
 from glshade.sweep.spec import MAX_CASES_UNCONFIRMED, GridPoint, SweepSpec
@@ -62,7 +61,7 @@ def run_sweep(
     with run_lock(out_dir, "glshade sweep"):
         store.prepare(out_dir, spec, overwrite)
         cases = spec.cases()
-        records = {c.case_id: store.load_case(out_dir, c.case_id) for c in cases}
+        records = {c.case_id: store.load_case(out_dir, c.case_id, spec.method) for c in cases}
         done = {key: record for key, record in records.items() if record is not None}
         pending = list({c.case_id: c for c in cases if c.case_id not in done}.values())
         start = time.perf_counter()
@@ -70,8 +69,8 @@ def run_sweep(
         try:
             for row in _rows(spec, pending, distribution, renderer):
                 case_id, record, image = row
-                store.write_case(out_dir, case_id, cast(Measurement, record), image)
-                done[case_id] = {"case_id": case_id, "outputs": record.outputs()}
+                store.write_case(out_dir, case_id, record, image)
+                done[case_id] = record
                 if bar is not None:
                     bar.update(1)
                 if on_row is not None:

@@ -11,15 +11,18 @@ size = 256                     # optional: pixels across, the base camera's fiel
 surface = [ { label = "flat", "surface.kind" = "flat" },        # a linked axis: each entry
             { label = "sphere", "surface.kind" = "sphere", "emitter.period" = 10.0 } ]
                                                                 # sets several keys
-[metric]                       # optional: MetricSettings (step_mm, threshold, ...)
-step_mm = 0.25
+[metric]                       # optional: the instrument and its settings
+method = "paper"               # paper (MetricSettings: step_mm, threshold, ...) or pmd
+step_mm = 0.25                 # (PmdSettings: modulation_share, grid_points, ...)
 [output]
-images = false                 # best-phase image of every case (PNG)
+images = false                 # best-phase image of every case (PNG; pmd: the first frame)
 ```
 
-``size`` may also be an axis of the grid. A case is identified by :func:`case_id`, the
-hash of its full scene and metric settings: a changed base scene or setting makes other
-cases, and a case already measured is never measured again.
+``size`` may also be an axis of the grid. ``method`` defaults to the instrument the base
+scene's emitter is measured by (pmd for fringes); with ``pmd`` every case shows the fringe
+sequence on its screen (:func:`glshade.measure.single.as_method`). A case is identified by
+:func:`case_id`, the hash of its full scene and the instrument's settings: a changed base
+scene or setting makes other cases, and a case already measured is never measured again.
 """
 
 from __future__ import annotations
@@ -35,6 +38,8 @@ from typing import Any
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
 from glshade.measure.engine import Case
+from glshade.measure.pmd import PMD_VERSION, PmdSettings, check_scene
+from glshade.measure.single import METHODS, as_method
 from glshade.metrics.visibility import METRIC_VERSION, MetricSettings
 from glshade.scene import Scene, paper_scene
 from glshade.scene.model import read_toml
@@ -57,6 +62,10 @@ def canonical_key(key: str) -> str:
 
 _TOP_KEYS = ("base", "size", "grid", "metric", "output")
 _OUTPUT_KEYS = ("images",)
+#: The key of ``[metric]`` that chooses the instrument; the others are its settings.
+METHOD_KEY = "method"
+#: An instrument's settings: the paper's stripe metric, or phase measuring.
+Settings = MetricSettings | PmdSettings
 
 
 @dataclass(frozen=True)
@@ -97,15 +106,22 @@ class GridPoint:
 
 @dataclass(frozen=True)
 class SweepSpec:
-    """A validated sweep: ``base`` scene, ``axes``, ``size`` (None: the base's), metric
-    ``settings``, ``images`` (write the best-phase image of each case)."""
+    """A validated sweep: ``base`` scene (as its instrument measures it), ``axes``,
+    ``size`` (None: the base's), the instrument's ``settings`` (:class:`MetricSettings`:
+    the paper's stripe metric; :class:`PmdSettings`: phase measuring), ``images`` (write
+    an image of each case)."""
 
     base: Scene = field(default_factory=paper_scene)
     axes: tuple[Axis, ...] = ()
     size: int | None = None
-    settings: MetricSettings = field(default_factory=MetricSettings)
+    settings: Settings = field(default_factory=MetricSettings)
     images: bool = False
     source: str = "<sweep>"
+
+    @property
+    def method(self) -> str:
+        """The instrument: ``paper`` or ``pmd``."""
+        return method_of(self.settings)
 
     @property
     def count(self) -> int:
@@ -147,15 +163,22 @@ class SweepSpec:
         return values
 
     def manifest(self) -> dict:
-        """What ties an output directory to this sweep: the glshade and metric versions,
-        the base scene and size, the metric settings (a grid may grow between runs)."""
+        """What ties an output directory to this sweep: the glshade version, the instrument
+        (``method``) and its version, the base scene and size, the instrument's settings (a
+        grid may grow between runs)."""
         from glshade import __version__
 
+        version = (
+            {"pmd_version": PMD_VERSION}
+            if self.method == "pmd"
+            else {"metric_version": METRIC_VERSION}
+        )
         return json.loads(
             json.dumps(
                 {
                     "glshade_version": __version__,
-                    "metric_version": METRIC_VERSION,
+                    "method": self.method,
+                    **version,
                     "base_scene": self.base.to_dict(),
                     "size": self.size,
                     "metric": asdict(self.settings),
@@ -172,14 +195,31 @@ def _column_value(scene: Scene, key: str) -> Any:
     return list(value) if isinstance(value, tuple) else value
 
 
-def case_id(scene: Scene, settings: MetricSettings) -> str:
-    """The case's identity: sha256 of its full scene (as a scene file writes it), the metric's
-    settings and version; 16 hex digits."""
-    text = json.dumps(
-        {"scene": scene.to_dict(), "metric": asdict(settings), "metric_version": METRIC_VERSION},
-        sort_keys=True,
-        default=str,
-    )
+def method_of(settings: Settings) -> str:
+    """The instrument ``settings`` belong to: ``pmd`` or ``paper``."""
+    return "pmd" if isinstance(settings, PmdSettings) else "paper"
+
+
+def case_id(scene: Scene, settings: Settings) -> str:
+    """The case's identity: sha256 of its full scene (as a scene file writes it) and the
+    instrument's settings and version (phase measuring: also its method); 16 hex digits.
+    The paper metric's identity is exactly what it was before PMD existed, so its sweeps
+    resume."""
+    identity: dict[str, Any]
+    if isinstance(settings, PmdSettings):
+        identity = {
+            "scene": scene.to_dict(),
+            "method": "pmd",
+            "pmd": asdict(settings),
+            "pmd_version": PMD_VERSION,
+        }
+    else:
+        identity = {
+            "scene": scene.to_dict(),
+            "metric": asdict(settings),
+            "metric_version": METRIC_VERSION,
+        }
+    text = json.dumps(identity, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -201,6 +241,8 @@ def spec_from_dict(
             f"{source}: unknown key {unknown[0]!r}; a sweep file has {', '.join(_TOP_KEYS)}"
         )
     base = _base_scene(data.get("base"), directory, source)
+    settings = _settings(data.get("metric", {}), source, base)
+    base = as_method(base, method_of(settings))
     size = _size(size if size is not None else data.get("size"), f"{source}: size")
     grid = data.get("grid", {})
     if not isinstance(grid, dict) or not grid:
@@ -208,7 +250,6 @@ def spec_from_dict(
             f'{source}: [grid] must hold at least one axis, e.g. "camera.theta_deg" = [85, 45, 5]'
         )
     axes = tuple(_axis(name, value, source) for name, value in grid.items())
-    settings = _settings(data.get("metric", {}), source)
     output = data.get("output", {})
     if not isinstance(output, dict) or set(output) - set(_OUTPUT_KEYS):
         raise GlshadeError(f"{source}: [output] may only hold {', '.join(_OUTPUT_KEYS)}")
@@ -228,8 +269,27 @@ def spec_from_dict(
                 scene = spec.scene(index)
             except SceneError as exc:
                 raise GlshadeError(f"{source}: grid.{axis.name}: {exc}") from None
-            settings.phases(scene.emitter.period)
+            _check_case(scene, settings, f"{source}: grid.{axis.name}")
     return spec
+
+
+def _check_case(scene: Scene, settings: Settings, where: str) -> None:
+    """A case its instrument can measure: its emitter measured by the sweep's method, the
+    stripes' phase step at most a period, the fringes decodable."""
+    method = method_of(settings)
+    measured_by = scene.active.emitter.measured_by
+    if measured_by != method:
+        raise GlshadeError(
+            f"{where}: emitter.kind = {scene.emitter.kind!r} is measured by {measured_by}, not "
+            f'by this sweep\'s method {method} (set [metric] method = "{measured_by}")'
+        )
+    if isinstance(settings, PmdSettings):
+        try:
+            check_scene(scene)
+        except GlshadeError as exc:
+            raise GlshadeError(f"{where}: {exc}") from None
+    else:
+        settings.phases(scene.emitter.period)
 
 
 def _base_scene(base, directory: Path, source: str) -> Scene:
@@ -248,21 +308,59 @@ def _size(value, where: str) -> int | None:
     return registry().param("camera.width").check(value)
 
 
-def _settings(table, source: str) -> MetricSettings:
-    names = [f.name for f in fields(MetricSettings)]
+def _settings(table, source: str, base: Scene) -> Settings:
+    """``[metric]``: ``method`` (default: the instrument the base scene's emitter is
+    measured by) and that instrument's settings."""
     if not isinstance(table, dict):
-        raise GlshadeError(f"{source}: [metric] must be a table of {', '.join(names)}")
+        raise GlshadeError(
+            f"{source}: [metric] must be a table: {METHOD_KEY} ({' or '.join(METHODS)}) and "
+            "the instrument's settings"
+        )
+    table = dict(table)
+    method = table.pop(METHOD_KEY, None)
+    if method is None:
+        method = base.active.emitter.measured_by
+    elif method not in METHODS:
+        raise GlshadeError(
+            f"{source}: metric.{METHOD_KEY}: must be one of {', '.join(METHODS)}, got {method!r}"
+        )
+    kind: type[MetricSettings] | type[PmdSettings] = (
+        PmdSettings if method == "pmd" else MetricSettings
+    )
+    names = [METHOD_KEY, *(f.name for f in fields(kind))]
     unknown = sorted(set(table) - set(names))
     if unknown:
         raise GlshadeError(
-            f"{source}: metric.{unknown[0]}: unknown setting; allowed: {', '.join(names)}"
+            f"{source}: metric.{unknown[0]}: unknown setting of method {method}; allowed: "
+            f"{', '.join(names)}"
         )
+    if kind is PmdSettings:
+        _check_types(PmdSettings, table, source)
     try:
-        return MetricSettings(**table)
+        return kind(**table)
     except GlshadeError as exc:
         raise GlshadeError(f"{source}: metric.{exc}") from None
     except TypeError as exc:
         raise GlshadeError(f"{source}: [metric]: {exc}") from None
+
+
+#: What a settings field of each annotation accepts from a file, in words.
+_TYPES = {
+    "float": ((int, float), "a number"),
+    "float | None": ((int, float), "a number"),
+    "int": ((int,), "an integer"),
+    "str": ((str,), "text"),
+}
+
+
+def _check_types(kind: type, table: dict, source: str) -> None:
+    """Each value of ``table`` of the type its field of ``kind`` declares (booleans are
+    no numbers): one line naming the setting."""
+    declared = {f.name: str(f.type) for f in fields(kind)}
+    for name, value in table.items():
+        allowed, words = _TYPES[declared[name]]
+        if isinstance(value, bool) or not isinstance(value, allowed):
+            raise GlshadeError(f"{source}: metric.{name}: must be {words}, got {value!r}")
 
 
 def _axis(name: str, value, source: str) -> Axis:

@@ -1,7 +1,10 @@
 """What a sweep writes and reads back (docs/sweeps.md): one JSON file per finished case, keyed by
 its id; ``results.parquet`` (one row per case of the grid: every swept key, every output)
 and ``results.csv`` beside it; ``images/<id>.png`` on request; ``sweep.json``, the
-manifest that ties the directory to one base scene, size, metric and glshade version.
+manifest that ties the directory to one base scene, size, instrument (the paper's stripe
+metric or phase measuring), its settings and glshade version. The columns and the records
+are the instrument's: :class:`~glshade.measure.record.Measurement` for the paper's metric,
+:class:`~glshade.measure.record.PmdMeasurement` for phase measuring.
 
 A case file is written atomically once its case is done (the mark a rerun looks for), so
 a killed run loses only the cases in flight and a rerun computes each missing case once.
@@ -19,12 +22,39 @@ from typing import Any
 
 from glshade.errors import GlshadeError
 from glshade.files import atomic_write_bytes
-from glshade.measure.record import COLUMNS, OUTPUT_NAMES, Measurement
+from glshade.measure.record import (
+    COLUMNS,
+    OUTPUT_NAMES,
+    PMD_COLUMNS,
+    PMD_OUTPUT_NAMES,
+    Column,
+    Measurement,
+    PmdMeasurement,
+)
 from glshade.sweep.spec import GridPoint, SweepSpec
 
+#: A case's record: the paper metric's or phase measuring's.
+Record = Measurement | PmdMeasurement
+#: Each instrument's record.
+RECORDS: dict[str, type[Measurement] | type[PmdMeasurement]] = {
+    "paper": Measurement,
+    "pmd": PmdMeasurement,
+}
 #: The outputs of a case in the table: the record's measured and closed-form columns
-#: (its timings stay in the case files).
+#: (its timings stay in the case files); the paper metric's, and phase measuring's.
 OUTPUTS = tuple(c for c in COLUMNS if c.name in OUTPUT_NAMES)
+PMD_OUTPUTS = tuple(c for c in PMD_COLUMNS if c.name in PMD_OUTPUT_NAMES)
+
+
+def outputs(method: str) -> tuple[Column, ...]:
+    """The output columns of an instrument's sweep table."""
+    return PMD_OUTPUTS if method == "pmd" else OUTPUTS
+
+
+def output_names(method: str) -> tuple[str, ...]:
+    return tuple(c.name for c in outputs(method))
+
+
 MANIFEST = "sweep.json"
 PARQUET = "results.parquet"
 CSV = "results.csv"
@@ -37,9 +67,7 @@ def case_path(out_dir: Path, case_id: str) -> Path:
     return Path(out_dir) / "cases" / f"{case_id}.json"
 
 
-def write_case(
-    out_dir: Path, case_id: str, record: Measurement, image_png: bytes | None = None
-) -> None:
+def write_case(out_dir: Path, case_id: str, record: Record, image_png: bytes | None = None) -> None:
     """A finished case on disk: its image first, its JSON last (the "done" mark)."""
     if image_png is not None:
         atomic_write_bytes(Path(out_dir) / "images" / f"{case_id}.png", image_png, "--out")
@@ -47,18 +75,24 @@ def write_case(
     atomic_write_bytes(case_path(out_dir, case_id), json.dumps(data, indent=1).encode(), "--out")
 
 
-def load_case(out_dir: Path, case_id: str) -> dict | None:
-    """A finished case's record, or None (missing, unreadable or incomplete: recompute)."""
+def load_case(out_dir: Path, case_id: str, method: str = "paper") -> Record | None:
+    """A finished case's record (the ``method``'s record type, its timings included), or
+    None (missing, unreadable, incomplete or another instrument's: recompute)."""
     try:
-        record = json.loads(case_path(out_dir, case_id).read_text())
+        data = json.loads(case_path(out_dir, case_id).read_text())
     except (OSError, ValueError):
         return None
-    if not isinstance(record, dict) or record.get("case_id") != case_id:
+    if not isinstance(data, dict) or data.get("case_id") != case_id:
         return None
-    outputs = record.get("outputs")
-    if not isinstance(outputs, dict) or set(outputs) != set(OUTPUT_NAMES):
+    found = data.get("outputs")
+    if not isinstance(found, dict) or set(found) != set(output_names(method)):
         return None
-    return record
+    seconds = data.get("seconds")
+    timings = seconds if isinstance(seconds, dict) else {}
+    try:
+        return RECORDS[method].from_row({**timings, **found})
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 # --------------------------------------------------------------------------- directory
@@ -69,6 +103,8 @@ def prepare(out_dir: Path, spec: SweepSpec, overwrite: bool = False) -> None:
     out_dir = Path(out_dir)
     wanted = spec.manifest()
     stored = _stored_manifest(out_dir)
+    if stored and "method" not in stored:  # written before the instrument was recorded
+        stored = {**stored, "method": "paper"}
     if stored is not None and stored != wanted:
         if not overwrite:
             raise GlshadeError(
@@ -112,19 +148,24 @@ def table_manifest(path: Path) -> dict:
 def _difference(stored: dict, wanted: dict) -> str:
     names = {
         "glshade_version": "another glshade version",
+        "method": "another method",
         "metric_version": "another metric version",
+        "pmd_version": "another phase-measuring version",
         "base_scene": "another base scene",
         "size": "another size",
         "metric": "other metric settings",
     }
     differing = [key for key in names if stored.get(key) != wanted.get(key)]
+    if "method" in differing:  # another instrument: its version and settings differ with it
+        differing = [key for key in differing if key not in ("metric_version", "pmd_version")]
+        differing = [key for key in differing if key != "metric"]
     if not differing:
         return "unknown origin (no readable manifest)"
     first = differing[0]
-    detail = ""
-    if first in ("glshade_version", "size", "metric_version"):
-        detail = f" ({stored.get(first)} there, {wanted.get(first)} here)"
-    return ", ".join(names[key] for key in differing) + detail
+    parts = [names[key] for key in differing]
+    if first in ("glshade_version", "method", "size", "metric_version", "pmd_version"):
+        parts[0] += f" ({stored.get(first)} there, {wanted.get(first)} here)"
+    return ", ".join(parts)
 
 
 def _remove(out_dir: Path) -> None:
@@ -139,14 +180,14 @@ def _remove(out_dir: Path) -> None:
 
 # --------------------------------------------------------------------------- tables
 def table_rows(
-    spec: SweepSpec, cases: list[GridPoint], records: Mapping[str, dict]
+    spec: SweepSpec, cases: list[GridPoint], records: Mapping[str, Record]
 ) -> list[dict[str, Any]]:
     """One row per case of the grid that has a record: its id, swept columns, outputs."""
     rows = []
     for case in cases:
         record = records.get(case.case_id)
         if record is not None:
-            rows.append({"case_id": case.case_id, **spec.swept_values(case), **record["outputs"]})
+            rows.append({"case_id": case.case_id, **spec.swept_values(case), **record.outputs()})
     return rows
 
 
@@ -155,7 +196,7 @@ def write_tables(out_dir: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> 
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    columns = ["case_id", *spec.columns, *OUTPUT_NAMES]
+    columns = ["case_id", *spec.columns, *output_names(spec.method)]
     table = pa.Table.from_pylist(
         [{name: _cell(row.get(name)) for name in columns} for row in rows],
         schema=_schema(columns, rows),
