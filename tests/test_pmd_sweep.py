@@ -200,6 +200,20 @@ def test_a_paper_sweep_written_before_the_method_was_recorded_resumes(tmp_path, 
     assert isinstance(record, Measurement) and record.trace_s > 0.0
 
 
+def test_images_of_a_pmd_sweep_are_the_first_recorded_frame(tmp_path, renderer):
+    import cv2
+
+    from glshade.files import quantize
+
+    spec = pmd_spec(size=48, grid={"camera.theta_deg": [45], **SENSOR}, output={"images": True})
+    run_sweep(spec, tmp_path, renderer=renderer)
+    (case,) = spec.cases()
+    png = cv2.imread(str(tmp_path / "images" / f"{case.case_id}.png"), cv2.IMREAD_UNCHANGED)
+    frame = measure_pmd_scene(renderer, case.scene).maps.recorded[0]
+    assert png.shape == (48, 48) and (png == quantize(frame, 8)).all()
+    assert png.std() > 10  # the finest fringes, not a flat grey
+
+
 def test_the_docs_hold_the_generated_pmd_columns():
     page = (ROOT / "docs" / "sweeps.md").read_text()
     assert columns_markdown(store.PMD_OUTPUTS) in page
