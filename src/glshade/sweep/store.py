@@ -34,7 +34,7 @@ from glshade.measure.record import (
 from glshade.sweep.spec import GridPoint, SweepSpec
 
 #: A case's record: the paper metric's or phase measuring's.
-Record = Measurement | PmdMeasurement
+CaseRecord = Measurement | PmdMeasurement
 #: Each instrument's record.
 RECORDS: dict[str, type[Measurement] | type[PmdMeasurement]] = {
     "paper": Measurement,
@@ -67,7 +67,9 @@ def case_path(out_dir: Path, case_id: str) -> Path:
     return Path(out_dir) / "cases" / f"{case_id}.json"
 
 
-def write_case(out_dir: Path, case_id: str, record: Record, image_png: bytes | None = None) -> None:
+def write_case(
+    out_dir: Path, case_id: str, record: CaseRecord, image_png: bytes | None = None
+) -> None:
     """A finished case on disk: its image first, its JSON last (the "done" mark)."""
     if image_png is not None:
         atomic_write_bytes(Path(out_dir) / "images" / f"{case_id}.png", image_png, "--out")
@@ -75,7 +77,7 @@ def write_case(out_dir: Path, case_id: str, record: Record, image_png: bytes | N
     atomic_write_bytes(case_path(out_dir, case_id), json.dumps(data, indent=1).encode(), "--out")
 
 
-def load_case(out_dir: Path, case_id: str, method: str = "paper") -> Record | None:
+def load_case(out_dir: Path, case_id: str, method: str = "paper") -> CaseRecord | None:
     """A finished case's record (the ``method``'s record type, its timings included), or
     None (missing, unreadable, incomplete or another instrument's: recompute)."""
     try:
@@ -180,7 +182,7 @@ def _remove(out_dir: Path) -> None:
 
 # --------------------------------------------------------------------------- tables
 def table_rows(
-    spec: SweepSpec, cases: list[GridPoint], records: Mapping[str, Record]
+    spec: SweepSpec, cases: list[GridPoint], records: Mapping[str, CaseRecord]
 ) -> list[dict[str, Any]]:
     """One row per case of the grid that has a record: its id, swept columns, outputs."""
     rows = []
