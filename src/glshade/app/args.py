@@ -185,6 +185,51 @@ def metric_flags_given(args: argparse.Namespace) -> list[str]:
     return [flag for flag, (dest, _) in METRIC_FLAGS.items() if getattr(args, dest) is not None]
 
 
+#: Phase measuring's settings flags: flag -> (destination, the PmdSettings field it fills).
+PMD_FLAGS = {
+    "--modulation-share": ("modulation_share", "modulation_share"),
+    "--heights": ("heights", "heights"),
+}
+
+
+def add_pmd_settings_flags(p: argparse.ArgumentParser) -> None:
+    """How a phase-measuring station decodes and reconstructs (measure, optimize); unset
+    flags take the defaults of :class:`~glshade.measure.pmd.PmdSettings`."""
+    p.add_argument(
+        "--modulation-share",
+        type=float,
+        metavar="X",
+        help="pmd: a pixel is valid where every period's modulation is at least X times the "
+        "amplitude times the brightest pixel's response to white (default 0.1)",
+    )
+    p.add_argument(
+        "--heights",
+        choices=("least-squares", "frankot-chellappa"),
+        help="pmd: how slopes are integrated into heights (default least-squares)",
+    )
+
+
+def pmd_flags_given(args: argparse.Namespace) -> list[str]:
+    """Phase measuring's settings flags the command line set."""
+    return [flag for flag, (dest, _) in PMD_FLAGS.items() if getattr(args, dest) is not None]
+
+
+def pmd_settings(args: argparse.Namespace):
+    """The :class:`~glshade.measure.pmd.PmdSettings` of the command line's pmd flags (a
+    bad value named by its flag)."""
+    from glshade.measure.pmd import PmdSettings
+
+    given = {
+        setting: getattr(args, dest)
+        for dest, setting in PMD_FLAGS.values()
+        if getattr(args, dest) is not None
+    }
+    try:
+        return PmdSettings(**given)
+    except GlshadeError as exc:
+        raise GlshadeError(f"--{str(exc).replace('_', '-')}") from None
+
+
 def metric_settings(args: argparse.Namespace):
     given = {
         setting: getattr(args, dest)

@@ -20,6 +20,7 @@ from glshade.app.args import (
     EXIT_USAGE,
     Parser,
     add_metric_flags,
+    add_pmd_settings_flags,
     add_save_scene,
     add_scene_flags,
     check_save_scene,
@@ -28,6 +29,8 @@ from glshade.app.args import (
     named_as_typed,
     one_line,
     path_arg,
+    pmd_flags_given,
+    pmd_settings,
     quantity_list,
     save_scene,
     scene_from_args,
@@ -135,32 +138,7 @@ def add_pmd_flags(p: argparse.ArgumentParser) -> None:
         default="png",
         help="pmd --frames: 16-bit PNG (default) or 32-bit float TIFF",
     )
-    p.add_argument(
-        "--modulation-share",
-        type=float,
-        metavar="X",
-        help="pmd: a pixel is valid where every period's modulation is at least X times the "
-        "amplitude times the brightest pixel's response to white (default 0.1)",
-    )
-    p.add_argument(
-        "--heights",
-        choices=("least-squares", "frankot-chellappa"),
-        help="pmd: how slopes are integrated into heights (default least-squares)",
-    )
-
-
-def pmd_settings(args: argparse.Namespace):
-    """The :class:`~glshade.measure.pmd.PmdSettings` of the command line's pmd flags."""
-    from glshade.measure.pmd import PmdSettings
-
-    given = {
-        "modulation_share": args.modulation_share,
-        "heights": args.heights,
-    }
-    try:
-        return PmdSettings(**{k: v for k, v in given.items() if v is not None})
-    except GlshadeError as exc:
-        raise GlshadeError(f"--{str(exc).replace('_', '-')}") from None
+    add_pmd_settings_flags(p)
 
 
 def _cmd_measure(args: argparse.Namespace) -> int:
@@ -177,14 +155,9 @@ def _cmd_measure(args: argparse.Namespace) -> int:
         return _cmd_measure_pmd(args, as_method(scene, "pmd"))
     given = [
         flag
-        for flag, value in (
-            ("--maps", args.maps),
-            ("--frames", args.frames),
-            ("--modulation-share", args.modulation_share),
-            ("--heights", args.heights),
-        )
+        for flag, value in (("--maps", args.maps), ("--frames", args.frames))
         if value is not None
-    ]
+    ] + pmd_flags_given(args)
     if given:
         raise GlshadeError(f"{given[0]}: belongs to --method pmd (phase measuring)")
     settings = metric_settings(args)

@@ -12,11 +12,14 @@ from pathlib import Path
 
 from glshade.app.args import (
     add_metric_flags,
+    add_pmd_settings_flags,
     add_scene_flags,
     check_save_scene,
     metric_flags_given,
     metric_settings,
     path_arg,
+    pmd_flags_given,
+    pmd_settings,
     save_scene,
     scene_from_args,
     warn,
@@ -207,6 +210,7 @@ def add_optimize(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     add_metric_flags(p)
+    add_pmd_settings_flags(p)
     _add_distribution_flags(p)
     p.set_defaults(run=_cmd_optimize)
 
@@ -219,7 +223,6 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         optimize_scene,
         parse_family,
         parse_over,
-        settings_for,
     )
 
     goal = goal_of(args.metric)
@@ -228,6 +231,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
             raise GlshadeError(
                 f"{flag}: belongs to the paper's stripe metric, not to --metric {args.metric}"
             )
+    else:
+        for flag in pmd_flags_given(args):
+            raise GlshadeError(f"{flag}: belongs to the pmd metrics, not to --metric {args.metric}")
 
     if args.size is None:
         args.size = OPTIMIZE_SIZE
@@ -243,7 +249,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     if args.plot is not None:
         check_output(args.plot, "--plot", (".png",))
     check_save_scene(args)
-    settings = metric_settings(args) if goal.method == "paper" else settings_for(args.metric)
+    settings = metric_settings(args) if goal.method == "paper" else pmd_settings(args)
     distribution = _distribution(args)
     warn(scene_warnings(as_method(scene, goal.method)))
     reuse_freed_memory()

@@ -313,7 +313,9 @@ class PmdMeasurement(Record):
         "the fringes out",
     )
     status: str = column(
-        "", "whether the numbers can be read: ok, or why not (docs/pmd.md, 'Status')"
+        "",
+        "whether the numbers can be read: ok, or why not (docs/pmd.md, 'Status: whether a "
+        "number can be trusted')",
     )
     status_reason: str = column(
         "", "why the numbers cannot be read, and what to change (empty when status is ok)"
