@@ -532,6 +532,8 @@ class Renderer:
         gain = self._gains.get(key)
         if gain is None:
             features = ShaderFeatures.from_scene(normal, ("image",))
+            if sampled(features):  # a program that loops over a pixel's samples counts them
+                features = ShaderFeatures.from_scene(normal, ("image", "rays"))
             with self.context.current():
                 radiance = self._draw(normal, features, None).output("image")
             gain = exposure_gain("auto", radiance)

@@ -23,6 +23,7 @@ as the paper metric's :class:`~glshade.metrics.visibility.Baseline` is.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -411,26 +412,40 @@ class PmdBaseline:
     nominal: Nominal
     seconds: dict[str, float] = field(default_factory=dict)
 
+    @functools.cached_property
+    def noise_pixels(self) -> np.ndarray:
+        """Where the two noisy decodes are compared (H, W): valid in both, not on the edge
+        of that region (:func:`interior`, as the dent's shift), and unwrapped to the right
+        fringe in both (a fringe jump is an unwrapping failure, counted as one, not
+        noise). No pixel without a sensor."""
+        if self.twin is None:
+            return np.zeros(self.decoding.valid.shape, bool)
+        exact = self.capture.uv
+        return (
+            interior(self.decoding.valid & self.twin.valid)
+            & ~failures(self.decoding.uv, exact, self.scene)
+            & ~failures(self.twin.uv, exact, self.scene)
+        )
+
     @property
     def noise_mm(self) -> float:
         """The decoded coordinate's noise: the standard deviation of the difference of two
-        decodes with different seeds, over the pixels valid in both and in every coded
-        coordinate, over sqrt 2 (0 without a sensor)."""
+        decodes with different seeds over :attr:`noise_pixels`, in every coded coordinate,
+        over sqrt 2 (0 without a sensor)."""
         if self.twin is None:
             return 0.0
-        both = self.decoding.valid & self.twin.valid
         axes = coded_axes(self.scene)
-        diff = (self.decoding.uv - self.twin.uv)[both][:, axes]
+        diff = (self.decoding.uv - self.twin.uv)[self.noise_pixels][:, axes]
         return float(np.std(diff) / math.sqrt(2.0)) if diff.size else math.nan
 
     @property
     def noise_floor_mm(self) -> float:
         """The largest shift noise alone makes: the largest difference of the two decodes
-        (0 without a sensor)."""
+        over :attr:`noise_pixels` (0 without a sensor)."""
         if self.twin is None:
             return 0.0
-        both = self.decoding.valid & self.twin.valid
-        diff = np.abs(self.decoding.uv - self.twin.uv)[both][:, coded_axes(self.scene)]
+        diff = np.abs(self.decoding.uv - self.twin.uv)[self.noise_pixels]
+        diff = diff[:, coded_axes(self.scene)]
         return float(diff.max()) if diff.size else math.nan
 
 
@@ -533,13 +548,27 @@ class PmdMaps:
     recorded: np.ndarray
 
 
+def interior(seen: np.ndarray) -> np.ndarray:
+    """The pixels of ``seen`` whose eight neighbours see the screen too. A pixel on the
+    edge of what sees the screen straddles it: with several rays per pixel its exact
+    screen point is the mean of the rays that reach the screen, and the least move of
+    the screen's edge across its footprint (a dent's faint tail) changes which rays those
+    are and jumps its mean by a share of the footprint. Its move is not the dent's."""
+    from scipy.ndimage import binary_erosion
+
+    return binary_erosion(seen, structure=np.ones((3, 3), bool), border_value=1)
+
+
 def dent_region(scene: Scene, exact0: np.ndarray, exact1: np.ndarray) -> np.ndarray:
-    """Where, inside its window, the dent moves the exact screen points by at least
-    :data:`REGION_SHARE` of its largest move."""
+    """Where, inside its window and inside what sees the screen (:func:`interior`), the
+    dent moves the exact screen points by at least :data:`REGION_SHARE` of its largest
+    move."""
     window = dent_window(scene, exact0.shape[:2])
     axes = coded_axes(scene)
     moved = np.linalg.norm((exact1 - exact0)[..., axes], axis=-1)
-    moved = np.where(window & np.isfinite(moved), moved, 0.0)
+    seen = np.all(np.isfinite(exact0[..., axes]), axis=-1)
+    seen &= np.all(np.isfinite(exact1[..., axes]), axis=-1)
+    moved = np.where(window & interior(seen), moved, 0.0)
     peak = float(moved.max()) if moved.size else 0.0
     if peak <= 0.0:
         return np.zeros(moved.shape, bool)
@@ -584,7 +613,9 @@ def _result(scene, baseline, shot, recorded, decoding, slopes, heights, seconds)
     base = baseline.decoding
     failed = failures(decoding.uv, shot.uv, scene)
     failed0 = failures(base.uv, baseline.capture.uv, scene)
-    both = decoding.valid & base.valid & ~failed & ~failed0
+    # the pixels valid in both decodes and not on their edge (:func:`interior`: a pixel
+    # straddling the edge of the valid region mixes the screen with the curtain)
+    both = interior(decoding.valid & base.valid) & ~failed & ~failed0
     shift = np.linalg.norm((decoding.uv - base.uv)[..., axes], axis=-1)
     shift_mm = float(shift[both].max()) if both.any() else math.nan
     noise = baseline.noise_mm
@@ -603,7 +634,7 @@ def _result(scene, baseline, shot, recorded, decoding, slopes, heights, seconds)
         pmd_noise_mm=noise,
         pmd_noise_floor_mm=baseline.noise_floor_mm,
         pmd_noise_predicted_mm=predicted_noise_mm(
-            baseline.scene, base, base.valid & (baseline.twin.valid if baseline.twin else True)
+            baseline.scene, base, baseline.noise_pixels if baseline.twin else base.valid
         ),
         pmd_snr=shift_mm / noise if noise > 0 else math.inf,
         pmd_slope_urad=slope_urad,
@@ -700,7 +731,7 @@ def _pmd_edge(scene: Scene, region: np.ndarray, shot: Capture) -> Status:
         )
     if coverage is not None and coverage.dent_at_edge:
         return Status("edge", "the dent's region reaches the height map's edge")
-    seen = np.all(np.isfinite(shot.uv), axis=-1)
+    seen = interior(np.all(np.isfinite(shot.uv), axis=-1))  # its edge pixels straddle it
     where = touches_edge(region, seen)
     return Status("edge", f"the dent's region touches {where}") if where else Status()
 

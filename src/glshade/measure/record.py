@@ -219,12 +219,14 @@ class PmdMeasurement:
     pmd_shift_mm: float | None = column(
         "mm",
         "the largest distance between the decoded screen points with and without the dent, "
-        "over the pixels valid in both (unwrapping failures left out)",
+        "over the pixels valid in both and not on the edge of that region (unwrapping "
+        "failures left out)",
     )
     pmd_noise_mm: float | None = column(
         "mm",
         "the decoded coordinate's noise: the standard deviation of the difference of two "
-        "decodes of the defect-free scene with different seeds, over sqrt 2 (0 without a "
+        "decodes of the defect-free scene with different seeds, over sqrt 2, over the pixels "
+        "valid in both, off that region's edge and unwrapped right in both (0 without a "
         "sensor)",
     )
     pmd_noise_predicted_mm: float | None = column(
@@ -234,8 +236,8 @@ class PmdMeasurement:
     )
     pmd_noise_floor_mm: float | None = column(
         "mm",
-        "the largest difference between the two noisy decodes of the defect-free scene: the "
-        "shift noise alone makes (0 without a sensor)",
+        "the largest difference between the two noisy decodes of the defect-free scene over "
+        "the same pixels: the shift noise alone makes (0 without a sensor)",
     )
     pmd_snr: float | None = column(
         "",
