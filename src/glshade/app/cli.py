@@ -37,6 +37,12 @@ from glshade.app.args import (
     warn,
 )
 from glshade.app.cli_coding import add_coding
+from glshade.app.cli_paper_pmd import (
+    add_pmd_paper_flags,
+    check_method_flags,
+    cmd_paper_pmd,
+    pmd_plan,
+)
 from glshade.app.cli_sweep import add_optimize, add_sweep
 from glshade.errors import GlshadeError, ShaderCompileError
 from glshade.files import atomic_write_bytes, check_output
@@ -352,7 +358,9 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
         "report.md. "
         "Rerunning with the same --out resumes: finished cases are skipped. The directory is "
         "locked while a run "
-        "uses it; one that holds a study with another plan is refused unless --overwrite.",
+        "uses it; one that holds a study with another plan is refused unless --overwrite. "
+        "--method pmd measures the same cases with a phase-measuring station and writes "
+        "pmd_results.csv, pmd_report.md and pmd_*.png beside the stripe study (docs/study.md).",
     )
     p.add_argument(
         "--overwrite",
@@ -408,6 +416,7 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--device", type=int, metavar="N", help="EGL device index")
+    add_pmd_paper_flags(p)
     p.set_defaults(run=_cmd_paper)
 
 
@@ -417,6 +426,7 @@ def _cmd_paper(args: argparse.Namespace) -> int:
     from glshade.study.run import check_workers
 
     check_workers(args.workers)  # before --out is touched
+    check_method_flags(args)
     metric = metric_settings(args)
     surfaces = tuple(part.strip() for part in args.surfaces.split(",") if part.strip())
     plan = study.StudyPlan(
@@ -427,6 +437,10 @@ def _cmd_paper(args: argparse.Namespace) -> int:
         size=args.size,
         metric=metric,
     )
+    if args.method == "pmd":
+        pmd = pmd_plan(args, plan)  # bad input is refused before --out is touched
+        with run_lock(args.out):
+            return cmd_paper_pmd(args, plan, pmd, _run_paper)
     warn(
         tuple(
             line

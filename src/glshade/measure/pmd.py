@@ -448,7 +448,8 @@ class PmdBaseline:
         if self.twin is None:
             return np.zeros(window.shape, bool)
         exact = self.capture.uv
-        both = window & self.decoding.valid & self.twin.valid
+        # off the edge of the valid region too (:func:`interior`), as the dent's shift
+        both = window & interior(self.decoding.valid & self.twin.valid)
         both &= ~failures(self.decoding.uv, exact, self.scene)
         return both & ~failures(self.twin.uv, exact, self.scene)
 

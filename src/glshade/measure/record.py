@@ -62,8 +62,9 @@ PARSE: dict[str, Callable[[Any], Any]] = {
 
 class Record:
     """What every result record shares: its columns are its own dataclass's fields (a
-    subclass that adds fields, a study's row, keeps its record's columns), each typed
-    whatever it was read from (JSON, CSV text, NumPy), and read back from a row."""
+    subclass that adds fields, a study's row, keeps its record's columns); every field,
+    a subclass's too, is typed whatever it was read from (JSON, CSV text, NumPy); a record
+    reads back from a row."""
 
     #: Set on each record class: its own fields are the record's columns.
     record: ClassVar[bool] = False
@@ -75,8 +76,7 @@ class Record:
         return _columns(owner)
 
     def __post_init__(self) -> None:
-        for column_ in self.columns():
-            item = next(f for f in fields(self) if f.name == column_.name)  # type: ignore[arg-type]
+        for item in fields(self):  # type: ignore[arg-type]
             kind = item.type if isinstance(item.type, str) else item.type.__name__
             object.__setattr__(self, item.name, PARSE[kind](getattr(self, item.name)))
 
@@ -261,18 +261,20 @@ class PmdMeasurement(Record):
     pmd_noise_mm: float | None = column(
         "mm",
         "the decoded coordinate's noise: the standard deviation of the difference of two "
-        "decodes of the defect-free scene with different seeds, over sqrt 2 (0 without a "
-        "sensor)",
+        "decodes of the defect-free scene with different seeds, over sqrt 2, over the pixels "
+        "near the dent valid in both, off that region's edge and unwrapped right in both (0 "
+        "without a sensor)",
     )
     pmd_noise_predicted_mm: float | None = column(
         "mm",
         "periods[0] / 2π · sqrt(2 / N) · σ_I / B, σ_I the sensor's noise at each pixel's mean "
-        "level and B its modulation, pooled as a root mean square (0 without a sensor)",
+        "level and B its modulation, pooled as a root mean square over the same pixels (0 "
+        "without a sensor)",
     )
     pmd_noise_floor_mm: float | None = column(
         "mm",
-        "the largest difference between the two noisy decodes of the defect-free scene: the "
-        "shift noise alone makes (0 without a sensor)",
+        "the largest difference between the two noisy decodes of the defect-free scene over "
+        "the same pixels: the shift noise alone makes (0 without a sensor)",
     )
     pmd_snr: float | None = column(
         "",

@@ -102,6 +102,20 @@ def _table(rows: Sequence[Mapping]) -> dict:
 
 
 @dataclass(frozen=True)
+class Scale:
+    """How a metric's values read in the verdicts: its unit (`` px``: a space, then the
+    unit; ``""`` for a ratio) and the formats of a mean over θ and of one value."""
+
+    unit: str = " px"
+    mean: str = "{:.1f}"
+    value: str = "{:.2f}"
+
+
+#: The scale of the paper's metric and its limit (pixels of the image).
+PIXELS = Scale()
+
+
+@dataclass(frozen=True)
 class _Grid:
     """The rows of a study as a grid: its axes, and ``value(s, t, v, d)`` of one metric."""
 
@@ -111,6 +125,7 @@ class _Grid:
     thetas: list[float]
     table: dict
     metric: str
+    scale: Scale = PIXELS
 
     def has(self, s, t, v, d) -> bool:
         return (s, t, v, d) in self.table
@@ -119,10 +134,16 @@ class _Grid:
         return self.table[(s, t, v, d)][self.metric]
 
 
-def evaluate(rows: Sequence[Mapping]) -> list[Verdict]:
+def evaluate(
+    rows: Sequence[Mapping],
+    metrics: Mapping[str, str] = METRICS,
+    scales: Mapping[str, Scale] | None = None,
+) -> list[Verdict]:
     """Every verdict the rows support (a finding needs its σ², depths and ≥ 3 θ). A row is
     a :class:`~glshade.study.store.CaseResult` or any mapping of its columns (the
-    functions here read rows by column name)."""
+    functions here read rows by column name). ``metrics``: the columns judged and their
+    names in the verdicts (the paper's metric and its limit by default); ``scales``: how
+    each reads (pixels by default)."""
     rows, _ = split_measurable(rows)
     out: list[Verdict] = []
     if not rows:
@@ -131,9 +152,15 @@ def evaluate(rows: Sequence[Mapping]) -> list[Verdict]:
         list(dict.fromkeys(r[key] for r in rows))
         for key in ("surface", "dmax_mm", "sigma2_mm2", "theta_deg")
     ]
-    for metric, metric_name in METRICS.items():
+    for metric, metric_name in metrics.items():
         grid = _Grid(
-            axes[0], sorted(axes[1]), sorted(axes[2]), sorted(axes[3]), _table(rows), metric
+            axes[0],
+            sorted(axes[1]),
+            sorted(axes[2]),
+            sorted(axes[3]),
+            _table(rows),
+            metric,
+            (scales or {}).get(metric, PIXELS),
         )
         found = (
             _deeper(grid, metric_name)
@@ -197,7 +224,8 @@ def _wider(g: _Grid, metric_name: str) -> list[Verdict]:
             rho = spearman(sigma2s, means)
             strictly = all(a > b for a, b in pairwise(means))
             verdict = HOLDS if strictly else PARTLY if rho <= -0.8 else NOT
-            shown = ", ".join(f"σ² {v:g}: {m:.1f}" for v, m in kept)
+            mean, unit = g.scale.mean, g.scale.unit
+            shown = ", ".join(f"σ² {v:g}: {mean.format(m)}" for v, m in kept)
             change = means[-1] / means[0] - 1 if means[0] > 0 else 0.0
             out.append(
                 Verdict(
@@ -205,9 +233,9 @@ def _wider(g: _Grid, metric_name: str) -> list[Verdict]:
                     f"{surface_label(s)}, dmax {um(d)}",
                     metric_name,
                     verdict,
-                    f"mean over θ {shown} px; Spearman ρ = {rho:.2f}",
-                    f"{verdict}: σ² {sigma2s[0]:g} → {sigma2s[-1]:g} mean {means[0]:.1f} → "
-                    f"{means[-1]:.1f} px ({change:+.0%})",
+                    f"mean over θ {shown}{unit}; Spearman ρ = {rho:.2f}",
+                    f"{verdict}: σ² {sigma2s[0]:g} → {sigma2s[-1]:g} mean {mean.format(means[0])} "
+                    f"→ {mean.format(means[-1])}{unit} ({change:+.0%})",
                 )
             )
     return out
@@ -279,11 +307,12 @@ def _trend(g: _Grid, s: str, v: float, d: float, sign: float) -> _Trend | None:
             break
         steady_to = t
     folded = [t for t in ts if g.table[(s, t, v, d)].get("folded")]
+    fmt, unit = g.scale.value, g.scale.unit
     return _Trend(
         v,
         verdict,
-        f"σ² {v:g}: ρ(θ, visibility) = {rho:+.2f}, θ {ts[-1]:g} → {ts[0]:g}: {high:.2f} → "
-        f"{low:.2f} px ({change:+.0%})",
+        f"σ² {v:g}: ρ(θ, visibility) = {rho:+.2f}, θ {ts[-1]:g} → {ts[0]:g}: "
+        f"{fmt.format(high)} → {fmt.format(low)}{unit} ({change:+.0%})",
         change,
         ts[-1],
         ts[0],

@@ -43,3 +43,41 @@ def rewrite(out_dir: Path) -> Path:
             figures += [path for path in (grid, plot) if path in written or path.exists()]
     figures += [path for path in written if path not in figures]
     return findings.write_report(rows, out_dir, plan, figures)
+
+
+def stored_pmd_plan(out_dir: Path):
+    """The plan a PMD study in ``out_dir`` was run with (its ``pmd_study.json``)."""
+    from glshade.measure.pmd import PmdSettings
+    from glshade.study.pmd_plan import PmdChain, PmdStudyPlan
+
+    data = json.loads((Path(out_dir) / "pmd_study.json").read_text())
+    chain = dict(data["chain"])
+    chain["periods"] = tuple(chain.get("periods") or ())
+    chain["surface_periods"] = tuple(
+        (surface, tuple(periods))
+        for surface, periods in (chain.get("surface_periods") or {}).items()
+    )
+    cases = StudyPlan(
+        surfaces=tuple(data["surfaces"]),
+        thetas=tuple(data["thetas"]),
+        sigma2s=tuple(data["sigma2s"]),
+        dmaxs=tuple(data["dmaxs"]),
+        size=int(data["size"]),
+    )
+    return PmdStudyPlan(cases, PmdChain(**chain), PmdSettings(**data["settings"]))
+
+
+def rewrite_pmd(out_dir: Path) -> Path:
+    """The PMD study's figures and ``pmd_report.md`` again from ``pmd_study.json``,
+    ``pmd_results.csv`` and the stripe study's ``results.csv``, without measuring; returns
+    the report's path."""
+    from glshade.study import pmd_findings, pmd_plots, pmd_store
+
+    out_dir = Path(out_dir)
+    plan = stored_pmd_plan(out_dir)
+    rows = pmd_store.read_results_csv(out_dir / pmd_store.RESULTS_NAME)
+    paper = read_results_csv(out_dir / "results.csv")
+    size = stored_plan(out_dir).size if (out_dir / "study.json").exists() else None
+    image = (size, size) if size else None
+    figures = pmd_plots.write_pmd_figures(rows, paper, out_dir, plan, image)
+    return pmd_findings.write_pmd_report(rows, paper, out_dir, plan, figures, size)

@@ -37,9 +37,11 @@ def split_measurable(rows: Sequence[Mapping]) -> tuple[list[Mapping], list[Mappi
     return ok, [r for r in rows if not is_measurable(r)]
 
 
-def excluded_sentence(rows: Sequence[Mapping]) -> str | None:
+def excluded_sentence(
+    rows: Sequence[Mapping], texts: Mapping[str, str] = STATUS_TEXT
+) -> str | None:
     """ "3 of 18 cases not measurable: stripes unresolved (2), …", or None when every
-    row is measurable."""
+    row is measurable (``texts``: each status in the report's words)."""
     _, bad = split_measurable(rows)
     if not bad:
         return None
@@ -51,7 +53,7 @@ def excluded_sentence(rows: Sequence[Mapping]) -> str | None:
             - {""}
         )
         why = f"; {reasons[0]}" if len(reasons) == 1 else ""
-        parts.append(f"{STATUS_TEXT.get(status, status)} ({count}{why})")
+        parts.append(f"{texts.get(status, status)} ({count}{why})")
     return (
         f"{len(bad)} of {len(rows)} cases not measurable: {', '.join(parts)}. They are left "
         "out of the verdicts, the advice and the laws' comparison, and drawn as hollow grey "

@@ -23,7 +23,7 @@ from glshade.errors import GlshadeError
 from glshade.files import atomic_write_bytes
 from glshade.measure.locks import make_out_dir
 from glshade.measure.record import COLUMNS as RECORD_COLUMNS
-from glshade.measure.record import PARSE, Column, Measurement, columns_markdown
+from glshade.measure.record import Column, Measurement, columns_markdown
 from glshade.study.plan import PlanPoint, case_key
 
 
@@ -48,12 +48,6 @@ class CaseResult(Measurement, Mapping):
     period_mm: float = _point(
         "mm", "stripe period on the emitter (2 mm; 10 mm on the sphere, as in the paper)"
     )
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        for name in POINT_NAMES:  # typed whatever it was read from (JSON, CSV text)
-            kind = self.__dataclass_fields__[name].type
-            object.__setattr__(self, name, PARSE[str(kind)](getattr(self, name)))
 
     @classmethod
     def of_point(cls, point: PlanPoint, period_mm: float, record: Measurement) -> CaseResult:
@@ -165,8 +159,29 @@ STUDY_FILES = (
 )
 
 
-def prepare_out_dir(out_dir: Path, manifest_data: dict, overwrite: bool = False) -> list[Path]:
-    """Create (or reuse) the output directory and write its ``study.json``.
+@dataclass(frozen=True)
+class Layout:
+    """Where one kind of study keeps its files in an output directory: its manifest, its
+    case files' folder, the files ``--overwrite`` removes (glob patterns) and the manifest
+    keys that change each case's numbers (case files of a plan that differs only
+    elsewhere are reused). Two layouts share a directory without touching each other's
+    files: the paper's stripe study and its study under phase measuring."""
+
+    manifest: str = "study.json"
+    cases: str = "cases"
+    files: tuple[str, ...] = STUDY_FILES
+    comparable: tuple[str, ...] = ("size", "metric", "metric_version")
+
+
+#: The paper's stripe study (``glshade paper``).
+STRIPES = Layout()
+
+
+def prepare_out_dir(
+    out_dir: Path, manifest_data: dict, overwrite: bool = False, layout: Layout = STRIPES
+) -> list[Path]:
+    """Create (or reuse) the output directory and write its manifest (``study.json`` for
+    the stripe study, ``layout.manifest`` in general).
 
     A directory that holds a study with another plan (other surfaces, angles, dents,
     size or metric) is refused, so a subset rerun can never silently shrink
@@ -177,7 +192,7 @@ def prepare_out_dir(out_dir: Path, manifest_data: dict, overwrite: bool = False)
     out_dir = Path(out_dir)
     make_out_dir(out_dir)
     manifest_data = json.loads(json.dumps(manifest_data))  # as it reads back: lists, not tuples
-    manifest = out_dir / "study.json"
+    manifest = out_dir / layout.manifest
     stored = _with_metric_defaults(_read_manifest(manifest))
     removed: list[Path] = []
     if stored is not None and stored != manifest_data:
@@ -190,8 +205,9 @@ def prepare_out_dir(out_dir: Path, manifest_data: dict, overwrite: bool = False)
             )
         removed = _remove_stale(
             out_dir,
-            keep_cases=_comparable(stored) == _comparable(manifest_data),
+            keep_cases=_comparable(stored, layout) == _comparable(manifest_data, layout),
             cases=_plan_keys(manifest_data),
+            layout=layout,
         )
     atomic_write_bytes(manifest, json.dumps(manifest_data, indent=2).encode(), "--out")
     return removed
@@ -239,13 +255,15 @@ def _plan_keys(plan_dict: dict) -> set[str]:
     }
 
 
-def _remove_stale(out_dir: Path, keep_cases: bool, cases: set[str]) -> list[Path]:
+def _remove_stale(
+    out_dir: Path, keep_cases: bool, cases: set[str], layout: Layout = STRIPES
+) -> list[Path]:
     """Remove what ``--overwrite`` replaces: the old study's figures, tables and report,
     and its case files that the new plan cannot reuse."""
     doomed = [
-        path for pattern in STUDY_FILES for path in sorted(out_dir.glob(pattern)) if path.is_file()
+        path for pattern in layout.files for path in sorted(out_dir.glob(pattern)) if path.is_file()
     ]
-    for path in sorted((out_dir / "cases").glob("*")):
+    for path in sorted((out_dir / layout.cases).glob("*")):
         reusable = keep_cases and path.stem in cases
         if path.suffix in (".json", ".png") and path.is_file() and not reusable:
             doomed.append(path)
@@ -254,6 +272,6 @@ def _remove_stale(out_dir: Path, keep_cases: bool, cases: set[str]) -> list[Path
     return doomed
 
 
-def _comparable(plan_dict: dict) -> dict:
+def _comparable(plan_dict: dict, layout: Layout = STRIPES) -> dict:
     """The settings that change each case's numbers (the case lists may differ)."""
-    return {k: plan_dict.get(k) for k in ("size", "metric", "metric_version")}
+    return {k: plan_dict.get(k) for k in layout.comparable}

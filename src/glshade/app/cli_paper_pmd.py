@@ -1,0 +1,222 @@
+"""``glshade paper --method pmd``: the paper's study measured by a phase-measuring
+deflectometry station (docs/study.md, "The study under phase measuring"). Its flags are
+added to ``glshade paper``'s parser here; a flag of one instrument given to the other is
+refused in one line (exit 2) before anything is written."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from glshade.app.args import metric_flags_given, param_type, warn
+from glshade.components.registry import registry
+from glshade.errors import GlshadeError
+from glshade.oracle.advice import scene_warnings
+from glshade.process import reuse_freed_memory
+
+#: The station's chain: flag -> (the scene parameter it sets, the study's default, what
+#: it is).
+CHAIN_FLAGS = {
+    "--supersample": ("render.supersample", 2, "rays per pixel side: the pixel's footprint"),
+    "--full-well": ("sensor.full_well_e", 10000.0, "the sensor's full well, electrons"),
+    "--read-noise": ("sensor.read_noise_e", 5.0, "the sensor's read noise, electrons rms"),
+    "--bit-depth": ("sensor.bit_depth", 12, "the sensor's bits: 8, 10, 12 or 16"),
+    "--seed": ("sensor.seed", 0, "the seed of the sensor's noise"),
+    "--shifts": ("emitter.shifts", 4, "phase steps per fringe period, at least 3"),
+}
+#: The chain's fields, by flag.
+CHAIN_FIELDS = {
+    "--supersample": "supersample",
+    "--full-well": "full_well_e",
+    "--read-noise": "read_noise_e",
+    "--bit-depth": "bit_depth",
+    "--seed": "seed",
+    "--shifts": "shifts",
+}
+#: The PMD-only flags that are not the chain's: flag -> destination.
+OTHER_FLAGS = {
+    "--periods": "periods",
+    "--modulation-share": "modulation_share",
+    "--heights": "heights",
+}
+
+
+def _dest(flag: str) -> str:
+    return "pmd_" + flag.lstrip("-").replace("-", "_")
+
+
+def add_pmd_paper_flags(p: argparse.ArgumentParser) -> None:
+    """``--method`` and the station's flags on ``glshade paper``."""
+    p.add_argument(
+        "--method",
+        choices=("paper", "pmd"),
+        default="paper",
+        help="the instrument: paper (binarised stripe edges, the default) or pmd (a "
+        "phase-measuring station: writes pmd_results.csv, pmd_report.md and pmd_*.png beside "
+        "the stripe study, running that first where --out has no results.csv)",
+    )
+    group = p.add_argument_group("phase measuring (--method pmd only)")
+    for flag, (path, default, meaning) in CHAIN_FLAGS.items():
+        param = registry().param(path)
+        group.add_argument(
+            flag,
+            dest=_dest(flag),
+            type=param_type(param),
+            metavar="N" if param.value_type == "integer" else "X",
+            help=f"{meaning} ({path}; default {default:g})",
+        )
+    group.add_argument(
+        "--periods",
+        dest=_dest("--periods"),
+        action="append",
+        metavar="[SURFACE=]LIST",
+        help="fringe periods in mm, finest first, the coarsest at least the screen's 300 mm: "
+        "of every surface (2,16,128,1024), or of one (sphere=10,80,640); repeatable. Default: "
+        "the finest is the shortest whole mm, at least 2, that spans 3 pixels at every theta "
+        "(at 1024 px: 2 mm, 10 mm on the sphere), each period 8 times the one before",
+    )
+    group.add_argument(
+        "--modulation-share",
+        dest=_dest("--modulation-share"),
+        type=float,
+        metavar="X",
+        help="a pixel is valid where every period's modulation is at least X times the "
+        "amplitude times the brightest pixel's response (default 0.3 in the study)",
+    )
+    group.add_argument(
+        "--heights",
+        dest=_dest("--heights"),
+        choices=("least-squares", "frankot-chellappa"),
+        help="how slopes are integrated into heights (default least-squares)",
+    )
+
+
+def pmd_flags_given(args: argparse.Namespace) -> list[str]:
+    """The station's flags the command line set."""
+    flags = [*CHAIN_FLAGS, *OTHER_FLAGS]
+    return [flag for flag in flags if getattr(args, _dest(flag), None) is not None]
+
+
+def check_method_flags(args: argparse.Namespace) -> None:
+    """Refuse, in one line, a flag of one instrument given to the other."""
+    if args.method != "pmd":
+        for flag in pmd_flags_given(args):
+            raise GlshadeError(f"{flag}: belongs to --method pmd (the phase-measuring station)")
+        return
+    for flag in metric_flags_given(args):
+        raise GlshadeError(
+            f"{flag}: belongs to the paper's stripe metric, not to --method pmd (run "
+            "'glshade paper' with it first: --method pmd reads its results.csv)"
+        )
+
+
+def _parse_periods(given: list[str] | None) -> tuple[tuple, tuple]:
+    """``--periods`` values: ``(every surface's, ((surface, periods), ...))``."""
+    every: tuple = ()
+    named: dict[str, tuple] = {}
+    parse = registry().param("emitter.periods").parse
+    for text in given or ():
+        surface, _, values = text.rpartition("=")
+        try:
+            periods = tuple(float(p) for p in parse(values))
+        except GlshadeError as exc:
+            raise GlshadeError(f"--periods {text}: {exc}") from None
+        if surface:
+            named[surface.strip()] = periods
+        else:
+            every = periods
+    return every, tuple(named.items())
+
+
+def pmd_plan(args: argparse.Namespace, cases_plan):
+    """The :class:`~glshade.study.pmd_plan.PmdStudyPlan` of the command line."""
+    from glshade.measure.pmd import PmdSettings
+    from glshade.study.pmd_plan import MODULATION_SHARE, PmdChain, PmdStudyPlan
+
+    chain_values = {
+        CHAIN_FIELDS[flag]: getattr(args, _dest(flag))
+        for flag in CHAIN_FLAGS
+        if getattr(args, _dest(flag)) is not None
+    }
+    every, named = _parse_periods(getattr(args, _dest("--periods")))
+    unknown = sorted(set(dict(named)) - {_label(s) for s in cases_plan.surfaces})
+    if unknown:
+        raise GlshadeError(
+            f"--periods {unknown[0]}=...: not a surface of this study (its surfaces: "
+            f"{', '.join(_label(s) for s in cases_plan.surfaces)})"
+        )
+    share = getattr(args, _dest("--modulation-share"))
+    settings = {
+        "modulation_share": MODULATION_SHARE if share is None else share,
+        "heights": getattr(args, _dest("--heights")),
+    }
+    try:
+        settings_obj = PmdSettings(**{k: v for k, v in settings.items() if v is not None})
+    except GlshadeError as exc:
+        raise GlshadeError(f"--{str(exc).replace('_', '-')}") from None
+    chain = PmdChain(**chain_values, periods=every, surface_periods=named)
+    try:
+        return PmdStudyPlan(cases_plan, chain, settings_obj)
+    except GlshadeError as exc:
+        raise GlshadeError(f"--method pmd: {exc}") from None
+
+
+def _label(surface: str) -> str:
+    from glshade.study.plan import surface_label
+
+    return surface_label(surface)
+
+
+def cmd_paper_pmd(args: argparse.Namespace, cases_plan, plan, run_stripes) -> int:
+    """``glshade paper --method pmd`` with ``--out`` locked: the stripe study of
+    ``cases_plan`` first where ``--out`` has no ``results.csv`` (``run_stripes(args,
+    cases_plan)``, resumable), then the PMD study ``plan`` (:func:`pmd_plan`), its figures
+    and its report."""
+    from glshade.gpu.context import GLContext
+    from glshade.gpu.renderer import Renderer
+    from glshade.study.pmd_findings import write_pmd_report
+    from glshade.study.pmd_plots import write_pmd_figures
+    from glshade.study.pmd_run import run_pmd_study
+    from glshade.study.pmd_store import RESULTS_NAME
+    from glshade.study.store import read_results_csv
+
+    first = plan.scene(plan.surfaces[0], plan.thetas[0], plan.sigma2s[0], plan.dmaxs[0])
+    warn(scene_warnings(first))
+    out: Path = args.out
+    start = time.perf_counter()
+    if not (out / "results.csv").exists():
+        print(f"{out / 'results.csv'} is missing: running the stripe study first")
+        run_stripes(argparse.Namespace(**{**vars(args), "overwrite": False}), cases_plan)
+    paper_rows = read_results_csv(out / "results.csv")
+    reuse_freed_memory()
+    with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
+        result = run_pmd_study(
+            plan,
+            out,
+            renderer=renderer,
+            progress=not args.no_progress,
+            overwrite=args.overwrite,
+        )
+    paper_size = _paper_size(out)
+    image = (paper_size, paper_size) if paper_size else None
+    figures = write_pmd_figures(result.rows, paper_rows, out, plan, image)
+    report = write_pmd_report(
+        result.rows, paper_rows, out, plan, figures, paper_size, result.seconds, result.computed
+    )
+    print(
+        f"{result.computed} PMD cases computed, {result.skipped} resumed; wrote "
+        f"{out / RESULTS_NAME}, {len(figures)} figures and {report} in "
+        f"{time.perf_counter() - start:.1f} s"
+    )
+    return 0
+
+
+def _paper_size(out: Path) -> int | None:
+    """The stripe study's image size, from its manifest (None where unknown)."""
+    try:
+        size = json.loads((out / "study.json").read_text()).get("size")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return int(size) if isinstance(size, int) else None
