@@ -288,7 +288,8 @@ class PmdMeasurement(Record):
     pmd_depth_um: float | None = column(
         "µm",
         "the depth of the Gaussian fitted to the heights integrated from the slopes (positive "
-        "for a dent), to compare with dmax",
+        "for a dent), to compare with dmax; empty where the fit fails or lands where no dent "
+        "of these heights can be (beyond twice their range, or off the grid)",
     )
     pmd_sigma_mm: float | None = column(
         "mm", "the σ of that Gaussian, to compare with sqrt(sigma2)"
