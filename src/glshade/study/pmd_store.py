@@ -10,15 +10,13 @@ from __future__ import annotations
 import csv
 import io
 import json
-from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from glshade.files import atomic_write_bytes
-from glshade.measure.record import PMD_COLUMNS, Column, PmdMeasurement, columns_markdown
+from glshade.measure.record import Column, PmdMeasurement, columns_markdown
 from glshade.study.plan import PlanPoint, case_key
-from glshade.study.store import Layout
+from glshade.study.store import Layout, PlanRow, point_field
 
 #: The PMD study's files in an output directory (``--overwrite`` removes only these).
 PMD_LAYOUT = Layout(
@@ -31,76 +29,22 @@ RESULTS_NAME = "pmd_results.csv"
 REPORT_NAME = "pmd_report.md"
 
 
-def _point(unit: str, meaning: str) -> Any:
-    return field(metadata={"unit": unit, "meaning": meaning, "role": "case"})
-
-
 @dataclass(frozen=True)
-class PmdCaseResult(PmdMeasurement, Mapping):
+class PmdCaseResult(PlanRow, PmdMeasurement):
     """One case of the study under phase measuring: its point of the plan (surface, θ,
     σ², dmax, the finest fringe period) and what the station measured. Its columns, in
     order: :data:`PMD_STUDY_COLUMNS`; the row also reads as a mapping of them."""
 
-    surface: str = _point(
-        "",
-        "base surface: flat, cylinder (R 70 mm, axis in the plane of incidence), sphere "
-        "(R 70 mm), or the scene file of a free-form surface",
-    )
-    theta_deg: float = _point("deg", "camera elevation θ above the surface (90 = straight down)")
-    sigma2_mm2: float = _point("mm²", "variance σ² of the Gaussian dent (isotropic)")
-    dmax_mm: float = _point("mm", "depth of the dent (0.003 mm = 3 µm)")
-    period_mm: float = _point(
+    period_mm: float = point_field(
         "mm",
         "the finest fringe period on the screen: the shortest whole mm, at least 2, spanning 3 "
         "pixels at every θ (1024²: 2 mm; 10 mm on the sphere; docs/study.md)",
     )
 
-    @classmethod
-    def of_point(cls, point: PlanPoint, period_mm: float, record: PmdMeasurement) -> PmdCaseResult:
-        surface, theta, sigma2, dmax = point
-        return cls(
-            surface=surface,
-            theta_deg=theta,
-            sigma2_mm2=sigma2,
-            dmax_mm=dmax,
-            period_mm=period_mm,
-            **record.row(),
-        )
 
-    @classmethod
-    def from_row(cls, row: Mapping[str, Any]) -> PmdCaseResult:
-        """From a case file's object or a ``pmd_results.csv`` row (text); extra keys
-        ignored."""
-        return cls(**{name: row[name] for name in PMD_STUDY_CSV_COLUMNS})
-
-    @property
-    def case(self) -> PlanPoint:
-        return self.surface, self.theta_deg, self.sigma2_mm2, self.dmax_mm
-
-    def __getitem__(self, name: str) -> Any:
-        if name not in _NAMES:
-            raise KeyError(name)
-        return getattr(self, name)
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(PMD_STUDY_CSV_COLUMNS)
-
-    def __len__(self) -> int:
-        return len(PMD_STUDY_CSV_COLUMNS)
-
-
-POINT_NAMES = ("surface", "theta_deg", "sigma2_mm2", "dmax_mm", "period_mm")
 #: The columns of ``pmd_results.csv``: the case's point of the plan, then the record's.
-PMD_STUDY_COLUMNS: tuple[Column, ...] = (
-    *(
-        Column(f.name, f.metadata["unit"], f.metadata["meaning"], "case")
-        for f in fields(PmdCaseResult)
-        if f.name in POINT_NAMES
-    ),
-    *PMD_COLUMNS,
-)
+PMD_STUDY_COLUMNS: tuple[Column, ...] = PmdCaseResult.table_columns()
 PMD_STUDY_CSV_COLUMNS = [c.name for c in PMD_STUDY_COLUMNS]
-_NAMES = frozenset(PMD_STUDY_CSV_COLUMNS)
 
 
 def pmd_results_markdown() -> str:
@@ -119,7 +63,7 @@ def load_case(path: Path) -> PmdCaseResult | None:
         row = json.loads(Path(path).read_text())
     except (OSError, ValueError):
         return None
-    if not isinstance(row, dict) or not _NAMES <= set(row):
+    if not isinstance(row, dict) or not set(PMD_STUDY_CSV_COLUMNS) <= set(row):
         return None
     try:
         return PmdCaseResult.from_row(row)

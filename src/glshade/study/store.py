@@ -12,6 +12,7 @@ from the case files; its columns are :data:`COLUMNS` (documented in ``docs/resul
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import json
 from collections.abc import Iterator, Mapping
@@ -22,39 +23,47 @@ from typing import Any
 from glshade.errors import GlshadeError
 from glshade.files import atomic_write_bytes
 from glshade.measure.locks import make_out_dir
-from glshade.measure.record import COLUMNS as RECORD_COLUMNS
 from glshade.measure.record import Column, Measurement, columns_markdown
 from glshade.study.plan import PlanPoint, case_key
 
 
-def _point(unit: str, meaning: str) -> Any:
+def point_field(unit: str, meaning: str) -> Any:
+    """A study row's field of the case's point of the plan, with its unit and meaning."""
     return field(metadata={"unit": unit, "meaning": meaning, "role": "case"})
 
 
-@dataclass(frozen=True)
-class CaseResult(Measurement, Mapping):
-    """One case of the study: its point of the plan (surface, θ, σ², dmax, the stripe
-    period) and its :class:`~glshade.measure.record.Measurement`. Its columns, in order:
-    :data:`COLUMNS`; the row also reads as a mapping of them."""
+POINT_NAMES = ("surface", "theta_deg", "sigma2_mm2", "dmax_mm", "period_mm")
 
-    surface: str = _point(
+
+@dataclass(frozen=True)
+class PlanRow(Mapping):
+    """A study's row: the case's point of the plan (the fields :data:`POINT_NAMES`; each
+    row class declares ``period_mm``, its own period), then its record's columns
+    (:meth:`Record.columns <glshade.measure.record.Record.columns>`). It reads as a
+    mapping of those columns, in order (:meth:`table_columns`)."""
+
+    surface: str = point_field(
         "",
         "base surface: flat, cylinder (R 70 mm, axis in the plane of incidence), sphere "
         "(R 70 mm), or the scene file of a free-form surface",
     )
-    theta_deg: float = _point("deg", "camera elevation θ above the surface (90 = straight down)")
-    sigma2_mm2: float = _point("mm²", "variance σ² of the Gaussian dent (isotropic)")
-    dmax_mm: float = _point("mm", "depth of the dent (0.003 mm = 3 µm)")
-    period_mm: float = _point(
-        "mm", "stripe period on the emitter (2 mm; 10 mm on the sphere, as in the paper)"
+    theta_deg: float = point_field(
+        "deg", "camera elevation θ above the surface (90 = straight down)"
     )
+    sigma2_mm2: float = point_field("mm²", "variance σ² of the Gaussian dent (isotropic)")
+    dmax_mm: float = point_field("mm", "depth of the dent (0.003 mm = 3 µm)")
 
     @classmethod
-    def of_point(cls, point: PlanPoint, period_mm: float, record: Measurement) -> CaseResult:
+    def table_columns(cls) -> tuple[Column, ...]:
+        """The row's columns: the point's, then the record's."""
+        return _table_columns(cls)
+
+    @classmethod
+    def of_point(cls, point: PlanPoint, period_mm: float, record: Any) -> Any:
         """A case's row: its point of the plan and its record."""
         surface, theta, sigma2, dmax = point
         return cls(
-            surface=surface,
+            surface=surface,  # type: ignore[call-arg]
             theta_deg=theta,
             sigma2_mm2=sigma2,
             dmax_mm=dmax,
@@ -63,9 +72,9 @@ class CaseResult(Measurement, Mapping):
         )
 
     @classmethod
-    def from_row(cls, row: Mapping[str, Any]) -> CaseResult:
-        """From a case file's object or a ``results.csv`` row (text); extra keys ignored."""
-        return cls(**{name: row[name] for name in CSV_COLUMNS})
+    def from_row(cls, row: Mapping[str, Any]) -> Any:
+        """From a case file's object or a table's row (text); extra keys ignored."""
+        return cls(**{c.name: row[c.name] for c in cls.table_columns()})
 
     @property
     def case(self) -> PlanPoint:
@@ -74,29 +83,46 @@ class CaseResult(Measurement, Mapping):
 
     # ------------------------------------------------------------ mapping of the columns
     def __getitem__(self, name: str) -> Any:
-        if name not in _NAMES:
+        if name not in _names(type(self)):
             raise KeyError(name)
         return getattr(self, name)
 
     def __iter__(self) -> Iterator[str]:
-        return iter(CSV_COLUMNS)
+        return iter(c.name for c in self.table_columns())
 
     def __len__(self) -> int:
-        return len(CSV_COLUMNS)
+        return len(self.table_columns())
 
 
-POINT_NAMES = ("surface", "theta_deg", "sigma2_mm2", "dmax_mm", "period_mm")
+@functools.cache
+def _table_columns(row_class: Any) -> tuple[Column, ...]:
+    point = [f for f in fields(row_class) if f.name in POINT_NAMES]
+    point.sort(key=lambda f: POINT_NAMES.index(f.name))
+    return (
+        *(Column(f.name, f.metadata["unit"], f.metadata["meaning"], "case") for f in point),
+        *row_class.columns(),
+    )
+
+
+@functools.cache
+def _names(row_class: Any) -> frozenset[str]:
+    return frozenset(c.name for c in _table_columns(row_class))
+
+
+@dataclass(frozen=True)
+class CaseResult(PlanRow, Measurement):
+    """One case of the study: its point of the plan (surface, θ, σ², dmax, the stripe
+    period) and its :class:`~glshade.measure.record.Measurement`. Its columns, in order:
+    :data:`COLUMNS`; the row also reads as a mapping of them."""
+
+    period_mm: float = point_field(
+        "mm", "stripe period on the emitter (2 mm; 10 mm on the sphere, as in the paper)"
+    )
+
+
 #: The columns of ``results.csv``: the case's point of the plan, then the record's.
-COLUMNS: tuple[Column, ...] = (
-    *(
-        Column(f.name, f.metadata["unit"], f.metadata["meaning"], "case")
-        for f in fields(CaseResult)
-        if f.name in POINT_NAMES
-    ),
-    *RECORD_COLUMNS,
-)
+COLUMNS: tuple[Column, ...] = CaseResult.table_columns()
 CSV_COLUMNS = [c.name for c in COLUMNS]
-_NAMES = frozenset(CSV_COLUMNS)
 
 
 def results_markdown() -> str:
@@ -112,7 +138,7 @@ def load_case(path: Path) -> CaseResult | None:
         row = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
-    if not isinstance(row, dict) or not _NAMES <= set(row):
+    if not isinstance(row, dict) or not _names(CaseResult) <= set(row):
         return None
     try:
         return CaseResult.from_row(row)
