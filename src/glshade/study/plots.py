@@ -26,6 +26,20 @@ from glshade.study.store import CaseResult
 SURFACE_NAMES = {"flat": "flat plate", "cylinder": "cylinder, R 70 mm", "sphere": "sphere, R 70 mm"}
 
 
+def legend_outside(fig, axis, extra: list) -> None:
+    """The figure's legend right of its plots, outside the data: ``axis``'s lines, then
+    the ``extra`` handles (markers for folds, cases that cannot be read)."""
+    handles, labels = axis.get_legend_handles_labels()
+    fig.legend(
+        handles + extra,
+        labels + [h.get_label() for h in extra],
+        fontsize=9,
+        loc="center left",
+        bbox_to_anchor=(1.0, 0.5),
+        frameon=False,
+    )
+
+
 def surface_name(surface: str) -> str:
     """A surface as figure titles name it: the paper's by name, a free-form one by its
     scene file and what the surface is."""
@@ -216,15 +230,7 @@ def visibility_plot(
     ]
     if excluded:
         extra.append(_not_measurable_handle())
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(
-        handles + extra,
-        labels + [h.get_label() for h in extra],
-        fontsize=9,
-        loc="center left",
-        bbox_to_anchor=(1.0, 0.5),
-        frameon=False,
-    )
+    legend_outside(fig, axes[0], extra)
     fig.suptitle(
         f"{surface_name(surface)}, dmax = {_um(dmax)}: visibility against the camera's elevation",
         fontsize=11,

@@ -18,6 +18,7 @@ from glshade.study.plan import surface_label
 from glshade.study.plots import (
     NOT_MEASURABLE,
     NOT_MEASURABLE_LABEL,
+    legend_outside,
     pixels_label,
     surface_colours,
     surface_name,
@@ -154,15 +155,7 @@ def visibility_plot(
         )
     if excluded:
         extra.append(_hollow_handle())
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(
-        handles + extra,
-        labels + [h.get_label() for h in extra],
-        fontsize=9,
-        loc="center left",
-        bbox_to_anchor=(1.0, 0.5),
-        frameon=False,
-    )
+    legend_outside(fig, axes[0], extra)
     fig.suptitle(
         f"{surface_name(surface)}, dmax = {dmax * 1000:g} µm: a PMD station against the "
         "camera's elevation, beside the paper's metric",
@@ -241,15 +234,7 @@ def depth_plot(pairs: Sequence[Pair], path: Path, surfaces, dmaxs) -> None:
         )
     if excluded:
         extra.append(_hollow_handle())
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(
-        handles + extra,
-        labels + [h.get_label() for h in extra],
-        fontsize=9,
-        loc="center left",
-        bbox_to_anchor=(1.0, 0.5),
-        frameon=False,
-    )
+    legend_outside(fig, axes[0, 0], extra)
     fig.suptitle(
         "The dent's depth as a PMD station reconstructs it (slopes integrated, a Gaussian "
         "fitted), against θ",
