@@ -7,14 +7,13 @@ of the plan, then the :class:`~glshade.measure.record.PmdMeasurement`), its case
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 from dataclasses import dataclass
 from pathlib import Path
 
 from glshade.files import atomic_write_bytes
 from glshade.measure.record import Column, PmdMeasurement, columns_markdown
+from glshade.study import store
 from glshade.study.plan import PlanPoint, case_key
 from glshade.study.store import Layout, PlanRow, point_field
 
@@ -77,15 +76,10 @@ def write_case(out_dir: Path, result: PmdCaseResult) -> None:
 
 
 def write_results_csv(path: Path, rows: list[PmdCaseResult]) -> None:
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=PMD_STUDY_CSV_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow(dict(row))
-    atomic_write_bytes(Path(path), buffer.getvalue().encode())
+    """``pmd_results.csv``, atomically (the studies' one writer)."""
+    store.write_results_csv(path, rows, PmdCaseResult)
 
 
 def read_results_csv(path: Path) -> list[PmdCaseResult]:
     """``pmd_results.csv`` back as typed records."""
-    with open(path, newline="") as fh:
-        return [PmdCaseResult.from_row(raw) for raw in csv.DictReader(fh)]
+    return store.read_results_csv(path, PmdCaseResult)

@@ -15,7 +15,7 @@ import csv
 import functools
 import io
 import json
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -157,19 +157,25 @@ def write_case(out_dir: Path, result: CaseResult, thumbnail: bytes | None) -> No
     )
 
 
-def write_results_csv(path: Path, rows: list[CaseResult]) -> None:
+def write_results_csv(path: Path, rows: Sequence[PlanRow], row_class: Any = None) -> None:
+    """A study's table, one row per case, its columns those of ``row_class`` (default:
+    the rows' own; :class:`CaseResult` for none), atomically."""
+    kind = row_class or (type(rows[0]) if rows else CaseResult)
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=CSV_COLUMNS, lineterminator="\n")
+    names = [c.name for c in kind.table_columns()]
+    writer = csv.DictWriter(buffer, fieldnames=names, lineterminator="\n")
     writer.writeheader()
     for row in rows:
         writer.writerow(dict(row))
     atomic_write_bytes(Path(path), buffer.getvalue().encode())
 
 
-def read_results_csv(path: Path) -> list[CaseResult]:
-    """``results.csv`` back as typed records."""
+def read_results_csv(path: Path, row_class: Any = None) -> list[Any]:
+    """A study's table back as typed rows of ``row_class`` (default :class:`CaseResult`,
+    ``results.csv``)."""
+    kind = row_class or CaseResult
     with open(path, newline="") as fh:
-        return [CaseResult.from_row(raw) for raw in csv.DictReader(fh)]
+        return [kind.from_row(raw) for raw in csv.DictReader(fh)]
 
 
 # --------------------------------------------------------------------------- output dir
