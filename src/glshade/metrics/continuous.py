@@ -42,10 +42,87 @@ class Deflection:
         return len(self.fold_columns) > 0
 
 
-def deflection(v0: np.ndarray, v1: np.ndarray, columns: slice) -> Deflection:
+@dataclass(frozen=True)
+class ColumnOrder:
+    """How the defect-free map runs down each kept column, once per geometry: ``direction``
+    (+1 increasing, -1 decreasing, 0 otherwise: with no-hit pixels or a turn), the rows per
+    mm of ``v`` beside each pixel (``rows_per_mm``: the larger of its two neighbouring
+    segments, inf where a segment is flat) and the pixels (``far``, flat indices of the
+    cut map) that a move of any size may carry far: those outside the longest monotonic
+    run of a column that turns."""
+
+    direction: np.ndarray
+    rows_per_mm: np.ndarray
+    far: np.ndarray
+
+
+def column_order(v0_cut: np.ndarray) -> ColumnOrder:
+    """:class:`ColumnOrder` of a cut defect-free map."""
+    a = np.asarray(v0_cut, np.float64)
+    height, width = a.shape
+    direction = _monotone_direction(a)
+    per_mm = np.zeros(a.shape, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        step = 1.0 / np.abs(np.diff(a, axis=0))
+        per_mm[1:] = step
+        per_mm[:-1] = np.fmax(per_mm[:-1], step)
+    per_mm[:, direction == 0] = 0.0
+    far = []
+    rows = np.arange(height)
+    for j in np.nonzero(direction == 0)[0]:
+        valid = np.isfinite(a[:, j])
+        if valid.sum() < 2:
+            continue
+        ra, va = rows[valid], a[valid, j]
+        run = slice(0, len(va))
+        gaps = np.diff(va)
+        if not (np.all(gaps > 0) or np.all(gaps < 0)):
+            run = _longest_monotonic(va)
+        outside = np.ones(len(va), bool)
+        outside[run] = False
+        far.append(ra[outside] * width + j)
+        ra, va = ra[run], va[run]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            local = np.diff(ra) / np.abs(np.diff(va))
+        beside = np.zeros(len(va))
+        beside[1:] = local
+        beside[:-1] = np.fmax(beside[:-1], local)
+        per_mm[ra, j] = beside
+    per_mm[np.isnan(per_mm)] = np.inf  # a flat segment: any move may carry far
+    return ColumnOrder(
+        direction=direction,
+        rows_per_mm=per_mm.astype(np.float32),
+        far=np.concatenate(far).astype(np.int64) if far else np.empty(0, np.int64),
+    )
+
+
+@dataclass(frozen=True)
+class Focus:
+    """Where the dent's continuous numbers are computed (cut-map coordinates): the
+    ``pixels`` searched (flat indices); the ``box`` outside which the dent moves the map so
+    little that it can turn a column only where ``fold_pairs`` (flat indices ``r * width +
+    c`` of row pairs (r, r + 1)) say the defect-free map is nearly flat. Every pixel not
+    searched is displaced by at most ``bound_px`` (its displacement map reads 0 there)."""
+
+    box: tuple[slice, slice]
+    pixels: np.ndarray
+    fold_pairs: np.ndarray
+    bound_px: float
+
+
+def deflection(
+    v0: np.ndarray,
+    v1: np.ndarray,
+    columns: slice,
+    focus: Focus | None = None,
+    order: ColumnOrder | None = None,
+) -> Deflection:
     """The displacement map (``deflection_px``, docs/study.md) and the folded columns.
 
-    Only pixels where ``v1`` differs from ``v0`` need a search: elsewhere ``r0 = r``.
+    Only pixels where ``v1`` differs from ``v0`` need a search: elsewhere ``r0 = r``. With a
+    ``focus`` only its box and pixels are searched (the rest reads 0): the caller checks
+    that its ``bound_px`` lies below what was found. ``order``: the defect-free map's
+    :func:`column_order` (its directions are found here when not given).
     """
     height, width = v0.shape
     dtype = np.result_type(
@@ -55,28 +132,46 @@ def deflection(v0: np.ndarray, v1: np.ndarray, columns: slice) -> Deflection:
     b = np.asarray(v1[:, columns], dtype)
     displacement = np.full((height, width), np.nan, np.float32)
     out = np.full(a.shape, np.nan, dtype)
-    out[np.isfinite(a) & (a == b)] = 0.0
-    changed = np.isfinite(b) & ~(a == b)
-    direction = _monotone_direction(a).astype(dtype)
-    regular = direction != 0
-    _inverse_regular(a * direction, b * direction, changed & regular[None, :], out)
-    rows = np.arange(height, dtype=np.float64)
-    for j in np.nonzero(changed.any(axis=0) & ~regular)[0]:
-        valid = np.isfinite(a[:, j])
-        if valid.sum() < 2:
-            continue
-        ra, va = rows[valid], a[valid, j]
-        step = np.diff(va)
-        if not (np.all(step > 0) or np.all(step < 0)):
-            keep = _longest_monotonic(va)  # the defect-free map should be monotonic
-            ra, va = ra[keep], va[keep]
-        if va[0] > va[-1]:
-            ra, va = ra[::-1], va[::-1]
-        target = changed[:, j] & (b[:, j] >= va[0]) & (b[:, j] <= va[-1])
-        out[target, j] = np.abs(rows[target] - np.interp(b[target, j], va, ra))
+    direction = order.direction if order is not None else _monotone_direction(a)
+    if focus is None:
+        out[np.isfinite(a) & (a == b)] = 0.0
+        targets = np.flatnonzero(np.isfinite(b) & ~(a == b))
+        folds = _against(a, b)
+    else:
+        out[np.isfinite(a)] = 0.0
+        targets = _focus_targets(a, b, focus, out)
+        folds = _focus_folds(a, b, focus)
+    rows, cols = np.divmod(targets, a.shape[1])
+    smooth = direction[cols] != 0
+    _inverse_regular(a, b, rows[smooth], cols[smooth], direction.astype(dtype), out)
+    _inverse_turning(a, b, rows[~smooth], cols[~smooth], out)
     value = float(np.nanmax(out)) if np.isfinite(out).any() else 0.0
     displacement[:, columns] = out
-    return Deflection(displacement, value, _against(a, b) + columns.start)
+    return Deflection(displacement, value, folds + columns.start)
+
+
+def _focus_targets(a: np.ndarray, b: np.ndarray, focus: Focus, out: np.ndarray) -> np.ndarray:
+    """Flat indices of the changed pixels of the focus (``out`` reset there as the full
+    search would find it: NaN, 0 where unchanged)."""
+    pixels = focus.pixels
+    pa, pb = a.ravel()[pixels], b.ravel()[pixels]
+    out.ravel()[pixels] = np.where(np.isfinite(pa) & (pa == pb), 0.0, np.nan)
+    return pixels[np.isfinite(pb) & ~(pa == pb)]  # a pixel listed twice is found twice alike
+
+
+def _focus_folds(a: np.ndarray, b: np.ndarray, focus: Focus) -> np.ndarray:
+    """:func:`_against` over the focus: its box (with the row pairs across its edges) and
+    the row pairs outside where the defect-free map is flat enough to turn."""
+    rows, cols = focus.box
+    grown = slice(max(rows.start - 1, 0), min(rows.stop + 1, a.shape[0]))
+    inside = _against(a[grown, cols], b[grown, cols]) + cols.start
+    pairs = focus.fold_pairs
+    r, c = np.divmod(pairs, a.shape[1])
+    flat_a, flat_b = a.ravel(), b.ravel()
+    below = (r + 1) * a.shape[1] + c
+    with np.errstate(invalid="ignore"):
+        turned = (flat_a[below] - flat_a[pairs]) * (flat_b[below] - flat_b[pairs]) < 0
+    return np.unique(np.concatenate([inside, c[turned]])).astype(np.int64)
 
 
 def _monotone_direction(v0: np.ndarray) -> np.ndarray:
@@ -90,41 +185,78 @@ def _monotone_direction(v0: np.ndarray) -> np.ndarray:
     return up.astype(np.float64) - down.astype(np.float64)
 
 
-def _inverse_regular(v0: np.ndarray, v1: np.ndarray, target: np.ndarray, out: np.ndarray) -> None:
-    """``|r - r0|`` with ``v0(r0) = v1(r)`` (linear between rows) at the ``target`` pixels
-    of columns where ``v0`` increases, written into ``out``.
+def _inverse_regular(
+    v0: np.ndarray,
+    v1: np.ndarray,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    direction: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """``|r - r0|`` with ``v0(r0) = v1(r)`` (linear between rows) at the target pixels
+    ``(rows, cols)`` of monotone columns (``direction`` ±1 per column: both maps are read
+    times it, so every column increases), written into ``out``.
 
     The first guess steps from ``r`` along the local slope; then the segment ``[k, k+1]``
     that brackets ``v1`` is found by stepping ``k`` (a nearly linear column needs one or
     two steps) and ``r0`` interpolated inside it: the same inverse as ``np.interp`` per
     column, vectorised.
     """
-    if not target.any():
+    if not len(rows):
         return
     height, width = v0.shape
-    rows, cols = np.divmod(np.flatnonzero(target), width)
     flat = v0.ravel()
-    want = v1[rows, cols]
-    inside = (want >= v0[0, cols]) & (want <= v0[-1, cols])
-    rows, cols, want = rows[inside], cols[inside], want[inside]
-    here = flat[rows * width + cols]
+    sign = direction[cols]
+    want = v1[rows, cols] * sign
+    inside = (want >= v0[0, cols] * sign) & (want <= v0[-1, cols] * sign)
+    rows, cols, want, sign = rows[inside], cols[inside], want[inside], sign[inside]
+    here = flat[rows * width + cols] * sign
     below = np.clip(rows - 1, 0, height - 1)
     above = np.clip(rows + 1, 0, height - 1)
-    slope = (flat[above * width + cols] - flat[below * width + cols]) / np.maximum(above - below, 1)
+    slope = (flat[above * width + cols] * sign - flat[below * width + cols] * sign) / np.maximum(
+        above - below, 1
+    )
     k = np.clip(np.floor(rows + (want - here) / slope), 0, height - 2).astype(np.int64)
     active = np.arange(len(k))
     for _ in range(height):
-        lo = flat[k[active] * width + cols[active]]
-        hi = flat[(k[active] + 1) * width + cols[active]]
+        lo = flat[k[active] * width + cols[active]] * sign[active]
+        hi = flat[(k[active] + 1) * width + cols[active]] * sign[active]
         step = (want[active] > hi).astype(np.int64) - (want[active] < lo).astype(np.int64)
         moving = step != 0
         if not moving.any():
             break
         active = active[moving]
         k[active] = np.clip(k[active] + step[moving], 0, height - 2)
-    lo = flat[k * width + cols]
-    hi = flat[(k + 1) * width + cols]
+    lo = flat[k * width + cols] * sign
+    hi = flat[(k + 1) * width + cols] * sign
     out[rows, cols] = np.abs(rows - (k + (want - lo) / (hi - lo)))
+
+
+def _inverse_turning(
+    v0: np.ndarray, v1: np.ndarray, rows: np.ndarray, cols: np.ndarray, out: np.ndarray
+) -> None:
+    """The same inverse in columns that are not monotone (no-hit pixels, a turn): per
+    column, on its finite pixels, or their longest monotonic run where the column turns."""
+    if not len(rows):
+        return
+    every = np.arange(v0.shape[0], dtype=np.float64)
+    by_column = np.argsort(cols, kind="stable")
+    rows, cols = rows[by_column], cols[by_column]
+    bounds = np.flatnonzero(np.diff(cols)) + 1
+    for r, j in zip(np.split(rows, bounds), cols[np.r_[0, bounds]], strict=True):
+        valid = np.isfinite(v0[:, j])
+        if valid.sum() < 2:
+            continue
+        ra, va = every[valid], v0[valid, j]
+        step = np.diff(va)
+        if not (np.all(step > 0) or np.all(step < 0)):
+            keep = _longest_monotonic(va)  # the defect-free map should be monotonic
+            ra, va = ra[keep], va[keep]
+        if va[0] > va[-1]:
+            ra, va = ra[::-1], va[::-1]
+        want = v1[r, j]
+        r = r[(want >= va[0]) & (want <= va[-1])]
+        out[r, j] = np.abs(every[r] - np.interp(v1[r, j], va, ra))
 
 
 def fold_columns(v0: np.ndarray, v1: np.ndarray, columns: slice) -> np.ndarray:
@@ -181,13 +313,19 @@ def visibility_limit(
     moved: Deflection,
     upsample: int = 4,
     phase_samples: int = 32,
+    focus: Focus | None = None,
 ) -> Limit:
     """``visibility_continuous_px`` (see the module docstring).
 
     ``valid``: pixels the contour metric may use (they see the emitter and resolve the
-    stripes); ``moved``: :func:`deflection` of the same maps.
+    stripes); ``moved``: :func:`deflection` of the same maps; ``focus``: the one it was
+    computed in (outside it the displacement is not looked at: the caller checks its
+    bound).
     """
-    outside = np.where(valid, moved.displacement_px, np.nan)
+    if focus is None:
+        outside = np.where(valid, moved.displacement_px, np.nan)
+    else:
+        outside = _in_focus(moved.displacement_px, valid, columns, focus)
     if not moved.folded:
         return Limit(float(np.nanmax(outside)) if np.isfinite(outside).any() else 0.0)
     window = _fold_window(v0, v1, columns, moved.fold_columns, stripes.period_mm)
@@ -198,6 +336,17 @@ def visibility_limit(
         v0[r0:r1, c0:c1], v1[r0:r1, c0:c1], valid[r0:r1, c0:c1], stripes, upsample, phase_samples
     )
     return Limit(max(inside, rest), phase, window)
+
+
+def _in_focus(
+    displacement: np.ndarray, valid: np.ndarray, columns: slice, focus: Focus
+) -> np.ndarray:
+    """The displacement where ``valid`` inside the focus, NaN elsewhere (image size)."""
+    out = np.full(displacement.shape, np.nan, displacement.dtype)
+    r, c = np.divmod(focus.pixels, columns.stop - columns.start)
+    c = c + columns.start
+    out[r, c] = np.where(valid[r, c], displacement[r, c], np.nan)
+    return out
 
 
 #: Rows where the dent moves the emitter map by less than this (pixels) are outside the

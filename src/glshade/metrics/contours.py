@@ -32,6 +32,9 @@ import cv2
 import numpy as np
 
 ISLAND, CUT, BORDER = 0, 1, 2
+#: The role of a label that names no stripe of this image (a defect image compared in the
+#: dent's region: the defect-free stripes the dent touched are relabelled there).
+UNUSED = 3
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
 
 
@@ -72,6 +75,25 @@ class StripeMap:
         """Pixels per label (made on first use: only overlap pairing needs it)."""
         return np.bincount(self.labels.ravel(), minlength=len(self.roles))
 
+    @property
+    def bearing(self) -> np.ndarray:
+        """Per label: True for a contour-bearing stripe (``CUT`` or ``BORDER``)."""
+        return (self.roles == CUT) | (self.roles == BORDER)
+
+    @cached_property
+    def extents(self) -> np.ndarray:
+        """Per label: its first row, last row + 1, first column, last column + 1 (int64,
+        shape (count + 1, 4); label 0 and absent labels hold an empty box)."""
+        size = len(self.roles)
+        box = np.empty((size, 4), np.int64)
+        box[:, 0] = box[:, 2] = np.iinfo(np.int64).max
+        box[:, 1] = box[:, 3] = np.iinfo(np.int64).min
+        np.minimum.at(box[:, 0], self.top.labels, self.top.rows)
+        np.maximum.at(box[:, 1], self.bottom.labels, self.bottom.rows + 1)
+        np.minimum.at(box[:, 2], self.top.labels, self.top.cols)
+        np.maximum.at(box[:, 3], self.top.labels, self.top.cols + 1)
+        return box
+
     def box(self, label: int) -> tuple[slice, slice]:
         """The rows and columns a stripe spans (from its runs)."""
         top, bottom = self.top.labels == label, self.bottom.labels == label
@@ -108,44 +130,68 @@ def find_stripes(binary: np.ndarray, edge: np.ndarray | None = None) -> StripeMa
     count, labels = cv2.connectedComponents(
         np.asarray(binary, np.uint8), connectivity=8, ltype=cv2.CV_32S
     )
+    if edge is None:
+        edge = np.zeros(labels.shape, bool)
+        edge[0] = edge[-1] = True
+    roles = _roles(labels, count, edge, (0, -1))
+    top, bottom = _run_ends(labels)
+    return StripeMap(labels=labels, roles=roles, top=top, bottom=bottom)
+
+
+def _roles(
+    labels: np.ndarray, count: int, edge: np.ndarray, cut_columns: tuple[int, ...]
+) -> np.ndarray:
+    """Each label's role: ``CUT`` where it touches one of ``cut_columns``, else ``BORDER``
+    where it has a pixel in ``edge``, else ``ISLAND``."""
     roles = np.full(count, ISLAND, np.uint8)
     on_edge = np.zeros(count, bool)
-    if edge is None:
-        on_edge[labels[0]] = on_edge[labels[-1]] = True
-    else:
-        on_edge[labels[edge]] = True
+    on_edge[labels[edge]] = True
     roles[on_edge] = BORDER
-    roles[labels[:, 0]] = CUT
-    roles[labels[:, -1]] = CUT
+    for column in cut_columns:
+        roles[labels[:, column]] = CUT
     roles[0] = ISLAND
+    return roles
+
+
+def _run_ends(labels: np.ndarray, offset: tuple[int, int] = (0, 0)) -> tuple[Runs, Runs]:
+    """The first (top) and last (bottom) pixel of every run of a label in a column, rows and
+    columns moved by ``offset``. Vertically adjacent white pixels share their label, so a
+    run starts below a black pixel and ends above one."""
     white = labels > 0
     starts = white.copy()
-    starts[1:] &= labels[1:] != labels[:-1]
+    starts[1:] &= ~white[:-1]
     ends = white.copy()
-    ends[:-1] &= labels[:-1] != labels[1:]
-    return StripeMap(
-        labels=labels, roles=roles, top=_runs(labels, starts), bottom=_runs(labels, ends)
-    )
+    ends[:-1] &= ~white[1:]
+    return _runs(labels, starts, offset), _runs(labels, ends, offset)
 
 
-def _runs(labels: np.ndarray, mask: np.ndarray) -> Runs:
+def _runs(labels: np.ndarray, mask: np.ndarray, offset: tuple[int, int] = (0, 0)) -> Runs:
     flat = np.flatnonzero(mask)  # about 3x faster than a 2-D nonzero
     rows, cols = np.divmod(flat, labels.shape[1])
+    if offset != (0, 0):
+        rows += offset[0]
+        cols += offset[1]
     return Runs(rows=rows, cols=cols, labels=labels.ravel()[flat])
 
 
 # --------------------------------------------------------------------------- pairing
-def pair_stripes(normal: StripeMap, defect: StripeMap, min_iou: float = 0.5) -> np.ndarray:
+def pair_stripes(
+    normal: StripeMap,
+    defect: StripeMap,
+    min_iou: float = 0.5,
+    cut_columns: tuple[int, ...] = (0, -1),
+) -> np.ndarray:
     """Partners ``(label_normal, label_defect)`` by identity (an int64 array of shape (K, 2)).
 
-    1. ``CUT`` stripes that share a pixel at a cut column.
+    1. ``CUT`` stripes that share a pixel at a cut column (``cut_columns`` of the label
+       images: both ends of the cut image, unless the images are a part of it).
     2. A ``BORDER`` stripe left without a partner: the contour-bearing stripe of the other
        image that overlaps it most, if their intersection over union is >= ``min_iou``.
     Islands are never paired.
     """
-    nb = defect.count + 1
-    keys = []
-    for column in (0, -1):
+    nb = len(defect.roles)
+    keys = [np.empty(0, np.int64)]
+    for column in cut_columns:
         a, b = normal.labels[:, column], defect.labels[:, column]
         both = (a > 0) & (b > 0)
         keys.append(a[both].astype(np.int64) * nb + b[both])
@@ -174,7 +220,7 @@ def _overlap_pairs(
             inside = mine.labels[box] == label
             common = np.bincount(other.labels[box][inside])
             common[0] = 0
-            common[other.roles[: len(common)] == ISLAND] = 0
+            common[~other.bearing[: len(common)]] = 0
             best = int(np.argmax(common))
             area, best_area = int(inside.sum()), int(other.areas[best])
             if common[best] and common[best] / (area + best_area - common[best]) >= min_iou:
@@ -241,7 +287,7 @@ def contour_shift(normal: StripeMap, defect: StripeMap, pairs: np.ndarray) -> Co
     """Largest vertical distance between corresponding contours (step 5 of the metric)."""
     if len(pairs) == 0:
         return ContourShift()
-    group_a, group_b, groups = _groups(pairs, normal.count + 1, defect.count + 1)
+    group_a, group_b, groups = _groups(pairs, len(normal.roles), len(defect.roles))
     width = normal.labels.shape[1]
     found = []
     for upper, side in ((True, "upper"), (False, "lower")):
@@ -287,13 +333,120 @@ def compare(
     pairs = pair_stripes(normal, defect)
     paired_a = np.unique(pairs[:, 0]) if len(pairs) else np.empty(0, np.int64)
     paired_b = np.unique(pairs[:, 1]) if len(pairs) else np.empty(0, np.int64)
-    bearing = int(
-        np.count_nonzero(normal.roles[1:] != ISLAND) + np.count_nonzero(defect.roles[1:] != ISLAND)
-    )
+    bearing = int(np.count_nonzero(normal.bearing) + np.count_nonzero(defect.bearing))
     unpaired = bearing - len(paired_a) - len(paired_b)
     islands = max(0, defect.islands - normal.islands)  # a curved base may close stripes by itself
     return PhaseResult(
         phase_mm, contour_shift(normal, defect, pairs), islands, unpaired, len(pairs)
+    )
+
+
+# --------------------------------------------------------------------------- in a region
+@dataclass(frozen=True)
+class Patch:
+    """Where a defect image differs from the defect-free one: its pixels ``binary`` (bool)
+    over the box ``rows`` x ``cols`` of the cut image. Outside the box the images are equal."""
+
+    rows: slice
+    cols: slice
+    binary: np.ndarray
+
+
+def compare_patched(
+    normal: StripeMap, patch: Patch, edge: np.ndarray, phase_mm: float = 0.0
+) -> PhaseResult | None:
+    """:func:`compare` of the defect image that is ``normal``'s image with ``patch`` written
+    over it, worked out around the patch only. ``edge``: the border pixels (full cut size).
+
+    A stripe of the defect-free image that neither enters the patch nor touches its
+    one-pixel ring is *untouched*: the defect image has the very same component (same
+    pixels, same role), it partners only itself, and its contours are 0 px apart. Every
+    other component of the defect image is made of pixels of the patch, of its ring and of
+    the touched stripes, so labelling the box that holds them (the crop) finds them exactly;
+    pairing, islands and distances there are those of the whole image, the untouched
+    stripes adding their identity pairs. Returns None when the largest distance is 0 (the
+    whole image then decides which column a 0 is reported at).
+    """
+    height, width = normal.labels.shape
+    ring = (
+        slice(max(patch.rows.start - 1, 0), min(patch.rows.stop + 1, height)),
+        slice(max(patch.cols.start - 1, 0), min(patch.cols.stop + 1, width)),
+    )
+    touched = np.zeros(len(normal.roles), bool)
+    touched[normal.labels[ring]] = True
+    touched[0] = False
+    crop = _crop(normal.extents[touched], ring)
+    origin = (crop[0].start, crop[1].start)
+    labels = normal.labels[crop]
+    white = labels > 0
+    around = normal.labels[ring] > 0
+    around[_within((patch.rows, patch.cols), (ring[0].start, ring[1].start))] = patch.binary
+    white[_within(ring, origin)] = around
+    count, fresh = cv2.connectedComponents(white.view(np.uint8), connectivity=8, ltype=cv2.CV_32S)
+    cuts = tuple(c for c, at in ((0, crop[1].start == 0), (-1, crop[1].stop == width)) if at)
+    new_roles = _roles(fresh, count, edge[crop], cuts)
+    top, bottom = _run_ends(fresh)
+    # an untouched stripe (or a piece of it the crop cut off) is labelled too: not the
+    # defect image's to compare, it names its own pixels in both images
+    under = labels[top.rows, top.cols]
+    new_roles[top.labels[(under > 0) & ~touched[under]]] = UNUSED
+    defect = StripeMap(labels=fresh, roles=new_roles, top=top, bottom=bottom)
+    normal_roles = np.where(touched, normal.roles, UNUSED).astype(np.uint8)
+    normal_roles[0] = ISLAND
+    mine = StripeMap(
+        labels=labels,
+        roles=normal_roles,
+        top=_moved(normal.top, touched, origin),
+        bottom=_moved(normal.bottom, touched, origin),
+    )
+    pairs = pair_stripes(mine, defect, cut_columns=cuts)
+    pairs = pairs[touched[pairs[:, 0]]]  # an untouched stripe partners itself: counted below
+    shift = contour_shift(mine, defect, pairs)
+    if shift.distance_px <= 0.0:
+        return None
+    shift = replace(
+        shift,
+        column=int(shift.column + origin[1]),
+        normal_row=float(shift.normal_row + origin[0]),
+        defect_row=float(shift.defect_row + origin[0]),
+    )
+    paired = len(np.unique(pairs[:, 0])) + len(np.unique(pairs[:, 1]))
+    unpaired = int(np.count_nonzero(mine.bearing) + np.count_nonzero(defect.bearing)) - paired
+    islands = int(np.count_nonzero(new_roles[1:] == ISLAND))
+    islands -= int(np.count_nonzero(normal.roles[touched] == ISLAND))
+    untouched_pairs = int(np.count_nonzero(normal.bearing & ~touched))
+    return PhaseResult(phase_mm, shift, max(0, islands), unpaired, untouched_pairs + len(pairs))
+
+
+def _crop(extents: np.ndarray, ring: tuple[slice, slice]) -> tuple[slice, slice]:
+    """The box holding ``ring`` and every touched stripe (their ``extents`` rows)."""
+    if not len(extents):
+        return ring
+    return (
+        slice(
+            min(ring[0].start, int(extents[:, 0].min())),
+            max(ring[0].stop, int(extents[:, 1].max())),
+        ),
+        slice(
+            min(ring[1].start, int(extents[:, 2].min())),
+            max(ring[1].stop, int(extents[:, 3].max())),
+        ),
+    )
+
+
+def _within(box: tuple[slice, slice], origin: tuple[int, int]) -> tuple[slice, slice]:
+    """``box`` counted from ``origin``."""
+    return (
+        slice(box[0].start - origin[0], box[0].stop - origin[0]),
+        slice(box[1].start - origin[1], box[1].stop - origin[1]),
+    )
+
+
+def _moved(runs: Runs, keep: np.ndarray, origin: tuple[int, int]) -> Runs:
+    """The runs of the labels in ``keep``, counted from ``origin``."""
+    mask = keep[runs.labels]
+    return Runs(
+        rows=runs.rows[mask] - origin[0], cols=runs.cols[mask] - origin[1], labels=runs.labels[mask]
     )
 
 

@@ -48,6 +48,7 @@ from glshade.metrics.continuous import (
     deflection,
     visibility_limit,
 )
+from glshade.metrics.region import Influence, RegionBasis
 
 
 @dataclass(frozen=True)
@@ -135,6 +136,10 @@ METRIC_VERSION = 2
 LEVEL_SOURCES = ("auto", "emitter", "image")
 #: Percentiles of the defect-free image taken as its dark and bright levels.
 LEVEL_PERCENTILES = (1.0, 99.0)
+
+#: A patch covering more of the cut image than this is compared over the whole image: the
+#: region's bookkeeping would cost more than it saves.
+PATCH_SHARE = 0.4
 
 #: Most phases one sweep may take (each is a shading and a contour comparison): the
 #: paper's sweep is 8 (2 mm period, 0.25 mm step), the finest in the benchmarks 160 (10 mm
@@ -254,8 +259,9 @@ def sweep(
     max_offset_px: int,
 ) -> PaperResult:
     """The metric's steps 1–7 (docs/study.md) on cut images: ``normal_stripes(phase)`` gives
-    the defect-free
-    analysis, ``defect_binary(phase)`` the cut defect image (bool)."""
+    the defect-free analysis, ``defect_binary(phase)`` the cut defect image (bool); the
+    defect image is registered on the normal one at the first phase (images from any
+    source: photographs may be offset; rendered pairs are not, see :class:`Baseline`)."""
     results = []
     offset = (0, 0)
     for index, phase in enumerate(phases):
@@ -265,6 +271,14 @@ def sweep(
         if index == 0:
             offset = ct.register(normal.labels > 0, defect, max_offset_px)
         results.append(ct.compare(normal, ct.shift_image(defect, *offset), edge, phase))
+    return summary(results, columns, offset)
+
+
+def summary(
+    results: list[ct.PhaseResult], columns: slice, offset: tuple[int, int] = (0, 0)
+) -> PaperResult:
+    """The sweep's result from its phases' comparisons: the largest distance (the first
+    phase reaching it), its place in the uncut image, the most islands."""
     best = max(results, key=lambda r: r.distance_px)
     return PaperResult(
         visibility_px=best.distance_px,
@@ -359,6 +373,12 @@ class Baseline:
     ``normal_images(phase)`` (optional): rendered defect-free images, for shading that is
     not a function of ``v`` (Blinn-Phong, supersampling). Thread-safe: the study measures
     several defects against one baseline from worker threads.
+
+    Each dent is analysed in its region of influence (:mod:`glshade.metrics.region`): the
+    contours around the pixels where its binary images differ from these, the deflection at
+    the pixels it moves by more than :data:`glshade.metrics.region.SEARCHED_PX`. The numbers
+    are those of the whole frame by construction; ``full_frame=True`` analyses the whole
+    frame instead (the reference the region is checked against, slower).
     """
 
     def __init__(
@@ -368,8 +388,10 @@ class Baseline:
         settings: MetricSettings = MetricSettings(),
         normal_images: Callable[[float], np.ndarray] | None = None,
         image_levels: bool = False,
+        full_frame: bool = False,
     ) -> None:
         self.v0 = np.asarray(v0)
+        self.full_frame = full_frame
         self.pattern = pattern
         self.settings = settings
         self.normal_images = normal_images
@@ -408,6 +430,7 @@ class Baseline:
             float(phase): threading.Lock() for phase in self.phases
         }  # one analysis per phase
         self._lock = threading.Lock()  # for phases outside the sweep (the viewer's)
+        self._region: RegionBasis | None = None
 
     # ---------------------------------------------------------------- images
     def binary(
@@ -445,28 +468,112 @@ class Baseline:
     def paper(
         self, v1: np.ndarray, defect_images: Callable[[float], np.ndarray] | None = None
     ) -> tuple[PaperResult, float]:
-        """The paper's metric of a defect, and the seconds spent binarising."""
+        """The paper's metric of a defect, and the seconds spent binarising.
+
+        A rendered pair is not registered (its offset is zero by construction). Unless the
+        baseline was made ``full_frame``, each phase is compared in the dent's region of
+        influence only (:mod:`glshade.metrics.region`): the same numbers, by construction.
+        """
+        influence = self.influence(v1) if defect_images is None else None
+        return self._paper(v1, defect_images, influence)
+
+    def _paper(
+        self,
+        v1: np.ndarray,
+        images: Callable[[float], np.ndarray] | None,
+        influence: Influence | None,
+    ) -> tuple[PaperResult, float]:
         shading = 0.0
-
-        def defect(phase: float) -> np.ndarray:
-            nonlocal shading
+        box = influence.box if influence is not None and images is None else None
+        results = []
+        for phase in self.phases:
             start = time.perf_counter()
-            binary = self.binary(v1, phase, defect_images)
+            phase = float(phase)
+            if self.full_frame:
+                defect = self.binary(v1, phase, images)
+                shading += time.perf_counter() - start
+                results.append(ct.compare(self.normal_stripes(phase), defect, self.edge, phase))
+                continue
+            patch = self._patch(v1, phase, box, images)
             shading += time.perf_counter() - start
-            return binary
+            results.append(self._compared(phase, patch))
+        return summary(results, self.columns), shading
 
-        return sweep(
-            self.phases,
-            self.normal_stripes,
-            defect,
-            self.edge,
-            self.columns,
-            self.settings.max_offset_px,
-        ), shading
+    def region(self) -> RegionBasis:
+        """The defect-free map's part of every dent's region (made once, then shared)."""
+        with self._lock:
+            if self._region is None:
+                half = self.half_width_mm
+                pattern = self.pattern
+
+                def binary(v: np.ndarray, phase: float) -> np.ndarray:
+                    return binarize_v(v, pattern, phase, half or 0.0)
+
+                shaded = self.normal_images is None and half is not None
+                self._region = RegionBasis(
+                    self._v0_cut,
+                    self.phases,
+                    pattern.period_mm,
+                    half or 0.0,
+                    binary if shaded else None,
+                )
+            return self._region
+
+    def _patch(
+        self,
+        v1: np.ndarray,
+        phase_mm: float,
+        box: tuple[slice, slice] | None,
+        images: Callable[[float], np.ndarray] | None,
+    ) -> ct.Patch | None:
+        """Where the defect image differs from the normal one at a phase (None: nowhere).
+        From images: the whole frame is binarised; from the map: the region's box only."""
+        normal = self.normal_stripes(phase_mm).labels
+        if images is not None:
+            box = (slice(0, normal.shape[0]), slice(0, normal.shape[1]))
+            defect = self.binary(v1, phase_mm, images)
+        elif box is None:
+            return None
+        else:
+            assert self.half_width_mm is not None
+            rows, cols = box
+            cut = slice(self.columns.start + cols.start, self.columns.start + cols.stop)
+            defect = binarize_v(v1[rows, cut], self.pattern, phase_mm, self.half_width_mm)
+            defect &= self.valid[box]
+        differs = defect != (normal[box] > 0)
+        rows_at, cols_at = np.flatnonzero(differs.any(axis=1)), np.flatnonzero(differs.any(axis=0))
+        if not len(rows_at):
+            return None
+        inner = slice(rows_at[0], rows_at[-1] + 1), slice(cols_at[0], cols_at[-1] + 1)
+        return ct.Patch(
+            slice(box[0].start + inner[0].start, box[0].start + inner[0].stop),
+            slice(box[1].start + inner[1].start, box[1].start + inner[1].stop),
+            np.ascontiguousarray(defect[inner]),
+        )
+
+    def _compared(self, phase_mm: float, patch: ct.Patch | None) -> ct.PhaseResult:
+        """The comparison at a phase of the defect image that is the normal one with
+        ``patch`` written over it (:func:`glshade.metrics.contours.compare_patched`; the
+        whole image where that finds no distance above 0)."""
+        normal = self.normal_stripes(phase_mm)
+        if patch is not None and patch.binary.size <= PATCH_SHARE * normal.labels.size:
+            found = ct.compare_patched(normal, patch, self.edge, phase_mm)
+            if found is not None:
+                return found
+        defect = normal.labels > 0
+        if patch is not None:
+            defect[patch.rows, patch.cols] = patch.binary
+        return ct.compare(normal, defect, self.edge, phase_mm)
 
     def moved(self, v1: np.ndarray) -> Deflection:
-        """The deflection of a defect's map against this one."""
+        """The deflection of a defect's map against this one (the whole frame)."""
         return deflection(self.v0, v1, self.columns)
+
+    def influence(self, v1: np.ndarray) -> Influence | None:
+        """The dent's region of influence (None for a ``full_frame`` baseline)."""
+        if self.full_frame:
+            return None
+        return self.region().influence(v1[:, self.columns])
 
     def measure(
         self, v1: np.ndarray, defect_images: Callable[[float], np.ndarray] | None = None
@@ -483,23 +590,11 @@ class Baseline:
                 f"measure: the defect map has shape {v1.shape}, the baseline {self.v0.shape}"
             )
         start = time.perf_counter()
-        paper, shading = self.paper(v1, defect_images)
+        influence = self.influence(v1)
+        paper, shading = self._paper(v1, defect_images, influence)
         contours_s = time.perf_counter() - start - shading
         start = time.perf_counter()
-        moved = self.moved(v1)
-        valid = np.isfinite(self.v0) & np.isfinite(
-            v1
-        )  # a vanishing pixel cannot alias: no resolution mask
-        limit = visibility_limit(
-            self.v0,
-            v1,
-            valid,
-            self.columns,
-            StripeLevels(self.pattern.period_mm, self._limit_half_width()),
-            moved,
-            self.settings.limit_upsample,
-            self.settings.limit_phases,
-        )
+        moved, limit = self._continuous(v1, influence)
         continuous_s = time.perf_counter() - start
         return Visibility(
             visibility_px=paper.visibility_px,
@@ -517,6 +612,25 @@ class Baseline:
             limit=limit,
             seconds=StageSeconds(shading, contours_s, continuous_s),
         )
+
+    def _continuous(self, v1: np.ndarray, influence: Influence | None) -> tuple[Deflection, Limit]:
+        """The deflection and the continuous limit: in the region of influence when the
+        moves outside it are provably too small to matter (below a pixel, the deflection
+        and the limit found in it), else over the whole frame."""
+        valid = np.isfinite(self.v0) & np.isfinite(v1)  # a vanishing pixel cannot alias
+        levels = StripeLevels(self.pattern.period_mm, self._limit_half_width())
+        search = self.settings.limit_upsample, self.settings.limit_phases
+        focus = self.region().focus(influence) if influence is not None else None
+        order = self.region().order if not self.full_frame else None
+        if focus is not None:
+            moved = deflection(self.v0, v1, self.columns, focus, order)
+            limit = visibility_limit(
+                self.v0, v1, valid, self.columns, levels, moved, *search, focus
+            )
+            if focus.bound_px < min(1.0, moved.deflection_px, limit.visibility_px):
+                return moved, limit
+        moved = deflection(self.v0, v1, self.columns, order=order)
+        return moved, visibility_limit(self.v0, v1, valid, self.columns, levels, moved, *search)
 
     def _limit_half_width(self) -> float:
         """The stripes' half-width on the emitter for the continuous limit: the
