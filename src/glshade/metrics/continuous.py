@@ -59,41 +59,55 @@ class ColumnOrder:
 def column_order(v0_cut: np.ndarray) -> ColumnOrder:
     """:class:`ColumnOrder` of a cut defect-free map."""
     a = np.asarray(v0_cut, np.float64)
-    height, width = a.shape
     direction = _monotone_direction(a)
-    per_mm = np.zeros(a.shape, np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
-        step = 1.0 / np.abs(np.diff(a, axis=0))
-        per_mm[1:] = step
-        per_mm[:-1] = np.fmax(per_mm[:-1], step)
-    per_mm[:, direction == 0] = 0.0
+        gaps = np.diff(a, axis=0)
+        step = 1.0 / np.abs(gaps)
+    per_mm = np.full(a.shape, np.nan)
+    per_mm[1:] = step
+    per_mm[:-1] = np.fmax(per_mm[:-1], step)  # NaN (no hit) beside a pixel is ignored
+    finite = np.isfinite(a)
+    count = finite.sum(axis=0)
+    first = np.argmax(finite, axis=0)
+    last = a.shape[0] - 1 - np.argmax(finite[::-1], axis=0)
+    with np.errstate(invalid="ignore"):
+        rising, falling = (gaps > 0).sum(axis=0), (gaps < 0).sum(axis=0)
+    simple = (count >= 2) & (last - first + 1 == count)
+    simple &= (rising == count - 1) | (falling == count - 1)
     far = []
-    rows = np.arange(height)
-    for j in np.nonzero(direction == 0)[0]:
-        valid = np.isfinite(a[:, j])
-        if valid.sum() < 2:
-            continue
-        ra, va = rows[valid], a[valid, j]
-        run = slice(0, len(va))
-        gaps = np.diff(va)
-        if not (np.all(gaps > 0) or np.all(gaps < 0)):
-            run = _longest_monotonic(va)
-        outside = np.ones(len(va), bool)
-        outside[run] = False
-        far.append(ra[outside] * width + j)
-        ra, va = ra[run], va[run]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            local = np.diff(ra) / np.abs(np.diff(va))
-        beside = np.zeros(len(va))
-        beside[1:] = local
-        beside[:-1] = np.fmax(beside[:-1], local)
-        per_mm[ra, j] = beside
-    per_mm[np.isnan(per_mm)] = np.inf  # a flat segment: any move may carry far
+    for j in np.nonzero(~simple & (count >= 2))[0]:  # holes or a turn: row by row
+        per_mm[:, j], outside = _turning_column(a[:, j])
+        far.append(outside * a.shape[1] + j)
+    per_mm[np.isnan(per_mm)] = 0.0
     return ColumnOrder(
         direction=direction,
         rows_per_mm=per_mm.astype(np.float32),
         far=np.concatenate(far).astype(np.int64) if far else np.empty(0, np.int64),
     )
+
+
+def _turning_column(column: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows per mm beside each pixel of a column whose finite pixels have holes or turn
+    (between its finite neighbours in their longest monotonic run, as the inverse reads
+    it), and the rows outside that run."""
+    rows = np.arange(len(column))
+    valid = np.isfinite(column)
+    ra, va = rows[valid], column[valid]
+    run = slice(0, len(va))
+    gaps = np.diff(va)
+    if not (np.all(gaps > 0) or np.all(gaps < 0)):
+        run = _longest_monotonic(va)
+    outside = np.ones(len(va), bool)
+    outside[run] = False
+    ra, va = ra[run], va[run]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        local = np.diff(ra) / np.abs(np.diff(va))
+    beside = np.zeros(len(va))
+    beside[1:] = local
+    beside[:-1] = np.fmax(beside[:-1], local)
+    per_mm = np.full(len(column), np.nan)
+    per_mm[ra] = beside
+    return per_mm, rows[valid][outside]
 
 
 @dataclass(frozen=True)

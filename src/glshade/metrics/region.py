@@ -142,10 +142,24 @@ def near_levels(
     tolerance_mm: float,
 ) -> np.ndarray:
     """Pixels whose ``v0`` lies within ``tolerance_mm`` (and the rounding of float32
-    coordinates) of a stripe edge ``phase ± half_width + k period`` of some phase (bool)."""
+    coordinates) of a stripe edge ``phase ± half_width + k period`` of some phase (bool).
+
+    Phases a whole period apart in equal steps (the sweep's usual case) put the edges on two
+    combs of that step: the distance to each is one remainder; other phases are looked up
+    among the sorted edges."""
     finite = v0[np.isfinite(v0)]
     scale = float(np.abs(finite).max()) if finite.size else 0.0
     margin = tolerance_mm + 8.0 * float(np.finfo(np.float32).eps) * (scale + period_mm)
+    v = np.asarray(v0, np.float64)
+    step = phases[1] - phases[0] if len(phases) > 1 else period_mm
+    combs = np.allclose(phases, phases[0] + step * np.arange(len(phases)), rtol=0, atol=1e-12)
+    if combs and abs(step * len(phases) - period_mm) <= 1e-9 * period_mm:
+        near = np.zeros(v.shape, bool)
+        with np.errstate(invalid="ignore"):
+            for edge in (phases[0] + half_width_mm, phases[0] - half_width_mm):
+                rest = np.mod(v - edge, step)
+                near |= np.minimum(rest, step - rest) <= margin
+        return near
     levels = np.sort(
         np.mod(
             np.concatenate([np.add(phases, half_width_mm), np.subtract(phases, half_width_mm)]),
@@ -153,7 +167,7 @@ def near_levels(
         )
     )
     ring = np.concatenate([levels - period_mm, levels, levels + period_mm])
-    u = np.mod(np.asarray(v0, np.float64), period_mm)
+    u = np.mod(v, period_mm)
     at = np.clip(np.searchsorted(ring, u), 1, len(ring) - 1)
     with np.errstate(invalid="ignore"):
         gap = np.minimum(np.abs(u - ring[at - 1]), np.abs(ring[at] - u))

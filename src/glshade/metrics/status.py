@@ -80,6 +80,14 @@ class Region:
 
     mask: np.ndarray
     peak_px: float
+    box: tuple[slice, slice] | None = None
+
+    def pixels(self) -> tuple[np.ndarray, np.ndarray]:
+        """The rows and columns of the region's pixels (looked for in its box only)."""
+        if self.box is None:
+            return np.nonzero(self.mask)
+        rows, cols = np.nonzero(self.mask[self.box])
+        return rows + self.box[0].start, cols + self.box[1].start
 
 
 #: The dent's window reaches this many standard deviations from its centre.
@@ -149,7 +157,7 @@ def dent_region(v0: np.ndarray, v1: np.ndarray, window: np.ndarray) -> Region:
     if peak < SEEN_PX:
         return Region(region, peak)
     region[rows, cols] = moved >= REGION_SHARE * peak
-    return Region(region, peak)
+    return Region(region, peak, box)
 
 
 def touches_edge(region: np.ndarray, seen: np.ndarray) -> str | None:
@@ -190,10 +198,11 @@ def shift_away(region: Region, row: float, column: int, shift_px: float) -> floa
     region when that is more than ``3 + peak / 2`` pixels, ``peak`` the dent's largest
     move (None when it lies in or near it, or when the shift is below
     :data:`PLACED_SHIFT_PX`)."""
-    mask = region.mask
-    if shift_px < PLACED_SHIFT_PX or column < 0 or not math.isfinite(row) or not mask.any():
+    if shift_px < PLACED_SHIFT_PX or column < 0 or not math.isfinite(row):
         return None
-    rows, cols = np.nonzero(mask)
+    rows, cols = region.pixels()
+    if not len(rows):
+        return None
     gap = float(np.sqrt((rows - row) ** 2 + (cols - column) ** 2).min())
     return gap if gap > 3.0 + 0.5 * region.peak_px else None
 
