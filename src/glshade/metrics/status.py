@@ -85,7 +85,8 @@ class Region:
     def pixels(self) -> tuple[np.ndarray, np.ndarray]:
         """The rows and columns of the region's pixels (looked for in its box only)."""
         if self.box is None:
-            return np.nonzero(self.mask)
+            rows, cols = np.nonzero(self.mask)
+            return rows, cols
         rows, cols = np.nonzero(self.mask[self.box])
         return rows + self.box[0].start, cols + self.box[1].start
 
