@@ -46,12 +46,15 @@ FIELDS = (
 )
 
 
-def best_of(repeats: int, run) -> tuple[float, vis.Visibility]:
-    """The shortest of ``repeats`` runs (seconds) and the last result."""
+def best_of(
+    repeats: int, scene, baseline: vis.Baseline, v1: np.ndarray
+) -> tuple[float, vis.Visibility]:
+    """The shortest of ``repeats`` measurements of a case, status included (seconds), and
+    the last result."""
     times, result = [], None
     for _ in range(repeats):
         start = time.perf_counter()
-        result = run()
+        result = judged(scene, baseline, v1, baseline.measure(v1))
         times.append(time.perf_counter() - start)
     assert result is not None
     return min(times), result
@@ -92,12 +95,8 @@ def main() -> int:
                 )
             full_base, region_base = baselines[(surface, theta)]
             v1 = emitter_map(renderer, scene)
-            full_s, full = best_of(
-                args.repeats, lambda: judged(scene, full_base, v1, full_base.measure(v1))
-            )
-            region_s, region = best_of(
-                args.repeats, lambda: judged(scene, region_base, v1, region_base.measure(v1))
-            )
+            full_s, full = best_of(args.repeats, scene, full_base, v1)
+            region_s, region = best_of(args.repeats, scene, region_base, v1)
             spent = seconds.setdefault(surface, ([], []))
             spent[0].append(full_s)
             spent[1].append(region_s)
