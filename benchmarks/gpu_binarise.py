@@ -103,7 +103,7 @@ def cpu_job(baseline: Baseline, v: np.ndarray, rows: slice) -> list[tuple[np.nda
     for phase in baseline.phases:
         binary = cpu_binary(baseline, v, float(phase), rows)
         found = crossings_of(binary)
-        rows_cols(found.top, width)
+        rows_cols(found.top, width)  # made as _runs makes them; only timed here
         rows_cols(found.bottom, width)
         out.append((binary, found))
     return out
@@ -124,6 +124,12 @@ class Timed:
     read: float
     cpu: float
     read_bytes: int
+
+
+#: Binary images of every phase: (phases, rows, cols) bool, or one (rows, cols) per phase.
+Images = np.ndarray | Sequence[np.ndarray]
+#: What a path gives: its binary images, its crossings, and the seconds of its stages.
+Result = tuple[Images | None, list[Crossings] | None, Timed]
 
 
 class GpuBinariser:
@@ -155,10 +161,12 @@ class GpuBinariser:
         self.used = ctx.buffer(reserve=8)
 
     def release(self) -> None:
-        for item in (self.valid, *self.programs.values(), self.layers, self.bits, self.found):
-            item.release()
-        self.table.release()
-        self.used.release()
+        for program in self.programs.values():
+            program.release()
+        for texture in (self.valid, self.layers, self.bits):
+            texture.release()
+        for buffer in (self.found, self.table, self.used):
+            buffer.release()
 
     def _set_uniforms(self, program: moderngl.ComputeShader) -> None:
         b = self.baseline
@@ -178,7 +186,7 @@ class GpuBinariser:
         }
         for name, value in values.items():
             if name in program:
-                program[name].value = value  # type: ignore[union-attr]
+                program[name].value = value
         if "u_phase" in program:
             program["u_phase"].write(phases.tobytes())  # type: ignore[union-attr]
 
@@ -232,9 +240,7 @@ class GpuBinariser:
         return binary, Timed(shaded - start, read - shaded, done - read, words.nbytes)
 
     # ---------------------------------------------------------------- crossings
-    def crossings(
-        self, uv_texture: moderngl.Texture, with_binary: bool
-    ) -> tuple[np.ndarray | None, list[Crossings], Timed]:
+    def crossings(self, uv_texture: moderngl.Texture, with_binary: bool) -> Result:
         """Every phase's crossing rows (the bit planes, then the crossings kernel on them),
         and with ``with_binary`` the binary images too (the bit planes read back)."""
         start = time.perf_counter()
@@ -277,7 +283,7 @@ class GpuBinariser:
         kinds = []
         for first, count in ((offset, tops), (offset + tops, bottoms)):
             flat = found[_ranges(first.ravel(), count.ravel())].astype(np.int64)
-            rows_cols(flat, self.cols)
+            rows_cols(flat, self.cols)  # made as _runs makes them; only timed here
             kinds.append(np.split(flat, np.cumsum(count.sum(axis=1))[:-1]))
         return [Crossings(top, bottom) for top, bottom in zip(*kinds, strict=True)]
 
@@ -334,9 +340,6 @@ class Row:
     core_ms: float
     read_mib: float
     identical: str
-
-
-Result = tuple[Sequence[np.ndarray] | None, list[Crossings] | None, Timed]
 
 
 def interleaved(
@@ -446,7 +449,7 @@ def _finish(binary: np.ndarray, width: int) -> Crossings:
     return found
 
 
-def _same_binary(found: Sequence[np.ndarray], expect: Sequence[np.ndarray]) -> bool:
+def _same_binary(found: Images, expect: Images) -> bool:
     return len(found) == len(expect) and all(
         np.array_equal(a, b) for a, b in zip(found, expect, strict=True)
     )
