@@ -93,14 +93,8 @@ Extra = Callable[[Case, vis.Visibility, CaseView], Any]
 
 
 def geometry_key(scene: Scene) -> str:
-    """Scenes with equal keys share their defect-free trace and analysis: the scene without
-    its defect. An absent defect draws nothing, so of it only the centre of the frame the
-    shaders compute in counts (the dents of a study that differ in shape share one trace)."""
-    normal = scene.without_defect()
-    data = normal.to_dict()
-    if not normal.active.defect.present(normal):
-        data["defect"] = {"frame_origin_mm": [float(x) for x in normal.local_origin()]}
-    return json.dumps(data, sort_keys=True, default=str)
+    """Scenes with equal keys share their defect-free trace and analysis."""
+    return json.dumps(scene.without_defect().to_dict(), sort_keys=True, default=str)
 
 
 def program_key(scene: Scene) -> Hashable:
