@@ -381,8 +381,12 @@ def test_a_toy_surface_plugs_in_without_touching_glshade(renderer, tmp_path):
 def test_sweeps_group_cases_by_program():
     """A sweep over θ, σ², dmax and the surface: the engine measures the cases of one
     geometry together (one defect-free analysis each) and the geometries of one program
-    next to each other (the program compiled once), whatever the number of cases."""
+    next to each other (the program compiled once), whatever the number of cases. The
+    paper's metric shades from the map, which the absent dent's width does not reach:
+    every σ² shares one analysis; phase measuring's keeps σ² (its nominal geometry's grid
+    is cut around the dent)."""
     from glshade.measure.engine import Case, geometry_key, grouped, program_key
+    from glshade.measure.pmd import PmdSettings
 
     scenes = [
         paper_scene(surface, theta, sigma2, dmax)
@@ -391,8 +395,10 @@ def test_sweeps_group_cases_by_program():
         for sigma2 in (1.0, 4.0)
         for dmax in (0.0, 0.003, 0.005)
     ]
-    groups = grouped([Case(i, scene) for i, scene in enumerate(scenes)])
-    assert len(groups) == 8  # (flat, sphere) x θ x σ²: the defect-free scene keeps σ²
+    cases = [Case(i, scene) for i, scene in enumerate(scenes)]
+    groups = grouped(cases)
+    assert len(groups) == 4  # (flat, sphere) x θ
+    assert len(grouped(cases, PmdSettings())) == 8  # (flat, sphere) x θ x σ²
     assert sorted(c.key for group in groups for c in group) == list(range(len(scenes)))
     for group in groups:
         assert len({geometry_key(c.scene) for c in group}) == 1
