@@ -407,6 +407,30 @@ def test_sweeps_group_cases_by_program():
     assert len(runs) == len(set(runs)) == 2  # one run of geometries per surface's program
 
 
+def test_the_trace_without_a_dent_reads_only_its_centre():
+    """What lets the engine share one defect-free analysis between dents of every width
+    (``map_baseline_key``): the scene without its dent has the same program, the same
+    uniforms and the same emitter pattern whatever the absent dent's covariance; its
+    centre (the local frame's origin) still counts."""
+    from glshade.measure.single import map_baseline_key
+
+    for surface in ("flat", "cylinder", "sphere"):
+        normals = [
+            paper_scene(surface, 35.0, sigma2, dmax).without_defect()
+            for sigma2, dmax in ((1.0, 0.003), (16.0, 0.005))
+        ]
+        features = [ShaderFeatures.from_scene(n, ("uv",)) for n in normals]
+        assert features[0] == features[1]
+        uniforms = [scene_uniforms(n, RootSolver(), features[0]) for n in normals]
+        assert uniforms[0] == uniforms[1]
+        patterns = [n.active.emitter.pattern(n) for n in normals]
+        assert patterns[0] == patterns[1]
+        assert map_baseline_key(normals[0]) == map_baseline_key(normals[1])
+        moved = normals[0].with_value("defect.x0", 0.5)
+        assert map_baseline_key(moved) != map_baseline_key(normals[0])
+        assert scene_uniforms(moved, RootSolver(), features[0]) != uniforms[0]
+
+
 def test_metrics_and_plans_import_without_gl():
     """Only glshade.gpu and glshade.app load moderngl."""
     code = (

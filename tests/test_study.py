@@ -240,7 +240,11 @@ def test_a_case_is_a_pure_function_of_its_scene(tmp_path, renderer):
     width and depth); its rows are nevertheless exactly what measure_scene gives for each
     scene on its own."""
     plan = StudyPlan(
-        surfaces=("flat", "sphere"), thetas=(45.0, 5.0), sigma2s=(1.0, 9.0), dmaxs=(0.005,), size=256
+        surfaces=("flat", "sphere"),
+        thetas=(45.0, 5.0),
+        sigma2s=(1.0, 9.0),
+        dmaxs=(0.005,),
+        size=256,
     )
     rows = run_study(plan, tmp_path, progress=False, renderer=renderer).rows
     keys = (

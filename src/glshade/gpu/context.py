@@ -91,7 +91,7 @@ def _missing_device(index: int, count: int, libegl: str | None) -> str:
     )
 
 
-def _released_finish(ctx: moderngl.Context) -> Any:
+def released_finish(ctx: moderngl.Context) -> Any:
     """``glFinish`` as a ctypes function (ctypes releases the interpreter lock for the
     call), from the loader moderngl took its functions from; None where there is none."""
     load = getattr(getattr(ctx.mglo, "_context", None), "load", None)
@@ -118,7 +118,7 @@ class GLContext:
         self.ctx = ctx
         self._external = True
         self._depth = 0
-        self._finish: Any = None
+        self._finish = None
         self._parking_texture = ctx.renderbuffer((1, 1), 1, dtype="f1")
         self._parking = ctx.framebuffer(color_attachments=[self._parking_texture])
         return self
@@ -217,7 +217,7 @@ class GLContext:
         moderngl; a context whose loader cannot be asked finishes through moderngl."""
         with self.current() as ctx:
             if self._finish is None:
-                self._finish = _released_finish(ctx) or ctx.finish
+                self._finish = released_finish(ctx) or ctx.finish
             self._finish()
 
     def park(self) -> None:
