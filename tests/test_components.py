@@ -381,8 +381,12 @@ def test_a_toy_surface_plugs_in_without_touching_glshade(renderer, tmp_path):
 def test_sweeps_group_cases_by_program():
     """A sweep over θ, σ², dmax and the surface: the engine measures the cases of one
     geometry together (one defect-free analysis each) and the geometries of one program
-    next to each other (the program compiled once), whatever the number of cases."""
+    next to each other (the program compiled once), whatever the number of cases. The
+    paper's metric shades from the map, which the absent dent's width does not reach:
+    every σ² shares one analysis; phase measuring's keeps σ² (its nominal geometry's grid
+    is cut around the dent)."""
     from glshade.measure.engine import Case, geometry_key, grouped, program_key
+    from glshade.measure.pmd import PmdSettings
 
     scenes = [
         paper_scene(surface, theta, sigma2, dmax)
@@ -391,14 +395,40 @@ def test_sweeps_group_cases_by_program():
         for sigma2 in (1.0, 4.0)
         for dmax in (0.0, 0.003, 0.005)
     ]
-    groups = grouped([Case(i, scene) for i, scene in enumerate(scenes)])
-    assert len(groups) == 8  # (flat, sphere) x θ x σ²: the defect-free scene keeps σ²
+    cases = [Case(i, scene) for i, scene in enumerate(scenes)]
+    groups = grouped(cases)
+    assert len(groups) == 4  # (flat, sphere) x θ
+    assert len(grouped(cases, PmdSettings())) == 8  # (flat, sphere) x θ x σ²
     assert sorted(c.key for group in groups for c in group) == list(range(len(scenes)))
     for group in groups:
         assert len({geometry_key(c.scene) for c in group}) == 1
     order = [program_key(group[0].scene) for group in groups]
     runs = [key for i, key in enumerate(order) if i == 0 or key != order[i - 1]]
     assert len(runs) == len(set(runs)) == 2  # one run of geometries per surface's program
+
+
+def test_the_trace_without_a_dent_reads_only_its_centre():
+    """What lets the engine share one defect-free analysis between dents of every width
+    (``map_baseline_key``): the scene without its dent has the same program, the same
+    uniforms and the same emitter pattern whatever the absent dent's covariance; its
+    centre (the local frame's origin) still counts."""
+    from glshade.measure.single import map_baseline_key
+
+    for surface in ("flat", "cylinder", "sphere"):
+        normals = [
+            paper_scene(surface, 35.0, sigma2, dmax).without_defect()
+            for sigma2, dmax in ((1.0, 0.003), (16.0, 0.005))
+        ]
+        features = [ShaderFeatures.from_scene(n, ("uv",)) for n in normals]
+        assert features[0] == features[1]
+        uniforms = [scene_uniforms(n, RootSolver(), features[0]) for n in normals]
+        assert uniforms[0] == uniforms[1]
+        patterns = [n.active.emitter.pattern(n) for n in normals]
+        assert patterns[0] == patterns[1]
+        assert map_baseline_key(normals[0]) == map_baseline_key(normals[1])
+        moved = normals[0].with_value("defect.x0", 0.5)
+        assert map_baseline_key(moved) != map_baseline_key(normals[0])
+        assert scene_uniforms(moved, RootSolver(), features[0]) != uniforms[0]
 
 
 def test_metrics_and_plans_import_without_gl():

@@ -46,6 +46,24 @@ def test_same_scene_gives_identical_bytes(renderer):
     assert a.mask.tobytes() == b.mask.tobytes()
 
 
+def test_the_wait_for_a_trace_releases_the_interpreter_lock(renderer, monkeypatch):
+    """moderngl keeps the interpreter lock in every call, so its finish would stop the
+    engine's analysis threads for a whole trace: the renderer waits through glFinish called
+    with ctypes (which releases the lock), from the loader moderngl took its functions
+    from; the frame is the one moderngl's own finish gives."""
+    import ctypes
+
+    from glshade.gpu.context import released_finish
+
+    finish = released_finish(renderer.context.gl)
+    assert isinstance(finish, ctypes._CFuncPtr)
+    assert not type(finish)._flags_ & ctypes._FUNCFLAG_PYTHONAPI  # which would keep the lock
+    scene = paper_scene("sphere", 25.0, 1.0, 0.005).with_size(64)
+    released = renderer.render(scene, ("uv",)).output("uv")
+    monkeypatch.setattr(renderer.context, "wait", renderer.context.gl.finish)
+    np.testing.assert_array_equal(renderer.render(scene, ("uv",)).output("uv"), released)
+
+
 def test_render_into_preallocated_arrays(renderer):
     scene = paper_scene().with_size(16)
     out = Frame(image=np.zeros((16, 16), np.float32))

@@ -236,10 +236,15 @@ def test_findings_rules_on_made_up_rows():
 
 
 def test_a_case_is_a_pure_function_of_its_scene(tmp_path, renderer):
-    """The study shares one defect-free analysis between the defects of a geometry; its
-    rows are nevertheless exactly what measure_scene gives for each scene on its own."""
+    """The study shares one defect-free analysis between the defects of a geometry (every
+    width and depth); its rows are nevertheless exactly what measure_scene gives for each
+    scene on its own."""
     plan = StudyPlan(
-        surfaces=("flat", "sphere"), thetas=(45.0, 5.0), sigma2s=(1.0,), dmaxs=(0.005,), size=256
+        surfaces=("flat", "sphere"),
+        thetas=(45.0, 5.0),
+        sigma2s=(1.0, 9.0),
+        dmaxs=(0.005,),
+        size=256,
     )
     rows = run_study(plan, tmp_path, progress=False, renderer=renderer).rows
     keys = (

@@ -8,6 +8,7 @@ machine; ``GLSHADE_LIBEGL`` overrides the EGL library that glcontext loads.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import logging
 import os
 import re
@@ -90,6 +91,17 @@ def _missing_device(index: int, count: int, libegl: str | None) -> str:
     )
 
 
+def released_finish(ctx: moderngl.Context) -> Any:
+    """``glFinish`` as a ctypes function (ctypes releases the interpreter lock for the
+    call), from the loader moderngl took its functions from; None where there is none."""
+    load = getattr(getattr(ctx.mglo, "_context", None), "load", None)
+    try:
+        address = load("glFinish") if load is not None else 0
+    except Exception:  # a loader of another kind: moderngl's own finish instead
+        return None
+    return ctypes.CFUNCTYPE(None)(address) if address else None
+
+
 class GLContext:
     """Owns one standalone EGL context; a context manager. ``release()`` twice is harmless."""
 
@@ -106,12 +118,14 @@ class GLContext:
         self.ctx = ctx
         self._external = True
         self._depth = 0
+        self._finish = None
         self._parking_texture = ctx.renderbuffer((1, 1), 1, dtype="f1")
         self._parking = ctx.framebuffer(color_attachments=[self._parking_texture])
         return self
 
     def __init__(self, device_index: int | None = None, libegl: str | None = None) -> None:
         self._external = False
+        self._finish: Any = None
         self.device_index = _device_index_from_env() if device_index is None else int(device_index)
         if self.device_index < 0:
             raise ContextError(f"device_index: must be an integer >= 0, got {self.device_index}")
@@ -194,6 +208,17 @@ class GLContext:
             self._depth -= 1
             if self._depth == 0:
                 ctx.__exit__(None, None, None)
+
+    def wait(self) -> None:
+        """Block until the GL has done every command issued so far (a draw's trace), with
+        Python's interpreter lock released: moderngl's calls keep it, so its ``finish``
+        would stop every other Python thread (the engine's analysis) for a whole llvmpipe
+        trace. glFinish is called through the function the context's own loader gives
+        moderngl; a context whose loader cannot be asked finishes through moderngl."""
+        with self.current() as ctx:
+            if self._finish is None:
+                self._finish = released_finish(ctx) or ctx.finish
+            self._finish()
 
     def park(self) -> None:
         """Bind the context's own 1x1 framebuffer (call before releasing a bound one)."""

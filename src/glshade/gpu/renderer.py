@@ -585,6 +585,7 @@ class Renderer:
     def _draw_once(self, vao: moderngl.VertexArray, width: int, height: int, work: int) -> None:
         if work <= SINGLE_DRAW_WORK:
             vao.render(moderngl.TRIANGLES, vertices=3)
+            self.context.wait()  # the trace, other Python threads running meanwhile
         else:
             self._draw_in_bands(vao, width, height, work)
 
@@ -705,7 +706,7 @@ class Renderer:
                 begin = time.perf_counter()
                 ctx.scissor = (0, done, width, band)
                 vao.render(moderngl.TRIANGLES, vertices=3)
-                ctx.finish()
+                self.context.wait()
                 seconds = time.perf_counter() - begin
                 done += band
                 rows = max(1, min(height, int(band * TILE_SECONDS / max(seconds, 1e-4))))

@@ -77,10 +77,11 @@ def measure_batch(cases: list[Case], settings, images: bool) -> list[Row]:
     return list(measure_rows(renderer, cases, settings, images))
 
 
-def batches(cases: list[Case], size: int) -> list[list[Case]]:
-    """The tasks: the engine's geometry groups, each cut into pieces of at most ``size``."""
+def batches(cases: list[Case], size: int, settings=None) -> list[list[Case]]:
+    """The tasks: the engine's geometry groups (for ``settings``), each cut into pieces of
+    at most ``size``."""
     out = []
-    for group in grouped(cases):
+    for group in grouped(cases, settings):
         out += [group[i : i + size] for i in range(0, len(group), size)]
     return out
 
@@ -125,7 +126,7 @@ class DaskExecutor:
     def rows(self, cases: list[Case], settings, images: bool) -> Iterator[Row]:
         """Rows of ``cases``, as their batches finish (any order)."""
         futures = []
-        for batch in batches(cases, self.distribution.batch):
+        for batch in batches(cases, self.distribution.batch, settings):
             self._submitted += 1
             futures.append(
                 self.client.submit(

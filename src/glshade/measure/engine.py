@@ -31,6 +31,7 @@ from glshade.measure.single import (
     emitter_map,
     judged,
     map_baseline,
+    map_baseline_key,
     measure_scene,
     phase_images,
     shades_from_map,
@@ -92,8 +93,14 @@ class CaseView:
 Extra = Callable[[Case, vis.Visibility, CaseView], Any]
 
 
-def geometry_key(scene: Scene) -> str:
-    """Scenes with equal keys share their defect-free trace and analysis."""
+def geometry_key(scene: Scene, settings: vis.MetricSettings | PmdSettings | None = None) -> str:
+    """Scenes with equal keys share their defect-free trace and analysis: the scene without
+    its defect; measured by the paper's metric from the emitter map (``settings`` not
+    :class:`PmdSettings`), :func:`~glshade.measure.single.map_baseline_key`, which leaves
+    out the width of the absent dent (phase measuring's nominal geometry and a sensor's
+    noise read the whole scene)."""
+    if not isinstance(settings, PmdSettings) and shades_from_map(scene):
+        return map_baseline_key(scene)
     return json.dumps(scene.without_defect().to_dict(), sort_keys=True, default=str)
 
 
@@ -102,12 +109,15 @@ def program_key(scene: Scene) -> Hashable:
     return ShaderFeatures.from_scene(scene, ("uv",))
 
 
-def grouped(cases: Sequence[Case]) -> list[list[Case]]:
-    """``cases`` by geometry (first appearance first), the geometries of one shader
-    feature set next to each other: the order the engine measures them in."""
+def grouped(
+    cases: Sequence[Case], settings: vis.MetricSettings | PmdSettings | None = None
+) -> list[list[Case]]:
+    """``cases`` by geometry (:func:`geometry_key`; first appearance first), the
+    geometries of one shader feature set next to each other: the order the engine
+    measures them in."""
     geometries: dict[str, list[Case]] = {}
     for case in cases:
-        geometries.setdefault(geometry_key(case.scene), []).append(case)
+        geometries.setdefault(geometry_key(case.scene, settings), []).append(case)
     programs: dict[Hashable, list[list[Case]]] = {}
     for group in geometries.values():
         programs.setdefault(program_key(group[0].scene), []).append(group)
@@ -131,10 +141,10 @@ def measure_many(
     (every case's emitter shows the fringe sequence; one defect-free analysis per
     geometry; ``extra`` gets a :class:`PmdView`)."""
     if isinstance(settings, PmdSettings):
-        for group in grouped(cases):
+        for group in grouped(cases, settings):
             yield from _phase_measured(renderer, group, settings, extra)
         return
-    for group in grouped(cases):
+    for group in grouped(cases, settings):
         if shades_from_map(group[0].scene):
             yield from _mapped(renderer, group, settings, pool, extra)
         else:

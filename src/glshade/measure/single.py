@@ -15,6 +15,7 @@ while the continuous numbers keep following the rays (the emitter maps).
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -83,6 +84,23 @@ def map_baseline(scene: Scene, v0: np.ndarray, settings: MetricSettings) -> Base
     """The defect-free analysis of ``scene``'s geometry from its traced emitter map ``v0``,
     shaded from the map (the engine's fast path, the viewer's live readout)."""
     return Baseline(v0, scene.active.emitter.pattern(scene), settings)
+
+
+def map_baseline_key(scene: Scene) -> str:
+    """Scenes shaded from their emitter maps whose keys are equal have the same
+    :func:`map_baseline`: the defect-free scene's values, its absent defect (dmax = 0)
+    reduced to what the trace reads of it, its features and its centre (the origin of the
+    frame every shader computes in). The analysis reads only the map and the emitter's
+    pattern, so dents of every width on one geometry share one defect-free analysis."""
+    normal = scene.without_defect()
+    values = normal.to_dict()
+    defect = normal.active.defect
+    if not defect.present(normal):
+        values["defect"] = {
+            "features": defect.features(normal),
+            "centre_mm": normal.local_origin().tolist(),
+        }
+    return json.dumps(values, sort_keys=True, default=str)
 
 
 def judged(scene: Scene, baseline: Baseline, v1: np.ndarray, result: Visibility) -> Visibility:
