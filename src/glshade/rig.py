@@ -23,7 +23,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import pyrr
 
 #: The elevation the orbit keeps the camera within (degrees above the surface).
 ORBIT_THETA_DEG = (0.5, 89.5)
@@ -34,6 +33,8 @@ def rig_rotation(azimuth_rad: float) -> np.ndarray:
     identity at 0."""
     if azimuth_rad == 0.0:
         return np.eye(3)
+    import pyrr  # only a turned rig needs it: most scenes never load it
+
     return np.asarray(pyrr.matrix33.create_from_y_rotation(azimuth_rad), dtype=np.float64)
 
 

@@ -9,6 +9,7 @@ import sys
 import time
 from collections import Counter
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from glshade.app.args import (
     add_metric_flags,
@@ -26,11 +27,11 @@ from glshade.app.args import (
 )
 from glshade.errors import GlshadeError
 from glshade.files import check_output
-from glshade.measure.executors import Distribution
-from glshade.measure.where import open_executor
 from glshade.oracle.advice import scene_warnings
-from glshade.process import reuse_freed_memory
-from glshade.sweep.optimize import METRICS
+from glshade.sweep.goals import METRICS
+
+if TYPE_CHECKING:  # the measuring machinery is loaded by the commands that run it
+    from glshade.measure.executors import Distribution
 
 #: Pixels across of the optimiser's scenes unless --size says otherwise.
 OPTIMIZE_SIZE = 256
@@ -69,6 +70,8 @@ def _add_distribution_flags(p: argparse.ArgumentParser) -> None:
 
 
 def _distribution(args: argparse.Namespace) -> Distribution:
+    from glshade.measure.executors import Distribution
+
     return Distribution(
         workers=args.workers,
         scheduler=args.scheduler,
@@ -114,6 +117,7 @@ def add_sweep(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
+    from glshade.process import reuse_freed_memory
     from glshade.sweep.run import run_sweep
     from glshade.sweep.spec import load_spec
 
@@ -217,6 +221,8 @@ def add_optimize(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_optimize(args: argparse.Namespace) -> int:
     from glshade.measure.single import as_method
+    from glshade.measure.where import open_executor
+    from glshade.process import reuse_freed_memory
     from glshade.sweep.optimize import (
         goal_of,
         objective_figure,

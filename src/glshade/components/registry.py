@@ -276,7 +276,9 @@ def discovered() -> list[Component]:
     """One instance of every component the ``glshade.components`` entry points name:
     glshade's own first, then each plug-in's; by slot, and within a slot by ``rank``
     (then name). A plug-in that does not load names itself."""
-    points = sorted(entry_points(group=ENTRY_POINT_GROUP), key=_entry_order)
+    points = list(entry_points(group=ENTRY_POINT_GROUP))
+    if len(points) > 1:  # a distribution's name reads its metadata: only when there are plug-ins
+        points.sort(key=_entry_order)
     found: list[Component] = []
     for point in points:
         try:
