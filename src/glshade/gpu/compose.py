@@ -29,6 +29,7 @@ from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from glshade.cache import cache_dir
 from glshade.components.base import Component, Slot, UniformContext
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, ShaderCompileError
@@ -120,10 +121,28 @@ def qualified(component: Component, name: str) -> str:
     return name if name.startswith(LIBRARY) else f"{namespace(component)}/{name}"
 
 
+#: The composer's Jinja options: delimiters that cannot clash with GLSL, and an undefined
+#: variable is an error, never a silent default.
+ENVIRONMENT_OPTIONS: dict[str, object] = {
+    "block_start_string": "{$",
+    "block_end_string": "$}",
+    "variable_start_string": "{{",
+    "variable_end_string": "}}",
+    "comment_start_string": "{#",
+    "comment_end_string": "#}",
+    "trim_blocks": True,
+    "lstrip_blocks": True,
+    "keep_trailing_newline": True,
+    "autoescape": False,
+}
+
+
 @functools.lru_cache(maxsize=16)
 def _environment(folders: tuple[tuple[str, str], ...]) -> jinja2.Environment:
     """The environment whose loader finds the shaders directory's files and each
-    component's under its namespace (``folders``: namespace, folder)."""
+    component's under its namespace (``folders``: namespace, folder); its compiled
+    templates are kept on disk between processes where the cache allows
+    (:mod:`glshade.gpu.template_cache`)."""
     import jinja2  # imported here: a process that never compiles a program needs no Jinja
 
     mapping = {prefix: jinja2.FileSystemLoader(folder) for prefix, folder in folders}
@@ -132,18 +151,21 @@ def _environment(folders: tuple[tuple[str, str], ...]) -> jinja2.Environment:
     )
     return jinja2.Environment(
         loader=loader,
-        block_start_string="{$",
-        block_end_string="$}",
-        variable_start_string="{{",
-        variable_end_string="}}",
-        comment_start_string="{#",
-        comment_end_string="#}",
         undefined=jinja2.StrictUndefined,
-        trim_blocks=True,
-        lstrip_blocks=True,
-        keep_trailing_newline=True,
-        autoescape=False,
+        bytecode_cache=_template_cache(),
+        **ENVIRONMENT_OPTIONS,  # type: ignore[arg-type]
     )
+
+
+def _template_cache() -> jinja2.BytecodeCache | None:
+    """The on-disk cache of compiled templates, or None where it is off (``GLSHADE_CACHE_DIR=``)
+    or its folder cannot be used."""
+    folder = cache_dir("templates")
+    if folder is None:
+        return None
+    from glshade.gpu.template_cache import TemplateCache
+
+    return TemplateCache(folder, {**ENVIRONMENT_OPTIONS, "undefined": "StrictUndefined"})
 
 
 def environment_for(components) -> jinja2.Environment:
