@@ -65,6 +65,17 @@ def _device_index_from_env() -> int:
     return index
 
 
+def _loadable(soname: str) -> str | None:
+    """``soname`` when the dynamic loader finds it (what glcontext would pick: it asks
+    ``ctypes.util.find_library``, which runs ``ldconfig`` in a subprocess, a few ms per
+    library); None leaves the search to glcontext."""
+    try:
+        ctypes.CDLL(soname)
+    except OSError:
+        return None
+    return soname
+
+
 def egl_devices(count: int, libegl: str | None = None) -> list[str]:
     """``"index: GL renderer"`` for EGL devices ``0 … count-1`` (a device that gives no
     context says why)."""
@@ -130,9 +141,12 @@ class GLContext:
         if self.device_index < 0:
             raise ContextError(f"device_index: must be an integer >= 0, got {self.device_index}")
         kwargs: dict[str, Any] = {"backend": "egl", "device_index": self.device_index}
-        libegl = libegl or os.environ.get("GLSHADE_LIBEGL")
+        libegl = libegl or os.environ.get("GLSHADE_LIBEGL") or _loadable("libEGL.so.1")
         if libegl:
             kwargs["libegl"] = libegl
+        libgl = _loadable("libGL.so.1")
+        if libgl:
+            kwargs["libgl"] = libgl
         try:
             self.ctx: moderngl.Context | None = moderngl.create_standalone_context(**kwargs)
         except Exception as exc:  # glcontext raises bare Exception for every failure
