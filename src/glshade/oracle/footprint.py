@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from glshade.oracle.tracer import first_hit
 from glshade.scene import Scene
 
 #: Small rotation of the mirror ray used to differentiate ``v`` (rad).
@@ -23,6 +22,8 @@ _DALPHA = 1e-5
 def footprint_mm(scene: Scene, lobe_std_rad: float) -> float | None:
     """The lobe's ±1σ width along ``v`` on the emitter (mm) for the image's centre pixel,
     or None where the centre ray misses the surface or the emitter."""
+    from glshade.oracle.tracer import first_hit  # a lobe only: most scenes never trace here
+
     cam = scene.camera
     rows, cols = (
         slice(cam.height // 2, cam.height // 2 + 1),

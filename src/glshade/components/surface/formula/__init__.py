@@ -17,12 +17,11 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from glshade.components.base import SurfaceComponent
-from glshade.components.surface.formula.grammar import PARAMETER_PREFIX, parse_formula
-from glshade.components.surface.formula.grammar import Formula as ParsedFormula
 from glshade.components.surface.freeform import (
     MARCH_GLSL,
     march_loop_iterations,
@@ -30,6 +29,9 @@ from glshade.components.surface.freeform import (
 )
 from glshade.errors import SceneError
 from glshade.params import Table, param
+
+if TYPE_CHECKING:  # the grammar is loaded by the first formula parsed
+    from glshade.components.surface.formula.grammar import Formula as ParsedFormula
 
 #: Samples per side of the grid the bounds are taken on, and their safety factor.
 BOUND_SAMPLES = 129
@@ -64,6 +66,8 @@ class FormulaTable(Table):
 
 @functools.lru_cache(maxsize=64)
 def parsed(expression: str, parameters: tuple[tuple[str, float], ...]) -> ParsedFormula:
+    from glshade.components.surface.formula.grammar import parse_formula
+
     return parse_formula(expression, dict(parameters))
 
 
@@ -94,6 +98,8 @@ class Formula(SurfaceComponent):
         return march_loop_iterations(scene, solver)
 
     def uniforms(self, scene, context):
+        from glshade.components.surface.formula.grammar import PARAMETER_PREFIX
+
         lo, hi, curvature = bounds(scene)
         values = {PARAMETER_PREFIX + name: value for name, value in formula_of(scene).parameters}
         return {

@@ -39,7 +39,6 @@ from glshade.components.surface.freeform import (
     march_loop_iterations,
     march_uniforms,
 )
-from glshade.components.surface.heightmap.readers import cached_height_map
 from glshade.errors import SceneError
 from glshade.params import Table, param
 
@@ -164,6 +163,8 @@ def grid_of(scene) -> Grid:
 
 
 def _grid(file, scale, spacing, origin, outside, fill) -> Grid:
+    from glshade.components.surface.heightmap.readers import cached_height_map  # maps only
+
     height_map = cached_height_map(
         file, float(scale)
     )  # the same object while the file is unchanged
