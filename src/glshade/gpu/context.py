@@ -116,6 +116,8 @@ def released_finish(ctx: moderngl.Context) -> Any:
 class GLContext:
     """Owns one standalone EGL context; a context manager. ``release()`` twice is harmless."""
 
+    _known: ContextInfo | None  # info(), once asked
+
     @classmethod
     def wrap(cls, ctx: moderngl.Context) -> GLContext:
         """Adopt a context someone else owns and keeps current (a viewer window's): glshade
@@ -125,6 +127,7 @@ class GLContext:
                 f"OpenGL {ctx.info.get('GL_VERSION', '?')} is too old: glshade needs 4.5 core"
             )
         self = cls.__new__(cls)
+        self._known = None
         self.device_index = -1
         self.ctx = ctx
         self._external = True
@@ -137,6 +140,7 @@ class GLContext:
     def __init__(self, device_index: int | None = None, libegl: str | None = None) -> None:
         self._external = False
         self._finish: Any = None
+        self._known = None
         self.device_index = _device_index_from_env() if device_index is None else int(device_index)
         if self.device_index < 0:
             raise ContextError(f"device_index: must be an integer >= 0, got {self.device_index}")
@@ -177,8 +181,12 @@ class GLContext:
         log.info("GL context: %s, GL %s, fp64 %s", info.renderer, info.version, info.fp64)
 
     def info(self) -> ContextInfo:
-        with self.current() as ctx:
-            return self._info(ctx)
+        """What the context is (queried once, it never changes; an error once released)."""
+        self._live()
+        if self._known is None:
+            with self.current() as ctx:
+                self._known = self._info(ctx)
+        return self._known
 
     def _info(self, ctx: moderngl.Context) -> ContextInfo:
         return ContextInfo(
