@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import logging
 import os
 import re
+import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -19,8 +19,6 @@ from typing import Any
 import moderngl
 
 from glshade.errors import ContextError
-
-log = logging.getLogger("glshade")
 
 #: GL version the shaders are written for (``#version 450``; fp64 is core since 4.0).
 REQUIRED_GL = 450
@@ -178,7 +176,13 @@ class GLContext:
             self._parking_texture = self.ctx.renderbuffer((1, 1), 1, dtype="f1")
             self._parking = self.ctx.framebuffer(color_attachments=[self._parking_texture])
         info = self.info()
-        log.info("GL context: %s, GL %s, fp64 %s", info.renderer, info.version, info.fp64)
+        # Logged where the process uses logging: a process that never imported it has no
+        # handler that would show an info line, and importing it costs ~3 ms of start-up.
+        logging = sys.modules.get("logging")
+        if logging is not None:
+            logging.getLogger("glshade").info(
+                "GL context: %s, GL %s, fp64 %s", info.renderer, info.version, info.fp64
+            )
 
     def info(self) -> ContextInfo:
         """What the context is (queried once, it never changes; an error once released)."""

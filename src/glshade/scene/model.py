@@ -18,7 +18,6 @@ round-trip. A scene resolves once which component fills each slot (:attr:`Scene.
 from __future__ import annotations
 
 import os
-import tomllib
 from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 from pathlib import Path
@@ -318,6 +317,8 @@ def read_toml(path: Path, what: str = "scene file") -> dict[str, Any]:
         ) from None
     if "\x00" in text:
         raise SceneError(field, "a TOML text file (it holds NUL bytes: binary data)")
+    import tomllib  # only a scene file needs the TOML parser (and its datetime)
+
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
