@@ -139,7 +139,8 @@ def test_directory_with_other_settings_is_refused(tmp_path):
         (["--step", "3"], "step: must be at most one stripe period (2 mm)"),
         (["--step", "0"], "step: must be a number of mm > 0"),
         (["--sigma2s", "-1"], "sigma2s: every value must be in (0, inf)"),
-        (["--workers", "0"], "--workers: must be an integer >= 1"),
+        (["--workers", "-1"], "--workers: must be auto or an integer in [0, 256]"),
+        (["--threads", "0"], "--threads: must be an integer >= 1"),
         (["--size", "0"], "camera.width: must be an integer in [1, 16384]"),
     ],
 )
@@ -156,7 +157,7 @@ def test_bad_input_is_one_line_exit_2(tmp_path, args, fragment):
     assert len(lines) == 1 and lines[0].startswith("glshade: error: ") and fragment in lines[0], (
         result.stderr
     )
-    if "--workers" not in args:
+    if "--threads" not in args:
         assert not out.exists()  # rejected before anything is written
 
 

@@ -11,6 +11,7 @@ format, its units and ranges: ``docs/scene-format.md``.
 from __future__ import annotations
 
 import argparse
+import functools
 import gc
 import sys
 import time
@@ -405,13 +406,25 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
     add_metric_flags(p)
     p.add_argument(
         "--workers",
+        default="auto",
+        metavar="N",
+        help="worker processes, each tracing and measuring whole geometries with its own "
+        "renderer (a local Dask cluster); 0: in this process; auto (the default): 2 when "
+        "the study is large enough to repay their start (64 cases at 512² or the like), "
+        "else 0",
+    )
+    p.add_argument(
+        "--threads",
         type=int,
         default=2,
         metavar="N",
-        help="threads for the metric's analysis (default 2)",
+        help="in this process: threads for the metric's analysis while this thread traces "
+        "(default 2)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--device", type=int, metavar="N", help="EGL device index")
+    p.add_argument(
+        "--device", type=int, metavar="N", help="EGL device index (in this process only)"
+    )
     from glshade.app.cli_paper_pmd import add_pmd_paper_flags
 
     add_pmd_paper_flags(p)
@@ -424,7 +437,7 @@ def _cmd_paper(args: argparse.Namespace) -> int:
     from glshade.study import plan as study
     from glshade.study.run import check_workers
 
-    check_workers(args.workers)  # before --out is touched
+    check_workers(args.threads)  # before --out is touched
     check_method_flags(args)
     metric = metric_settings(args)
     surfaces = tuple(part.strip() for part in args.surfaces.split(",") if part.strip())
@@ -436,6 +449,7 @@ def _cmd_paper(args: argparse.Namespace) -> int:
         size=args.size,
         metric=metric,
     )
+    args.workers = paper_workers(args.workers, plan, args.device)
     if args.method == "pmd":
         pmd = pmd_plan(args, plan)  # bad input is refused before --out is touched
         with run_lock(args.out):
@@ -450,6 +464,30 @@ def _cmd_paper(args: argparse.Namespace) -> int:
     )
     with run_lock(args.out):
         return _run_paper(args, plan)
+
+
+#: ``--workers auto`` starts worker processes for a study of at least this many pixels to
+#: trace and measure (64 cases at 512²): below it their start-up (about 2 s) is not repaid.
+AUTO_WORKERS_PIXELS = 64 * 512 * 512
+
+
+def paper_workers(given: str, plan, device: int | None) -> int:
+    """The worker processes of a study: ``--workers`` (an integer >= 0, or ``auto``)."""
+    if given == "auto":
+        large = len(plan.cases()) * plan.size * plan.size >= AUTO_WORKERS_PIXELS
+        return 2 if large and device is None else 0
+    try:
+        workers = int(given)
+    except ValueError:
+        workers = -1
+    if not 0 <= workers <= 256:
+        raise GlshadeError(f"--workers: must be auto or an integer in [0, 256], got {given}")
+    if workers and device is not None:
+        raise GlshadeError(
+            "--device: only with --workers 0 (worker processes take the EGL device of their "
+            "CUDA_VISIBLE_DEVICES)"
+        )
+    return workers
 
 
 def _run_paper(args: argparse.Namespace, plan) -> int:
@@ -474,16 +512,21 @@ def _run_paper(args: argparse.Namespace, plan) -> int:
         drawn[surface] = plots.surface_figures(rows, args.out, plan, surface)
         figure_seconds += time.perf_counter() - begin
 
-    with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
-        result = run_study(
-            plan,
-            args.out,
-            workers=args.workers,
-            progress=not args.no_progress,
-            renderer=renderer,
-            on_surface_done=draw,
-            overwrite=args.overwrite,
-        )
+    run = functools.partial(
+        run_study,
+        plan,
+        args.out,
+        progress=not args.no_progress,
+        on_surface_done=draw,
+        overwrite=args.overwrite,
+    )
+    if args.workers:
+        from glshade.measure.executors import Distribution
+
+        result = run(distribution=Distribution(workers=args.workers))
+    else:
+        with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
+            result = run(workers=args.threads, renderer=renderer)
     figure_start = time.perf_counter()
     written = plots.write_figures(result.rows, args.out, plan, drawn)
     result.timings.figures = figure_seconds + time.perf_counter() - figure_start

@@ -31,7 +31,7 @@ from distributed.scheduler import KilledWorker
 from glshade.errors import GlshadeError
 from glshade.gpu.context import GLContext
 from glshade.gpu.renderer import Renderer
-from glshade.measure.engine import Case, grouped
+from glshade.measure.engine import Case, Extra, Measured, grouped, measure_many
 from glshade.measure.executors import Distribution, Row, measure_rows
 
 PLUGIN_NAME = "glshade-renderer"
@@ -72,9 +72,18 @@ class RendererPlugin(WorkerPlugin):
 
 def measure_batch(cases: list[Case], settings, images: bool) -> list[Row]:
     """A Dask task: measure one batch with the worker's renderer; returns its rows."""
+    return list(measure_rows(_worker_renderer(), cases, settings, images))
+
+
+def measure_whole(cases: list[Case], settings, extra: Extra | None) -> list[Measured]:
+    """A Dask task: measure one batch with the worker's renderer; returns its results
+    whole, with what ``extra`` made of each (the worker traces and analyses in turn)."""
+    return list(measure_many(_worker_renderer(), cases, settings, extra=extra))
+
+
+def _worker_renderer() -> Renderer:
     plugin = cast(RendererPlugin, get_worker().plugins[PLUGIN_NAME])
-    renderer = plugin.get()
-    return list(measure_rows(renderer, cases, settings, images))
+    return plugin.get()
 
 
 def batches(cases: list[Case], size: int, settings=None) -> list[list[Case]]:
@@ -125,22 +134,34 @@ class DaskExecutor:
 
     def rows(self, cases: list[Case], settings, images: bool) -> Iterator[Row]:
         """Rows of ``cases``, as their batches finish (any order)."""
+        for rows in self._run(measure_batch, cases, settings, images):
+            yield from rows
+
+    def measured(self, cases: list[Case], settings, extra: Extra | None) -> Iterator[Measured]:
+        """Whole results of ``cases`` (``extra`` run on the workers), as their batches
+        finish (any order)."""
+        for results in self._run(measure_whole, cases, settings, extra):
+            yield from results
+
+    def _run(self, task, cases: list[Case], settings, option) -> Iterator[list]:
+        """``task(batch, settings, option)`` on the cluster for every batch, results as they
+        finish."""
         futures = []
         for batch in batches(cases, self.distribution.batch, settings):
             self._submitted += 1
             futures.append(
                 self.client.submit(
-                    measure_batch,
+                    task,
                     batch,
                     settings,
-                    images,
+                    option,
                     pure=False,
                     key=f"glshade-batch-{self._submitted}-{batch[0].key}",
                 )
             )
         try:
             for future in as_completed(futures, loop=self.client.loop):
-                yield from future.result()
+                yield future.result()
                 future.release()
         except KilledWorker as exc:
             raise GlshadeError(

@@ -3,8 +3,10 @@ cluster (:class:`glshade.measure.cluster.DaskExecutor`; :func:`glshade.measure.w
 open_executor` picks one). Both measure with the same
 engine (:func:`glshade.measure.engine.measure_many`) and return the same rows, records
 and never frames; the calling process alone writes files, so a table cannot depend on
-where a case ran. An executor is a context manager with one method,
-``rows(cases, settings, images)``.
+where a case ran. An executor is a context manager with two methods:
+``rows(cases, settings, images)`` (the records, for tables) and ``measured(cases,
+settings, extra)`` (whole :class:`~glshade.measure.engine.Measured` results, ``extra`` run
+where each case is measured: the study's thumbnails and overlays).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from dataclasses import dataclass
 from typing import Any, Self
 
 from glshade.errors import GlshadeError
-from glshade.measure.engine import Case, CaseView, PmdView, measure_many
+from glshade.measure.engine import Case, CaseView, Extra, Measured, PmdView, measure_many
 from glshade.measure.pmd import PmdResult, PmdSettings
 from glshade.measure.record import Measurement, PmdMeasurement
 from glshade.metrics.visibility import MetricSettings, Visibility
@@ -71,12 +73,22 @@ class LocalExecutor:
     def rows(
         self, cases: Sequence[Case], settings: MetricSettings | PmdSettings, images: bool
     ) -> Iterator[Row]:
+        with ThreadPoolExecutor(max_workers=self.threads) as pool:
+            yield from measure_rows(self._renderer(), cases, settings, images, pool)
+
+    def measured(
+        self, cases: Sequence[Case], settings: MetricSettings | PmdSettings, extra: Extra | None
+    ) -> Iterator[Measured]:
+        """Every case measured, in the engine's order (the GL work on this thread)."""
+        with ThreadPoolExecutor(max_workers=self.threads) as pool:
+            yield from measure_many(self._renderer(), cases, settings, pool=pool, extra=extra)
+
+    def _renderer(self):
         if self.renderer is None:
             from glshade.gpu.renderer import Renderer
 
             self.renderer = Renderer()
-        with ThreadPoolExecutor(max_workers=self.threads) as pool:
-            yield from measure_rows(self.renderer, cases, settings, images, pool)
+        return self.renderer
 
     def close(self) -> None:
         if self._owns and self.renderer is not None:

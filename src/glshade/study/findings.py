@@ -695,7 +695,8 @@ def write_report(
                 f"{timings.contours:.1f} s, "
                 f"continuous numbers {timings.continuous:.1f} s, I/O {timings.io:.1f} s, figures "
                 f"{timings.figures:.1f} s "
-                "(stage sums over worker threads; cases computed in this run only)."
+                "(stage sums over the analysing threads or worker processes; cases computed in "
+                "this run only)."
             ),
         ]
     path = Path(out_dir) / "report.md"

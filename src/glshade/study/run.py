@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
@@ -26,9 +25,11 @@ import numpy as np
 from glshade.errors import GlshadeError
 from glshade.files import encode_png
 from glshade.gpu.renderer import Renderer
-from glshade.measure.engine import Case, CaseView, Measured, measure_many
+from glshade.measure.engine import Case, CaseView, Measured
+from glshade.measure.executors import Distribution
 from glshade.measure.locks import run_lock
 from glshade.measure.record import Measurement
+from glshade.measure.where import open_executor
 from glshade.metrics import contours
 from glshade.metrics import visibility as vis
 from glshade.study.plan import (
@@ -113,6 +114,7 @@ def run_study(
     on_case_done: Callable[[CaseResult], None] | None = None,
     on_surface_done: Callable[[str, list[CaseResult]], None] | None = None,
     overwrite: bool = False,
+    distribution: Distribution | None = None,
 ) -> StudyResult:
     """Run (or resume) the study into ``out_dir``; returns every case's record.
 
@@ -122,6 +124,10 @@ def run_study(
     removes the old study's files first (:func:`store.prepare_out_dir`).
 
     ``workers``: threads for the analysis (the GL work stays on this thread).
+    ``distribution``: measure elsewhere instead (:class:`~glshade.measure.executors.
+    Distribution`: local Dask worker processes, each tracing and analysing whole
+    geometries, or an existing cluster); the figures' thumbnails are made there too, the
+    files are written here.
     ``on_case_done(row)`` is called after each case is safely on disk;
     ``on_surface_done(surface, rows)`` once the last case of a surface computed in this
     run is, with all of that surface's rows (the CLI draws its figures there, on this
@@ -131,19 +137,18 @@ def run_study(
     out_dir = Path(out_dir)
     with run_lock(out_dir):
         prepare_out_dir(out_dir, plan.to_dict(), overwrite)
-        return _run_locked(
-            plan, out_dir, workers, progress, renderer, on_case_done, on_surface_done
-        )
+        where = distribution or Distribution(threads=workers)
+        return _run_locked(plan, out_dir, where, progress, renderer, on_case_done, on_surface_done)
 
 
 def check_workers(workers: int) -> None:
-    """The analysis threads of a run: at least one."""
+    """The analysis threads of a run in one process: at least one."""
     if workers < 1:
-        raise GlshadeError(f"--workers: must be an integer >= 1, got {workers}")
+        raise GlshadeError(f"--threads: must be an integer >= 1, got {workers}")
 
 
 def _run_locked(
-    plan, out_dir, workers, progress, renderer, on_case_done, on_surface_done
+    plan, out_dir, distribution, progress, renderer, on_case_done, on_surface_done
 ) -> StudyResult:
     done: dict[str, CaseResult] = {}
     pending = []
@@ -163,16 +168,13 @@ def _run_locked(
         on_surface_done,
     )
     timings = Timings()
-    owns = renderer is None
-    renderer = renderer or Renderer()
     try:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            _run_cases(plan, pending, renderer, pool, timings, out_dir, state.finished)
+        if pending:
+            with open_executor(distribution, renderer) as executor:
+                _run_cases(plan, pending, executor, timings, out_dir, state.finished)
     finally:
         if state.bar is not None:
             state.bar.close()
-        if owns:
-            renderer.release()
     rows = state.rows()
     start = time.perf_counter()
     write_results_csv(out_dir / "results.csv", rows)
@@ -193,18 +195,17 @@ def _progress_bar(total: int, initial: int, enabled: bool):
 def _run_cases(
     plan: StudyPlan,
     points: list[PlanPoint],
-    renderer: Renderer,
-    pool: ThreadPoolExecutor,
+    executor,
     timings: Timings,
     out_dir: Path,
     finished: Callable[[CaseResult], None],
 ) -> None:
     """Measure every pending case with the measuring engine
     (:func:`glshade.measure.engine.measure_many`: one defect-free analysis per (surface,
-    θ), tracing on this thread while the pool measures) and write each result as soon as
-    it is done."""
+    θ); in this process the GL thread traces while the pool measures, on workers each
+    measures whole geometries) and write each result as soon as it is done."""
     cases = [Case(point, plan.scene(*point)) for point in points]
-    for measured in measure_many(renderer, cases, plan.metric, pool=pool, extra=_figures):
+    for measured in executor.measured(cases, plan.metric, _figures):
         row = case_result(measured)
         timings.trace += measured.trace_s
         _write(row, measured.extra, timings, out_dir)
