@@ -459,3 +459,27 @@ def test_rows_not_measurable_are_left_out_of_verdicts_and_advice(tmp_path):
         plots._save = saved
     labels = [t.get_text() for fig in drawn for legend in fig.legends for t in legend.get_texts()]
     assert "not measurable" in labels
+
+
+def test_the_study_on_worker_processes_writes_the_same_rows(tmp_path, renderer):
+    """Two local worker processes (each tracing and measuring whole geometries, thumbnails
+    made there) write the rows and figures' inputs this process writes, number for number."""
+    from glshade.measure.executors import Distribution
+
+    plan = StudyPlan(surfaces=("flat", "sphere"), thetas=(45.0, 5.0), sigma2s=(4.0,), size=96)
+    here = run_study(plan, tmp_path / "here", progress=False, renderer=renderer)
+    there = run_study(
+        plan, tmp_path / "there", progress=False, distribution=Distribution(workers=2)
+    )
+    assert there.computed == here.computed == 8
+    assert _stable(read_results_csv(tmp_path / "there" / "results.csv")) == _stable(
+        read_results_csv(tmp_path / "here" / "results.csv")
+    )
+    thumbnails = sorted(p.name for p in (tmp_path / "here" / "cases").glob("*.png"))
+    assert thumbnails and thumbnails == sorted(
+        p.name for p in (tmp_path / "there" / "cases").glob("*.png")
+    )
+    for name in thumbnails:
+        assert (tmp_path / "here" / "cases" / name).read_bytes() == (
+            tmp_path / "there" / "cases" / name
+        ).read_bytes()
