@@ -54,6 +54,8 @@ class ColumnOrder:
     direction: np.ndarray
     rows_per_mm: np.ndarray
     far: np.ndarray
+    zeros: np.ndarray
+    runs: dict[int, tuple[np.ndarray, np.ndarray]]
 
 
 def column_order(v0_cut: np.ndarray) -> ColumnOrder:
@@ -83,7 +85,27 @@ def column_order(v0_cut: np.ndarray) -> ColumnOrder:
         direction=direction,
         rows_per_mm=per_mm.astype(np.float32),
         far=np.concatenate(far).astype(np.int64) if far else np.empty(0, np.int64),
+        zeros=np.where(finite, 0.0, np.nan).astype(np.result_type(v0_cut.dtype, np.float32)),
+        runs={int(j): run for j in np.nonzero(direction == 0)[0] if (run := _run_of(a, int(j)))},
     )
+
+
+def _run_of(v0: np.ndarray, j: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """A column that is not monotone read as :func:`_inverse_turning` reads it: the rows
+    and values of its finite pixels (their longest monotonic run where it turns), ``v``
+    increasing; None where fewer than two pixels see the emitter."""
+    every = np.arange(v0.shape[0], dtype=np.float64)
+    valid = np.isfinite(v0[:, j])
+    if valid.sum() < 2:
+        return None
+    ra, va = every[valid], v0[valid, j]
+    step = np.diff(va)
+    if not (np.all(step > 0) or np.all(step < 0)):
+        keep = _longest_monotonic(va)  # the defect-free map should be monotonic
+        ra, va = ra[keep], va[keep]
+    if va[0] > va[-1]:
+        ra, va = ra[::-1], va[::-1]
+    return ra, va
 
 
 def _turning_column(column: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -152,13 +174,17 @@ def deflection(
         targets = np.flatnonzero(np.isfinite(b) & ~(a == b))
         folds = _against(a, b)
     else:
-        out[np.isfinite(a)] = 0.0
+        out = (
+            np.array(order.zeros, dtype)
+            if order is not None
+            else np.where(np.isfinite(a), 0.0, np.nan).astype(dtype)
+        )
         targets = _focus_targets(a, b, focus, out)
         folds = _focus_folds(a, b, focus)
     rows, cols = np.divmod(targets, a.shape[1])
     smooth = direction[cols] != 0
     _inverse_regular(a, b, rows[smooth], cols[smooth], direction.astype(dtype), out)
-    _inverse_turning(a, b, rows[~smooth], cols[~smooth], out)
+    _inverse_turning(a, b, rows[~smooth], cols[~smooth], out, order.runs if order else None)
     value = float(np.nanmax(out)) if np.isfinite(out).any() else 0.0
     displacement[:, columns] = out
     return Deflection(displacement, value, folds + columns.start)
@@ -247,10 +273,16 @@ def _inverse_regular(
 
 
 def _inverse_turning(
-    v0: np.ndarray, v1: np.ndarray, rows: np.ndarray, cols: np.ndarray, out: np.ndarray
+    v0: np.ndarray,
+    v1: np.ndarray,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    out: np.ndarray,
+    runs: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> None:
     """The same inverse in columns that are not monotone (no-hit pixels, a turn): per
-    column, on its finite pixels, or their longest monotonic run where the column turns."""
+    column, on its finite pixels, or their longest monotonic run where the column turns
+    (``runs``: those of :func:`column_order`, when known)."""
     if not len(rows):
         return
     every = np.arange(v0.shape[0], dtype=np.float64)
@@ -258,16 +290,10 @@ def _inverse_turning(
     rows, cols = rows[by_column], cols[by_column]
     bounds = np.flatnonzero(np.diff(cols)) + 1
     for r, j in zip(np.split(rows, bounds), cols[np.r_[0, bounds]], strict=True):
-        valid = np.isfinite(v0[:, j])
-        if valid.sum() < 2:
+        run = runs.get(int(j)) if runs is not None else _run_of(v0, int(j))
+        if run is None:
             continue
-        ra, va = every[valid], v0[valid, j]
-        step = np.diff(va)
-        if not (np.all(step > 0) or np.all(step < 0)):
-            keep = _longest_monotonic(va)  # the defect-free map should be monotonic
-            ra, va = ra[keep], va[keep]
-        if va[0] > va[-1]:
-            ra, va = ra[::-1], va[::-1]
+        ra, va = run
         want = v1[r, j]
         r = r[(want >= va[0]) & (want <= va[-1])]
         out[r, j] = np.abs(every[r] - np.interp(v1[r, j], va, ra))
@@ -321,7 +347,7 @@ class Limit:
 def visibility_limit(
     v0: np.ndarray,
     v1: np.ndarray,
-    valid: np.ndarray,
+    valid: np.ndarray | None,
     columns: slice,
     stripes: StripeLevels,
     moved: Deflection,
@@ -331,36 +357,59 @@ def visibility_limit(
 ) -> Limit:
     """``visibility_continuous_px`` (see the module docstring).
 
-    ``valid``: pixels the contour metric may use (they see the emitter and resolve the
-    stripes); ``moved``: :func:`deflection` of the same maps; ``focus``: the one it was
-    computed in (outside it the displacement is not looked at: the caller checks its
-    bound).
+    ``valid``: pixels the contour metric may use (None: where both maps see the emitter,
+    looked at only where needed); ``moved``: :func:`deflection` of the same maps;
+    ``focus``: the one it was computed in (outside it the displacement is not looked at:
+    the caller checks its bound).
     """
+    window = None
+    if moved.folded:
+        window = _fold_window(v0, v1, columns, moved.fold_columns, stripes.period_mm)
     if focus is None:
-        outside = np.where(valid, moved.displacement_px, np.nan)
+        outside = np.where(_valid(v0, v1, valid), moved.displacement_px, np.nan)
+        if window is not None:
+            outside[window[0] : window[1], window[2] : window[3]] = np.nan
+        rest = float(np.nanmax(outside)) if np.isfinite(outside).any() else 0.0
     else:
-        outside = _in_focus(moved.displacement_px, valid, columns, focus)
-    if not moved.folded:
-        return Limit(float(np.nanmax(outside)) if np.isfinite(outside).any() else 0.0)
-    window = _fold_window(v0, v1, columns, moved.fold_columns, stripes.period_mm)
+        rest = _focused_rest(v0, v1, valid, columns, moved.displacement_px, focus, window)
+    if window is None:
+        return Limit(rest)
     r0, r1, c0, c1 = window
-    outside[r0:r1, c0:c1] = np.nan
-    rest = float(np.nanmax(outside)) if np.isfinite(outside).any() else 0.0
+    box = (slice(r0, r1), slice(c0, c1))
     inside, phase = _window_limit(
-        v0[r0:r1, c0:c1], v1[r0:r1, c0:c1], valid[r0:r1, c0:c1], stripes, upsample, phase_samples
+        v0[box],
+        v1[box],
+        _valid(v0[box], v1[box], None if valid is None else valid[box]),
+        stripes,
+        upsample,
+        phase_samples,
     )
     return Limit(max(inside, rest), phase, window)
 
 
-def _in_focus(
-    displacement: np.ndarray, valid: np.ndarray, columns: slice, focus: Focus
-) -> np.ndarray:
-    """The displacement where ``valid`` inside the focus, NaN elsewhere (image size)."""
-    out = np.full(displacement.shape, np.nan, displacement.dtype)
+def _valid(v0: np.ndarray, v1: np.ndarray, valid: np.ndarray | None) -> np.ndarray:
+    return np.isfinite(v0) & np.isfinite(v1) if valid is None else valid
+
+
+def _focused_rest(
+    v0: np.ndarray,
+    v1: np.ndarray,
+    valid: np.ndarray | None,
+    columns: slice,
+    displacement: np.ndarray,
+    focus: Focus,
+    window: tuple[int, int, int, int] | None,
+) -> float:
+    """The largest displacement at the focus's valid pixels outside the fold ``window``."""
     r, c = np.divmod(focus.pixels, columns.stop - columns.start)
     c = c + columns.start
-    out[r, c] = np.where(valid[r, c], displacement[r, c], np.nan)
-    return out
+    values = displacement[r, c]
+    keep = np.isfinite(values)
+    keep &= (np.isfinite(v0[r, c]) & np.isfinite(v1[r, c])) if valid is None else valid[r, c]
+    if window is not None:
+        r0, r1, c0, c1 = window
+        keep &= ~((r >= r0) & (r < r1) & (c >= c0) & (c < c1))
+    return float(values[keep].max()) if keep.any() else 0.0
 
 
 #: Rows where the dent moves the emitter map by less than this (pixels) are outside the

@@ -617,7 +617,7 @@ class Baseline:
         """The deflection and the continuous limit: in the region of influence when the
         moves outside it are provably too small to matter (below a pixel, the deflection
         and the limit found in it), else over the whole frame."""
-        valid = np.isfinite(self.v0) & np.isfinite(v1)  # a vanishing pixel cannot alias
+        valid = None  # where both maps see the emitter: a vanishing pixel cannot alias
         levels = StripeLevels(self.pattern.period_mm, self._limit_half_width())
         search = self.settings.limit_upsample, self.settings.limit_phases
         focus = self.region().focus(influence) if influence is not None else None
