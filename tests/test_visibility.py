@@ -11,7 +11,7 @@ import pytest
 from glshade.errors import GlshadeError
 from glshade.metrics import contours as ct
 from glshade.metrics import visibility as V
-from glshade.scene import Emitter, paper_scene
+from glshade.scene import Emitter, Scene, paper_scene
 
 H, W = 240, 320
 MM_PER_ROW = 0.1  # the synthetic emitter map: v grows 0.1 mm per row
@@ -188,3 +188,26 @@ def test_deflection_flat_closed_form(renderer):
             ), theta
         else:  # at 15° the fold caps it (physics.md §3: 12.3 px)
             assert result.visibility_continuous_px == pytest.approx(12.3, rel=0.02)
+
+
+@pytest.mark.parametrize("ratio", [0.05, 0.1, 0.2, 0.2123, 0.3, 0.5, 1.0, 3.0])
+def test_the_stripes_left_out_of_the_radiance_change_no_bit(ratio):
+    """The radiance sums only the stripes that can change its float64 sum: against the sum
+    over every stripe within 10 σ, bit for bit, stripe edges and centres included."""
+    from glshade.components.emitter.stripes.table import silent_beyond
+
+    period = 2.0
+    sigma = ratio * period
+    rng = np.random.default_rng(7)
+    v = np.concatenate([rng.uniform(-300, 300, 50_000), np.arange(-40, 41) * period / 2, [np.nan]])
+    reach = math.ceil(10.0 * sigma / period) + 1
+    w = (v - 0.3) / period
+    w -= np.round(w)
+    every, scale = np.zeros(w.shape), period / sigma
+    for k in range(-reach, reach + 1):
+        every += np.exp(-0.5 * ((w - k) * scale) ** 2)
+    scene = Scene().updated(emitter={"period": period, "stripe_sigma": sigma})
+    pattern = scene.active.emitter.pattern(scene)
+    np.testing.assert_array_equal(pattern.radiance(v, 0.3), every)
+    # narrow stripes (the paper's: σ = 0.21 period) leave the far ones out
+    assert silent_beyond(reach, scale) < reach if ratio <= 0.25 else True
