@@ -11,7 +11,7 @@ analysis (docs/BENCHMARKS.md, "Trace, read-back and overlap").
 3. ``engine``: the paper's study (216 cases at ``--size``) through the engine with the
    analysis replaced by a fixed cost of ``--analysis-ms`` of NumPy work on small arrays
    (mostly under the interpreter lock, as a metric cut to the dent's region would be;
-   calibrated alone on this thread first), or the real analysis with ``--analysis-ms 0``.
+   calibrated once, alone, before the runs), or the real analysis with ``--analysis-ms 0``.
    In this process (2 analysis threads; the wait releasing or holding the lock) and on a
    LocalCluster of 2 single-threaded workers (cluster start excluded), each in a fresh
    subprocess, with ``LP_NUM_THREADS`` unset and 1. CPU seconds are the subprocess's
@@ -19,7 +19,7 @@ analysis (docs/BENCHMARKS.md, "Trace, read-back and overlap").
    is shared: a run with others above a second or two is not a clean figure).
 
     python benchmarks/trace_overlap.py [--size 1024] [--repeats 5] [--analysis-ms 20]
-        [--sections trace,gil,engine]
+        [--rounds 3] [--sections trace,gil,engine]
 """
 
 from __future__ import annotations
@@ -198,15 +198,16 @@ def warm_worker(cases) -> None:
     warm(get_worker().plugins[PLUGIN_NAME].get(), cases)  # type: ignore[attr-defined]
 
 
-def engine_run(kind: str, size: int, milliseconds: float) -> None:
+def engine_run(kind: str, size: int, work: int) -> None:
     """One configuration, in this (fresh) process, its programs compiled first (on each
-    worker): prints ``cases seconds``."""
+    worker), the analysis ``work`` repeats of :func:`synthetic_work` (0: the real one):
+    prints ``cases seconds``."""
     from distributed import as_completed
 
     from glshade.gpu.renderer import Renderer
     from glshade.measure.cluster import DaskExecutor, batches
     from glshade.measure.executors import Distribution, LocalExecutor
-    from glshade.measure.single import emitter_map, measure_scene
+    from glshade.measure.single import measure_scene
     from glshade.process import reuse_freed_memory
     from glshade.sweep.spec import load_spec
 
@@ -216,10 +217,8 @@ def engine_run(kind: str, size: int, milliseconds: float) -> None:
     firsts = list({case.scene.surface: case for case in cases}.values())
     with Renderer() as renderer:
         template = measure_scene(renderer, cases[0].scene, spec.settings)
-        repeats = 0
-        if milliseconds > 0:
-            repeats = calibrated_repeats(emitter_map(renderer, cases[0].scene), milliseconds)
-            install_synthetic(repeats, template)
+        if work:
+            install_synthetic(work, template)
         if kind == "dask":
             with DaskExecutor(Distribution(workers=2)) as executor:
                 client = executor.client
@@ -228,7 +227,7 @@ def engine_run(kind: str, size: int, milliseconds: float) -> None:
                     client.submit(warm_worker, firsts, workers=[address], pure=False).result()
                 start = time.perf_counter()
                 futures = [
-                    client.submit(dask_task, batch, spec.settings, repeats, template, pure=False)
+                    client.submit(dask_task, batch, spec.settings, work, template, pure=False)
                     for batch in batches(cases, 16)  # a paper sweep
                 ]
                 count = sum(len(f.result()) for f in as_completed(futures, loop=client.loop))
@@ -254,25 +253,44 @@ def children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def engine_section(size: int, milliseconds: float) -> None:
-    analysis = f"a {milliseconds:g} ms analysis" if milliseconds > 0 else "the real analysis"
-    print(f"  the paper's study at {size}², {analysis}:")
-    for label, kind, threads in ENGINE_RUNS:
-        env = dict(os.environ)
-        env.pop("LP_NUM_THREADS", None)
-        if threads is not None:
-            env["LP_NUM_THREADS"] = threads
-        busy, cpu = busy_seconds(), children_cpu()
-        command = [sys.executable, __file__, "--engine-run", kind, "--size", str(size)]
-        command += ["--analysis-ms", str(milliseconds)]
-        out = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
-        count, seconds = out.stdout.split()[-2:]
-        used = children_cpu() - cpu
-        others = max(0.0, busy_seconds() - busy - used)
-        print(
-            f"    {label}: {int(count) / float(seconds):.1f} cases/s ({float(seconds):.1f} s; "
-            f"CPU {used:.1f} s with start-up; others {others:.1f} s)"
-        )
+def synthetic_repeats(size: int, milliseconds: float) -> int:
+    """Repeats of :func:`synthetic_work` that take ``milliseconds`` here, alone, on the
+    study's first map."""
+    from glshade.gpu.renderer import Renderer
+    from glshade.measure.single import emitter_map
+    from glshade.sweep.spec import load_spec
+
+    scene = load_spec(EXAMPLE, size=size).cases()[0].case.scene
+    with Renderer() as renderer:
+        v1 = emitter_map(renderer, scene)
+    return calibrated_repeats(v1, milliseconds)
+
+
+def engine_section(size: int, milliseconds: float, rounds: int) -> None:
+    work = synthetic_repeats(size, milliseconds) if milliseconds > 0 else 0
+    analysis = f"a {milliseconds:g} ms analysis" if work else "the real analysis"
+    print(f"  the paper's study at {size}², {analysis}, {rounds} rounds (median):")
+    speeds: dict[str, list[float]] = {label: [] for label, _, _ in ENGINE_RUNS}
+    for _ in range(rounds):
+        for label, kind, threads in ENGINE_RUNS:
+            env = dict(os.environ)
+            env.pop("LP_NUM_THREADS", None)
+            if threads is not None:
+                env["LP_NUM_THREADS"] = threads
+            busy, cpu = busy_seconds(), children_cpu()
+            command = [sys.executable, __file__, "--engine-run", kind, "--size", str(size)]
+            command += ["--work", str(work)]
+            out = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
+            count, seconds = out.stdout.split()[-2:]
+            used = children_cpu() - cpu
+            others = max(0.0, busy_seconds() - busy - used)
+            speeds[label].append(int(count) / float(seconds))
+            print(
+                f"    {label}: {speeds[label][-1]:.1f} cases/s ({float(seconds):.1f} s; "
+                f"CPU {used:.1f} s with start-up; others {others:.1f} s)"
+            )
+    for label, values in speeds.items():
+        print(f"  {label}: median {statistics.median(values):.1f} cases/s")
 
 
 def main() -> None:
@@ -280,12 +298,14 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=1024)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--analysis-ms", type=float, default=20.0)
+    parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--sections", default="trace,gil,engine")
     parser.add_argument("--engine-run", help=argparse.SUPPRESS)
+    parser.add_argument("--work", type=int, default=0, help=argparse.SUPPRESS)
     parser.add_argument("--trace-only", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.engine_run:
-        engine_run(args.engine_run, args.size, args.analysis_ms)
+        engine_run(args.engine_run, args.size, args.work)
         return
     if args.trace_only:
         trace_section(args.size, args.repeats)
@@ -303,7 +323,7 @@ def main() -> None:
         gil_section(args.size)
     if "engine" in sections:
         print("the engine:")
-        engine_section(args.size, args.analysis_ms)
+        engine_section(args.size, args.analysis_ms, args.rounds)
 
 
 if __name__ == "__main__":
