@@ -26,25 +26,6 @@ from glshade.measure.single import emitter_map, judged
 from glshade.metrics import visibility as vis
 from glshade.study.plan import StudyPlan
 
-#: The fields of a result that must agree (the displacement map is compared where the
-#: region searched it: elsewhere it reads 0 by design).
-FIELDS = (
-    "visibility_px",
-    "visibility_continuous_px",
-    "deflection_px",
-    "folded",
-    "islands",
-    "best_phase_mm",
-    "offset_px",
-    "unpaired_contours",
-    "unresolved_fraction",
-    "shift",
-    "per_phase",
-    "limit",
-    "status",
-    "status_reason",
-)
-
 
 def best_of(
     repeats: int, scene, baseline: vis.Baseline, v1: np.ndarray
@@ -61,9 +42,10 @@ def best_of(
 
 
 def differences(full: vis.Visibility, region: vis.Visibility) -> list[str]:
-    """The fields of two results that differ, and how far apart the displacement maps are
-    where the region searched."""
-    found = [name for name in FIELDS if getattr(full, name) != getattr(region, name)]
+    """The fields of two results that differ (:data:`glshade.metrics.visibility.
+    RESULT_FIELDS`), and the displacement map where the region searched it (elsewhere it
+    reads 0 by design)."""
+    found = vis.differing_fields(full, region)
     searched = region.displacement_px > 0
     if not np.array_equal(full.displacement_px[searched], region.displacement_px[searched]):
         found.append("displacement_px (searched pixels)")

@@ -365,6 +365,39 @@ class Visibility:
     stripe_contrast: float = math.nan
 
 
+#: Everything a :class:`Visibility` says of its case but its maps and timings: what two
+#: analyses of one case (the whole frame and the region of influence) must agree on.
+RESULT_FIELDS = (
+    "visibility_px",
+    "visibility_continuous_px",
+    "deflection_px",
+    "folded",
+    "islands",
+    "best_phase_mm",
+    "offset_px",
+    "unpaired_contours",
+    "unresolved_fraction",
+    "shift",
+    "per_phase",
+    "limit",
+    "noise_floor_px",
+    "status",
+    "status_reason",
+    "stripe_contrast",
+)
+
+
+def differing_fields(a: Visibility, b: Visibility) -> list[str]:
+    """The :data:`RESULT_FIELDS` in which two results of one case differ (NaN equals NaN)."""
+
+    def same(x: Any, y: Any) -> bool:
+        if isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y):
+            return True
+        return bool(x == y)
+
+    return [name for name in RESULT_FIELDS if not same(getattr(a, name), getattr(b, name))]
+
+
 class Baseline:
     """The defect-free half of the metric for one scene geometry (see the module doc).
 
