@@ -38,16 +38,16 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     (["render", "key.toml"], "camera.zoom: must be one of the keys", {}),
     (
         ["render", "string.toml"],
-        "camera.theta_deg: must be in (0, 90) degrees (a number in degrees, or with a unit: "
+        "camera.theta_deg: must be in (0.001, 90) degrees (a number in degrees, or with a unit: "
         "15deg, 0.26rad), got '45 parsecs'",
         {},
     ),
-    (["render", "range.toml"], "camera.theta_deg: must be in (0, 90) degrees, got 120.0", {}),
+    (["render", "range.toml"], "camera.theta_deg: must be in (0.001, 90) degrees, got 120.0", {}),
     (["render", "scalar.toml"], "camera: must be a table of keys", {}),
     (["measure", "latin1.toml"], "scene file latin1.toml: must be UTF-8 text", {}),
     (["view", "image.png"], "this is a PNG image", {}),
     # values and flags
-    (["render", "--theta", "95"], "--theta (camera.theta_deg): must be in (0, 90) degrees", {}),
+    (["render", "--theta", "95"], "--theta (camera.theta_deg): must be in (0.001, 90) degrees", {}),
     (["render", "--theta", "nan"], "--theta (camera.theta_deg): must be a finite number", {}),
     (["render", "--dmax", "5xx"], "defect.dmax: must be a number in mm, or with a unit", {}),
     (["render", "--dmax", "5kg"], "units: cm, m, mm, nm, um", {}),
@@ -153,7 +153,7 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     (["paper", "--dmaxs", "3xx"], "defect.dmax: must be a number in mm, or with a unit", {}),
     (
         ["view", "--set", "theta=120"],
-        "--set theta (camera.theta_deg): must be in (0, 90) degrees, got 120.0",
+        "--set theta (camera.theta_deg): must be in (0.001, 90) degrees, got 120.0",
         {},
     ),
     (["view", "--screenshot", "fifo.png", "--frames", "1"], "--screenshot fifo.png: is a FIFO", {}),

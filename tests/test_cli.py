@@ -105,7 +105,7 @@ def test_info_reports_renderer_and_fp64():
 @pytest.mark.parametrize(
     "args, fragment",
     [
-        (["render", "--theta", "95"], "--theta (camera.theta_deg): must be in (0, 90)"),
+        (["render", "--theta", "95"], "--theta (camera.theta_deg): must be in (0.001, 90)"),
         (["render", "--size", "0"], "--size (camera.width): must be an integer in [1, 16384]"),
         (
             ["render", "--surface", "sphere", "--radius", "0"],
@@ -124,7 +124,7 @@ def test_info_reports_renderer_and_fp64():
             ["render", "--set", "camera.theta_deg=abc"],
             "camera.theta_deg: must be a number in degrees",
         ),
-        (["render", "--set", "camera.theta_deg=90"], "camera.theta_deg: must be in (0, 90)"),
+        (["render", "--set", "camera.theta_deg=90"], "camera.theta_deg: must be in (0.001, 90)"),
         (["render", "--set", "theta=5"], "expected PATH=VALUE"),
         (
             ["render", "--set", "surface.kind=torus"],

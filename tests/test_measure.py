@@ -96,7 +96,7 @@ def test_python_api_gives_the_cli_numbers():
     "args, fragment",
     [
         (["missing.toml"], "scene file: must be an existing TOML file"),
-        (["--theta", "95"], "--theta (camera.theta_deg): must be in (0, 90)"),
+        (["--theta", "95"], "--theta (camera.theta_deg): must be in (0.001, 90)"),
         (["--step", "3"], "step: must be at most one stripe period (2 mm)"),
         (["--threshold", "1.5"], "threshold: must be in (0, 1)"),
         (

@@ -162,15 +162,23 @@ def test_rows_equal_the_measuring_floor_and_resume_skips_finished_cases(tmp_path
         assert {k: row[k] for k in alone.outputs()} == alone.outputs()
         assert row.period_mm == plan.coding("flat")[0] == 5.0  # 3 pixels of 1.38 mm at 64²
     # a finished case is never measured again; a missing one is
+    (out / "pmd_cases" / "flat_theta15_sigma2_4_dmax5um.json").unlink()
+    said: list[str] = []
+    again = run_pmd_study(plan, out, renderer=renderer, progress=False, notify=said.append)
+    assert (again.computed, again.skipped, said) == (1, 1, [])
+    assert read_results_csv(out / "pmd_results.csv")[1].outputs() == rows[1].outputs()
+    # an edited case file fails its checksum: measured again, and said
     marked = out / "pmd_cases" / "flat_theta45_sigma2_4_dmax5um.json"
     data = json.loads(marked.read_text())
     data["pmd_snr"] = 12345.0
     marked.write_text(json.dumps(data))
-    (out / "pmd_cases" / "flat_theta15_sigma2_4_dmax5um.json").unlink()
-    again = run_pmd_study(plan, out, renderer=renderer, progress=False)
-    assert (again.computed, again.skipped) == (1, 1)
-    assert again.rows[0].pmd_snr == 12345.0
-    assert read_results_csv(out / "pmd_results.csv")[1].outputs() == rows[1].outputs()
+    third = run_pmd_study(plan, out, renderer=renderer, progress=False, notify=said.append)
+    assert (third.computed, third.skipped) == (1, 1)
+    assert third.rows[0].outputs() == rows[0].outputs()
+    assert said == [
+        "1 case file could not be trusted and is measured again: "
+        "flat_theta45_sigma2_4_dmax5um.json fails its checksum (edited or damaged)"
+    ]
 
 
 def test_a_directory_holding_another_pmd_plan_is_refused(tmp_path, renderer):

@@ -127,8 +127,8 @@ def test_isotropic_written_as_sigma2():
 @pytest.mark.parametrize(
     "data, field, allowed",
     [
-        ({"camera": {"theta_deg": 90.0}}, "camera.theta_deg", "(0, 90)"),
-        ({"camera": {"theta_deg": 0.0}}, "camera.theta_deg", "(0, 90)"),
+        ({"camera": {"theta_deg": 90.0}}, "camera.theta_deg", "(0.001, 90)"),
+        ({"camera": {"theta_deg": 0.0}}, "camera.theta_deg", "(0.001, 90)"),
         ({"camera": {"theta_deg": float("nan")}}, "camera.theta_deg", "finite"),
         ({"camera": {"distance": -1.0}}, "camera.distance", "> 0"),
         ({"camera": {"focal": 0.0}}, "camera.focal", "> 0"),

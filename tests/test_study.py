@@ -135,7 +135,7 @@ def test_directory_with_other_settings_is_refused(tmp_path):
         (["--surfaces", ""], "surfaces: must list at least one"),
         (["--thetas", ""], "thetas: must list at least one value"),
         (["--thetas", "5,45"], "thetas: must be strictly decreasing"),
-        (["--thetas", "95,45"], "thetas: every value must be in (0, 90)"),
+        (["--thetas", "95,45"], "thetas: every value must be in (0.001, 90)"),
         (["--step", "3"], "step: must be at most one stripe period (2 mm)"),
         (["--step", "0"], "step: must be a number of mm > 0"),
         (["--sigma2s", "-1"], "sigma2s: every value must be in (0, inf)"),
@@ -422,7 +422,7 @@ def test_free_form_surfaces_get_their_own_text_never_the_spheres():
 
 def test_figure_axes_name_the_runs_image_size(tmp_path, monkeypatch):
     drawn = []
-    monkeypatch.setattr(plots, "_save", lambda fig, path: drawn.append(fig))
+    monkeypatch.setattr(plots, "_save", lambda fig, path, **kw: drawn.append(fig))
     plan = StudyPlan(surfaces=("flat",), thetas=(45.0, 5.0), sigma2s=(1.0,), size=96)
     rows = _law_rows(plan)
     plots.write_figures(rows, tmp_path, plan)
@@ -452,7 +452,7 @@ def test_rows_not_measurable_are_left_out_of_verdicts_and_advice(tmp_path):
     plain = _law_rows(plan)
     assert findings.advice(plain) != findings.advice(kept)
     drawn = []
-    plots._save, saved = (lambda fig, path: drawn.append(fig)), plots._save
+    plots._save, saved = (lambda fig, path, **kw: drawn.append(fig)), plots._save
     try:
         plots.visibility_plot(marked, "flat", 0.005, tmp_path / "v.png", (256, 256))
     finally:

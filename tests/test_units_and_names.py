@@ -65,7 +65,7 @@ def test_family_and_over_take_units():
     [
         (["--sigma2", "0"], "--sigma2 (defect.sigma2): must be a finite number > 0"),
         (["--set", "defect.sigma2=0"], "defect.sigma2: must be a finite number > 0"),
-        (["--theta", "95"], "--theta (camera.theta_deg): must be in (0, 90) degrees"),
+        (["--theta", "95"], "--theta (camera.theta_deg): must be in (0.001, 90) degrees"),
     ],
 )
 def test_errors_name_what_was_typed(args, named):
@@ -381,7 +381,7 @@ def test_the_viewers_settings_are_named_as_typed():
     assert str(info.value).startswith("--set sigma2 (defect.sigma2): must be a finite number > 0")
     with pytest.raises(SceneError, match=r"^--set theta \(camera.theta_deg\): must be a number"):
         parse_sets(["theta=abc"], Scene())
-    with pytest.raises(SceneError, match=r"^camera.theta_deg: must be in \(0, 90\)"):
+    with pytest.raises(SceneError, match=r"^camera.theta_deg: must be in \(0.001, 90\)"):
         parse_sets(["camera.theta_deg=95"], Scene())  # a dotted path is named as it is
     result = cli("view", "--size", "0", "--frames", "1")
     assert result.returncode == 2

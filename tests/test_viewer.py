@@ -55,7 +55,9 @@ def test_controls_clamp_and_validate():
     assert (
         apply_setting(scene, "theta", 89.7).camera.theta_deg == 89.7
     )  # beyond the slider, within render's range
-    with pytest.raises(SceneError, match=r"camera.theta_deg: must be in \(0, 90\) degrees, got 95"):
+    with pytest.raises(
+        SceneError, match=r"camera.theta_deg: must be in \(0.001, 90\) degrees, got 95"
+    ):
         apply_setting(scene, "theta", 95.0)
     # the covariance stays positive definite whatever the slider says
     full = apply_setting(apply_setting(scene, "sigma_z2", 1.0), "sigma_xz", 100.0, slider=True)
@@ -75,7 +77,7 @@ def test_model_rejects_what_the_scene_rejects():
         "refused: surface.kind: must be one of"
     )
     assert not model.set("theta", 95.0)  # the panel shows why, in render's words
-    assert model.refused == "refused: camera.theta_deg: must be in (0, 90) degrees, got 95.0"
+    assert model.refused == "refused: camera.theta_deg: must be in (0.001, 90) degrees, got 95.0"
     assert model.set("theta", 30.0) and model.refused == ""
 
 
@@ -94,7 +96,7 @@ def test_parse_sets():
         ("theta=abc", "a number in degrees"),
         ("view=movie", "--set view"),
         ("theta=nan", "finite"),
-        ("theta=120", r"--set theta \(camera.theta_deg\): must be in \(0, 90\) degrees"),
+        ("theta=120", r"--set theta \(camera.theta_deg\): must be in \(0.001, 90\) degrees"),
         ("camera.distance=-1", "camera.distance"),
     ):
         with pytest.raises(GlshadeError, match=fragment):
@@ -574,7 +576,7 @@ def test_bad_scene_file_opens_nothing(tmp_path):
     assert result.returncode == 2
     assert (
         result.stderr.strip()
-        == "glshade: error: camera.theta_deg: must be in (0, 90) degrees, got 120.0"
+        == "glshade: error: camera.theta_deg: must be in (0.001, 90) degrees, got 120.0"
     )
     result = subprocess.run(
         [sys.executable, "-m", "glshade", "view", "--set", "theta=abc"],

@@ -16,20 +16,34 @@ OpenCV; the ``metrics``, ``oracle`` and ``study`` planning modules need no GL.
 """
 
 from glshade.errors import ContextError, GlshadeError, SceneError, ShaderCompileError
-from glshade.frame import Frame
-from glshade.scene import (
-    Camera,
-    Defect,
-    Emitter,
-    RenderSettings,
-    Scene,
-    Surface,
-    paper_scene,
-)
+
+TYPE_CHECKING = False  # typing's own costs 20 ms; type checkers read this one as True
+if TYPE_CHECKING:  # loaded on first use (:func:`__getattr__`), so that ``import glshade``
+    # itself is instant: the command line's entry point handles Ctrl-C from its first line
+    from glshade.frame import Frame
+    from glshade.gpu.renderer import Renderer
+    from glshade.metrics.visibility import MetricSettings, Visibility
+    from glshade.scene import (
+        Camera,
+        Defect,
+        Emitter,
+        RenderSettings,
+        Scene,
+        Surface,
+        paper_scene,
+    )
 
 __version__ = "0.1.0"
 
 _LAZY = {
+    "Frame": ("glshade.frame", "Frame"),
+    "Camera": ("glshade.scene", "Camera"),
+    "Defect": ("glshade.scene", "Defect"),
+    "Emitter": ("glshade.scene", "Emitter"),
+    "RenderSettings": ("glshade.scene", "RenderSettings"),
+    "Scene": ("glshade.scene", "Scene"),
+    "Surface": ("glshade.scene", "Surface"),
+    "paper_scene": ("glshade.scene", "paper_scene"),
     "Renderer": ("glshade.gpu.renderer", "Renderer"),
     "MetricSettings": ("glshade.metrics.visibility", "MetricSettings"),
     "Visibility": ("glshade.metrics.visibility", "Visibility"),
@@ -37,8 +51,9 @@ _LAZY = {
 
 
 def __getattr__(name: str):
-    """``Renderer`` and ``measure`` on first use (they need moderngl): ``measure`` is the
-    measuring package, callable as ``glshade.measure(scene)``."""
+    """The scene's classes, ``Renderer`` and ``measure`` on first use (the last two need
+    moderngl): ``measure`` is the measuring package, callable as
+    ``glshade.measure(scene)``."""
     if name == "measure":
         import importlib
 

@@ -1,7 +1,7 @@
-"""``python -m glshade``: the command line (:mod:`glshade.app.cli`)."""
+"""``python -m glshade``: the command line (:mod:`glshade.app.entry`)."""
 
 import sys
 
-from glshade.app.cli import main
+from glshade.app.entry import main
 
 sys.exit(main())

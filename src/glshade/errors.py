@@ -29,8 +29,20 @@ class SceneError(GlshadeError, ValueError):
         self.field = field
         self.allowed = allowed
         self.got = got
-        shown = "" if got is None else f", got {got!r}"
+        shown = "" if got is None else f", got {shown_value(got)}"
         super().__init__(printable(f"{field}: must be {allowed}{shown}"))
+
+
+def shown_value(value: object, limit: int = 80) -> str:
+    """``repr(value)`` for a message, shortened to about ``limit`` characters (an integer
+    of 400 digits shows its first digits and its length; Python refuses to print one of
+    more than 4300)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 200:
+        digits = len(str(abs(value))) if value.bit_length() < 14000 else None
+        length = f"{digits} digits" if digits is not None else "thousands of digits"
+        return f"an integer of {length}"
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 class ContextError(GlshadeError, RuntimeError):
@@ -39,3 +51,7 @@ class ContextError(GlshadeError, RuntimeError):
 
 class ShaderCompileError(GlshadeError, RuntimeError):
     """The driver rejected a composed shader; the message shows the faulty lines."""
+
+
+class GlshadeWarning(UserWarning):
+    """A value or file glshade accepts but doubts (the CLI prints ``glshade: warning:``)."""

@@ -9,13 +9,14 @@ front ends check every output path before any work starts.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import stat
 import tempfile
+from collections.abc import Iterable
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from glshade.errors import GlshadeError
@@ -33,33 +34,160 @@ _KINDS = (
 
 
 def check_output(
-    path: str | os.PathLike[str], what: str = "output", suffixes: tuple[str, ...] = ()
+    path: str | os.PathLike[str],
+    what: str = "output",
+    suffixes: tuple[str, ...] = (),
+    *,
+    inputs: Iterable[str | os.PathLike[str]] = (),
+    probe: bool = True,
 ) -> Path:
-    """The regular file ``path`` will be written as (a symbolic link is written through),
-    or a :class:`GlshadeError` naming ``what`` (a flag such as ``-o``) and why not: an
-    existing directory, device, FIFO or socket, a missing or unwritable directory, or an
-    extension not in ``suffixes`` (lower case, with the dot; empty: any)."""
+    """The regular file ``path`` will be written as (a symbolic link the user named is
+    written through), or a :class:`GlshadeError` naming ``what`` (a flag such as ``-o``)
+    and why not: an existing directory, device, FIFO or socket, a missing or unwritable
+    directory, an extension not in ``suffixes`` (lower case, with the dot; empty: any), or
+    one of the run's ``inputs`` (its scene, height map, sweep file: never overwritten).
+
+    ``probe``: prove the directory writable by creating (and removing) a file there, as
+    the write will; ``os.access`` answers yes for root even where nothing can be created
+    (``/proc``)."""
     text = os.fspath(path)
     if not text or text.endswith(os.sep) or "\0" in text:
         raise GlshadeError(f"{what} {text!r}: expected a file path")
-    path = Path(os.path.realpath(text))
-    try:
-        mode = path.stat().st_mode
-    except FileNotFoundError:
-        mode = None
-    except OSError as exc:
-        raise GlshadeError(f"{what} {text}: cannot use it ({exc.strerror})") from None
+    target = Path(os.path.realpath(text))
+    mode = _mode(target, what, text)
     if mode is not None and not stat.S_ISREG(mode):
         kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
         raise GlshadeError(f"{what} {text}: is {kind}; glshade only writes regular files")
-    if suffixes and path.suffix.lower() not in suffixes:
-        raise GlshadeError(f"{what} {text}: {_suffix_problem(path.suffix.lower(), suffixes)}")
+    if suffixes and target.suffix.lower() not in suffixes:
+        raise GlshadeError(f"{what} {text}: {_suffix_problem(target.suffix.lower(), suffixes)}")
     shown = os.path.dirname(text) or "."
-    if not path.parent.is_dir():
+    if not target.parent.is_dir():
         raise GlshadeError(f"{what} {text}: directory {shown} does not exist")
-    if not os.access(path.parent, os.W_OK | os.X_OK):
+    if not os.access(target.parent, os.W_OK | os.X_OK):
         raise GlshadeError(f"{what} {text}: directory {shown} is not writable")
-    return path
+    for source in inputs:
+        if _same_file(target, source):
+            raise GlshadeError(
+                f"{what} {text}: is one of this run's inputs ({os.fspath(source)}); glshade "
+                "never writes over its inputs: choose another path"
+            )
+    if probe:
+        _probe_directory(target.parent, what, text)
+    return target
+
+
+def _mode(target: Path, what: str, text: str) -> int | None:
+    """``target``'s file type and mode (None: it does not exist yet)."""
+    try:
+        return target.stat().st_mode
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise GlshadeError(f"{what} {text}: cannot use it ({exc.strerror})") from None
+
+
+def _same_file(target: Path, source: str | os.PathLike[str]) -> bool:
+    """Whether writing ``target`` would replace the file ``source`` (by its resolved path,
+    or the same inode through a hard link)."""
+    resolved = Path(os.path.realpath(os.fspath(source)))
+    if resolved == target:
+        return True
+    try:
+        return os.path.samefile(target, resolved)
+    except OSError:
+        return False
+
+
+def _probe_directory(directory: Path, what: str, text: str) -> None:
+    """Create and remove a file in ``directory``, or one line saying why it cannot be
+    written (read-only mount, a pseudo file system, no space for a new entry)."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".glshade-probe.", dir=directory)
+    except OSError as exc:
+        shown = os.path.dirname(text) or "."
+        raise GlshadeError(
+            f"{what} {text}: cannot write in {shown} ({exc.strerror or exc})"
+        ) from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
+
+
+def check_inside(root: str | os.PathLike[str], path: str | os.PathLike[str], what: str) -> Path:
+    """``path``, a file glshade names inside the output directory ``root`` (a case file,
+    a figure, the report), checked to stay there: resolved (every symbolic link followed),
+    it must lie inside ``root`` resolved. A link that leads out (a ``cases/`` linked to a
+    folder elsewhere, a ``report.md`` linked to a file outside) is refused with one line,
+    so a run never writes or removes anything outside the directory the user named."""
+    base = Path(os.path.realpath(os.fspath(root)))
+    resolved = Path(os.path.realpath(os.fspath(path)))
+    if resolved != base and base not in resolved.parents:
+        link = _first_link(Path(root), Path(path))
+        shown = (
+            f"{link} is a link to {os.readlink(link)}"
+            if link is not None
+            else f"{path} resolves to {resolved}"
+        )
+        raise GlshadeError(
+            f"{what} {root}: {shown}, outside the output directory; glshade writes only inside "
+            "it: remove the link or choose another directory"
+        )
+    return resolved
+
+
+def make_inside(root: Path, name: str, what: str = "--out") -> Path:
+    """The folder ``root/name`` (``cases``, ``images``), made when missing, checked to be a
+    directory inside ``root`` (:func:`check_inside`: never a link to a folder elsewhere)."""
+    folder = Path(root) / name
+    check_inside(root, folder, what)
+    try:
+        folder.mkdir(exist_ok=True)
+    except FileExistsError:
+        raise GlshadeError(f"{what} {root}: {folder} is not a directory") from None
+    except OSError as exc:
+        raise GlshadeError(f"{what} {root}: cannot create {folder} ({exc.strerror})") from None
+    check_inside(root, folder, what)
+    return folder
+
+
+def check_entries(root: Path, folders: tuple[str, ...] = (), what: str = "--out") -> None:
+    """Before a run writes into the output directory ``root``: every entry in it (and in
+    its sub-folders ``folders``) is a regular file or a folder inside it. A symbolic link
+    that leads out of ``root``, or a FIFO, device or socket (which a reader would wait on
+    forever, and a writer must not replace), is refused with one line naming it, before
+    any work and before anything is written."""
+    for folder in (Path(root), *(Path(root) / name for name in folders)):
+        if folder != Path(root) and not folder.is_dir():
+            continue
+        try:
+            entries = list(os.scandir(folder))
+        except OSError as exc:
+            raise GlshadeError(f"{what} {root}: cannot list {folder} ({exc.strerror})") from None
+        for entry in entries:
+            path = Path(entry.path)
+            if entry.is_symlink():
+                check_inside(root, path, what)
+            mode = _mode(path, what, entry.path) if os.path.lexists(path) else None
+            if mode is not None and not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+                kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+                raise GlshadeError(
+                    f"{what} {root}: {path} is {kind}; glshade keeps only regular files "
+                    "there: remove it or choose another directory"
+                )
+
+
+def _first_link(root: Path, path: Path) -> Path | None:
+    """The first component of ``path`` below ``root`` that is a symbolic link."""
+    try:
+        parts = path.relative_to(root).parts
+    except ValueError:
+        return None
+    current = root
+    for part in parts:
+        current = current / part
+        if current.is_symlink():
+            return current
+    return None
 
 
 def _suffix_problem(suffix: str, suffixes: tuple[str, ...]) -> str:
@@ -71,10 +199,17 @@ def _suffix_problem(suffix: str, suffixes: tuple[str, ...]) -> str:
     return f"the extension {suffix or '(none)'} is not supported; use one of {allowed}"
 
 
-def atomic_write_bytes(path: Path, data: bytes, what: str = "output") -> None:
+def atomic_write_bytes(
+    path: Path, data: bytes, what: str = "output", within: Path | None = None
+) -> None:
     """Write ``data`` to ``path`` atomically (temp file + ``os.replace``); only ever a
-    regular file (see :func:`check_output`)."""
-    target = check_output(path, what)
+    regular file (see :func:`check_output`). ``within``: the output directory the file
+    belongs to (a file glshade names there), which it must not leave through a link
+    (:func:`check_inside`); None: a file the user named (a link to a regular file is
+    written through)."""
+    if within is not None:
+        check_inside(within, path, what)
+    target = check_output(path, what, probe=False)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     except OSError as exc:
@@ -94,6 +229,80 @@ def atomic_write_bytes(path: Path, data: bytes, what: str = "output") -> None:
         if isinstance(exc, OSError):
             raise GlshadeError(f"{what} {path}: cannot write it ({exc.strerror or exc})") from None
         raise
+
+
+def remove_inside(root: Path, path: Path) -> bool:
+    """Remove the regular file ``path`` inside the output directory ``root`` (the files a
+    rerun with ``--overwrite`` replaces); a path that leads out of ``root`` through a link,
+    or that is not a regular file, is left alone. Returns whether it was removed."""
+    try:
+        check_inside(root, path, "--out")
+    except GlshadeError:
+        return False
+    if path.is_symlink() or not path.is_file():
+        return False
+    path.unlink()
+    return True
+
+
+#: The most bytes :func:`read_regular` reads unless told otherwise (a case file, a
+#: manifest: a few KiB).
+MAX_RECORD_BYTES = 16 << 20
+#: The most bytes a results table glshade reads back may hold (a study's CSV is a few KiB
+#: a case).
+RESULTS_TABLE_BYTES = 1 << 30
+
+
+def open_regular(path: str | os.PathLike[str], what: str) -> int:
+    """A read-only descriptor of the regular file ``path``, or one line saying what it is
+    instead. The file is opened without blocking (a FIFO or a device would wait for a
+    writer forever) and its type checked on the open descriptor; the descriptor then
+    blocks as usual. The caller closes it."""
+    text = os.fspath(path)
+    try:
+        fd = os.open(text, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        raise GlshadeError(f"{what} {text}: does not exist") from None
+    except IsADirectoryError:
+        raise GlshadeError(f"{what} {text}: is a directory, not a file") from None
+    except OSError as exc:
+        raise GlshadeError(f"{what} {text}: cannot read it ({exc.strerror or exc})") from None
+    except ValueError:  # a NUL byte in the path
+        raise GlshadeError(f"{what} {text!r}: expected a path without NUL bytes") from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+        raise GlshadeError(f"{what} {text}: is {kind}; glshade reads only regular files")
+    os.set_blocking(fd, True)
+    return fd
+
+
+def read_regular_text(
+    path: str | os.PathLike[str], what: str, limit_bytes: int = MAX_RECORD_BYTES
+) -> str:
+    """:func:`read_regular` decoded as UTF-8 (one line naming the file where it is not)."""
+    data = read_regular(path, what, limit_bytes)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise GlshadeError(f"{what} {os.fspath(path)}: is not UTF-8 text") from None
+
+
+def read_regular(
+    path: str | os.PathLike[str], what: str, limit_bytes: int = MAX_RECORD_BYTES
+) -> bytes:
+    """The bytes of the regular file ``path`` (:func:`open_regular`), at most
+    ``limit_bytes``: a larger file is one line naming its size and the limit."""
+    fd = open_regular(path, what)
+    with os.fdopen(fd, "rb") as fh:
+        data = fh.read(limit_bytes + 1)
+    if len(data) > limit_bytes:
+        raise GlshadeError(
+            f"{what} {os.fspath(path)}: larger than {limit_bytes >> 20} MiB; not a file "
+            "glshade wrote"
+        )
+    return data
 
 
 def _umask() -> int:
@@ -122,6 +331,8 @@ def encode_png(image: np.ndarray, bits: int = 8) -> bytes:
         pixels = np.ascontiguousarray(
             pixels[..., [2, 1, 0, 3][: pixels.shape[2]]]
         )  # OpenCV wants BGR(A)
+    import cv2  # loaded by the commands that encode or decode images
+
     ok, buf = cv2.imencode(".png", pixels)
     if not ok:  # pragma: no cover - OpenCV only fails on unsupported dtypes
         raise GlshadeError("PNG encoding failed")
@@ -157,6 +368,8 @@ def encode_image(image: np.ndarray, suffix: str, bits: int = 8) -> bytes:
     pixels = (
         np.nan_to_num(image, nan=0.0).astype(np.float32) if bits == 32 else quantize(image, bits)
     )
+    import cv2  # loaded by the commands that encode or decode images
+
     ok, buf = cv2.imencode(".tiff", pixels)
     if not ok:  # pragma: no cover
         raise GlshadeError("TIFF encoding failed")
@@ -173,6 +386,8 @@ def write_image(
 
 def read_png(path: str | os.PathLike[str]) -> np.ndarray:
     """Read a PNG written by :func:`write_png` as stored integers (uint8 or uint16)."""
+    import cv2  # loaded by the commands that encode or decode images
+
     pixels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if pixels is None:
         raise GlshadeError(f"{path}: not a readable PNG")
@@ -183,8 +398,9 @@ def read_png(path: str | os.PathLike[str]) -> np.ndarray:
     return pixels
 
 
-def write_npy(path: str | os.PathLike[str], array: np.ndarray) -> None:
-    """Write an array as ``.npy`` atomically (the uv map: float32 H×W×2, mm)."""
+def write_npy(path: str | os.PathLike[str], array: np.ndarray, within: Path | None = None) -> None:
+    """Write an array as ``.npy`` atomically (the uv map: float32 H×W×2, mm); ``within``:
+    the output directory it belongs to (:func:`atomic_write_bytes`)."""
     buf = io.BytesIO()
     np.save(buf, array, allow_pickle=False)
-    atomic_write_bytes(Path(path), buf.getvalue())
+    atomic_write_bytes(Path(path), buf.getvalue(), within=within)

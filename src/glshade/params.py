@@ -238,10 +238,10 @@ class Param:
             raise SceneError(
                 self.path, self.allowed() if self.keywords else "a finite number", value
             )
-        value = float(value)
-        if not math.isfinite(value):
+        number = as_float(value)
+        if number is None or not math.isfinite(number):
             raise SceneError(self.path, "a finite number", value)
-        return value
+        return number
 
     def _real(self, value: Any) -> float:
         value = self._finite(value)
@@ -267,13 +267,14 @@ class Param:
                 raise SceneError(self.path, self.allowed(), value)
             if isinstance(number, str):  # "0.5", or with a unit where the table has one
                 number = self._quantity(number, name)
-            if (
-                isinstance(number, bool)
-                or not isinstance(number, (int, float))
-                or not math.isfinite(number)
-            ):
+            finite = (
+                None
+                if isinstance(number, bool) or not isinstance(number, (int, float))
+                else as_float(number)
+            )
+            if finite is None or not math.isfinite(finite):
                 raise SceneError(f"{self.path}.{name}", "a finite number", number)
-            out.append((name, float(number)))
+            out.append((name, finite))
         return tuple(out)
 
     def _integer(self, value: Any) -> int:
@@ -361,6 +362,15 @@ class Param:
         if self.value_type == "names":
             return "[" + ", ".join(f'"{name}"' for name in self.default) + "]"
         return f"{self.default:g}"
+
+
+def as_float(value: Any) -> float | None:
+    """``value`` (a number) as a float; None for an integer beyond a float's range
+    (``10**400`` in a TOML file)."""
+    try:
+        return float(value)
+    except OverflowError:
+        return None
 
 
 #: A check over several values of one table (after each was checked on its own).

@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -68,12 +69,40 @@ def add_save_scene(p: argparse.ArgumentParser) -> None:
     )
 
 
-def check_save_scene(args: argparse.Namespace) -> None:
-    """Refuse a bad ``--save-scene`` path before any work."""
-    if getattr(args, "save_scene", None) is not None:
-        from glshade.files import check_output
+def check_save_scene(args: argparse.Namespace, scene: Scene | None = None) -> None:
+    """Refuse a bad ``--save-scene`` path before any work (one of the run's inputs among
+    them: :func:`run_inputs`)."""
+    check_outputs(args, scene, [])
 
-        check_output(args.save_scene, "--save-scene", (".toml",))
+
+def run_inputs(args: argparse.Namespace, scene: Scene | None = None) -> tuple[Path, ...]:
+    """The files a command line reads: its scene file and the files its scene reads (a
+    height map). No output may be one of them."""
+    found = [args.scene] if getattr(args, "scene", None) is not None else []
+    return (*found, *(scene.input_files() if scene is not None else ()))
+
+
+#: An output a command line names: its flag, its path, the extensions allowed (empty:
+#: any).
+Output = tuple[str, Any, tuple[str, ...]]
+
+
+def check_outputs(args: argparse.Namespace, scene: Scene | None, outputs: Sequence[Output]) -> None:
+    """Every output a command names, checked before any work (:func:`glshade.files.
+    check_output`: a regular file in a writable directory, proven by a probe, never one of
+    the run's inputs), and no two of them the same file. ``--save-scene`` is checked with
+    them where the command has it."""
+    from glshade.files import check_output
+
+    if getattr(args, "save_scene", None) is not None:
+        outputs = [*outputs, ("--save-scene", args.save_scene, (".toml",))]
+    inputs = run_inputs(args, scene)
+    seen: dict[Path, str] = {}
+    for flag, path, suffixes in outputs:
+        target = check_output(path, flag, suffixes, inputs=inputs)
+        if target in seen:
+            raise GlshadeError(f"{flag} {path}: is also {seen[target]}'s output; name two files")
+        seen[target] = flag
 
 
 def save_scene(args: argparse.Namespace, scene: Scene) -> None:

@@ -11,6 +11,7 @@ format, its units and ranges: ``docs/scene-format.md``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import gc
 import sys
@@ -26,6 +27,7 @@ from glshade.app.args import (
     add_pmd_settings_flags,
     add_save_scene,
     add_scene_flags,
+    check_outputs,
     check_save_scene,
     metric_flags_given,
     metric_settings,
@@ -35,12 +37,14 @@ from glshade.app.args import (
     pmd_flags_given,
     pmd_settings,
     quantity_list,
+    run_inputs,
     save_scene,
     scene_from_args,
     warn,
 )
-from glshade.errors import GlshadeError, ShaderCompileError
-from glshade.files import atomic_write_bytes, check_output
+from glshade.app.entry import InterruptWatch
+from glshade.errors import GlshadeError, GlshadeWarning, ShaderCompileError
+from glshade.files import atomic_write_bytes
 from glshade.measure.pmd_files import FRAME_FORMATS
 from glshade.measure.single import METHODS, as_method, method_for
 from glshade.metrics.status import concerns, contrast_warning
@@ -49,6 +53,8 @@ from glshade.process import reuse_freed_memory
 from glshade.scene import Camera, Scene, paper_scene
 
 EXIT_INTERRUPTED = 130
+#: The exit code of an error that is glshade's defect, not the user's.
+EXIT_DEFECT = 1
 SCENE_FORMAT = "docs/scene-format.md"
 
 
@@ -164,9 +170,8 @@ def _cmd_measure(args: argparse.Namespace) -> int:
     settings = metric_settings(args)
     # a step longer than the period is refused before rendering
     settings.phases(scene.active.emitter.pattern(scene).period_mm)
-    if args.overlay is not None:
-        check_output(args.overlay, "--overlay", (".png",))
-    check_save_scene(args)
+    overlay = [("--overlay", args.overlay, (".png",))] if args.overlay is not None else []
+    check_outputs(args, scene, overlay)
     warn(scene_warnings(scene))
     reuse_freed_memory()  # the phases' temporaries: about 40 ms of page faults otherwise
     start = time.perf_counter()
@@ -212,8 +217,8 @@ def _cmd_measure_pmd(args: argparse.Namespace, scene: Scene) -> int:
     check_scene(scene)
     for flag, directory in (("--maps", args.maps), ("--frames", args.frames)):
         if directory is not None:
-            check_output_dir(directory, flag)
-    check_save_scene(args)
+            check_output_dir(directory, flag, run_inputs(args, scene))
+    check_save_scene(args, scene)
     warn(scene_warnings(scene))
     reuse_freed_memory()
     start = time.perf_counter()
@@ -600,9 +605,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
         raise GlshadeError(f"--frames: must be an integer >= 1, got {args.frames}")
     if (args.screenshot is not None or args.benchmark) and args.frames is None:
         raise GlshadeError("--screenshot and --benchmark need --frames N")
-    if args.screenshot is not None:
-        check_output(args.screenshot, "--screenshot", (".png",))
-    check_save_scene(args)
+    screenshot = [("--screenshot", args.screenshot, (".png",))] if args.screenshot else []
+    check_outputs(args, scene, screenshot)
     warn(scene_warnings(scene))
     save_scene(args, scene)  # the scene the window opens with (T saves it as it is then)
     options = viewer.ViewerOptions(
@@ -800,13 +804,23 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         description="GPU deflectometry simulator (stripe reflections on glossy surfaces).",
     )
     parser.add_argument("--version", action="version", version=f"glshade {__version__}")
+    parser.add_argument("--verbose", action="store_true", help=VERBOSE_HELP)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for name, add in COMMANDS.items():
         if command is None or name == command:
             add(sub)
         else:
             sub.add_parser(name)
+    for command_parser in sub.choices.values():  # also after the command: glshade paper --verbose
+        command_parser.add_argument(
+            "--verbose", action="store_true", default=argparse.SUPPRESS, help=VERBOSE_HELP
+        )
     return parser
+
+
+VERBOSE_HELP = (
+    "show the libraries' log output (Dask, ...) and, for an internal error, its traceback"
+)
 
 
 def command_of(argv: list[str]) -> str | None:
@@ -824,9 +838,8 @@ def _cmd_render(args: argparse.Namespace) -> int:
 
     scene = scene_from_args(args)
     image_path = check_image_output(args.output, "-o", args.bits)
-    if args.uv is not None:
-        check_output(args.uv, "--uv", (".npy",))
-    check_save_scene(args)
+    uv = [("--uv", args.uv, (".npy",))] if args.uv is not None else []
+    check_outputs(args, scene, [("-o", args.output, ()), *uv])
     warn(scene_warnings(scene))
     outputs = ("image", "uv") if args.uv is not None else ("image",)
     with (
@@ -878,36 +891,51 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, interrupts: InterruptWatch | None = None) -> int:
     """Run one command; returns its exit code (0, 2 for any error the user can fix, 130
-    when interrupted). Every such error is one line on stderr, never a traceback.
+    when interrupted, 1 for glshade's own defect). Every outcome is at most one line on
+    stderr (warnings aside), never a traceback (unless ``--verbose``).
 
     ``argv`` None: the process's own command line (``sys.argv``), and the process ends
     when this returns: every object still alive is then frozen out of the garbage
     collector's reach, so that the interpreter's shut-down does not traverse them all
-    again (about 40 ms of a short command such as ``glshade measure``)."""
-    code = _run(argv)
+    again (about 40 ms of a short command such as ``glshade measure``).
+    ``interrupts``: the entry point's record of SIGINT (an error that a Ctrl-C caused is
+    reported as the interruption it was)."""
+    argv_given = sys.argv[1:] if argv is None else list(argv)
+    verbose = (
+        "--verbose" in argv_given[: argv_given.index("--")]
+        if "--" in argv_given
+        else ("--verbose" in argv_given)
+    )
+    try:
+        with guarded_warnings(verbose):
+            code = _run(argv_given, verbose, interrupts)
+    except KeyboardInterrupt:  # between the command's own handlers (start-up, shut-down)
+        code = _interrupted(None)
     if argv is None:
         gc.freeze()
     return code
 
 
-def _run(argv: list[str] | None) -> int:
-    argv = sys.argv[1:] if argv is None else list(argv)
+def _run(argv: list[str], verbose: bool, interrupts: InterruptWatch | None) -> int:
+    """The command line ``argv`` run; every exception it lets out becomes one line."""
+    args = None
     try:
+        if not verbose:
+            from glshade.logs import quiet_libraries
+
+            quiet_libraries()
         args = build_parser(command_of(argv)).parse_args(argv)
+        return args.run(args)
     except SystemExit as exc:  # --help, --version, or a usage error already printed as one line
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
-    try:
-        return args.run(args)
     except KeyboardInterrupt:
-        resumable = args.command in ("paper", "sweep")
-        hint = " (finished cases are saved: rerun the same command to resume)" if resumable else ""
-        print(f"glshade: interrupted{hint}", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except (
-        ShaderCompileError
-    ) as exc:  # a composed shader the driver refused: its numbered lines help
+        return _interrupted(args)
+    except BrokenPipeError:  # the reader of our output went away (``| head``)
+        _silence_stdout()
+        return 0
+    except ShaderCompileError as exc:  # a composed shader the driver refused: its lines help
         print(f"glshade: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except GlshadeError as exc:
@@ -917,6 +945,74 @@ def _run(argv: list[str] | None) -> int:
         return _error(f"{where}{exc.strerror or exc}")
     except MemoryError:
         return _error("out of memory; try a smaller --size or set GLSHADE_MEMORY_BUDGET_MB lower")
+    except RecursionError:
+        return _error(
+            "the input is nested too deeply to read (a file or value of thousands of levels)"
+        )
+    except Exception as exc:  # a defect of glshade: one line, exit 1, how to report it
+        if interrupts is not None and interrupts.seen:  # a Ctrl-C inside a C extension's import
+            return _interrupted(args)
+        return _defect(exc, verbose)
+
+
+def _interrupted(args: argparse.Namespace | None) -> int:
+    resumable = args is not None and args.command in ("paper", "sweep")
+    hint = " (finished cases are saved: rerun the same command to resume)" if resumable else ""
+    print(f"glshade: interrupted{hint}", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
+def _defect(exc: Exception, verbose: bool) -> int:
+    """An exception no check foresaw: glshade's defect, not the user's. One line naming it
+    and how to report it (``--verbose`` shows the traceback too); exit code 1."""
+    if verbose:
+        import traceback
+
+        traceback.print_exception(exc, file=sys.stderr)
+    text = one_line(str(exc))[:300]
+    print(
+        f"glshade: internal error: {type(exc).__name__}{': ' if text else ''}{text} (a bug in "
+        f"glshade {__version__}: please report it with the command line; --verbose shows the "
+        "traceback)",
+        file=sys.stderr,
+    )
+    return EXIT_DEFECT
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null, so that the interpreter's final flush into a closed pipe
+    says nothing."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+
+
+@contextlib.contextmanager
+def guarded_warnings(verbose: bool):
+    """Python warnings (a library's, NumPy's) print as one ``glshade: warning:`` line each,
+    at most once per message, unless ``verbose`` (Python's own form, with the source
+    line)."""
+    import warnings
+
+    if verbose:
+        yield
+        return
+    shown: set[str] = set()
+
+    def one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+        text = one_line(str(message))
+        if text not in shown:
+            shown.add(text)
+            kind = "" if issubclass(category, GlshadeWarning) else f"{category.__name__}: "
+            print(f"glshade: warning: {kind}{text}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.showwarning = one_line_warning
+        yield
 
 
 def _error(message: str) -> int:

@@ -11,7 +11,7 @@ import math
 from glshade.app.args import (
     add_scene_flags,
     argument_type,
-    check_save_scene,
+    check_outputs,
     length_mm,
     path_arg,
     save_scene,
@@ -19,7 +19,6 @@ from glshade.app.args import (
     warn,
 )
 from glshade.errors import GlshadeError
-from glshade.files import check_output
 from glshade.oracle.advice import scene_warnings
 
 #: Flag -> the :class:`~glshade.measure.coding.CodingSettings` field it sets.
@@ -118,11 +117,15 @@ def _cmd_coding(args: argparse.Namespace) -> int:
     settings = coding_settings(args)
     scene = as_method(scene_from_args(args), "pmd")
     check_scene(scene)
-    if args.plot is not None:
-        check_output(args.plot, "--plot", (".png",))
-    if args.coded_scene is not None:
-        check_output(args.coded_scene, "--coded-scene", (".toml",))
-    check_save_scene(args)
+    outputs = [
+        (flag, path, suffixes)
+        for flag, path, suffixes in (
+            ("--plot", args.plot, (".png",)),
+            ("--coded-scene", args.coded_scene, (".toml",)),
+        )
+        if path is not None
+    ]
+    check_outputs(args, scene, outputs)
     warn(scene_warnings(scene))
     with (
         GLContext(device_index=args.device) as context,

@@ -13,6 +13,7 @@ from pathlib import Path
 from glshade.app.args import metric_flags_given, param_type, warn
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError
+from glshade.files import read_regular
 from glshade.oracle.advice import scene_warnings
 from glshade.process import reuse_freed_memory
 
@@ -216,7 +217,7 @@ def cmd_paper_pmd(args: argparse.Namespace, cases_plan, plan, run_stripes) -> in
 def _paper_size(out: Path) -> int | None:
     """The stripe study's image size, from its manifest (None where unknown)."""
     try:
-        size = json.loads((out / "study.json").read_text()).get("size")
-    except (OSError, ValueError, AttributeError):
+        size = json.loads(read_regular(out / "study.json", "--out")).get("size")
+    except (GlshadeError, OSError, ValueError, AttributeError, RecursionError):
         return None
     return int(size) if isinstance(size, int) else None

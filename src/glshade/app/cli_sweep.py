@@ -15,7 +15,7 @@ from glshade.app.args import (
     add_metric_flags,
     add_pmd_settings_flags,
     add_scene_flags,
-    check_save_scene,
+    check_outputs,
     metric_flags_given,
     metric_settings,
     path_arg,
@@ -26,7 +26,6 @@ from glshade.app.args import (
     warn,
 )
 from glshade.errors import GlshadeError
-from glshade.files import check_output
 from glshade.oracle.advice import scene_warnings
 from glshade.sweep.goals import METRICS
 
@@ -252,9 +251,8 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     if not 0 <= args.refine <= 1000:
         raise GlshadeError(f"--refine: must be an integer in [0, 1000], got {args.refine}")
     family = parse_family(args.family, args.family_points)
-    if args.plot is not None:
-        check_output(args.plot, "--plot", (".png",))
-    check_save_scene(args)
+    plot = [("--plot", args.plot, (".png",))] if args.plot is not None else []
+    check_outputs(args, scene, plot)
     settings = metric_settings(args) if goal.method == "paper" else pmd_settings(args)
     distribution = _distribution(args)
     warn(scene_warnings(as_method(scene, goal.method)))

@@ -34,14 +34,15 @@ def new_figure(width_in: float, height_in: float):
     return Figure(figsize=(width_in, height_in))
 
 
-def save_figure(fig, path: Path, dpi: int = 110) -> None:
-    """Write ``fig`` as a PNG, atomically."""
+def save_figure(fig, path: Path, dpi: int = 110, within: Path | None = None) -> None:
+    """Write ``fig`` as a PNG, atomically; ``within``: the output directory it belongs to
+    (:func:`glshade.files.atomic_write_bytes`)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     FigureCanvasAgg(fig)
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight")
-    atomic_write_bytes(Path(path), buffer.getvalue())
+    atomic_write_bytes(Path(path), buffer.getvalue(), within=within)
 
 
 def write_overlay(baseline, v1, result, images, title: str, path: Path) -> None:
@@ -80,7 +81,13 @@ def _paint(masks: tuple[np.ndarray, np.ndarray, np.ndarray], thickness: int) -> 
 
 
 def overlay_figure(
-    rgb: np.ndarray, result, column_start: int, title: str, path: Path, zoom_px: int = 40
+    rgb: np.ndarray,
+    result,
+    column_start: int,
+    title: str,
+    path: Path,
+    zoom_px: int = 40,
+    within: Path | None = None,
 ) -> None:
     """The Fig. 9 overlay of one case at its best phase: the cut contour images merged
     (left, contours thickened to stay visible at print size), a magnified window around
@@ -158,4 +165,4 @@ def overlay_figure(
         fontsize=11,
     )
     fig.tight_layout()
-    save_figure(fig, path, dpi=150)
+    save_figure(fig, path, dpi=150, within=within)

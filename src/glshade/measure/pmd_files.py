@@ -16,7 +16,13 @@ import numpy as np
 
 from glshade.components.emitter.fringes.table import fringes_of
 from glshade.errors import GlshadeError
-from glshade.files import atomic_write_bytes, check_output, encode_image, write_npy
+from glshade.files import (
+    atomic_write_bytes,
+    check_inside,
+    check_output,
+    encode_image,
+    write_npy,
+)
 from glshade.measure.figures import new_figure, save_figure
 from glshade.scene import Scene
 
@@ -26,10 +32,20 @@ FRAME_FORMATS = {"png": (".png", 16), "tif": (".tif", 32)}
 MAP_FILES = ("decoded", "modulation", "wrapped_phase", "error_mm", "slopes", "height_um")
 
 
-def check_output_dir(path: str | os.PathLike[str], what: str) -> Path:
+def check_output_dir(
+    path: str | os.PathLike[str], what: str, inputs: tuple[Path, ...] = ()
+) -> Path:
     """A directory results may be written into (made when missing: its parent must
-    exist and be writable), or a one-line error naming ``what``."""
+    exist and be writable), or a one-line error naming ``what``; it must not hold one of
+    the run's ``inputs`` under a name glshade writes there (a height map called
+    ``decoded.npy``)."""
     target = Path(path)
+    for source in inputs:
+        if _written_here(source, target):
+            raise GlshadeError(
+                f"{what} {path}: would replace {source}, one of this run's inputs; choose "
+                "another directory"
+            )
     if target.exists() and not target.is_dir():
         raise GlshadeError(f"{what} {path}: is not a directory")
     if not target.exists():
@@ -40,7 +56,28 @@ def check_output_dir(path: str | os.PathLike[str], what: str) -> Path:
             raise GlshadeError(f"{what} {path}: directory {parent} is not writable")
     elif not os.access(target, os.W_OK | os.X_OK):
         raise GlshadeError(f"{what} {path}: is not writable")
+    else:
+        for entry in os.scandir(target):
+            if _written_name(entry.name):  # what the run would replace: a regular file inside
+                check_output(entry.path, what, probe=False)
+                check_inside(target, Path(entry.path), what)
     return target
+
+
+def _written_here(source: Path, directory: Path) -> bool:
+    """Whether ``source`` lies in ``directory`` under a name a PMD run writes there."""
+    if not directory.is_dir() or os.path.realpath(source.parent) != os.path.realpath(directory):
+        return False
+    return _written_name(source.name)
+
+
+def _written_name(name: str) -> bool:
+    """Whether a PMD run writes a file of this name in its ``--maps`` or ``--frames``."""
+    return (
+        name == "manifest.json"
+        or name.startswith("frame_")
+        or any(name in (f"{m}.npy", f"{m}.png") for m in MAP_FILES)
+    )
 
 
 def frame_name(index: int, frame, suffix: str) -> str:
@@ -58,8 +95,9 @@ def write_frames(directory: Path, scene: Scene, recorded: np.ndarray, fmt: str =
     entries = []
     for index, frame in enumerate(frames):
         name = frame_name(index, frame, suffix)
-        path = check_output(directory / name, "--frames")
-        atomic_write_bytes(path, encode_image(recorded[index], suffix, bits), "--frames")
+        path = directory / name
+        image = encode_image(recorded[index], suffix, bits)
+        atomic_write_bytes(path, image, "--frames", within=directory)
         entries.append(
             {
                 "file": name,
@@ -89,9 +127,9 @@ def write_frames(directory: Path, scene: Scene, recorded: np.ndarray, fmt: str =
         "frames": entries,
         "scene": scene.to_dict(),
     }
-    path = check_output(directory / "manifest.json", "--frames")
+    path = directory / "manifest.json"
     text = json.dumps(manifest, indent=2, default=str) + "\n"
-    atomic_write_bytes(path, text.encode(), "--frames")
+    atomic_write_bytes(path, text.encode(), "--frames", within=directory)
     return path
 
 
@@ -110,11 +148,11 @@ def write_maps(directory: Path, scene: Scene, result) -> list[Path]:
     }
     written = []
     for name, array in arrays.items():
-        path = check_output(directory / f"{name}.npy", "--maps")
-        write_npy(path, array)
+        path = directory / f"{name}.npy"
+        write_npy(path, array, within=directory)
         written.append(path)
     for name, shown in map_images(scene, result).items():
-        path = check_output(directory / f"{name}.png", "--maps")
+        path = directory / f"{name}.png"
         map_figure(shown, scene, result, path)
         written.append(path)
     return written
@@ -267,7 +305,7 @@ def map_figure(shown: MapView, scene: Scene, result, path: Path) -> tuple[float,
     fig.suptitle(f"PMD: {shown.title}\n{scene.title()}{status}", fontsize=10)
     if not np.isfinite(values).all():
         fig.text(0.01, -0.01, f"grey: no value, {shown.no_value}", fontsize=8, va="top")
-    save_figure(fig, path)
+    save_figure(fig, path, within=path.parent)
     return lo, hi
 
 

@@ -60,6 +60,16 @@ PARSE: dict[str, Callable[[Any], Any]] = {
 }
 
 
+#: The JSON values a case file may hold for a field, by the field's annotation.
+_JSON_TYPES: dict[str, tuple[type, ...]] = {
+    "str": (str,),
+    "float": (int, float),
+    "int": (int,),
+    "bool": (bool,),
+    "float | None": (int, float, type(None)),
+}
+
+
 class Record:
     """What every result record shares: its columns are its own dataclass's fields (a
     subclass that adds fields, a study's row, keeps its record's columns); every field,
@@ -90,6 +100,25 @@ class Record:
                 for c in cls.columns()
             }
         )
+
+    @classmethod
+    def json_problem(cls, row: dict[str, Any]) -> str | None:
+        """Why ``row``, read from a case file's JSON, is not this record's fields with
+        the JSON types they are written as (a number where a number belongs, never a
+        string or a list; a missing field), or None. Only the fields of ``cls`` that
+        ``row`` must hold are checked (a missing timing reads 0)."""
+        for item in fields(cls):  # type: ignore[arg-type]
+            kind = item.type if isinstance(item.type, str) else item.type.__name__
+            if item.name not in row:
+                if item.metadata.get("role") == "timing":
+                    continue
+                return f"lacks {item.name} (written by an older glshade)"
+            value = row[item.name]
+            if not isinstance(value, _JSON_TYPES[kind]) or (
+                isinstance(value, bool) and kind != "bool"
+            ):
+                return f"holds {type(value).__name__} as {item.name}, not {kind}"
+        return None
 
     def row(self, roles: tuple[str, ...] = ROLES) -> dict[str, Any]:
         """The columns of these roles, in order, as plain values (None stays None)."""

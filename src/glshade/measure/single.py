@@ -68,6 +68,7 @@ def baseline_for(
     renderer: Renderer, scene: Scene, settings: MetricSettings = MetricSettings()
 ) -> Baseline:
     """The defect-free analysis of a scene's geometry (its defect is ignored)."""
+    check_metric_size(scene)
     normal = scene.without_defect()
     images = None if shades_from_map(scene) else phase_images(renderer, normal)
     pattern = scene.active.emitter.pattern(scene)
@@ -83,7 +84,23 @@ def baseline_for(
 def map_baseline(scene: Scene, v0: np.ndarray, settings: MetricSettings) -> Baseline:
     """The defect-free analysis of ``scene``'s geometry from its traced emitter map ``v0``,
     shaded from the map (the engine's fast path, the viewer's live readout)."""
+    check_metric_size(scene)
     return Baseline(v0, scene.active.emitter.pattern(scene), settings)
+
+
+#: The fewest pixels across and down the paper's metric reads (the map's gradients and a
+#: contour need two pixels each way).
+MIN_METRIC_PIXELS = 2
+
+
+def check_metric_size(scene: Scene) -> None:
+    """One line when the scene's image is too small for the paper's metric."""
+    camera = scene.camera
+    if min(camera.width, camera.height) < MIN_METRIC_PIXELS:
+        raise GlshadeError(
+            f"--size / camera.width, camera.height: the paper's metric needs at least "
+            f"{MIN_METRIC_PIXELS} pixels each way, got {camera.width}x{camera.height}"
+        )
 
 
 def map_baseline_key(scene: Scene) -> str:

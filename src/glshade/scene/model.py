@@ -35,7 +35,7 @@ from glshade.components.registry import registry
 from glshade.components.render.table import RenderTable
 from glshade.components.sensor.linear.table import Sensor
 from glshade.components.surface.table import SurfaceTable
-from glshade.errors import SceneError
+from glshade.errors import GlshadeError, SceneError
 from glshade.params import Table
 from glshade.rig import EmitterPlane, emitter_plane
 
@@ -203,6 +203,22 @@ class Scene:
             return getattr(table, param.key)
         return _file_values(self, param.table, everything=True).get(param.key)
 
+    def input_files(self) -> tuple[Path, ...]:
+        """The files the scene reads (a height map's ``surface.file``), as the process
+        reads them: what no output of a run may overwrite."""
+        reg = registry()
+        active = self.active
+        found = []
+        for param in reg.params():
+            if param.value_type != "path" or not param.stored:
+                continue
+            if not any(owner in active for owner in reg.owners(param)):
+                continue
+            value = getattr(getattr(self, param.table), param.key)
+            if isinstance(value, str) and value.strip():
+                found.append(Path(value))
+        return tuple(found)
+
     def updated(self, **tables: dict[str, Any]) -> Scene:
         """A copy with some keys of some tables replaced:
         ``scene.updated(camera={"theta_deg": 5})``.
@@ -287,17 +303,7 @@ def read_toml(path: Path, what: str = "scene file") -> dict[str, Any]:
     TOML does not allow, and Windows editors write) is skipped; every other problem is a
     :class:`SceneError` naming the file."""
     field = f"{what} {path}"
-    try:
-        with path.open("rb") as fh:
-            raw = fh.read(MAX_SCENE_FILE_BYTES + 1)
-    except FileNotFoundError:
-        raise SceneError(what, "an existing TOML file", str(path)) from None
-    except IsADirectoryError:
-        raise SceneError(field, "a TOML file, not a directory") from None
-    except OSError as exc:
-        raise SceneError(field, f"a readable TOML file ({exc.strerror or exc})") from None
-    except ValueError:  # a NUL byte in the path
-        raise SceneError(what, "a path without NUL bytes", str(path)) from None
+    raw = _read_scene_bytes(Path(path), what)
     if len(raw) > MAX_SCENE_FILE_BYTES:
         raise SceneError(
             field, f"a TOML file of at most {MAX_SCENE_FILE_BYTES >> 20} MiB (this one is larger)"
@@ -323,7 +329,39 @@ def read_toml(path: Path, what: str = "scene file") -> dict[str, Any]:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(field, f"valid TOML ({exc})") from None
+    except RecursionError:
+        raise SceneError(field, "TOML nested at most a few hundred levels deep") from None
+    except ValueError:  # an integer of more digits than Python converts (4300)
+        raise SceneError(field, "valid TOML (it holds an integer of thousands of digits)") from None
     return data
+
+
+def _read_scene_bytes(path: Path, what: str) -> bytes:
+    """The first ``MAX_SCENE_FILE_BYTES + 1`` bytes of a scene file, read only from a
+    regular file (a FIFO or a device is refused without waiting on it)."""
+    from glshade.files import open_regular
+
+    text = os.fspath(path)
+    if "\0" in text:
+        raise SceneError(what, "a path without NUL bytes", text)
+    if not os.path.lexists(text):
+        raise SceneError(what, "an existing TOML file", text)
+    if os.path.isdir(text):
+        raise SceneError(f"{what} {path}", "a TOML file, not a directory")
+    try:
+        fd = open_regular(text, what)
+    except GlshadeError as exc:
+        raise SceneError(f"{what} {path}", f"a readable TOML file ({_reason(exc)})") from None
+    try:
+        with os.fdopen(fd, "rb") as fh:
+            return fh.read(MAX_SCENE_FILE_BYTES + 1)
+    except OSError as exc:
+        raise SceneError(f"{what} {path}", f"a readable TOML file ({exc.strerror})") from None
+
+
+def _reason(exc: GlshadeError) -> str:
+    """The reason of a :func:`glshade.files.open_regular` error, without its path."""
+    return str(exc).rpartition(": ")[2] if ": " in str(exc) else str(exc)
 
 
 def _resolve_paths(table: str, values: dict[str, Any], base: Path | None) -> dict[str, Any]:

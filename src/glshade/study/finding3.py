@@ -13,6 +13,7 @@ pipeline of ``glshade measure`` and ``glshade sweep``. ``glshade finding3`` writ
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -21,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from glshade.files import atomic_write_bytes
+from glshade.files import RESULTS_TABLE_BYTES, atomic_write_bytes, read_regular_text
 from glshade.measure.engine import Case
 from glshade.measure.executors import LocalExecutor
 from glshade.measure.locks import run_lock
@@ -168,15 +169,15 @@ def _write_csv(rows, path: Path) -> None:
     writer = csv.DictWriter(text, FIELDS)
     writer.writeheader()
     writer.writerows(rows)
-    atomic_write_bytes(path, text.getvalue().encode())
+    atomic_write_bytes(path, text.getvalue().encode(), within=path.parent)
 
 
 def read_rows(path: Path) -> list[dict]:
-    with path.open() as fh:
-        return [
-            {k: (v if k in TEXT_FIELDS else float(v) if v != "" else None) for k, v in row.items()}
-            for row in csv.DictReader(fh)
-        ]
+    text = read_regular_text(path, "finding3 table", RESULTS_TABLE_BYTES)
+    return [
+        {k: (v if k in TEXT_FIELDS else float(v) if v != "" else None) for k, v in row.items()}
+        for row in csv.DictReader(io.StringIO(text))
+    ]
 
 
 def readable(row, key: str = "visibility_px") -> bool:
@@ -256,7 +257,7 @@ def _figure(rows, variants, path: Path) -> None:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=110)
     plt.close(fig)
-    atomic_write_bytes(path, buffer.getvalue())
+    atomic_write_bytes(path, buffer.getvalue(), within=path.parent)
 
 
 def verdict_lines(rows, variants, key: str = "visibility_px") -> list[str]:
@@ -508,7 +509,7 @@ def write_report(rows, variants, size: int, path: Path) -> Path:
             *margins,
         ]
     lines += _explanation()
-    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
+    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode(), within=path.parent)
     return path
 
 

@@ -700,7 +700,7 @@ def write_report(
             ),
         ]
     path = Path(out_dir) / "report.md"
-    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
+    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode(), within=path.parent)
     return path
 
 

@@ -10,6 +10,7 @@ from dataclasses import asdict, dataclass, field
 from itertools import pairwise
 from pathlib import Path
 
+from glshade.components.camera.perspective.table import MIN_THETA_DEG
 from glshade.errors import GlshadeError
 from glshade.metrics import visibility as vis
 from glshade.metrics.visibility import METRIC_VERSION
@@ -112,7 +113,7 @@ class StudyPlan:
                 case_scene(s)  # the file loads: its errors name it
         if len({surface_label(s) for s in self.surfaces}) != len(self.surfaces):
             raise GlshadeError("surfaces: must not repeat (scene files by their names)")
-        thetas = _float_list("thetas", self.thetas, 0.0, 90.0)
+        thetas = _float_list("thetas", self.thetas, MIN_THETA_DEG, 90.0)
         if any(a <= b for a, b in pairwise(thetas)):
             raise GlshadeError(
                 "thetas: must be strictly decreasing, from high to low viewpoints as in the paper "

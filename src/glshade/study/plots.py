@@ -151,7 +151,7 @@ def image_grid(
         ha="center",
         fontsize=8,
     )
-    _save(fig, path)
+    _save(fig, path, within=path.parent)
     return True
 
 
@@ -236,7 +236,7 @@ def visibility_plot(
         fontsize=11,
     )
     fig.tight_layout()
-    _save(fig, path)
+    _save(fig, path, within=path.parent)
 
 
 def law_plot(rows: list[CaseResult], path: Path, image: tuple[int, int] | None = None) -> None:
@@ -306,7 +306,7 @@ def law_plot(rows: list[CaseResult], path: Path, image: tuple[int, int] | None =
         f"Closed forms against the simulation, all {len(rows)} cases (docs/physics.md)", fontsize=11
     )
     fig.tight_layout()
-    _save(fig, path)
+    _save(fig, path, within=path.parent)
 
 
 # --------------------------------------------------------------------------- Fig. 9

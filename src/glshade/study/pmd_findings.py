@@ -213,7 +213,7 @@ def write_pmd_report(
     if seconds is not None:
         lines += ["## Run time", "", _run_time(pmd_rows, seconds, computed), ""]
     path = Path(out_dir) / REPORT_NAME
-    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
+    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode(), within=path.parent)
     return path
 
 

@@ -162,7 +162,7 @@ def visibility_plot(
         fontsize=11,
     )
     fig.tight_layout()
-    save_figure(fig, path)
+    save_figure(fig, path, within=path.parent)
 
 
 def depth_plot(pairs: Sequence[Pair], path: Path, surfaces, dmaxs) -> None:
@@ -241,7 +241,7 @@ def depth_plot(pairs: Sequence[Pair], path: Path, surfaces, dmaxs) -> None:
         fontsize=11,
     )
     fig.tight_layout()
-    save_figure(fig, path)
+    save_figure(fig, path, within=path.parent)
 
 
 def law_plot(pairs: Sequence[Pair], path: Path) -> None:
@@ -292,7 +292,7 @@ def law_plot(pairs: Sequence[Pair], path: Path) -> None:
     )
     fig.suptitle("Phase measuring: the closed forms against the simulation", fontsize=11)
     fig.tight_layout()
-    save_figure(fig, path)
+    save_figure(fig, path, within=path.parent)
 
 
 def _plain_log_ticks(ax) -> None:

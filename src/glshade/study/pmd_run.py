@@ -14,7 +14,9 @@ from pathlib import Path
 from typing import cast
 
 from glshade.components.emitter.fringes.table import fringes_of
+from glshade.files import make_inside
 from glshade.gpu.renderer import Renderer
+from glshade.measure.case_files import Rejected
 from glshade.measure.engine import Case, measure_many
 from glshade.measure.locks import run_lock
 from glshade.measure.record import PmdMeasurement
@@ -52,24 +54,29 @@ def run_pmd_study(
     progress: bool = True,
     overwrite: bool = False,
     on_case_done: Callable[[PmdCaseResult], None] | None = None,
+    notify: Callable[[str], None] | None = None,
 ) -> PmdStudyResult:
     """Run (or resume) the PMD study into ``out_dir`` and write ``pmd_results.csv``.
 
     A directory whose ``pmd_study.json`` holds another plan is refused unless
     ``overwrite`` (which removes only the PMD study's files: the stripe study beside it
-    is never touched). ``on_case_done(row)`` is called once a case is safely on disk."""
+    is never touched). ``on_case_done(row)`` is called once a case is safely on disk;
+    ``notify(line)`` is told of case files that fail their check (measured again; a
+    warning when None)."""
     out_dir = Path(out_dir)
     with run_lock(out_dir):
         prepare_out_dir(out_dir, plan.to_dict(), overwrite, PMD_LAYOUT)
-        (out_dir / PMD_LAYOUT.cases).mkdir(exist_ok=True)
+        make_inside(out_dir, PMD_LAYOUT.cases)
         done: dict[str, PmdCaseResult] = {}
         pending: list[PlanPoint] = []
+        rejected = Rejected()
         for point in plan.cases():
-            row = load_case(case_path(out_dir, point))
+            row = load_case(case_path(out_dir, point), rejected)
             if row is None:
                 pending.append(point)
             else:
                 done[case_key(*point)] = row
+        rejected.say(notify)
         skipped = len(done)
         start = time.perf_counter()
         owns = renderer is None

@@ -7,11 +7,10 @@ of the plan, then the :class:`~glshade.measure.record.PmdMeasurement`), its case
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from glshade.files import atomic_write_bytes
+from glshade.measure.case_files import Rejected
 from glshade.measure.record import Column, PmdMeasurement, columns_markdown
 from glshade.study import store
 from glshade.study.plan import PlanPoint, case_key
@@ -55,24 +54,15 @@ def case_path(out_dir: Path, point: PlanPoint) -> Path:
     return Path(out_dir) / PMD_LAYOUT.cases / f"{case_key(*point)}.json"
 
 
-def load_case(path: Path) -> PmdCaseResult | None:
-    """A finished case's record, or None (missing, or from an older or interrupted
-    writer: measure it again)."""
-    try:
-        row = json.loads(Path(path).read_text())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(row, dict) or not set(PMD_STUDY_CSV_COLUMNS) <= set(row):
-        return None
-    try:
-        return PmdCaseResult.from_row(row)
-    except (TypeError, ValueError, KeyError):
-        return None
+def load_case(path: Path, rejected: Rejected | None = None) -> PmdCaseResult | None:
+    """A finished case's record, or None: missing, or not to be trusted (which
+    ``rejected`` collects, with why: :func:`glshade.study.store.load_case`)."""
+    return store.load_case(path, rejected, PmdCaseResult)
 
 
 def write_case(out_dir: Path, result: PmdCaseResult) -> None:
-    """A finished case on disk, atomically."""
-    atomic_write_bytes(case_path(out_dir, result.case), json.dumps(dict(result), indent=1).encode())
+    """A finished case on disk, atomically, with its case id and checksum."""
+    store.write_case(out_dir, result, None, PMD_LAYOUT.cases)
 
 
 def write_results_csv(path: Path, rows: list[PmdCaseResult]) -> None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from glshade.files import read_regular
 from glshade.metrics.visibility import MetricSettings
 from glshade.study import findings, plots
 from glshade.study.plan import OVERLAY_CASES, StudyPlan
@@ -17,7 +18,7 @@ from glshade.study.store import read_results_csv
 
 def stored_plan(out_dir: Path) -> StudyPlan:
     """The plan a study directory was run with (its ``study.json``)."""
-    data = json.loads((Path(out_dir) / "study.json").read_text())
+    data = json.loads(read_regular(Path(out_dir) / "study.json", "study"))
     known = set(MetricSettings.__dataclass_fields__)
     metric = MetricSettings(**{k: v for k, v in data.get("metric", {}).items() if k in known})
     return StudyPlan(
@@ -50,7 +51,7 @@ def stored_pmd_plan(out_dir: Path):
     from glshade.measure.pmd import PmdSettings
     from glshade.study.pmd_plan import PmdChain, PmdStudyPlan
 
-    data = json.loads((Path(out_dir) / "pmd_study.json").read_text())
+    data = json.loads(read_regular(Path(out_dir) / "pmd_study.json", "study"))
     chain = dict(data["chain"])
     chain["periods"] = tuple(chain.get("periods") or ())
     chain["surface_periods"] = tuple(

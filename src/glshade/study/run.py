@@ -25,6 +25,7 @@ import numpy as np
 from glshade.errors import GlshadeError
 from glshade.files import encode_png
 from glshade.gpu.renderer import Renderer
+from glshade.measure.case_files import Rejected
 from glshade.measure.engine import Case, CaseView, Measured
 from glshade.measure.executors import Distribution
 from glshade.measure.locks import run_lock
@@ -115,6 +116,7 @@ def run_study(
     on_surface_done: Callable[[str, list[CaseResult]], None] | None = None,
     overwrite: bool = False,
     distribution: Distribution | None = None,
+    notify: Callable[[str], None] | None = None,
 ) -> StudyResult:
     """Run (or resume) the study into ``out_dir``; returns every case's record.
 
@@ -132,13 +134,17 @@ def run_study(
     ``on_surface_done(surface, rows)`` once the last case of a surface computed in this
     run is, with all of that surface's rows (the CLI draws its figures there, on this
     thread, while the workers measure the next surface).
+    ``notify(line)`` is told of case files that fail their check (they are measured
+    again; a warning when None).
     """
     check_workers(workers)
     out_dir = Path(out_dir)
     with run_lock(out_dir):
         prepare_out_dir(out_dir, plan.to_dict(), overwrite)
         where = distribution or Distribution(threads=workers)
-        return _run_locked(plan, out_dir, where, progress, renderer, on_case_done, on_surface_done)
+        return _run_locked(
+            plan, out_dir, where, progress, renderer, (on_case_done, on_surface_done), notify
+        )
 
 
 def check_workers(workers: int) -> None:
@@ -147,17 +153,18 @@ def check_workers(workers: int) -> None:
         raise GlshadeError(f"--threads: must be an integer >= 1, got {workers}")
 
 
-def _run_locked(
-    plan, out_dir, distribution, progress, renderer, on_case_done, on_surface_done
-) -> StudyResult:
+def _run_locked(plan, out_dir, distribution, progress, renderer, callbacks, notify) -> StudyResult:
+    on_case_done, on_surface_done = callbacks
     done: dict[str, CaseResult] = {}
     pending = []
+    rejected = Rejected()
     for case in plan.cases():
-        row = load_case(out_dir / "cases" / f"{case_key(*case)}.json")
+        row = load_case(out_dir / "cases" / f"{case_key(*case)}.json", rejected)
         if row is not None:
             done[case_key(*case)] = row
         else:
             pending.append(case)
+    rejected.say(notify)
     skipped = len(done)
     state = _Progress(
         plan,
@@ -249,7 +256,9 @@ def _write(row: CaseResult, figures: CaseFigures, timings: Timings, out_dir: Pat
         from glshade.measure.figures import overlay_figure
 
         rgb, result, first_column, title = figures.overlay
-        overlay_figure(rgb, result, first_column, title, out_dir / OVERLAY_CASES[row.case])
+        overlay_figure(
+            rgb, result, first_column, title, out_dir / OVERLAY_CASES[row.case], within=out_dir
+        )
     write_case(out_dir, row, figures.thumbnail)
     timings.io += time.perf_counter() - start
 

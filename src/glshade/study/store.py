@@ -21,7 +21,14 @@ from pathlib import Path
 from typing import Any
 
 from glshade.errors import GlshadeError
-from glshade.files import atomic_write_bytes
+from glshade.files import (
+    RESULTS_TABLE_BYTES,
+    atomic_write_bytes,
+    read_regular,
+    read_regular_text,
+    remove_inside,
+)
+from glshade.measure.case_files import Rejected, case_file_bytes, read_case_file
 from glshade.measure.locks import make_out_dir
 from glshade.measure.record import Column, Measurement, columns_markdown
 from glshade.study.plan import PlanPoint, case_key
@@ -131,30 +138,45 @@ def results_markdown() -> str:
 
 
 # --------------------------------------------------------------------------- files
-def load_case(path: Path) -> CaseResult | None:
-    """A finished case's record, or None (missing, or from an older or interrupted
-    writer: recompute)."""
-    try:
-        row = json.loads(path.read_text())
-    except (OSError, ValueError):
+def load_case(path: Path, rejected: Rejected | None = None, row_class: Any = None) -> Any:
+    """A finished case's record (of ``row_class``, default :class:`CaseResult`), or None:
+    missing, or not to be trusted (:func:`~glshade.measure.case_files.read_case_file`: a
+    failed checksum, another case's id, an older or interrupted writer, values that are
+    not numbers), which ``rejected`` collects with the reason: measure it again."""
+    kind = row_class or CaseResult
+    found = read_case_file(Path(path), Path(path).stem)
+    row, problem = found.record, found.problem
+    if row is not None:
+        problem = _row_problem(row, kind, Path(path).stem)
+    if problem is not None or row is None:
+        if rejected is not None:
+            rejected.add(Path(path), problem)
         return None
-    if not isinstance(row, dict) or not _names(CaseResult) <= set(row):
-        return None
-    try:
-        return CaseResult.from_row(row)
-    except (TypeError, ValueError, KeyError):
-        return None
+    return kind.from_row(row)
 
 
-def write_case(out_dir: Path, result: CaseResult, thumbnail: bytes | None) -> None:
-    """A finished case on disk: its thumbnail, and last its JSON (the "done" mark a rerun
-    looks for)."""
+def _row_problem(row: dict, kind: Any, key: str) -> str | None:
+    """Why a checked case file's record is still not a row of ``kind`` for case ``key``."""
+    problem = kind.json_problem(row)
+    if problem is not None:
+        return problem
+    try:
+        parsed = kind.from_row(row)
+    except (TypeError, ValueError, KeyError) as exc:
+        return f"does not read as a case ({str(exc)[:80]})"
+    if case_key(*parsed.case) != key:
+        return f"holds the case {case_key(*parsed.case)}"
+    return None
+
+
+def write_case(out_dir: Path, result: Any, thumbnail: bytes | None, cases: str = "cases") -> None:
+    """A finished case on disk, in the folder ``cases``: its thumbnail, and last its JSON
+    (the "done" mark a rerun looks for), with its case id and checksum."""
     key = case_key(*result.case)
     if thumbnail is not None:
-        atomic_write_bytes(out_dir / "cases" / f"{key}.png", thumbnail)
-    atomic_write_bytes(
-        out_dir / "cases" / f"{key}.json", json.dumps(dict(result), indent=1).encode()
-    )
+        atomic_write_bytes(out_dir / cases / f"{key}.png", thumbnail, within=out_dir)
+    data = case_file_bytes(key, json.loads(json.dumps(dict(result))))
+    atomic_write_bytes(out_dir / cases / f"{key}.json", data, within=out_dir)
 
 
 def write_results_csv(path: Path, rows: Sequence[PlanRow], row_class: Any = None) -> None:
@@ -167,15 +189,15 @@ def write_results_csv(path: Path, rows: Sequence[PlanRow], row_class: Any = None
     writer.writeheader()
     for row in rows:
         writer.writerow(dict(row))
-    atomic_write_bytes(Path(path), buffer.getvalue().encode())
+    atomic_write_bytes(Path(path), buffer.getvalue().encode(), within=Path(path).parent)
 
 
 def read_results_csv(path: Path, row_class: Any = None) -> list[Any]:
     """A study's table back as typed rows of ``row_class`` (default :class:`CaseResult`,
     ``results.csv``)."""
     kind = row_class or CaseResult
-    with open(path, newline="") as fh:
-        return [kind.from_row(raw) for raw in csv.DictReader(fh)]
+    text = read_regular_text(path, "results table", RESULTS_TABLE_BYTES)
+    return [kind.from_row(raw) for raw in csv.DictReader(io.StringIO(text, newline=""))]
 
 
 # --------------------------------------------------------------------------- output dir
@@ -241,7 +263,9 @@ def prepare_out_dir(
             cases=_plan_keys(manifest_data),
             layout=layout,
         )
-    atomic_write_bytes(manifest, json.dumps(manifest_data, indent=2).encode(), "--out")
+    atomic_write_bytes(
+        manifest, json.dumps(manifest_data, indent=2).encode(), "--out", within=out_dir
+    )
     return removed
 
 
@@ -257,12 +281,14 @@ def _with_metric_defaults(stored: dict | None) -> dict | None:
 
 
 def _read_manifest(manifest: Path) -> dict | None:
-    try:
-        stored = json.loads(manifest.read_text())
-    except FileNotFoundError:
+    """The study's manifest; None where there is none; {} where it cannot be read (a
+    study of unknown plan). A FIFO or device in its place is refused, never read."""
+    if not manifest.exists() and not manifest.is_symlink():
         return None
-    except (OSError, ValueError):
-        return {}  # unreadable: a study of unknown plan
+    try:
+        stored = json.loads(read_regular(manifest, "--out"))
+    except (ValueError, RecursionError):
+        return {}
     return stored if isinstance(stored, dict) else {}
 
 
@@ -292,16 +318,14 @@ def _remove_stale(
 ) -> list[Path]:
     """Remove what ``--overwrite`` replaces: the old study's figures, tables and report,
     and its case files that the new plan cannot reuse."""
-    doomed = [
-        path for pattern in layout.files for path in sorted(out_dir.glob(pattern)) if path.is_file()
-    ]
-    for path in sorted((out_dir / layout.cases).glob("*")):
-        reusable = keep_cases and path.stem in cases
-        if path.suffix in (".json", ".png") and path.is_file() and not reusable:
-            doomed.append(path)
-    for path in doomed:
-        path.unlink()
-    return doomed
+    doomed = [path for pattern in layout.files for path in sorted(out_dir.glob(pattern))]
+    folder = out_dir / layout.cases
+    if folder.is_dir() and not folder.is_symlink():
+        for path in sorted(folder.glob("*")):
+            reusable = keep_cases and path.stem in cases
+            if path.suffix in (".json", ".png") and not reusable:
+                doomed.append(path)
+    return [path for path in doomed if remove_inside(out_dir, path)]
 
 
 def _comparable(plan_dict: dict, layout: Layout = STRIPES) -> dict:

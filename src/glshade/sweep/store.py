@@ -16,12 +16,20 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from glshade.errors import GlshadeError
-from glshade.files import atomic_write_bytes
+from glshade.files import (
+    atomic_write_bytes,
+    make_inside,
+    open_regular,
+    read_regular,
+    remove_inside,
+)
+from glshade.measure.case_files import Rejected, case_file_bytes, read_case_file
 from glshade.measure.record import (
     COLUMNS,
     OUTPUT_NAMES,
@@ -72,29 +80,47 @@ def write_case(
 ) -> None:
     """A finished case on disk: its image first, its JSON last (the "done" mark)."""
     if image_png is not None:
-        atomic_write_bytes(Path(out_dir) / "images" / f"{case_id}.png", image_png, "--out")
-    data = {"case_id": case_id, "outputs": record.outputs(), "seconds": record.seconds()}
-    atomic_write_bytes(case_path(out_dir, case_id), json.dumps(data, indent=1).encode(), "--out")
+        atomic_write_bytes(
+            Path(out_dir) / "images" / f"{case_id}.png", image_png, "--out", within=out_dir
+        )
+    data = json.loads(json.dumps({"outputs": record.outputs(), "seconds": record.seconds()}))
+    atomic_write_bytes(
+        case_path(out_dir, case_id), case_file_bytes(case_id, data), "--out", within=out_dir
+    )
 
 
-def load_case(out_dir: Path, case_id: str, method: str = "paper") -> CaseRecord | None:
+def load_case(
+    out_dir: Path, case_id: str, method: str = "paper", rejected: Rejected | None = None
+) -> CaseRecord | None:
     """A finished case's record (the ``method``'s record type, its timings included), or
-    None (missing, unreadable, incomplete or another instrument's: recompute)."""
-    try:
-        data = json.loads(case_path(out_dir, case_id).read_text())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(data, dict) or data.get("case_id") != case_id:
-        return None
+    None: missing, or not to be trusted (a failed checksum, another case's id, an older
+    or interrupted writer, another instrument's outputs, values that are not numbers),
+    which ``rejected`` collects with the reason: measure it again."""
+    path = case_path(out_dir, case_id)
+    found = read_case_file(path, case_id)
+    record, problem = None, found.problem
+    if found.record is not None:
+        record, problem = _record(found.record, method)
+    if rejected is not None:
+        rejected.add(path, problem)
+    return record
+
+
+def _record(data: dict, method: str) -> tuple[CaseRecord | None, str | None]:
+    """A checked case file's record of ``method``, or why it is none."""
     found = data.get("outputs")
     if not isinstance(found, dict) or set(found) != set(output_names(method)):
-        return None
+        return None, f"does not hold the outputs of --method {method}"
     seconds = data.get("seconds")
-    timings = seconds if isinstance(seconds, dict) else {}
+    row = {**(seconds if isinstance(seconds, dict) else {}), **found}
+    kind = RECORDS[method]
+    problem = kind.json_problem(row)
+    if problem is not None:
+        return None, problem
     try:
-        return RECORDS[method].from_row({**timings, **found})
-    except (KeyError, TypeError, ValueError):
-        return None
+        return kind.from_row(row), None
+    except (KeyError, TypeError, ValueError) as exc:
+        return None, f"does not read as a case ({str(exc)[:80]})"
 
 
 # --------------------------------------------------------------------------- directory
@@ -115,22 +141,24 @@ def prepare(out_dir: Path, spec: SweepSpec, overwrite: bool = False) -> None:
                 "to resume it, add --overwrite to replace it, or choose another --out"
             )
         _remove(out_dir)
-    (out_dir / "cases").mkdir(parents=True, exist_ok=True)
+    make_inside(out_dir, "cases")
     if spec.images:
-        (out_dir / "images").mkdir(exist_ok=True)
-    atomic_write_bytes(out_dir / MANIFEST, json.dumps(wanted, indent=2).encode(), "--out")
+        make_inside(out_dir, "images")
+    atomic_write_bytes(
+        out_dir / MANIFEST, json.dumps(wanted, indent=2).encode(), "--out", within=out_dir
+    )
 
 
 def _stored_manifest(out_dir: Path) -> dict | None:
     """The directory's manifest; a results table without one speaks for itself (its
     Parquet metadata); a directory of other files is no sweep (None)."""
-    try:
-        stored = json.loads((out_dir / MANIFEST).read_text())
+    manifest = out_dir / MANIFEST
+    if manifest.exists() or manifest.is_symlink():
+        try:
+            stored = json.loads(read_regular(manifest, "--out"))
+        except (ValueError, RecursionError):
+            return {}
         return stored if isinstance(stored, dict) else {}
-    except FileNotFoundError:
-        pass
-    except (OSError, ValueError):
-        return {}
     if (out_dir / PARQUET).exists():
         return table_manifest(out_dir / PARQUET)
     return None
@@ -138,13 +166,15 @@ def _stored_manifest(out_dir: Path) -> dict | None:
 
 def table_manifest(path: Path) -> dict:
     """The manifest a results table was written with ({} when it has none)."""
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
-    try:
-        metadata = pq.read_schema(path).metadata or {}
-        return json.loads(metadata.get(b"glshade", b"{}"))
-    except (OSError, ValueError):
-        return {}
+    with os.fdopen(open_regular(path, "--out"), "rb") as fh:  # never a FIFO read
+        try:
+            metadata = pq.read_schema(fh).metadata or {}
+            return json.loads(metadata.get(b"glshade", b"{}"))
+        except (OSError, ValueError, RecursionError, pa.ArrowException):
+            return {}
 
 
 def _difference(stored: dict, wanted: dict) -> str:
@@ -176,8 +206,7 @@ def _remove(out_dir: Path) -> None:
         (out_dir / "images").glob("*.png")
     )
     for path in doomed:
-        if path.is_file():
-            path.unlink()
+        remove_inside(out_dir, path)
 
 
 # --------------------------------------------------------------------------- tables
@@ -206,13 +235,13 @@ def write_tables(out_dir: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> 
     table = table.replace_schema_metadata({b"glshade": json.dumps(spec.manifest()).encode()})
     buffer = io.BytesIO()
     pq.write_table(table, buffer)
-    atomic_write_bytes(Path(out_dir) / PARQUET, buffer.getvalue(), "--out")
+    atomic_write_bytes(Path(out_dir) / PARQUET, buffer.getvalue(), "--out", within=out_dir)
     text = io.StringIO()
     writer = csv.DictWriter(text, fieldnames=columns, lineterminator="\n")
     writer.writeheader()
     for row in rows:
         writer.writerow({name: _csv_cell(row.get(name)) for name in columns})
-    atomic_write_bytes(Path(out_dir) / CSV, text.getvalue().encode(), "--out")
+    atomic_write_bytes(Path(out_dir) / CSV, text.getvalue().encode(), "--out", within=out_dir)
 
 
 def _cell(value: Any) -> Any:
@@ -243,4 +272,5 @@ def read_table(out_dir: Path) -> list[dict[str, Any]]:
     """``results.parquet`` back as a list of rows."""
     import pyarrow.parquet as pq
 
-    return pq.read_table(Path(out_dir) / PARQUET).to_pylist()
+    with os.fdopen(open_regular(Path(out_dir) / PARQUET, "results table"), "rb") as fh:
+        return pq.read_table(fh).to_pylist()

@@ -39,7 +39,7 @@ from glshade.components.accuracy import (
     points_table,
 )
 from glshade.components.registry import registry
-from glshade.files import atomic_write_bytes
+from glshade.files import atomic_write_bytes, check_entries, make_inside
 from glshade.frame import Frame
 from glshade.gpu.renderer import Renderer, RootSolver
 from glshade.measure.single import measure_scene
@@ -377,7 +377,7 @@ def plot(points: list[Point], currency: str, title: str, unit: str, path: Path) 
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight")
     plt.close(fig)
-    atomic_write_bytes(path, buffer.getvalue())
+    atomic_write_bytes(path, buffer.getvalue(), within=path.parent)
 
 
 def stability_table(renderer: Renderer, log) -> tuple[list[str], dict[str, int]]:
@@ -417,8 +417,13 @@ def run(
             f"{', '.join(surfaces) or 'none'}"
         )
     out_dir = Path(out_dir)
-    figures = out_dir / "figures"
-    figures.mkdir(parents=True, exist_ok=True)
+    if out_dir.is_dir():  # no link out of it, no special file in it: refused before any work
+        check_entries(out_dir, ("figures",), "--out")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise GlshadeError(f"--out {out_dir}: cannot create it ({exc.strerror})") from None
+    figures = make_inside(out_dir, "figures")
     started = time.perf_counter()
     with Renderer() as renderer, tempfile.TemporaryDirectory() as scratch:
         gl = renderer.context.info().renderer
@@ -465,7 +470,7 @@ def run(
         *_stability_section(stab_lines, histogram),
     ]
     path = out_dir / "accuracy.md"
-    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode())
+    atomic_write_bytes(path, ("\n".join(lines) + "\n").encode(), within=path.parent)
     return path
 
 

@@ -16,6 +16,12 @@ MAX_IMAGE_SIDE = 16384
 MAX_APERTURE_SAMPLES = 1024
 
 
+#: The lowest elevation accepted (degrees, exclusive): below it the line of sight's sine
+#: underflows in float32 (and, below 1e-308 degrees, in float64), and the camera lies in
+#: the surface's plane.
+MIN_THETA_DEG = 1e-3
+
+
 @dataclass(frozen=True)
 class Camera(Table):
     """Where the camera is and what its sensor is (lengths in mm, angles in degrees)."""
@@ -25,7 +31,8 @@ class Camera(Table):
 
     theta_deg: float = param(
         "camera.theta_deg", "deg", 45.0, "elevation of the line of sight above the surface",
-        lo=0.0, hi=90.0, flag="--theta", control=Control("theta", 0.5, 89.5, fmt="%.1f deg"),
+        lo=MIN_THETA_DEG, hi=90.0, flag="--theta",
+        control=Control("theta", 0.5, 89.5, fmt="%.1f deg"),
     )  # fmt: skip
     azimuth_deg: float = param(
         "camera.azimuth_deg", "deg", 0.0,

@@ -38,7 +38,7 @@ class Stripes(EmitterComponent):
         values = plane.uniforms(scene, context)
         if "image" in context.variables["outputs"]:
             values.update(
-                u_emitter_period=em.period, u_emitter_sigma=em.sigma_mm, u_emitter_phase=em.phase
+                u_emitter_period=em.period, u_emitter_sigma=em.sigma_mm, u_emitter_phase=em.phase_mm
             )
             if context.variables["diffuse"]:
                 values["u_emitter_mean"] = em.mean_radiance()

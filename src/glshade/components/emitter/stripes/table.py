@@ -45,6 +45,17 @@ def silent_beyond(reach: int, scale: float) -> int:
     return reach
 
 
+def reduced_phase(phase_mm: float, period_mm: float) -> float:
+    """The stripes' phase as the shader and the NumPy radiance take it: unchanged within
+    one period of 0 (every phase of the metric's sweep), else reduced exactly
+    (``math.remainder``, float64) to within half a period: the same stripes. A phase of
+    -9.2e18 mm would otherwise swallow ``v`` entirely (float32 keeps 7 digits, float64
+    16) and show a blank image."""
+    if abs(phase_mm) <= period_mm:
+        return phase_mm
+    return math.remainder(phase_mm, period_mm)
+
+
 @dataclass(frozen=True)
 class Emitter(Table):
     """The stripe emitter (mm): ``distance`` from the origin, ``period``, ``stripe_sigma``
@@ -114,7 +125,7 @@ class Emitter(Table):
 
     @property
     def phase_mm(self) -> float:
-        return self.phase
+        return reduced_phase(self.phase, self.period)
 
     @property
     def feature_mm(self) -> float:
@@ -128,8 +139,8 @@ class Emitter(Table):
         :data:`MAX_DIRECT_TERMS` would overlap (``σ > 3.1 period``) the identical Poisson
         form ``(σ sqrt(2π)/period) (1 + 2 Σ_m exp(-2π² σ² m²/period²) cos(2π m x/period))``
         is used instead."""
-        phase = self.phase if phase_mm is None else phase_mm
         period, sigma = self.period, self.sigma_mm
+        phase = reduced_phase(self.phase if phase_mm is None else phase_mm, period)
         reach = math.ceil(10.0 * sigma / period) + 1
         if 2 * reach + 1 <= MAX_DIRECT_TERMS:
             w = (np.asarray(v, np.float64) - phase) / period
