@@ -381,6 +381,11 @@ CASES = [
     Case("bomb.tif", _tiff_bomb, "segment 0 holds more than 16385 bytes of samples"),
     Case("short.tif", _tiff_short, "segment 0 holds 1000 bytes of samples, its tags declare"),
     Case("hugetile.tif", _tiff_huge_tile, "strips or tiles are no larger than its image"),
+    Case(
+        "tinytiles.tif",
+        lambda p: _tiff(p, 64, 64, zlib.compress(bytes(4)), tile=(1, 1)),
+        "tiles are multiples of 16 samples a side (tinytiles.tif's are 1 x 1)",
+    ),
     # .png
     Case("magic.png", lambda p: p.write_bytes(b"\x89PNX" + bytes(60)), "no PNG signature"),
     Case("eight.png", lambda p: cv2.imwrite(str(p), np.zeros((8, 8), np.uint8)), "8-bit grey"),

@@ -532,6 +532,12 @@ def _check_tiff_segments(page, stream: BinaryIO, name: str, size: int, itemsize:
             f"an uncompressed or deflate (zlib) TIFF ({name} is compressed with "
             f"{_tiff_compression_name(compression)})",
         )
+    if page.is_tiled and (page.tilewidth % 16 or page.tilelength % 16):
+        raise SceneError(
+            FIELD,
+            f"a TIFF whose tiles are multiples of 16 samples a side ({name}'s are "
+            f"{page.tilewidth} x {page.tilelength})",
+        )
     sizes = _tiff_segment_sizes(page, itemsize)
     offsets, counts = page.dataoffsets, page.databytecounts
     image = page.imagewidth * page.imagelength * itemsize
