@@ -4,7 +4,11 @@ refusal (one line, naming ``surface.file``, the file and the problem)."""
 from __future__ import annotations
 
 import hashlib
+import os
+import socket
+import struct
 import zipfile
+import zlib
 from pathlib import Path
 
 import cv2
@@ -145,7 +149,11 @@ REFUSALS = [
     ("missing.npy", None, "an existing height map file"),
     ("m.csv", lambda p: p.write_text("1,2"), "a height map file (.npy, .x3p, .tif, .tiff, .png)"),
     ("noext", lambda p: p.write_text("1,2"), "a height map file (.npy"),
-    ("dir.npy", lambda p: p.mkdir(), "not a directory"),
+    (
+        "dir.npy",
+        lambda p: p.mkdir(),
+        "a regular file (dir.npy is a directory; glshade reads only regular files)",
+    ),
     (
         "corrupt.npy",
         lambda p: p.write_bytes(b"\x93NUMPY garbage"),
@@ -155,7 +163,7 @@ REFUSALS = [
     (
         "short.npy",
         lambda p: p.write_bytes(_npy_bytes(np.zeros((50, 50)))[:200]),
-        "a readable height map (short.npy",
+        "(short.npy's header declares 20000 bytes of samples, the file holds 72)",
     ),
     (
         "corrupt.x3p",
@@ -165,7 +173,7 @@ REFUSALS = [
     (
         "corrupt.tif",
         lambda p: p.write_bytes(b"II*\x00garbage"),
-        "a readable height map (corrupt.tif: ",
+        "a TIFF of one page (corrupt.tif has none)",
     ),
     (
         "corrupt.png",
@@ -258,7 +266,7 @@ REFUSALS = [
     (
         "backwards.x3p",
         lambda p: _x3p_with_x_increment(p, "-2e-05"),
-        "positive spacings (backwards.x3p has x increment -2e-05 m, y increment 3e-05 m)",
+        "increments in [1e-09, 1] m (backwards.x3p has x increment -2e-05 m, y increment 3e-05 m)",
     ),
     ("zero.x3p", lambda p: _x3p_with_x_increment(p, "0.0"), "a readable height map (zero.x3p: "),
     ("line\nbreak.npy", lambda p: np.save(p, np.zeros((2, 8))), "line\\nbreak.npy has 2 rows"),
@@ -309,12 +317,24 @@ def test_the_largest_side(tmp_path, monkeypatch):
         read_height_map(tmp_path / "m.x3p")
 
 
-def test_a_scale_that_overflows_or_is_not_finite(tmp_path):
-    np.save(tmp_path / "m.npy", MAP + 10.0)
-    with pytest.raises(SceneError, match="m.npy times scale 1e.308 overflows"):
+def test_heights_beyond_a_metre_are_refused_before_scaling(tmp_path):
+    """The heights after ``scale`` must lie within ±1000 mm: checked on the stored extremes
+    before multiplying, so nothing overflows (1e308 used to, with NumPy's warnings)."""
+    np.save(tmp_path / "m.npy", MAP + 10.0)  # 10 to 10.029 stored units
+    assert read_height_map(tmp_path / "m.npy", scale=99.0).heights.max() == pytest.approx(992.871)
+    with pytest.raises(SceneError) as info:
         read_height_map(tmp_path / "m.npy", scale=1e308)
-    with pytest.raises(SceneError, match="surface.scale: must be a finite number"):
+    assert str(info.value) == (
+        "surface.scale: must be a scale that keeps the heights within ±1000 mm (m.npy holds "
+        "heights from 10 to 10.029 stored units; times 1e+308 they reach inf mm)"
+    )
+    with pytest.raises(SceneError, match="times -100 they reach 1002.9 mm"):
+        read_height_map(tmp_path / "m.npy", scale=-100.0)
+    with pytest.raises(SceneError, match="surface.scale: must be a finite non-zero number"):
         read_height_map(tmp_path / "m.npy", scale=float("nan"))
+    x3pio.write(tmp_path / "tall.x3p", np.full((5, 6), 1.5), x_scale=1e-5, y_scale=1e-5)
+    with pytest.raises(SceneError, match=r"heights within ±1000 mm \(tall.x3p holds heights"):
+        read_height_map(tmp_path / "tall.x3p")
 
 
 def test_the_example_panel_reads():
@@ -325,3 +345,130 @@ def test_the_example_panel_reads():
     assert panel.heights[rows // 2, cols // 2] > panel.heights[0, 0] + 0.1
     # Curvature about 1/2500 along x (columns) and 1/1800 along z (rows): the z edge is lower.
     assert panel.heights[0, cols // 2] < panel.heights[rows // 2, 0]
+
+
+# ------------------------------------------------------------------ hostile files
+def _png_chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def _png16(heights: np.ndarray, interlace: int = 0, filter_type: int = 0, extra: bytes = b""):
+    """A 16-bit greyscale PNG written by hand (Adam7 passes when interlaced; every row
+    of filter ``filter_type`` with its bytes unfiltered); ``extra`` chunks after IHDR."""
+    rows, cols = heights.shape
+    passes = heightmap_io._ADAM7 if interlace else ((0, 0, 1, 1),)
+    raw = b"".join(
+        bytes([filter_type]) + row.astype(">u2").tobytes()
+        for column, row0, column_step, row_step in passes
+        for row in heights[row0::row_step, column::column_step]
+        if row.size
+    )
+    header = struct.pack(">IIBBBBB", cols, rows, 16, 0, 0, 0, interlace)
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + _png_chunk(b"IHDR", header)
+        + extra
+        + _png_chunk(b"IDAT", zlib.compress(raw))
+        + _png_chunk(b"IEND", b"")
+    )
+
+
+@pytest.mark.parametrize("shape", [(4, 4), (7, 13), (9, 5), (33, 64)])
+def test_interlaced_and_plain_16_bit_pngs_read_as_opencv_reads_them(tmp_path, shape):
+    stored = np.random.default_rng(sum(shape)).integers(0, 65535, shape).astype(np.uint16)
+    for interlace in (0, 1):
+        path = tmp_path / f"m{interlace}.png"
+        path.write_bytes(_png16(stored, interlace))
+        assert np.array_equal(cv2.imread(str(path), cv2.IMREAD_UNCHANGED), stored)
+        assert np.array_equal(read_height_map(path, scale=1e-5).heights, stored * 1e-5)
+
+
+def test_libpng_never_writes_to_stderr(tmp_path, capfd):
+    """A damaged ancillary chunk made libpng print a warning of its own on stderr: the
+    decoder is now handed only IHDR, IDAT and IEND, their CRCs and filter bytes checked."""
+    stored = np.arange(64, dtype=np.uint16).reshape(8, 8)
+    bad_text = struct.pack(">I", 5) + b"tEXt" + b"a\x00bcd" + bytes(4)  # a wrong CRC
+    (tmp_path / "text.png").write_bytes(_png16(stored, extra=bad_text))
+    assert np.array_equal(read_height_map(tmp_path / "text.png").heights, stored)
+    (tmp_path / "filter.png").write_bytes(_png16(stored, filter_type=5))
+    with pytest.raises(SceneError, match=r"\(filter.png has a row whose filter type is not 0"):
+        read_height_map(tmp_path / "filter.png")
+    damaged = bytearray(_png16(stored))
+    damaged[-14] ^= 0xFF  # in the IDAT chunk's CRC (IEND takes the last 12 bytes)
+    (tmp_path / "crc.png").write_bytes(bytes(damaged))
+    with pytest.raises(SceneError, match=r"\(crc.png's image data fails its CRC\)"):
+        read_height_map(tmp_path / "crc.png")
+    critical = _png_chunk(b"ABCD", b"x")
+    (tmp_path / "critical.png").write_bytes(_png16(stored, extra=critical))
+    with pytest.raises(SceneError, match=r"\(critical.png has a critical chunk b'ABCD'\)"):
+        read_height_map(tmp_path / "critical.png")
+    assert capfd.readouterr().err == ""
+
+
+TIFF_LAYOUTS = [
+    {},
+    {"compression": "zlib"},
+    {"compression": "adobe_deflate"},
+    {"rowsperstrip": 5},
+    {"rowsperstrip": 5, "compression": "zlib"},
+    {"tile": (16, 32), "compression": "zlib"},
+    {"tile": (16, 16)},
+    {"byteorder": ">"},
+    {"bigtiff": True, "compression": "zlib"},
+]
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64, np.uint8, np.uint16, np.uint32])
+def test_every_tiff_layout_reads_back_exactly(tmp_path, dtype):
+    """Strips, tiles (not dividing the image), deflate, the horizontal predictor,
+    big-endian and BigTIFF files pass the segment checks and read back exactly."""
+    stored = np.random.default_rng(0).uniform(0, 200, (37, 53)).astype(dtype)
+    integers = np.dtype(dtype).kind == "u"  # the predictor of floats needs imagecodecs
+    layouts = TIFF_LAYOUTS + [{"compression": "zlib", "predictor": True}] * integers
+    for layout in layouts:
+        tifffile.imwrite(tmp_path / "m.tif", stored, **layout)
+        heights = read_height_map(tmp_path / "m.tif").heights
+        assert np.array_equal(heights, stored.astype(np.float64)), layout
+
+
+def test_the_memory_budget_counts_56_bytes_a_sample(tmp_path, monkeypatch):
+    """1 MiB holds 18724 samples at 56 bytes: 4 x 4681 loads, 4 x 4682 is refused
+    before its data is read (the file holds none)."""
+    monkeypatch.setenv("GLSHADE_MEMORY_BUDGET_MB", "1")
+    assert heightmap_io.BYTES_PER_SAMPLE == 56
+    np.save(tmp_path / "fits.npy", np.zeros((4, 4681), np.float32))
+    assert read_height_map(tmp_path / "fits.npy").heights.shape == (4, 4681)
+    with open(tmp_path / "over.npy", "wb") as f:  # a header only: nothing to decode
+        np.lib.format.write_array_header_1_0(
+            f, {"descr": "<f4", "fortran_order": False, "shape": (4, 4682)}
+        )
+    with pytest.raises(SceneError) as info:
+        read_height_map(tmp_path / "over.npy")
+    assert str(info.value) == (
+        "surface.file: must be a map that loads within the memory budget "
+        "(GLSHADE_MEMORY_BUDGET_MB = 1 MiB at 56 bytes a sample: at most 18724 samples; "
+        "over.npy declares 4 x 4682 = 18728 samples of float32, 0.0714 MiB in the file, "
+        "1 MiB loaded)"
+    )
+
+
+def test_a_npy_whose_data_outgrows_its_header_is_refused(tmp_path):
+    (tmp_path / "m.npy").write_bytes(_npy_bytes(np.zeros((5, 6))) + bytes(8))
+    with pytest.raises(SceneError, match=r"declares 240 bytes of samples, the file holds 248"):
+        read_height_map(tmp_path / "m.npy")
+
+
+def test_special_files_are_refused_by_their_type(tmp_path):
+    """Looked up before opening: a FIFO (opening it would wait for a writer), a device,
+    a socket; none of them is opened."""
+    os.mkfifo(tmp_path / "fifo.npy")
+    (tmp_path / "zero.npy").symlink_to("/dev/zero")
+    with socket.socket(socket.AF_UNIX) as server:
+        server.bind(str(tmp_path / "sock.npy"))
+    for name, kind in (("fifo", "a FIFO"), ("zero", "a character device"), ("sock", "a socket")):
+        with pytest.raises(SceneError) as info:
+            cached_height_map(tmp_path / f"{name}.npy")
+        assert str(info.value) == (
+            f"surface.file: must be a regular file ({name}.npy is {kind}; glshade reads only "
+            "regular files)"
+        )

@@ -18,7 +18,9 @@ from glshade.components.surface.heightmap import (
     fill_nearest,
     grid_of,
     map_bounds,
+    split_texture,
 )
+from glshade.errors import SceneError
 from glshade.measure.single import measure_scene
 from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
@@ -363,3 +365,93 @@ def test_a_map_of_one_height_renders_in_float32(tmp_path, renderer):
     both = frame.mask & flat.mask
     assert both.sum() == frame.mask.sum()
     np.testing.assert_allclose(frame.uv[both], flat.uv[both], atol=5e-4)
+
+
+# ------------------------------------------------------------------ ranges and memory
+def test_blocks_give_what_one_pass_gives(monkeypatch):
+    """The bounds and the texture are computed in row blocks (no temporary of the map's
+    size): blocks of one row and of a few give exactly what one block gives."""
+    from glshade.components.surface import heightmap
+
+    heights = np.random.default_rng(8).normal(size=(23, 17))
+    holes = np.random.default_rng(9).uniform(size=(22, 16)) > 0.8
+    whole = (map_bounds(heights, (0.3, 0.7)), split_texture(heights, holes))
+    for block in (1, 17, 50, 17 * 23 - 1):
+        monkeypatch.setattr(heightmap, "BLOCK_SAMPLES", block)
+        assert map_bounds(heights, (0.3, 0.7)) == whole[0]
+        assert np.array_equal(split_texture(heights, holes), whole[1])
+    high, low = whole[1][..., 0], whole[1][..., 1]
+    assert np.abs(high.astype(np.float64) + low - heights).max() < 1e-14 * np.abs(heights).max()
+
+
+@pytest.mark.parametrize(
+    "values, fragment",
+    [
+        ({"spacing": (1e-6, 1e3)}, None),
+        ({"spacing": (9.9e-7, 1.0)}, "surface.spacing: must be two numbers [dx, dz] in [1e-06, "),
+        ({"spacing": (1.0, 1001.0)}, "mm, got 1001.0"),
+        ({"origin": (-1e4, 1e4)}, None),
+        ({"origin": (0.0, 10001.0)}, "surface.origin: must be two numbers [x, z] in [-10000, "),
+        ({"scale": -1e3}, None),
+        ({"scale": 1e-9}, None),
+        ({"scale": 9e-10}, "surface.scale: must be a number whose magnitude is in [1e-09, 1000]"),
+        ({"scale": 1001.0}, "surface.scale: must be a number whose magnitude is in [1e-09, 1000]"),
+    ],
+)
+def test_spacing_origin_and_scale_ranges(tmp_path, values, fragment):
+    np.save(tmp_path / "m.npy", np.ones((8, 8)))
+    surface = {"kind": "heightmap", "file": str(tmp_path / "m.npy"), "spacing": (1.0, 1.0)}
+    if fragment is None:
+        assert paper_scene().updated(surface={**surface, **values}).surface.file
+        return
+    with pytest.raises(SceneError) as info:
+        paper_scene().updated(surface={**surface, **values})
+    assert fragment in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_harmonic_fill_beyond_the_memory_budget_is_refused(tmp_path, monkeypatch):
+    """48 x 48 samples, all but one unmeasured: 2303 unknowns at 2048 bytes need 4.6 MiB;
+    with a budget of 4 MiB the fill (which "none" needs too) is refused before solving,
+    and "nearest" goes through."""
+    heights = np.full((48, 48), np.nan)
+    heights[5, 5] = 1.0
+    np.save(tmp_path / "m.npy", heights)
+    monkeypatch.setenv("GLSHADE_MEMORY_BUDGET_MB", "4")
+    for fill in ("none", "harmonic"):
+        with pytest.raises(SceneError) as info:
+            grid_of(_map_scene(paper_scene(), str(tmp_path / "m.npy"), 1.0, fill=fill))
+        assert str(info.value).startswith('surface.fill: must be "nearest" for this map')
+        assert "at most 1985 with this map; m.npy has 2303, 4.62 MiB with the map)" in str(
+            info.value
+        )
+    grid = grid_of(_map_scene(paper_scene(), str(tmp_path / "m.npy"), 1.0, fill="nearest"))
+    assert (grid.heights == 1.0).all()
+
+
+def test_maps_at_the_edges_of_the_ranges_render_without_a_warning(tmp_path):
+    """Heights of ±1000 mm, spacings of 1e-6 and 1000 mm, an origin 10 m away, NaN holes
+    (masked, and filled harmonically): each renders, and nothing reaches stderr (NumPy's
+    overflow warnings once did, from scale = 1e308)."""
+    x = np.linspace(-1.0, 1.0, 40)
+    heights = np.outer(x, x)
+    heights[10:15, 20:30] = np.nan
+    np.save(tmp_path / "holed.npy", heights)
+    scenes = {
+        "fine.toml": 'spacing = [1e-6, 1e-6]\nscale = 1000\noutside = "flat"',
+        "coarse.toml": 'spacing = [1000, 1000]\nscale = -1000\nfill = "harmonic"\n'
+        "origin = [-10000, 10000]",
+    }
+    for name, lines in scenes.items():
+        (tmp_path / name).write_text(
+            f'[surface]\nkind = "heightmap"\nfile = "holed.npy"\n{lines}\n'
+        )
+        result = subprocess.run(
+            [sys.executable, "-m", "glshade", "render", name, "--size", "16", "-o", "out.png"],
+            capture_output=True,
+            text=True,
+            cwd=tmp_path,
+            timeout=120,
+        )
+        assert result.returncode == 0 and result.stderr == "", result.stderr
+        assert (tmp_path / "out.png").is_file()
+        (tmp_path / "out.png").unlink()

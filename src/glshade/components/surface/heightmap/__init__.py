@@ -50,6 +50,28 @@ FILLS = ("none", "nearest", "harmonic")
 DENT_REACH_SIGMA = 3.0
 
 
+#: The sample spacing a map may have (mm, along x and along z; an x3p's increments too):
+#: from a nanometre (an interferometer's pixel is ~100 nm) to a metre.
+SPACING_RANGE_MM = (1e-6, 1e3)
+#: Where sample [0, 0] may lie (mm, x and z): within 10 m of the origin, the gaze point of
+#: a rig whose camera stands ~0.2 m away.
+ORIGIN_RANGE_MM = (-1e4, 1e4)
+#: mm of height per stored unit, in magnitude: from a picometre to a metre a unit.
+SCALE_RANGE_MM = (1e-9, 1e3)
+#: The largest height after ``scale`` (mm, either sign): a part a metre high is beyond
+#: any deflectometry rig, and the bound keeps every height, slope and curvature bound
+#: finite in float32.
+HEIGHT_LIMIT_MM = 1e3
+#: Memory the harmonic fill takes per unmeasured sample (bytes; SuperLU's factors of the
+#: 5-point Laplacian in minimum-degree order and the arrays of the unknowns, measured
+#: 1.6-1.8 KiB for square holes of 2.6e5 to 4.2e6 samples): beyond the memory budget the
+#: fill is refused.
+HARMONIC_BYTES_PER_UNKNOWN = 2048
+#: Samples per block where a pass over the map works in row blocks (8 MiB of float64
+#: temporaries), so no temporary is the size of the map.
+BLOCK_SAMPLES = 1 << 20
+
+
 #: How far the shader's bracketing slab reaches beyond the map's lowest and highest point
 #: (mm): well above float32's rounding of a hit along a 500 mm ray, far below any height
 #: that matters.
@@ -104,9 +126,13 @@ class Grid:
 
 
 def check_heightmap(values: dict) -> None:
-    """A height-map surface names a readable map and, unless the file carries it, a spacing."""
+    """A height-map surface names a readable map and, unless the file carries it, a spacing;
+    ``scale`` is at least :data:`SCALE_RANGE_MM`'s low end in magnitude."""
     if values.get("kind") != "heightmap":
         return
+    scale = values.get("scale", 1.0)
+    if abs(scale) < SCALE_RANGE_MM[0]:
+        raise SceneError("surface.scale", _SCALE_ALLOWED, scale)
     if values.get("file") is None:
         raise SceneError("surface.file", 'set for kind = "heightmap" (the height map to read)')
     _grid(
@@ -117,6 +143,16 @@ def check_heightmap(values: dict) -> None:
         values.get("outside"),
         values.get("fill"),
     )
+
+
+def _pair_allowed(names: str, bounds: tuple[float, float]) -> str:
+    return f"two numbers {names} in [{bounds[0]:g}, {bounds[1]:g}] mm"
+
+
+_SCALE_ALLOWED = (
+    f"a number whose magnitude is in [{SCALE_RANGE_MM[0]:g}, {SCALE_RANGE_MM[1]:g}] "
+    "(mm per stored unit)"
+)
 
 
 @dataclass(frozen=True)
@@ -134,16 +170,21 @@ class HeightMapTable(Table):
     spacing: tuple[float, float] | None = param(
         "surface.spacing", "mm", None,
         "sample spacing along x (columns) and z (rows); .x3p carries its own",
-        value_type="pair", lo=0.0,
+        value_type="pair", lo=SPACING_RANGE_MM[0], hi=SPACING_RANGE_MM[1], closed=True,
+        allowed_text=_pair_allowed("[dx, dz]", SPACING_RANGE_MM),
     )  # fmt: skip
     origin: tuple[float, float] | None = param(
         "surface.origin", "mm", None,
         "(x, z) of sample [row 0, column 0]; unset: the map centred on the origin",
-        value_type="pair",
+        value_type="pair", lo=ORIGIN_RANGE_MM[0], hi=ORIGIN_RANGE_MM[1], closed=True,
+        allowed_text=_pair_allowed("[x, z]", ORIGIN_RANGE_MM),
     )  # fmt: skip
     scale: float = param(
         "surface.scale", "mm", 1.0,
-        "mm of height per stored unit (.x3p: from the file, metres to mm)", nonzero=True,
+        "mm of height per stored unit (.x3p: from the file, metres to mm); the heights it "
+        f"gives must lie within ±{HEIGHT_LIMIT_MM:g} mm",
+        nonzero=True, lo=-SCALE_RANGE_MM[1], hi=SCALE_RANGE_MM[1], closed=True,
+        allowed_text=_SCALE_ALLOWED,
     )  # fmt: skip
     outside: str = param(
         "surface.outside", "", "curtain", "beyond the map: curtain (no surface) or flat (y = 0)",
@@ -163,60 +204,119 @@ def grid_of(scene) -> Grid:
 
 
 def _grid(file, scale, spacing, origin, outside, fill) -> Grid:
+    """The render-ready grid: the map's arrays (:func:`_surface_arrays`, cached per map and
+    fill) placed by ``spacing`` and ``origin`` (cheap, built on every call)."""
     from glshade.components.surface.heightmap.readers import cached_height_map  # maps only
 
-    height_map = cached_height_map(
-        file, float(scale)
-    )  # the same object while the file is unchanged
-    return _build(height_map, spacing, origin, outside or "curtain", fill or "none")
-
-
-@functools.lru_cache(maxsize=8)
-def _build(height_map, spacing, origin, outside: str, fill: str) -> Grid:
-    """The render-ready grid of a map (cached per map object: maps compare by identity)."""
-    file = height_map.source
-    heights = np.asarray(height_map.heights, dtype=np.float64)
-    unmeasured = np.isnan(heights)
-    nan_fraction = float(unmeasured.mean())
-    if fill == "nearest":
-        heights = fill_nearest(heights)
-    elif unmeasured.any():  # "harmonic", and the geometry the holes of "none" occlude with
-        heights = fill_harmonic(heights)
-    holes = hole_cells(unmeasured) if fill == "none" else np.zeros_like(unmeasured[1:, 1:])
+    height_map = cached_height_map(file, float(scale))  # the same object while unchanged
     if height_map.spacing_mm is not None and spacing is None:
         spacing = height_map.spacing_mm
     if spacing is None:
         raise SceneError(
             "surface.spacing",
-            f"set: {Path(file).name} carries no sample spacing (two numbers > 0, mm)",
+            f"set: {Path(file).name} carries no sample spacing (two numbers in "
+            f"[{SPACING_RANGE_MM[0]:g}, {SPACING_RANGE_MM[1]:g}] mm)",
         )
-    rows, cols = heights.shape
+    arrays = _surface_arrays(height_map, fill or "none")
+    rows, cols = arrays.heights.shape
     if origin is None:  # the map centred on the origin
         origin = (-0.5 * (cols - 1) * spacing[0], -0.5 * (rows - 1) * spacing[1])
-    lo, hi, curvature = map_bounds(heights, spacing)
-    if outside == "flat":
+    lo, hi, curvature = _bounds(arrays.differences, spacing)
+    if (outside or "curtain") == "flat":
         lo, hi = min(lo, 0.0), max(hi, 0.0)
-    high = heights.astype(np.float32)
-    flags = np.zeros_like(high)
-    flags[:-1, :-1] = holes  # texel (i, j): whether cell [j, i] is a hole
-    texture = np.stack(
-        [high, (heights - high).astype(np.float32), flags], axis=-1
-    )  # hi + lo: the doubles, to ~1e-14; the holes
-    heights = (
-        high.astype(np.float64) + texture[..., 1]
-    )  # the oracle interpolates what the shader reads
     return Grid(
-        heights,
-        texture,
+        arrays.heights,
+        arrays.texture,
         (float(spacing[0]), float(spacing[1])),
         (float(origin[0]), float(origin[1])),
         lo,
         hi,
         curvature,
-        Path(file).name,
-        holes,
-        nan_fraction,
+        Path(height_map.source).name,
+        arrays.holes,
+        arrays.nan_fraction,
     )
+
+
+@dataclass(frozen=True, eq=False)
+class _SurfaceArrays:
+    """What a map and a fill give, whatever the spacing, origin and outside: the heights
+    the oracle interpolates (float64, the texture's hi + lo), the texture, the hole cells,
+    the share of unmeasured samples and :func:`difference_maxima` of the heights."""
+
+    heights: np.ndarray = field(repr=False)
+    texture: np.ndarray = field(repr=False)
+    holes: np.ndarray = field(repr=False)
+    nan_fraction: float
+    differences: tuple[float, float, float, float, float]
+
+
+@functools.lru_cache(maxsize=1)
+def _surface_arrays(height_map, fill: str) -> _SurfaceArrays:
+    """The arrays of ``height_map`` filled as ``fill`` says (one map's kept: the memory
+    budget is one map's; maps compare by identity). Every pass over the map works in row
+    blocks: the only arrays of the map's size are the fill's, the hole cells, the texture
+    and the heights."""
+    heights = height_map.heights
+    unmeasured = np.isnan(heights)
+    count = int(np.count_nonzero(unmeasured))
+    holes = hole_cells(unmeasured) if fill == "none" and count else None
+    del unmeasured
+    if count and fill == "nearest":
+        heights = fill_nearest(heights)
+    elif count:  # "harmonic", and the geometry the holes of "none" occlude with
+        check_harmonic_size(heights.shape, count, Path(height_map.source).name)
+        heights = fill_harmonic(heights)
+    if holes is None:
+        holes = np.zeros((heights.shape[0] - 1, heights.shape[1] - 1), dtype=bool)
+    texture = split_texture(heights, holes)
+    heights = np.add(texture[..., 0], texture[..., 1], dtype=np.float64)
+    return _SurfaceArrays(heights, texture, holes, count / heights.size, difference_maxima(heights))
+
+
+def check_harmonic_size(shape: tuple[int, int], unknowns: int, name: str) -> None:
+    """Refuse, before solving, a harmonic fill whose sparse solve
+    (:data:`HARMONIC_BYTES_PER_UNKNOWN` an unmeasured sample) and map would not fit the
+    memory budget together."""
+    from glshade.components.surface.heightmap.readers import (
+        BYTES_PER_SAMPLE,
+        memory_budget_bytes,
+        mib_text,
+    )
+
+    samples = shape[0] * shape[1]
+    need = samples * BYTES_PER_SAMPLE + unknowns * HARMONIC_BYTES_PER_UNKNOWN
+    budget = memory_budget_bytes()
+    if need > budget:
+        room = max(0, budget - samples * BYTES_PER_SAMPLE) // HARMONIC_BYTES_PER_UNKNOWN
+        raise SceneError(
+            "surface.fill",
+            f'"nearest" for this map: the harmonic fill ("none" needs it too, for the '
+            f"geometry its holes occlude with) must fit the memory budget "
+            f"(GLSHADE_MEMORY_BUDGET_MB = {mib_text(budget)} MiB at "
+            f"{HARMONIC_BYTES_PER_UNKNOWN} bytes an unmeasured sample: at most {room} with "
+            f"this map; {name} has {unknowns}, {mib_text(need)} MiB with the map)",
+        )
+
+
+def _row_blocks(rows: int, cols: int):
+    """(start, stop) of blocks of rows of about :data:`BLOCK_SAMPLES` samples."""
+    step = max(1, BLOCK_SAMPLES // max(cols, 1))
+    return ((start, min(start + step, rows)) for start in range(0, rows, step))
+
+
+def split_texture(heights: np.ndarray, holes: np.ndarray) -> np.ndarray:
+    """The texture (rows, columns, 3) float32 of finite ``heights``: hi, lo (hi + lo: the
+    doubles, to ~1e-14) and whether cell [j, i] is a hole at texel (j, i)."""
+    rows, cols = heights.shape
+    texture = np.zeros((rows, cols, 3), dtype=np.float32)
+    for start, stop in _row_blocks(rows, cols):
+        block = heights[start:stop]
+        high = block.astype(np.float32)
+        texture[start:stop, :, 0] = high
+        texture[start:stop, :, 1] = block - high
+    texture[:-1, :-1, 2] = holes
+    return texture
 
 
 def fill_nearest(heights: np.ndarray) -> np.ndarray:
@@ -236,21 +336,21 @@ def fill_harmonic(heights: np.ndarray) -> np.ndarray:
     each equals the mean of its neighbours) with the measured samples as boundary values;
     at the map's edge a sample has only its neighbours inside the map (zero normal
     derivative there). A plane is reproduced exactly over holes inside the map; the fill
-    stays within the range of the measured samples. One sparse solve (SciPy)."""
+    stays within the range of the measured samples. One sparse solve (SciPy's SuperLU,
+    the symmetric matrix in minimum-degree order: :data:`HARMONIC_BYTES_PER_UNKNOWN`);
+    besides it, arrays the size of the unknowns and the filled copy."""
     from scipy import sparse
     from scipy.sparse.linalg import spsolve
 
-    unmeasured = np.isnan(heights)
-    if not unmeasured.any():
-        return heights
     rows, cols = heights.shape
-    unknown = np.flatnonzero(unmeasured)
-    number = np.full(heights.size, -1, dtype=np.int64)
-    number[unknown] = np.arange(len(unknown))
-    r, c = np.divmod(unknown, cols)
     flat = heights.ravel()
-    diagonal = np.zeros(len(unknown))
-    rhs = np.zeros(len(unknown))
+    unknown = np.flatnonzero(np.isnan(flat))
+    if not len(unknown):
+        return heights
+    r, c = np.divmod(unknown, cols)
+    n = len(unknown)
+    diagonal = np.zeros(n)
+    rhs = np.zeros(n)
     i_parts, j_parts = [], []
     for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
         rn, cn = r + dr, c + dc
@@ -258,20 +358,19 @@ def fill_harmonic(heights: np.ndarray) -> np.ndarray:
         diagonal += inside
         k = np.flatnonzero(inside)
         neighbour = rn[k] * cols + cn[k]
-        other = number[neighbour]
-        known = other < 0
-        np.add.at(rhs, k[known], flat[neighbour[known]])
+        values = flat[neighbour]
+        known = ~np.isnan(values)
+        np.add.at(rhs, k[known], values[known])
         i_parts.append(k[~known])
-        j_parts.append(other[~known])
+        j_parts.append(np.searchsorted(unknown, neighbour[~known]))  # its unknown's number
     i = np.concatenate(i_parts)
     j = np.concatenate(j_parts)
-    n = len(unknown)
     own = np.arange(n)
     values = np.concatenate([diagonal, -np.ones(len(i))])
     where = (np.concatenate([own, i]), np.concatenate([own, j]))
-    matrix = sparse.csr_matrix((values, where), shape=(n, n))
+    matrix = sparse.csc_matrix((values, where), shape=(n, n))
     filled = flat.copy()
-    filled[unknown] = spsolve(matrix, rhs)
+    filled[unknown] = spsolve(matrix, rhs, permc_spec="MMD_AT_PLUS_A")
     return filled.reshape(rows, cols)
 
 
@@ -302,12 +401,32 @@ def map_bounds(heights: np.ndarray, spacing) -> tuple[float, float, float]:
       axis at most) on the mixed differences: ``|f_xz| <= 2.25 · 2 max|Δx Δz h| / (dx dz)``.
       The Hessian's largest |eigenvalue| is bounded by Gershgorin's row sums.
     """
+    return _bounds(difference_maxima(heights), spacing)
+
+
+def difference_maxima(heights: np.ndarray) -> tuple[float, float, float, float, float]:
+    """``(lowest, highest, max|D_x|, max|D_z|, max|Δx Δz h|)`` of finite ``heights``: the
+    samples' range, the largest second differences along x (columns) and z (rows) and the
+    largest mixed difference; in row blocks (no temporary the size of the map)."""
+    rows, cols = heights.shape
+    along_x = along_z = mixed = 0.0
+    for start, stop in _row_blocks(rows, cols):
+        along_x = max(along_x, _max_abs(np.diff(heights[start:stop], 2, axis=1)))
+        along_z = max(along_z, _max_abs(np.diff(heights[start : stop + 2], 2, axis=0)))
+        pair = heights[start : stop + 1]
+        mixed = max(mixed, _max_abs(np.diff(np.diff(pair, axis=0), axis=1)))
+    return float(heights.min()), float(heights.max()), along_x, along_z, mixed
+
+
+def _bounds(differences, spacing) -> tuple[float, float, float]:
+    """:func:`map_bounds` from :func:`difference_maxima` and the spacing (mm)."""
+    lowest, highest, along_x, along_z, mixed = differences
     dx, dz = spacing
-    mid, half = 0.5 * (heights.max() + heights.min()), 0.5 * (heights.max() - heights.min())
+    mid, half = 0.5 * (highest + lowest), 0.5 * (highest - lowest)
     reach = 1.5625 * half + 1e-12
-    fxx = 3.75 * _max_abs(np.diff(heights, 2, axis=1)) / dx**2
-    fzz = 3.75 * _max_abs(np.diff(heights, 2, axis=0)) / dz**2
-    fxz = 4.5 * _max_abs(np.diff(np.diff(heights, axis=0), axis=1)) / (dx * dz)
+    fxx = 3.75 * along_x / dx**2
+    fzz = 3.75 * along_z / dz**2
+    fxz = 4.5 * mixed / (dx * dz)
     curvature = max(fxx, fzz) + fxz
     return float(mid - reach), float(mid + reach), float(curvature) + 1e-12
 
