@@ -124,10 +124,15 @@ def _delete(document: dict, path: tuple) -> None:
     del document[path[-1]]
 
 
+#: The structured mutations, each as often as it appears.
+OPERATIONS = ("extreme", "extreme", "scale", "scale", "scale", "type", "name", "delete")
+OPERATIONS += ("invent", "nest")
+
+
 def mutate_document(document: dict, rng: random.Random, names: list[str]) -> str:
     """One structured mutation of ``document`` in place; returns what it did."""
     paths = _paths(document)
-    operation = rng.choice(("extreme", "extreme", "type", "name", "delete", "invent", "nest"))
+    operation = rng.choice(OPERATIONS)
     if not paths or operation == "invent":
         table = rng.choice([*document, "camera", "lens", "surface", ""])
         key = rng.choice(["zoom", "kind", "file", "theta_deg", "x" * 300, "a.b"])
@@ -135,6 +140,8 @@ def mutate_document(document: dict, rng: random.Random, names: list[str]) -> str
         target[key] = rng.choice(EXTREMES + WRONG_TYPES)
         return f"invent {table}.{key}"
     path = rng.choice(paths)
+    if operation == "scale":  # a plausible value gone astray: the renderer is reached
+        return _scaled(document, path, rng)
     if operation == "extreme":
         _set(document, path, rng.choice(EXTREMES))
     elif operation == "type":
@@ -146,6 +153,26 @@ def mutate_document(document: dict, rng: random.Random, names: list[str]) -> str
     else:
         _set(document, path, [[[[rng.choice(EXTREMES)]]]] if rng.random() < 0.5 else {"x": {}})
     return f"{operation} {'.'.join(map(str, path))}"
+
+
+def _scaled(document: dict, path: tuple, rng: random.Random) -> str:
+    """Every number under ``path`` times a random factor (0.01 to 100, either sign)."""
+    factor = rng.choice((-1.0, 1.0)) * 10 ** rng.uniform(-2.0, 2.0)
+
+    def scaled(value: Any) -> Any:
+        if isinstance(value, bool) or not isinstance(value, (int, float, list, dict)):
+            return value
+        if isinstance(value, list):
+            return [scaled(v) for v in value]
+        if isinstance(value, dict):
+            return {k: scaled(v) for k, v in value.items()}
+        return type(value)(value * factor) if isinstance(value, float) else round(value * factor)
+
+    target = document
+    for key in path[:-1]:
+        target = target[key]
+    target[path[-1]] = scaled(target[path[-1]])
+    return f"scale {'.'.join(map(str, path))} by {factor:.3g}"
 
 
 def mutate_bytes(data: bytes, rng: random.Random) -> tuple[bytes, str]:
