@@ -477,16 +477,24 @@ AUTO_WORKERS_PIXELS = 64 * 512 * 512
 
 
 def paper_workers(given: str, plan, device: int | None) -> int:
-    """The worker processes of a study: ``--workers`` (an integer >= 0, or ``auto``)."""
+    """The worker processes of a study: ``--workers`` (an integer >= 0, or ``auto``), at
+    most as many as this machine's cores and memory budget hold at the plan's size
+    (:mod:`glshade.measure.capacity`; ``auto`` takes at most that many)."""
+    from glshade.measure.capacity import check_worker_count, worker_limit
+
+    pixels = plan.size * plan.size
     if given == "auto":
-        large = len(plan.cases()) * plan.size * plan.size >= AUTO_WORKERS_PIXELS
-        return 2 if large and device is None else 0
+        large = len(plan.cases()) * pixels >= AUTO_WORKERS_PIXELS
+        fits = worker_limit(pixels, "paper").allowed
+        return min(2, fits) if large and device is None and fits > 1 else 0
     try:
         workers = int(given)
     except ValueError:
         workers = -1
     if not 0 <= workers <= 256:
         raise GlshadeError(f"--workers: must be auto or an integer in [0, 256], got {given}")
+    if workers:
+        check_worker_count(workers, pixels, "paper", in_process=True)
     if workers and device is not None:
         raise GlshadeError(
             "--device: only with --workers 0 (worker processes take the EGL device of their "

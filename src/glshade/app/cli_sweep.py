@@ -42,7 +42,9 @@ def _add_distribution_flags(p: argparse.ArgumentParser) -> None:
         "--workers",
         type=int,
         metavar="N",
-        help="start a local Dask cluster of N worker processes (default: run in this process)",
+        help="start a local Dask cluster of N worker processes (default: run in this process); "
+        "at most 2 per CPU core and as many as the memory budget holds "
+        "(GLSHADE_MEMORY_BUDGET_MB)",
     )
     where.add_argument(
         "--scheduler",
@@ -54,14 +56,14 @@ def _add_distribution_flags(p: argparse.ArgumentParser) -> None:
         type=float,
         default=10.0,
         metavar="S",
-        help="seconds to wait for --scheduler before giving up (default 10)",
+        help="seconds joining --scheduler may take before giving up (default 10)",
     )
     p.add_argument(
         "--threads",
         type=int,
         default=2,
         metavar="N",
-        help="in-process: threads for the metric's analysis (default 2)",
+        help="in-process: threads for the metric's analysis (default 2, at most 2 per CPU core)",
     )
     p.add_argument(
         "--batch", type=int, default=16, metavar="K", help="Dask: most cases per task (default 16)"
@@ -69,15 +71,25 @@ def _add_distribution_flags(p: argparse.ArgumentParser) -> None:
 
 
 def _distribution(args: argparse.Namespace) -> Distribution:
+    """Where the command's cases run; a --scheduler is checked here (a Dask scheduler
+    answers there within --connect-timeout), before any output is written."""
     from glshade.measure.executors import Distribution
 
-    return Distribution(
+    distribution = Distribution(
         workers=args.workers,
         scheduler=args.scheduler,
         threads=args.threads,
         connect_timeout_s=args.connect_timeout,
         batch=args.batch,
+        verbose=getattr(args, "verbose", False),
     )
+    if distribution.scheduler is not None:
+        from glshade.measure.scheduler import check_scheduler
+
+        check_scheduler(
+            distribution.scheduler, distribution.connect_timeout_s, distribution.verbose
+        )
+    return distribution
 
 
 # --------------------------------------------------------------------------- sweep

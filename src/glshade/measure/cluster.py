@@ -2,8 +2,14 @@
 
 - ``--workers N`` starts a :class:`distributed.LocalCluster` of N single-threaded worker
   processes; ``--scheduler ADDRESS`` joins an existing cluster (dask-jobqueue on SLURM,
-  dask-cuda's ``LocalCUDACluster`` with one worker per GPU, ...). A scheduler that does not
-  answer within ``connect_timeout_s`` is one clear error.
+  dask-cuda's ``LocalCUDACluster`` with one worker per GPU, ...). Joining finishes within
+  ``connect_timeout_s`` or is one clear error (:mod:`glshade.measure.scheduler`).
+- Local workers are bounded by the cores and the memory budget
+  (:mod:`glshade.measure.capacity`): when the distribution is made, and again, at the
+  size of their frames, before any case is sent to them.
+- Dask's own log lines are quietened (:func:`glshade.logs.quiet_libraries`) unless the
+  distribution is verbose: in this process, and in the local worker processes (their
+  plugin does it there); an existing cluster's workers are left as they are.
 - Each worker holds one EGL context and renderer for its lifetime
   (:class:`RendererPlugin`, a worker plugin), on the EGL device of its CUDA GPU
   (:func:`glshade.gpu.egl_cuda.worker_egl_device`).
@@ -31,8 +37,12 @@ from distributed.scheduler import KilledWorker
 from glshade.errors import GlshadeError
 from glshade.gpu.context import GLContext
 from glshade.gpu.renderer import Renderer
+from glshade.logs import quiet_libraries
+from glshade.measure.capacity import check_worker_count
 from glshade.measure.engine import Case, Extra, Measured, grouped, measure_many
 from glshade.measure.executors import Distribution, Row, measure_rows
+from glshade.measure.pmd import PmdSettings
+from glshade.measure.scheduler import join_scheduler
 
 PLUGIN_NAME = "glshade-renderer"
 
@@ -43,15 +53,18 @@ class RendererPlugin(WorkerPlugin):
 
     name = PLUGIN_NAME
 
-    def __init__(self) -> None:
+    def __init__(self, quiet: bool = False) -> None:
         self.context: GLContext | None = None
         self.renderer: Renderer | None = None
         self.device: int | None = None
+        self.quiet = quiet  # quieten Dask's loggers in the worker process (glshade's own)
 
     def setup(self, worker) -> None:
         from glshade.gpu.egl_cuda import worker_egl_device
         from glshade.process import reuse_freed_memory
 
+        if self.quiet:  # its shut-down's CommClosedError tracebacks, printed on our stderr
+            quiet_libraries()
         self.device = worker_egl_device()
         reuse_freed_memory()  # the worker process measures many cases, as `glshade paper` does
 
@@ -95,25 +108,50 @@ def batches(cases: list[Case], size: int, settings=None) -> list[list[Case]]:
     return out
 
 
-def connect(scheduler: str | None, workers: int | None, timeout_s: float):
-    """A :class:`distributed.Client` (and the LocalCluster it owns, or None)."""
-    if scheduler is not None:
-        try:
-            return Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False), None
-        except (OSError, TimeoutError, ValueError) as exc:
-            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise GlshadeError(
-                f"--scheduler {scheduler}: no Dask scheduler answered within {timeout_s:g} s "
-                f"({reason[:160]})"
-            ) from None
+def start_local(workers: int, verbose: bool) -> tuple[Client, LocalCluster]:
+    """A LocalCluster of ``workers`` single-threaded worker processes (no dashboard; its
+    and its workers' log lines quietened unless ``verbose``) and a client of it with the
+    renderer plugin registered."""
     cluster = LocalCluster(
         n_workers=workers,
         threads_per_worker=1,
         processes=True,
         dashboard_address=None,
-        silence_logs=logging.ERROR,
+        # no dashboard, but Dask's scheduler serves its health routes over HTTP anyway, on
+        # port 8787 unless told: any free port of the loopback instead (no "Port 8787 is
+        # already in use" warning where another cluster or notebook has it)
+        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+        silence_logs=logging.WARNING if verbose else logging.CRITICAL,
     )
-    return Client(cluster, set_as_default=False), cluster
+    try:
+        client = Client(cluster, set_as_default=False)
+    except BaseException:
+        cluster.close()
+        raise
+    try:
+        client.register_plugin(RendererPlugin(quiet=not verbose), name=PLUGIN_NAME)
+    except BaseException:
+        _close(client, cluster)
+        raise
+    return client, cluster
+
+
+def _close(client: Client, cluster: LocalCluster | None) -> None:
+    """The client, then the cluster it owns (Dask's order: the client first, so it is
+    not left waiting on a scheduler that has gone). A worker's heartbeat that still meets
+    the closed scheduler (seen with 8 workers on 2 busy cores) is a ``CommClosedError``
+    logged in the worker process: the plugin's :func:`~glshade.logs.quiet_libraries`
+    keeps it off the terminal."""
+    try:
+        client.close()
+    finally:
+        if cluster is not None:
+            cluster.close()
+
+
+def frame_pixels(cases: list[Case]) -> int:
+    """The largest frame of ``cases``, in pixels."""
+    return max(case.scene.camera.width * case.scene.camera.height for case in cases)
 
 
 class DaskExecutor:
@@ -122,15 +160,27 @@ class DaskExecutor:
 
     def __init__(self, distribution: Distribution) -> None:
         self.distribution = distribution
-        self.client, self.cluster = connect(
-            distribution.scheduler, distribution.workers, distribution.connect_timeout_s
-        )
-        try:
-            self.client.register_plugin(RendererPlugin(), name=PLUGIN_NAME)
-        except BaseException:
-            self.close()
-            raise
+        self.cluster: LocalCluster | None = None
         self._submitted = 0
+        quiet_libraries(distribution.verbose)
+        if distribution.scheduler is not None:
+            self.client = join_scheduler(
+                distribution.scheduler,
+                distribution.connect_timeout_s,
+                RendererPlugin(),
+                PLUGIN_NAME,
+            )
+        else:
+            assert distribution.workers is not None
+            self.client, self.cluster = start_local(distribution.workers, distribution.verbose)
+
+    def _check_memory(self, cases: list[Case], settings) -> None:
+        """Local workers fit the memory budget at the size of these cases' frames
+        (:func:`glshade.measure.capacity.check_worker_count`); an existing cluster's
+        machines are its own business."""
+        if self.cluster is not None and self.distribution.workers is not None:
+            method = "pmd" if isinstance(settings, PmdSettings) else "paper"
+            check_worker_count(self.distribution.workers, frame_pixels(cases), method)
 
     def rows(self, cases: list[Case], settings, images: bool) -> Iterator[Row]:
         """Rows of ``cases``, as their batches finish (any order)."""
@@ -146,11 +196,15 @@ class DaskExecutor:
     def _run(self, task, cases: list[Case], settings, option) -> Iterator[list]:
         """``task(batch, settings, option)`` on the cluster for every batch, results as they
         finish."""
+        if not cases:
+            return
+        self._check_memory(cases, settings)
+        client = self.client
         futures = []
         for batch in batches(cases, self.distribution.batch, settings):
             self._submitted += 1
             futures.append(
-                self.client.submit(
+                client.submit(
                     task,
                     batch,
                     settings,
@@ -160,7 +214,7 @@ class DaskExecutor:
                 )
             )
         try:
-            for future in as_completed(futures, loop=self.client.loop):
+            for future in as_completed(futures, loop=client.loop):
                 yield future.result()
                 future.release()
         except KilledWorker as exc:
@@ -175,9 +229,7 @@ class DaskExecutor:
             ) from None
 
     def close(self) -> None:
-        self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
+        _close(self.client, self.cluster)
 
     def __enter__(self) -> Self:
         return self

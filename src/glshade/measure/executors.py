@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any, Self
 
 from glshade.errors import GlshadeError
+from glshade.measure.capacity import check_threads, check_worker_count
 from glshade.measure.engine import Case, CaseView, Extra, Measured, PmdView, measure_many
 from glshade.measure.pmd import PmdResult, PmdSettings
 from glshade.measure.record import Measurement, PmdMeasurement
@@ -32,14 +33,20 @@ Row = tuple[Any, Measurement | PmdMeasurement, bytes | None]
 class Distribution:
     """Where the cases run: ``workers`` local Dask worker processes, or the cluster at
     ``scheduler``; neither: this process (``threads`` for the analysis). ``batch``: most
-    cases per Dask task; ``connect_timeout_s``: how long an unreachable scheduler is
-    waited for."""
+    cases per Dask task; ``connect_timeout_s``: the most seconds joining ``scheduler`` may
+    take (:mod:`glshade.measure.scheduler`). ``verbose``: Dask's own log lines are shown
+    (:func:`glshade.logs.quiet_libraries`; the CLI's ``--verbose``).
+
+    ``workers`` and ``threads`` are bounded by this machine's cores and memory budget
+    (:mod:`glshade.measure.capacity`; checked again, at the size of the frames, before
+    cases are sent to the workers)."""
 
     workers: int | None = None
     scheduler: str | None = None
     threads: int = 2
     connect_timeout_s: float = 10.0
     batch: int = 16
+    verbose: bool = False
 
     def __post_init__(self) -> None:
         if self.workers is not None and self.scheduler is not None:
@@ -49,8 +56,9 @@ class Distribution:
             )
         if self.workers is not None and not 1 <= self.workers <= 256:
             raise GlshadeError(f"--workers: must be an integer in [1, 256], got {self.workers}")
-        if self.threads < 1:
-            raise GlshadeError(f"--threads: must be an integer >= 1, got {self.threads}")
+        if self.workers is not None:
+            check_worker_count(self.workers)
+        check_threads(self.threads)
         if not 0 < self.connect_timeout_s <= 600:
             raise GlshadeError(
                 f"--connect-timeout: must be in (0, 600] seconds, got {self.connect_timeout_s:g}"

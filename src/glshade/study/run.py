@@ -148,9 +148,13 @@ def run_study(
 
 
 def check_workers(workers: int) -> None:
-    """The analysis threads of a run in one process: at least one."""
+    """The analysis threads of a run in one process: at least one, at most two per CPU
+    core (:func:`glshade.measure.capacity.check_threads`)."""
+    from glshade.measure.capacity import check_threads
+
     if workers < 1:
         raise GlshadeError(f"--threads: must be an integer >= 1, got {workers}")
+    check_threads(workers)
 
 
 def _run_locked(plan, out_dir, distribution, progress, renderer, callbacks, notify) -> StudyResult:
