@@ -536,7 +536,7 @@ def _run_paper(args: argparse.Namespace, plan) -> int:
     if args.workers:
         from glshade.measure.executors import Distribution
 
-        result = run(distribution=Distribution(workers=args.workers))
+        result = run(distribution=Distribution(workers=args.workers, verbose=args.verbose))
     else:
         with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
             result = run(workers=args.threads, renderer=renderer)
@@ -929,11 +929,7 @@ def main(argv: list[str] | None = None, interrupts: InterruptWatch | None = None
 def _run(argv: list[str], verbose: bool, interrupts: InterruptWatch | None) -> int:
     """The command line ``argv`` run; every exception it lets out becomes one line."""
     args = None
-    try:
-        if not verbose:
-            from glshade.logs import quiet_libraries
-
-            quiet_libraries()
+    try:  # (the libraries' loggers are quietened where Dask starts: glshade.logs)
         args = build_parser(command_of(argv)).parse_args(argv)
         return args.run(args)
     except SystemExit as exc:  # --help, --version, or a usage error already printed as one line
