@@ -62,6 +62,64 @@ def test_a_wavy_saddle_agrees_with_the_oracle(renderer, theta):
     assert np.nanmax(np.abs(shader.uv - oracle.uv)) < 5e-4
 
 
+#: Each function of the grammar as a surface of the paper's scene (x -30..30, z -40..36 mm
+#: in view at 45°); abs, min and max put kinks in view.
+FUNCTION_SURFACES = {
+    "sqrt": "0.01*sqrt(x^2 + z^2 + 100)",
+    "exp": "0.001*exp(x/20)",
+    "log": "0.001*log(x^2 + z^2 + 10)",
+    "sin": "0.002*sin(z/5)",
+    "cos": "0.002*cos(x/4)",
+    "tan": "0.001*tan(z/60)",
+    "abs": "0.001*abs(x - 3) - 0.002*abs(z + 5)",
+    "min": "0.001*min(x, z)",
+    "max": "0.001*max(x, z, 2)",
+}
+
+
+@pytest.mark.parametrize("name", sorted(FUNCTION_SURFACES))
+def test_each_function_renders_as_the_oracle_traces_it(renderer, name):
+    scene = _formula(paper_scene(theta_deg=45.0).with_size(32), FUNCTION_SURFACES[name])
+    shader = renderer.render(scene, ("uv", "mask"))
+    oracle = tracer.trace(scene, ("uv", "mask"))
+    assert np.array_equal(shader.mask, oracle.mask) and shader.mask.all()
+    assert np.nanmax(np.abs(shader.uv - oracle.uv)) < 5e-4
+
+
+@pytest.mark.parametrize(
+    "expression, precision, fragment",
+    [
+        ("exp(x)", "fp32", "f = 1.42e+09 mm at x = 21.07, z = -40.4 mm is not allowed; "),
+        ("1/x", "fp32", "f = inf mm at x = 0, z = -40.4 mm is not allowed; "),
+        (
+            "x^64*1e-150",
+            "fp32",
+            "x**64 = 3.23e+94 at x = -29.97, z = -40.4 mm, which overflows in single precision",
+        ),
+        ("1e-3*sin(1e7*x)", "fp64", "a curvature bound of"),
+        ("log(x - 1000)", "fp32", "a formula with finite values where the camera looks"),
+    ],
+)
+def test_values_beyond_range_where_the_camera_looks_are_refused(expression, precision, fragment):
+    from glshade.components.surface.formula import bounds
+
+    scene = _formula(paper_scene().with_size(16), expression)
+    scene = scene.updated(render={"precision": precision})
+    with pytest.raises(SceneError) as info:
+        bounds(scene)
+    message = str(info.value)
+    assert fragment in message and "\n" not in message, message
+    assert message.startswith("surface.expression: ")
+
+
+def test_single_precision_overflow_is_checked_only_for_fp32():
+    from glshade.components.surface.formula import bounds
+
+    scene = _formula(paper_scene(), "x^64*1e-150").updated(render={"precision": "fp64"})
+    lo, hi, _ = bounds(scene)
+    assert -1e-8 < lo < hi < 1e-8
+
+
 def test_scene_file_of_spec_8_1(tmp_path):
     path = tmp_path / "panel.toml"
     path.write_text(
@@ -95,6 +153,23 @@ def test_fp64_refuses_what_glsl_has_no_double_for():
         (
             ["--set", "surface.expression=sin(x)", "--precision", "fp64"],
             "GLSL has no double-precision version of sin",
+        ),
+        (["--set", "surface.expression=1e999*x"], "the number 1e999 at column 1 is not allowed"),
+        (
+            ["--set", "surface.expression=1" + "0" * 400 + "*x"],
+            "the number 100000000000...000000 (401 characters) at column 1 is not allowed; "
+            "numbers, parameters and the constants they fold to must lie within ±3.4e+38",
+        ),
+        (["--set", "surface.expression=x^100000"], "the power 100000 at column 3"),
+        (["--set", "surface.expression=exp(x)"], "f = 1.25e+09 mm at x = 20.94, z = -37.66 mm"),
+        (
+            ["--set", "surface.expression=a*x", "--set", "surface.parameters.a=1e400"],
+            "surface.parameters.a: must be a finite number, got inf",
+        ),
+        (
+            ["--set", "surface.expression=a*x", "--set", "surface.parameters.a=-1e39"],
+            "surface.parameters.a: must be a finite number within ±3.4e+38 (a number beyond "
+            "±1.8e308, such as 1e400, reads as inf), got -1e+39",
         ),
     ],
 )
@@ -161,3 +236,44 @@ def test_a_study_runs_on_free_form_scene_files(tmp_path):
         )
         == 2
     )
+
+
+@pytest.mark.parametrize(
+    "value, refusal",
+    [
+        ("1e400", "must be a finite number, got inf"),  # tomllib reads 1e400 as inf
+        ("-1e400", "must be a finite number, got -inf"),
+        ("nan", "must be a finite number, got nan"),
+        ("1e39", "must be a finite number within ±3.4e+38"),
+    ],
+)
+def test_parameters_out_of_range_in_a_scene_file(tmp_path, value, refusal):
+    path = tmp_path / "panel.toml"
+    path.write_text(
+        f'[surface]\nkind = "formula"\nexpression = "a*x"\nparameters = {{ a = {value} }}\n'
+    )
+    result = subprocess.run(
+        [sys.executable, "-m", "glshade", "render", str(path), "--size", "8", "-o", "out.png"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2 and len(lines) == 1, result.stderr
+    assert lines[0].startswith(f"glshade: error: surface.parameters.a: {refusal}")
+    assert not (tmp_path / "out.png").exists()
+
+
+def test_abs_min_max_render_from_the_command_line(tmp_path):
+    expression = "0.001*abs(x - 3) + 0.001*min(x, z) - 0.001*max(x, z, 2)"
+    result = subprocess.run(
+        [sys.executable, "-m", "glshade", "render", "--surface", "formula", "--size", "16"]
+        + ["--set", f"surface.expression={expression}", "-o", "out.png"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
+    assert result.returncode == 0 and result.stderr == "", result.stderr
+    assert (tmp_path / "out.png").stat().st_size > 0

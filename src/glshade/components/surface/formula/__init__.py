@@ -1,15 +1,17 @@
 """A base surface given as a formula ``y = f(x, z)`` (paper eq. 3; ``kind =
 "formula"``, ``expression``, ``parameters``).
 
-The expression is checked and rebuilt by :mod:`.grammar` (never evaluated as text); its
-GLSL (``f``, ``f_x``, ``f_z``, printed by SymPy) is a template variable of
-``formula.glsl``, so each formula compiles one program, and its parameters are uniforms.
-The first hit is a march that cannot pass the first crossing (the library's
-``freeform.glsl``), bracketed by the slab ``lo <= y - f <= hi`` and driven by a
-bound ``K`` on ``|f''|`` along horizontal directions. ``lo``, ``hi`` and ``K`` come from
-the formula and its exact Hessian sampled on a 129 x 129 grid over the region the
-camera sees (plus margins); they are sample bounds, not interval bounds (documented in
-docs/scene-format.md, *Formulas*). Oracle: the same SymPy tree through NumPy.
+The expression is checked and rebuilt by :mod:`.grammar` (never evaluated as text); the
+GLSL that computes ``(f, f_x, f_z)`` (:mod:`.printers`: one statement per distinct node)
+is a template variable of ``formula.glsl``, so each formula compiles one program, and its
+parameters are uniforms. The first hit is a march that cannot pass the first crossing
+(the library's ``freeform.glsl``), bracketed by the slab ``lo <= y - f <= hi`` and driven
+by a bound ``K`` on ``|f''|`` along horizontal directions. ``lo``, ``hi`` and ``K`` come
+from the formula, its exact Hessian and the change of its exact gradient across each
+cell, sampled on a 129 x 129 grid over the region the camera sees (plus margins); they
+are sample bounds, not interval bounds (documented in docs/scene-format.md, *Formulas*).
+The same samples refuse values out of range there (:func:`_check_values`). Oracle: the
+same SymPy trees as NumPy operations.
 """
 
 from __future__ import annotations
@@ -36,6 +38,10 @@ if TYPE_CHECKING:  # the grammar is loaded by the first formula parsed
 #: Samples per side of the grid the bounds are taken on, and their safety factor.
 BOUND_SAMPLES = 129
 BOUND_SAFETY = 1.5
+#: The largest |f| (mm) and curvature bound (1/mm) over the region the camera sees: far
+#: beyond any part, and small enough that the march's arithmetic cannot overflow (fp32).
+MAX_HEIGHT_MM = 1e9
+MAX_CURVATURE = 1e9
 
 
 def check_formula(values: dict) -> None:
@@ -82,12 +88,12 @@ class Formula(SurfaceComponent):
     table = FormulaTable
 
     def features(self, scene):
+        from glshade.components.surface.formula.printers import GLSL_FUNCTIONS
+
         formula = formula_of(scene)
-        f, fx, fz = formula.glsl(scene.render.precision)
         return {
-            "formula_f": f,
-            "formula_fx": fx,
-            "formula_fz": fz,
+            "formula_functions": GLSL_FUNCTIONS,
+            "formula_body": formula.glsl(scene.render.precision),
             "formula_parameters": tuple(name for name, _ in formula.parameters),
         }
 
@@ -112,8 +118,10 @@ class Formula(SurfaceComponent):
         }
 
     def second_derivatives(self, scene):
+        """``(f_zz, f_xx)`` at the origin, almost everywhere (0 on a kink); 0 where the
+        formula has no finite value there."""
         fxx, _, fzz = (float(h(0.0, 0.0)) for h in formula_of(scene).hessian)
-        return fzz, fxx
+        return tuple(v if math.isfinite(v) else 0.0 for v in (fzz, fxx))
 
     def describe(self, scene):
         text = scene.surface.expression
@@ -143,8 +151,9 @@ class Formula(SurfaceComponent):
 
 def bounds(scene) -> tuple[float, float, float]:
     """``(lo, hi, K)``: ``f`` lies in ``[lo, hi]`` (mm) and ``|f''|`` along any horizontal
-    unit direction is below ``K`` (1/mm) over the region the camera sees."""
-    return _bounds(formula_of(scene), _seen_box(scene))
+    unit direction is below ``K`` (1/mm) over the region the camera sees; a SceneError
+    where the formula's values there are out of range (:func:`_check_values`)."""
+    return _bounds(formula_of(scene), _seen_box(scene), scene.render.precision)
 
 
 def _seen_box(scene) -> tuple[float, float, float, float]:
@@ -181,25 +190,94 @@ def _box(cam, x0: float, z0: float) -> tuple[float, float, float, float]:
 
 @functools.lru_cache(maxsize=64)
 def _bounds(
-    formula: ParsedFormula, box: tuple[float, float, float, float]
+    formula: ParsedFormula, box: tuple[float, float, float, float], precision: str
 ) -> tuple[float, float, float]:
     x = np.linspace(box[0], box[1], BOUND_SAMPLES)
     z = np.linspace(box[2], box[3], BOUND_SAMPLES)
     xx, zz = np.meshgrid(x, z)
-    f = formula.numpy[0](xx, zz)
+    f, fx, fz = values = tuple(function(xx, zz) for function in formula.numpy)
+    _check_values(formula, (xx, zz), values, box, precision)
+    finite = np.isfinite(f)
     fxx, fxz, fzz = (h(xx, zz) for h in formula.hessian)
+    with np.errstate(all="ignore"):  # inf - inf where the formula is undefined: left out
+        spectral = np.abs(0.5 * (fxx + fzz)) + np.hypot(0.5 * (fxx - fzz), fxz)  # |eigenvalue|
+        jumps = _gradient_jumps(fx, fz, x[1] - x[0], z[1] - z[0])
+    largest = max(_finite_max(spectral), _finite_max(jumps))
+    curvature = largest * BOUND_SAFETY + 1e-12
+    if curvature > MAX_CURVATURE:
+        raise _value_error(
+            f"a curvature bound of {curvature:.3g} /mm",
+            box,
+            f"|f''| of at most {MAX_CURVATURE:.0e} /mm",
+        )
+    cell = math.hypot(x[1] - x[0], z[1] - z[0])
+    slack = curvature * cell * cell / 8.0 + 1e-9 + 1e-9 * float(np.nanmax(np.abs(f[finite])))
+    return float(np.min(f[finite]) - slack), float(np.max(f[finite]) + slack), curvature
+
+
+def _finite_max(values: np.ndarray) -> float:
+    return float(np.max(np.where(np.isfinite(values), values, 0.0), initial=0.0))
+
+
+def _gradient_jumps(fx: np.ndarray, fz: np.ndarray, dx: float, dz: float) -> np.ndarray:
+    """The largest ``|f''|`` along a horizontal direction that the change of the exact
+    gradient across each grid cell implies: a kink (``abs``, ``min``, ``max``), where the
+    second derivative is 0 almost everywhere, turns its slope change into a curvature."""
+    fxx = (fx[:-1, 1:] - fx[:-1, :-1]) / dx
+    fzx = (fz[:-1, 1:] - fz[:-1, :-1]) / dx
+    fxz = (fx[1:, :-1] - fx[:-1, :-1]) / dz
+    fzz = (fz[1:, :-1] - fz[:-1, :-1]) / dz
+    mixed = 0.5 * (fzx + fxz)
+    return np.abs(0.5 * (fxx + fzz)) + np.hypot(0.5 * (fxx - fzz), mixed)
+
+
+def _check_values(formula: ParsedFormula, grid, values, box, precision: str) -> None:
+    """Refuse a formula with no finite value over the region the camera sees, an infinite
+    one, one beyond :data:`MAX_HEIGHT_MM`, or, for fp32, one where a step of computing
+    ``f``, ``f_x``, ``f_z`` overflows in single precision though float64 finds it finite
+    (the samples: the bounds' grid ``(xx, zz)``, and ``(f, f_x, f_z)`` there in
+    float64)."""
+    from glshade.components.surface.formula.grammar import abbreviated
+
+    xx, zz = grid
+    f = values[0]
     finite = np.isfinite(f)
     if not finite.any():
         raise SceneError(
             "surface.expression", "a formula with finite values where the camera looks"
         )
-    spectral = np.abs(0.5 * (fxx + fzz)) + np.hypot(0.5 * (fxx - fzz), fxz)  # largest |eigenvalue|
-    curvature = (
-        float(np.nanmax(np.where(np.isfinite(spectral), spectral, 0.0))) * BOUND_SAFETY + 1e-12
+    allowed = f"a formula finite (or undefined, NaN) and within ±{MAX_HEIGHT_MM:.0e} mm"
+    for bad in (np.isinf(f), finite & (np.abs(f) > MAX_HEIGHT_MM)):
+        if bad.any():
+            where = np.unravel_index(np.argmax(bad), f.shape)
+            raise _value_error(f"f = {f[where]:.3g} mm{_at(xx, zz, where)}", box, allowed)
+    if precision == "fp64":
+        return
+    found = formula.single_precision_overflow(xx, zz)
+    if found is not None:
+        step, wide, bad = found
+        where = np.unravel_index(np.argmax(bad), bad.shape)
+        raise _value_error(
+            f"{abbreviated(step, 40)} = {wide[where]:.3g}{_at(xx, zz, where)}, which "
+            "overflows in single precision,",
+            box,
+            f"an fp32 render needs f, f_x, f_z and each step of their evaluation "
+            f"within ±{float(np.finfo(np.float32).max):.3g}",
+        )
+
+
+def _at(xx: np.ndarray, zz: np.ndarray, where) -> str:
+    return f" at x = {xx[where]:.4g}, z = {zz[where]:.4g} mm"
+
+
+def _value_error(what: str, box, allowed: str) -> SceneError:
+    from glshade.components.surface.formula.grammar import FormulaError
+
+    region = (
+        f"over the region the camera sees (x {box[0]:.4g} to {box[1]:.4g} mm, "
+        f"z {box[2]:.4g} to {box[3]:.4g} mm)"
     )
-    cell = math.hypot(x[1] - x[0], z[1] - z[0])
-    slack = curvature * cell * cell / 8.0 + 1e-9 + 1e-9 * float(np.nanmax(np.abs(f[finite])))
-    return float(np.min(f[finite]) - slack), float(np.max(f[finite]) + slack), curvature
+    return FormulaError("surface.expression", what, None, (), f"{allowed} {region}")
 
 
 COMPONENTS = (Formula,)

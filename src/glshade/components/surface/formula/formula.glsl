@@ -1,6 +1,7 @@
-// Base surface: y = f(x, z) written as a formula (paper eq. 3). f, f_x and f_z below are
-// SymPy's printing of the checked expression tree (glshade.formula), never user text;
-// x, z are world mm (local + u_surface_origin).
+// Base surface: y = f(x, z) written as a formula (paper eq. 3). formula_values below is
+// printed from the checked expression tree and its exact gradient (formula/printers.py:
+// one statement per distinct node), never user text; x, z are world mm (local +
+// u_surface_origin).
 {$ for name in formula_parameters $}
 uniform real u_surface_p_{{ name }};
 {$ endfor $}
@@ -9,14 +10,21 @@ uniform real u_surface_lo;         // f lies in [lo, hi] where the camera looks 
 uniform real u_surface_hi;
 uniform real u_surface_curvature;  // bound on |f''| along horizontal unit directions (1/mm)
 
-real formula_f(real x, real z) { return {{ formula_f }}; }
-real2 formula_grad(real x, real z) { return real2({{ formula_fx }}, {{ formula_fz }}); }
+{{ formula_functions }}
+
+// (f, f_x, f_z) at (x, z).
+real3 formula_values(real x, real z) {
+{{ formula_body }}
+}
+real formula_f(real x, real z) { return formula_values(x, z).x; }
+real2 formula_grad(real x, real z) { return formula_values(x, z).yz; }
 
 // g = y - f - shift at p (local), and its derivative along d (lib/freeform.glsl).
 real freeform_gap(real3 p, real3 d, real shift, out real slope) {
     real3 w = p + u_surface_origin;
-    slope = d.y - dot(formula_grad(w.x, w.z), d.xz);
-    return w.y - formula_f(w.x, w.z) - shift;
+    real3 values = formula_values(w.x, w.z);
+    slope = d.y - dot(values.yz, d.xz);
+    return w.y - values.x - shift;
 }
 
 // First crossing from above of y = f + shift along o + t d, t > tmin; t_far: where the

@@ -6,11 +6,21 @@ accepted: numbers, ``x``, ``z``, the declared parameters, ``+ - * /``, ``**`` an
 (both power), unary ``+ -``, parentheses, and the functions
 ``sqrt exp log sin cos tan abs min max``. Anything else is refused with the offending
 token and its column. The accepted tree is rebuilt as a SymPy expression node by node
-(never ``eval``, ``sympify`` or ``parse_expr`` on the text), differentiated symbolically,
-and printed as GLSL (SymPy's GLSL printer, with integer powers as products because GLSL's
-``pow`` is undefined for a negative base) and as NumPy functions (``lambdify``) for the
-oracle. No user text reaches the shader compiler or Python's evaluator: only SymPy's
-printing of the rebuilt tree does, and parameter names become ``u_surface_p_<name>``.
+(never ``eval``, ``sympify`` or ``parse_expr`` on the text), differentiated symbolically
+(``abs``, ``min`` and ``max`` are real functions whose kinks get the almost-everywhere
+conventions of :mod:`.functions`), and printed as GLSL and as NumPy functions for the
+oracle (:mod:`.printers`). No user text reaches the shader compiler or Python's
+evaluator: only the printing of the rebuilt tree does, and parameter names become
+``u_surface_p_<name>``.
+
+Limits (each refusal is one line naming what was typed and what is allowed): the length
+(:data:`MAX_LENGTH` characters), the size (:data:`MAX_TOKENS` tokens), the nesting
+(:data:`MAX_DEPTH`: a chain of ``+ -`` or of ``* /`` is one level however long, so a
+polynomial of hundreds of terms is flat; a call, a power, a unary sign nests), the
+powers (:data:`MAX_POWER`), the magnitude of every number, parameter and constant the
+formula folds to (:data:`MAX_MAGNITUDE`, single precision's range), the work of each
+derivative (:data:`MAX_DERIVATIVE_WORK`) and the size of the shader code
+(:data:`MAX_OPERATIONS`).
 """
 
 from __future__ import annotations
@@ -30,13 +40,34 @@ from typing import Any
 import numpy as np
 
 from glshade.errors import GlshadeError, SceneError, printable
+from glshade.params import MAX_TEXT
 
 #: A parameter ``name`` of a formula is the uniform ``u_surface_p_<name>`` of its program.
 PARAMETER_PREFIX = "u_surface_p_"
 
-#: The longest expression and the deepest nesting accepted.
-MAX_LENGTH = 2000
+#: The longest expression (characters: a scene's limit on a text value) and the most
+#: tokens (numbers, names, operators, brackets) accepted. The token limit keeps every
+#: chain of operators well inside what Python's parser builds (about 3000 in a row),
+#: should the text limit grow.
+MAX_LENGTH = MAX_TEXT
+MAX_TOKENS = 3_000
+#: The deepest nesting: calls, powers and unary signs inside each other (a chain of
+#: ``+ -`` or of ``* /``, parentheses included, is one level).
 MAX_DEPTH = 40
+#: The largest magnitude of a power's exponent (also of what powers of powers fold to).
+MAX_POWER = 64
+#: The largest magnitude of a number, a parameter or a constant the formula (or its
+#: derivative) folds to: single precision's largest float, the range of a program's
+#: uniforms and of an fp32 literal.
+MAX_MAGNITUDE = float(np.finfo(np.float32).max)
+#: The most operations of the shader code of f, f_x and f_z together (GLSL statements'
+#: operands, a transcendental function or a power by squaring counting 8): the shader
+#: compiler's time grows with them, about 5 ms each on llvmpipe (a polynomial of 200
+#: terms is about 2700).
+MAX_OPERATIONS = 3_000
+#: The most operations building one derivative may take (first or second): SymPy's time
+#: and the NumPy evaluation's grow with them.
+MAX_DERIVATIVE_WORK = 20_000
 #: The functions of the grammar and how many arguments each takes.
 FUNCTIONS: dict[str, tuple[int, int]] = {
     "sqrt": (1, 1),
@@ -143,13 +174,22 @@ _GLSL_RESERVED = frozenset(
 _ALLOWED = (
     "numbers, x, z, {params}+ - * / ** ^, parentheses and sqrt exp log sin cos tan abs min max"
 )
+_RANGE = f"numbers, parameters and the constants they fold to must lie within ±{MAX_MAGNITUDE:.3g}"
 
 
 class FormulaError(SceneError):
-    """A formula outside the grammar: ``field: WHAT at column N is not allowed; a formula
-    may use …`` (one line)."""
+    """A formula outside the grammar or its limits: ``field: WHAT at column N is not
+    allowed; a formula may use …`` (one line; ``allowed`` replaces the grammar's list
+    where a limit, not the grammar, refuses)."""
 
-    def __init__(self, field_name: str, what: str, column: int | None, parameters) -> None:
+    def __init__(
+        self,
+        field_name: str,
+        what: str,
+        column: int | None,
+        parameters,
+        allowed: str | None = None,
+    ) -> None:
         names = "".join(
             f"the parameter{'s' if len(parameters) > 1 else ''} {', '.join(parameters)}, "
             if parameters
@@ -157,21 +197,29 @@ class FormulaError(SceneError):
         )
         self.field, self.allowed, self.got, self.column = (
             field_name,
-            _ALLOWED.format(params=names),
+            _ALLOWED.format(params=names) if allowed is None else allowed,
             what,
             column,
         )
         where = f" at column {column + 1}" if column is not None else ""
+        rule = f"a formula may use {self.allowed}" if allowed is None else allowed
         GlshadeError.__init__(
-            self,
-            printable(
-                f"{field_name}: {what}{where} is not allowed; a formula may use {self.allowed}"
-            ),
+            self, printable(f"{field_name}: {what}{where} is not allowed; {rule}")
         )
 
 
-def _refuse(field_name: str, what: str, column: int | None, parameters) -> FormulaError:
-    return FormulaError(field_name, what, column, list(parameters))
+def _refuse(
+    field_name: str, what: str, column: int | None, parameters, allowed: str | None = None
+) -> FormulaError:
+    return FormulaError(field_name, what, column, list(parameters), allowed)
+
+
+def abbreviated(text: str, limit: int = 24) -> str:
+    """``text`` as an error message shows it: whole up to ``limit`` characters, else its
+    start and end with its length."""
+    if len(text) <= limit:
+        return text
+    return f"{text[:12]}...{text[-6:]} ({len(text)} characters)"
 
 
 def check_parameter_name(name: object, field_name: str = "surface.parameters") -> str:
@@ -196,10 +244,24 @@ def check_parameter_name(name: object, field_name: str = "surface.parameters") -
     return name
 
 
+def _check_characters(text: str, field_name: str, parameters) -> None:
+    """Refuse, at its column, the first character outside printable ASCII, tab and line
+    break: a control character, and every look-alike (``ｘ``, which Python would read as
+    ``x``, a Cyrillic ``х``, a no-break space)."""
+    for column, char in enumerate(text):
+        if char == "\r":
+            raise _refuse(field_name, "a line break", column, parameters)
+        if not (" " <= char <= "~" or char in "\t\n"):
+            what = f"the character {char!r} (U+{ord(char):04X})"
+            raise _refuse(field_name, what, column, parameters)
+
+
 def _power_tokens(text: str, field_name: str, parameters) -> tuple[str, list[int]]:
     """``text`` with each ``^`` token written ``**`` (a token-level rewrite, so ``^``
     keeps the precedence of a power), and for each character of the result the column of
-    the user's text it came from. Comments, strings and line breaks are refused here."""
+    the user's text it came from. Comments, strings, line breaks, more than
+    :data:`MAX_TOKENS` tokens and numbers beyond :data:`MAX_MAGNITUDE` are refused here
+    (before Python's parser builds a tree of them)."""
     out: list[str] = []
     columns: list[int] = []
     previous_end = 0
@@ -208,6 +270,12 @@ def _power_tokens(text: str, field_name: str, parameters) -> tuple[str, list[int
     except (tokenize.TokenError, IndentationError, SyntaxError):
         what, column = _bracket_problem(text)
         raise _refuse(field_name, what, column, parameters) from None
+    if len(tokens) > MAX_TOKENS + 2:  # + NEWLINE and ENDMARKER
+        raise SceneError(
+            field_name,
+            f"a formula of at most {MAX_TOKENS} tokens (numbers, names, operators, "
+            f"brackets; this one has {len(tokens) - 2})",
+        )
     for token in tokens:
         if token.type in (tokenize.ENDMARKER, tokenize.NEWLINE) and not token.string.strip():
             continue
@@ -216,6 +284,9 @@ def _power_tokens(text: str, field_name: str, parameters) -> tuple[str, list[int
             raise _refuse(field_name, "a line break", len(text.split("\n")[0]), parameters)
         if token.type in (tokenize.COMMENT, tokenize.STRING):
             raise _refuse(field_name, f"{token.string[:20]!r}", start, parameters)
+        if token.type == tokenize.NUMBER and not _literal_magnitude(token.string) <= MAX_MAGNITUDE:
+            shown = abbreviated(token.string)
+            raise _refuse(field_name, f"the number {shown}", start, parameters, _RANGE)
         out.append(" " * (start - previous_end))
         columns.extend(range(previous_end, start))
         piece = "**" if token.type == tokenize.OP and token.string == "^" else token.string
@@ -223,6 +294,20 @@ def _power_tokens(text: str, field_name: str, parameters) -> tuple[str, list[int
         columns.extend([start] * len(piece) if piece != token.string else range(start, end))
         previous_end = end
     return "".join(out), columns
+
+
+def _literal_magnitude(token: str) -> float:
+    """The magnitude of a number token (``inf`` beyond float64; 0 for what the builder
+    refuses anyway: an imaginary literal, a malformed one)."""
+    digits = token.replace("_", "").lower()
+    try:
+        if digits.startswith(("0x", "0o", "0b")):
+            return float(int(digits, 0))
+        return 0.0 if digits.endswith("j") else abs(float(digits))
+    except OverflowError:
+        return math.inf
+    except ValueError:
+        return 0.0
 
 
 def _bracket_problem(text: str) -> tuple[str, int | None]:
@@ -250,64 +335,71 @@ def _token_at(text: str, column: int) -> str:
 @dataclass(frozen=True)
 class Formula:
     """A parsed, checked formula. ``text``: as the user wrote it (in mm, of ``x`` and
-    ``z`` in mm); ``parameters``: name -> value. Build with :func:`parse_formula`."""
+    ``z`` in mm); ``parameters``: name -> value; ``tree``, ``gradient`` and ``second``:
+    ``f``, ``(f_x, f_z)`` and ``(f_xx, f_xz, f_zz)`` as SymPy expressions (exact, with the
+    almost-everywhere conventions of :mod:`.functions` at kinks). Build with
+    :func:`parse_formula`."""
 
     text: str
     parameters: tuple[tuple[str, float], ...]
-    tree: Any = field(repr=False, compare=False)  # the SymPy expression
+    tree: Any = field(repr=False, compare=False)
+    gradient: tuple[Any, Any] = field(repr=False, compare=False)
+    second: tuple[Any, Any, Any] = field(repr=False, compare=False)
 
-    @cached_property
-    def symbols(self):
-        import sympy
+    @property
+    def symbols(self) -> tuple[Any, ...]:
+        """``(x, z, u_surface_p_<name>...)``: the arguments of the NumPy functions."""
+        return _symbols(tuple(name for name, _ in self.parameters))
 
-        return (
-            sympy.Symbol("x", real=True),
-            sympy.Symbol("z", real=True),
-            *(sympy.Symbol(PARAMETER_PREFIX + name, real=True) for name, _ in self.parameters),
-        )
+    def glsl(self, precision: str = "fp32") -> str:
+        """The body of the GLSL function ``real3 formula_values(real x, real z)`` that
+        returns ``(f, f_x, f_z)``: one statement per distinct node, in the variables ``x``,
+        ``z`` and the parameters ``u_surface_p_<name>`` (uniforms of the program), calling
+        :data:`.printers.GLSL_FUNCTIONS`. ``precision`` fp64 writes double literals and
+        refuses what GLSL has no double version of (``exp``, ``log``, ``sin``, ``cos``,
+        ``tan``, a non-integer power other than a square root)."""
+        from glshade.components.surface.formula.printers import glsl_body
 
-    @cached_property
-    def derivatives(self) -> tuple[object, object]:
-        """``(∂f/∂x, ∂f/∂z)``, exact (SymPy)."""
-        import sympy
-
-        x, z = self.symbols[:2]
-        return sympy.diff(self.tree, x), sympy.diff(self.tree, z)
-
-    def glsl(self, precision: str = "fp32") -> tuple[str, str, str]:
-        """GLSL expressions of ``f``, ``f_x``, ``f_z`` in the variables ``x``, ``z`` and the
-        parameters ``u_surface_p_<name>`` (uniforms of the program). ``precision`` fp64 writes
-        double literals and refuses what GLSL has no double version of (``exp``,
-        ``log``, ``sin``, ``cos``, ``tan``, a non-integer power other than a square root)."""
-        printer = _glsl_printer(precision)
-        return tuple(printer.doprint(e) for e in (self.tree, *self.derivatives))
+        names = tuple(name for name, _ in self.parameters)
+        return glsl_body((self.tree, *self.gradient), precision, names)
 
     @cached_property
     def hessian(self) -> tuple[Callable, ...]:
-        """NumPy functions ``(f_xx, f_xz, f_zz)`` of ``(x, z)``: the curvature bounds of
-        the first-hit search."""
-        import sympy
-
-        x, z = self.symbols[:2]
-        fx, fz = self.derivatives
-        return self._numpy_of(sympy.diff(fx, x), sympy.diff(fx, z), sympy.diff(fz, z))
-
-    def _numpy_of(self, *expressions) -> tuple[Callable, ...]:
-        """NumPy functions of ``(x, z)`` for SymPy ``expressions`` of this formula's
-        symbols, the parameters bound (``lambdify`` prints the rebuilt tree, not user text)."""
-        import sympy
-
-        values = [value for _, value in self.parameters]
-        modules = [{"Heaviside": _heaviside}, "numpy"]
-        return tuple(
-            _bound(sympy.lambdify(self.symbols, e, modules=modules), values) for e in expressions
-        )
+        """NumPy functions ``(f_xx, f_xz, f_zz)`` of ``(x, z)`` (float64): the curvature
+        bounds of the first-hit search; 0 across a kink (almost everywhere)."""
+        return self._functions(*self.second)
 
     @cached_property
     def numpy(self) -> tuple[Callable, ...]:
         """NumPy functions ``(f, f_x, f_z)`` of ``(x, z)`` (float64 arrays), with the
         parameters bound: the oracle's evaluation of the same tree."""
-        return self._numpy_of(self.tree, *self.derivatives)
+        return self._functions(self.tree, *self.gradient)
+
+    def single_precision_overflow(self, x, z) -> tuple[str, np.ndarray, np.ndarray] | None:
+        """Where an fp32 shader overflows computing ``f``, ``f_x``, ``f_z`` at ``(x, z)``:
+        the first step (as SymPy writes it) whose value is finite but beyond
+        :data:`MAX_MAGNITUDE`, its values and where; None where no step is."""
+        from glshade.components.surface.formula.printers import first_beyond
+
+        inputs = [x, z, *(value for _, value in self.parameters)]
+        found = first_beyond(self.symbols, (self.tree, *self.gradient), inputs, MAX_MAGNITUDE)
+        return None if found is None else (str(found[0]), found[1], found[2])
+
+    def _functions(self, *expressions) -> tuple[Callable, ...]:
+        from glshade.components.surface.formula.printers import numpy_function
+
+        values = [value for _, value in self.parameters]
+        return tuple(_bound(numpy_function(self.symbols, e), values) for e in expressions)
+
+
+def _symbols(names: tuple[str, ...]) -> tuple[Any, ...]:
+    import sympy
+
+    return (
+        sympy.Symbol("x", real=True),
+        sympy.Symbol("z", real=True),
+        *(sympy.Symbol(PARAMETER_PREFIX + name, real=True) for name in names),
+    )
 
 
 def _bound(compiled, values):
@@ -321,15 +413,12 @@ def _bound(compiled, values):
     return evaluate
 
 
-def _heaviside(t, *_):
-    return np.heaviside(t, 0.5)
-
-
 def parse_formula(
     text: object, parameters: object = None, field_name: str = "surface.expression"
 ) -> Formula:
-    """``text`` checked against the grammar and rebuilt as a SymPy expression, or a
-    :class:`SceneError` naming ``field_name``, the offending token and its column."""
+    """``text`` checked against the grammar and its limits and rebuilt as a SymPy
+    expression with its exact gradient, or a :class:`SceneError` naming ``field_name``,
+    the offending token and its column."""
     params = _parameters(parameters)
     if not isinstance(text, str) or not text.strip():
         raise SceneError(field_name, "a non-empty formula in x and z", text)
@@ -337,6 +426,7 @@ def parse_formula(
         raise SceneError(
             field_name, f"a formula of at most {MAX_LENGTH} characters (this one has {len(text)})"
         )
+    _check_characters(text, field_name, params)
     source, columns = _power_tokens(text, field_name, params)
     try:
         with (
@@ -352,27 +442,109 @@ def parse_formula(
         raise _refuse(field_name, repr(_token_at(text, column)), column, params) from None
     except (RecursionError, MemoryError, ValueError):
         raise SceneError(field_name, f"a formula nested at most {MAX_DEPTH} deep") from None
-    tree = _Builder(text, columns, params, field_name).build(expression.body, 0)
-    formula = Formula(text, tuple(params.items()), tree)
-    _check_defined(formula, field_name, params)
-    return formula
+    from glshade.components.surface.formula.functions import almost_everywhere
+
+    tree = almost_everywhere(_Builder(text, columns, params, field_name).build(expression.body, 0))
+    _check_tree(tree, field_name, params, "")
+    x, z = _symbols(tuple(params))[:2]
+    gradient = tuple(_derivative(tree, s, field_name, params, "first") for s in (x, z))
+    for name, derivative in zip(("f_x", "f_z"), gradient, strict=True):
+        _check_tree(derivative, field_name, params, f"its derivative {name}: ")
+    _check_program((tree, *gradient), field_name, params)
+    orders = ((0, x), (0, z), (1, z))  # f_xx, f_xz, f_zz
+    second = tuple(_derivative(gradient[i], s, field_name, params, "second") for i, s in orders)
+    _check_printable(second, field_name, params, "its second derivatives: ")
+    return Formula(text, tuple(params.items()), tree, gradient, second)
 
 
-def _check_defined(formula: Formula, field_name: str, params) -> None:
-    """Refuse a formula whose constants SymPy folds to no real number (``0/0``, ``1/0``,
-    ``log(0)``, ``sqrt(-1)``), in ``f`` or its derivatives."""
+def _derivative(expression, symbol, field_name: str, params, order: str):
+    """``∂expression/∂symbol`` (:func:`.functions.derivative`), or a refusal where it
+    takes more than :data:`MAX_DERIVATIVE_WORK` operations to build."""
+    from glshade.components.surface.formula.functions import (
+        TooLarge,
+        almost_everywhere,
+        derivative,
+    )
+
+    try:
+        return almost_everywhere(derivative(expression, symbol, MAX_DERIVATIVE_WORK))
+    except TooLarge as exc:
+        raise _refuse(
+            field_name,
+            f"a formula whose {order} derivative along {symbol} takes more than "
+            f"{exc.work} operations",
+            None,
+            params,
+            f"derivatives of at most {MAX_DERIVATIVE_WORK} operations (a product of many "
+            "factors of x and z, or functions nested in them, grows fastest)",
+        ) from None
+
+
+def _check_program(expressions, field_name: str, params) -> None:
+    """Refuse a formula whose shader code (``f``, ``f_x``, ``f_z``) has more than
+    :data:`MAX_OPERATIONS` operations: the time the shader compiler takes grows with it."""
+    from glshade.components.surface.formula.printers import operations
+
+    count = operations(expressions)
+    if count > MAX_OPERATIONS:
+        raise _refuse(
+            field_name,
+            f"a formula whose shader code (f, f_x, f_z) has {count} operations",
+            None,
+            params,
+            f"at most {MAX_OPERATIONS} (a polynomial of about 200 terms; the shader "
+            "compiler's time grows with them)",
+        )
+
+
+def _check_tree(tree, field_name: str, params, where: str) -> None:
+    """Refuse a tree holding what is not a finite real number (``x/0``), anything the
+    printers do not know, a constant beyond :data:`MAX_MAGNITUDE` or a power beyond
+    :data:`MAX_POWER` (what the rebuilt tree and its derivatives fold to). Each distinct
+    node is looked at once."""
     import sympy
 
-    bad = (sympy.nan, sympy.zoo, sympy.oo, -sympy.oo, sympy.I)
-    expressions: tuple[Any, ...] = (formula.tree, *formula.derivatives)
-    for expression in expressions:
-        if any(expression.has(b) for b in bad):
+    from glshade.components.surface.formula.functions import distinct_nodes
+
+    nodes = distinct_nodes([tree])
+    bad = {sympy.nan, sympy.zoo, sympy.oo, -sympy.oo, sympy.I}
+    if any(node in bad for node in nodes):
+        raise _refuse(
+            field_name,
+            f"{where}a constant part that is not a finite real number (0/0, 1/0, log(0), sqrt(-1))",
+            None,
+            params,
+        )
+    _check_printable([tree], field_name, params, where, nodes)
+    for node in nodes:
+        if node.is_Number and abs(float(node)) > MAX_MAGNITUDE:
+            raise _refuse(
+                field_name, f"{where}the constant {float(node):.3g}", None, params, _RANGE
+            )
+        if node.is_Pow and node.exp.is_Number and abs(float(node.exp)) > MAX_POWER:
             raise _refuse(
                 field_name,
-                "a constant part that is not a finite real number (0/0, 1/0, log(0), sqrt(-1))",
+                f"{where}{abbreviated(str(node), 40)} (what its powers fold to)",
                 None,
                 params,
+                f"powers of at most {MAX_POWER} in magnitude",
             )
+
+
+def _check_printable(trees, field_name: str, params, where: str, nodes=None) -> None:
+    """Refuse trees holding a node the printers do not know (what SymPy's simplification
+    might bring in): nothing unmapped reaches the GLSL or the NumPy functions."""
+    from glshade.components.surface.formula.functions import distinct_nodes, unprintable
+
+    name = unprintable(distinct_nodes(trees) if nodes is None else nodes)
+    if name is not None:
+        raise _refuse(
+            field_name,
+            f"{where}a formula that SymPy rewrites with {abbreviated(name)}",
+            None,
+            params,
+            "the shader and the oracle evaluate only the grammar's functions",
+        )
 
 
 def _parameters(parameters: object) -> dict[str, float]:
@@ -386,9 +558,14 @@ def _parameters(parameters: object) -> dict[str, float]:
         if (
             isinstance(value, bool)
             or not isinstance(value, (int, float))
-            or not math.isfinite(value)
+            or not abs(value) <= MAX_MAGNITUDE  # also NaN
         ):
-            raise SceneError(f"surface.parameters.{name}", "a finite number", value)
+            raise SceneError(
+                f"surface.parameters.{name}",
+                f"a finite number within ±{MAX_MAGNITUDE:.3g} (a number beyond ±1.8e308, "
+                "such as 1e400, reads as inf)",
+                value if isinstance(value, (bool, int, float)) else abbreviated(repr(value)),
+            )
         out[name] = float(value)
     return out
 
@@ -401,6 +578,8 @@ class _Builder:
     ) -> None:
         import sympy
 
+        from glshade.components.surface.formula import functions
+
         self.sympy, self.text, self.columns, self.params, self.field = (
             sympy,
             text,
@@ -408,11 +587,7 @@ class _Builder:
             params,
             field_name,
         )
-        self.names = {
-            "x": sympy.Symbol("x", real=True),
-            "z": sympy.Symbol("z", real=True),
-            **{name: sympy.Symbol(PARAMETER_PREFIX + name, real=True) for name in params},
-        }
+        self.names = dict(zip(("x", "z", *params), _symbols(tuple(params)), strict=True))
         self.functions = {
             "sqrt": sympy.sqrt,
             "exp": sympy.exp,
@@ -420,64 +595,144 @@ class _Builder:
             "sin": sympy.sin,
             "cos": sympy.cos,
             "tan": sympy.tan,
-            "abs": sympy.Abs,
-            "min": sympy.Min,
-            "max": sympy.Max,
+            "abs": functions.RealAbs,
+            "min": functions.real_min,
+            "max": functions.real_max,
         }
+        self.constant_value = functions.constant_value
 
-    def refuse(self, node: ast.AST, what: str | None = None) -> SceneError:
+    def span(self, node: ast.AST) -> tuple[int, str]:
+        """The column of ``node`` in the user's text and the text it spans."""
         offset = getattr(node, "col_offset", 0)
         column = self.columns[min(offset, len(self.columns) - 1)] if self.columns else 0
         end = self.columns[
             min(max(getattr(node, "end_col_offset", offset + 1) - 1, 0), len(self.columns) - 1)
         ]
-        shown = what or repr(self.text[column : end + 1][:20])
-        return _refuse(self.field, shown, column, self.params)
+        return column, self.text[column : end + 1]
+
+    def refuse(self, node: ast.AST, what: str | None = None) -> SceneError:
+        column, text = self.span(node)
+        return _refuse(self.field, what or repr(text[:20]), column, self.params)
 
     def build(self, node: ast.AST, depth: int):
         if depth > MAX_DEPTH:
-            raise SceneError(self.field, f"a formula nested at most {MAX_DEPTH} deep")
+            column, text = self.span(node)
+            raise _refuse(
+                self.field,
+                f"{abbreviated(text)!r}, nested {depth} deep,",
+                column,
+                self.params,
+                f"a formula nested at most {MAX_DEPTH} deep (a call, a power or a unary sign "
+                "inside another; a chain of + - or of * / counts once however long)",
+            )
+        result = self.node(node, depth)
+        if not result.free_symbols:
+            self.check_constant(node, result)
+        return result
+
+    def check_constant(self, node: ast.AST, value) -> None:
+        """A constant part (no x, z or parameter) must be a finite real number within
+        :data:`MAX_MAGNITUDE` (checked in float64, never SymPy's arbitrary precision)."""
+        number = self.constant_value(value)
+        if math.isfinite(number) and abs(number) <= MAX_MAGNITUDE:
+            return
+        column, text = self.span(node)
+        what = repr(abbreviated(text))
+        if math.isnan(number):
+            allowed = "every constant part must be a finite real number (no 0/0, 1/0, "
+            allowed += "log(0), sqrt(-1))"
+        else:
+            what += f" = {number:.3g}" if math.isfinite(number) else " (beyond ±1.8e308)"
+            allowed = _RANGE
+        raise _refuse(self.field, what, column, self.params, allowed)
+
+    def check_folded(self, node: ast.AST, operation, operands: list, what: str) -> None:
+        """The constant operands of a chain (``1e30*x*1e30``), which SymPy folds into one
+        number, within :data:`MAX_MAGNITUDE`."""
+        constants = [operand for operand in operands if not operand.free_symbols]
+        if len(constants) < 2 or len(constants) == len(operands):
+            return  # a whole constant chain is checked as a constant node
+        number = self.constant_value(operation(*constants))
+        if abs(number) <= MAX_MAGNITUDE:
+            return
+        column, text = self.span(node)
+        made = f"{number:.3g}" if math.isfinite(number) else "more than ±1.8e308"
+        raise _refuse(
+            self.field,
+            f"{abbreviated(text)!r} (its constant {what} make {made})",
+            column,
+            self.params,
+            _RANGE,
+        )
+
+    def node(self, node: ast.AST, depth: int):
         sp = self.sympy
         if isinstance(node, ast.Constant):
-            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
-                raise self.refuse(node)
-            if isinstance(node.value, float) and not math.isfinite(node.value):
-                raise self.refuse(node, "a number too large")
-            return (
-                sp.Integer(node.value)
-                if isinstance(node.value, int)
-                else sp.Float(repr(node.value), 17)
-            )
+            return self.number(node)
         if isinstance(node, ast.Name):
             if node.id not in self.names:
-                raise self.refuse(node, f"the undeclared name {node.id!r}")
+                raise self.refuse(node, f"the undeclared name {abbreviated(node.id)!r}")
             return self.names[node.id]
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
             operand = self.build(node.operand, depth + 1)
             return -operand if isinstance(node.op, ast.USub) else operand
-        if isinstance(node, ast.BinOp) and isinstance(
-            node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)
-        ):
-            left, right = self.build(node.left, depth + 1), self.build(node.right, depth + 1)
-            if isinstance(node.op, ast.Pow) and right.is_number and abs(float(right)) > 64:
-                raise self.refuse(node.right, "a power beyond 64")
-            op = node.op
-            return (
-                left + right
-                if isinstance(op, ast.Add)
-                else left - right
-                if isinstance(op, ast.Sub)
-                else left * right
-                if isinstance(op, ast.Mult)
-                else left / right
-                if isinstance(op, ast.Div)
-                else left**right
-            )
+        if isinstance(node, ast.BinOp) and isinstance(node.op, (ast.Add, ast.Sub)):
+            terms = [s * self.build(t, depth + 1) for t, s in _chain(node, (ast.Add, ast.Sub))]
+            self.check_folded(node, sp.Add, terms, "terms")
+            return sp.Add(*terms)
+        if isinstance(node, ast.BinOp) and isinstance(node.op, (ast.Mult, ast.Div)):
+            factors = [self.build(f, depth + 1) ** s for f, s in _chain(node, (ast.Mult, ast.Div))]
+            self.check_folded(node, sp.Mul, factors, "factors")
+            return self.checked_powers(node, sp.Mul(*factors))
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
+            return self.power(node, depth)
         if isinstance(node, ast.Call):
             return self.call(node, depth)
         if isinstance(node, (ast.BinOp, ast.BoolOp, ast.Compare, ast.UnaryOp)):
             raise self.refuse_operator(node)
         raise self.refuse(node)
+
+    def number(self, node: ast.Constant):
+        value = node.value
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.refuse(node)
+        if not abs(value) <= MAX_MAGNITUDE:
+            column, text = self.span(node)
+            raise _refuse(
+                self.field, f"the number {abbreviated(text)}", column, self.params, _RANGE
+            )
+        sp = self.sympy
+        return sp.Integer(value) if isinstance(value, int) else sp.Float(repr(value), 17)
+
+    def power(self, node: ast.BinOp, depth: int):
+        left, right = self.build(node.left, depth + 1), self.build(node.right, depth + 1)
+        if not right.free_symbols and abs(self.constant_value(right)) > MAX_POWER:
+            column, text = self.span(node.right)
+            raise _refuse(
+                self.field,
+                f"the power {abbreviated(text)}",
+                column,
+                self.params,
+                f"powers of at most {MAX_POWER} in magnitude",
+            )
+        if right.is_Float and float(2 * right).is_integer():  # x^2.0 is x^2, x^0.5 sqrt(x)
+            right = self.sympy.Rational(int(2 * right), 2)
+        return self.checked_powers(node, left**right)
+
+    def checked_powers(self, node: ast.AST, result):
+        """``result``, unless SymPy folded powers of powers (``(x^64)^64``, ``x^64*x^64``)
+        beyond :data:`MAX_POWER`."""
+        for part in (result, *result.args) if result.is_Mul else (result,):
+            if part.is_Pow and part.exp.is_Number and abs(float(part.exp)) > MAX_POWER:
+                column, text = self.span(node)
+                raise _refuse(
+                    self.field,
+                    f"{abbreviated(text)!r} (a power of {float(part.exp):g})",
+                    column,
+                    self.params,
+                    f"powers of at most {MAX_POWER} in magnitude",
+                )
+        return result
 
     def refuse_operator(self, node: ast.AST) -> FormulaError:
         """An operator outside the grammar, pointed at (not the whole expression)."""
@@ -509,56 +764,18 @@ class _Builder:
         return self.functions[node.func.id](*args)
 
 
-#: What GLSL 4.5 offers only in single precision.
-_FLOAT_ONLY = ("exp", "log", "sin", "cos", "tan")
-
-
-def _glsl_printer(precision: str = "fp32"):
-    """SymPy's GLSL printer, with integer powers written as products (GLSL's ``pow`` is
-    undefined for a negative base), Heaviside as ``step`` and numbers at full precision
-    (``LF`` double literals for fp64)."""
-    from sympy.printing.glsl import GLSLPrinter
-
-    suffix = "LF" if precision == "fp64" else ""
-
-    class Printer(GLSLPrinter):
-        def _print_Pow(self, expr):
-            base, exponent = expr.as_base_exp()
-            if exponent.is_Integer and 1 <= abs(int(exponent)) <= 64:
-                product = "*".join([f"({self._print(base)})"] * abs(int(exponent)))
-                return f"({product})" if exponent > 0 else f"(1.0{suffix}/({product}))"
-            if (
-                exponent.is_Rational and exponent.q == 2 and abs(exponent.p) <= 63
-            ):  # sqrt(b)^p, exact in fp64
-                product = "*".join([f"sqrt({self._print(base)})"] * abs(int(exponent.p)))
-                return f"({product})" if exponent > 0 else f"(1.0{suffix}/({product}))"
-            if suffix:
-                raise _no_double("a non-integer power")
-            return super()._print_Pow(expr)
-
-        def _print_Function(self, expr):
-            if suffix and type(expr).__name__ in _FLOAT_ONLY:
-                raise _no_double(type(expr).__name__)
-            return super()._print_Function(expr)
-
-        def _print_Heaviside(self, expr):
-            return f"step(0.0{suffix}, {self._print(expr.args[0])})"
-
-        def _print_Float(self, expr):
-            return repr(float(expr)) + suffix
-
-        def _print_Integer(self, expr):
-            return f"{int(expr)}.0{suffix}"
-
-        def _print_Rational(self, expr):
-            return f"({expr.p}.0{suffix}/{expr.q}.0{suffix})"
-
-    return Printer({"use_operators": True})
-
-
-def _no_double(what: str) -> SceneError:
-    return SceneError(
-        "render.precision",
-        f"fp32 for this formula: GLSL has no double-precision version of {what} "
-        "(fp64 formulas may use + - * /, integer powers, sqrt, abs, min and max)",
-    )
+def _chain(node: ast.AST, operators: tuple[type, ...]) -> list[tuple[ast.AST, int]]:
+    """The operands of a chain of ``operators`` (``+ -`` or ``* /``, through parentheses)
+    in order, each with its sign: 1, or -1 for a subtracted term or a divisor. Iterative:
+    a chain of thousands of terms is one level of nesting, not thousands."""
+    operands: list[tuple[ast.AST, int]] = []
+    pending: list[tuple[ast.AST, int]] = [(node, 1)]
+    while pending:
+        current, sign = pending.pop()
+        if isinstance(current, ast.BinOp) and isinstance(current.op, operators):
+            inverse = isinstance(current.op, (ast.Sub, ast.Div))
+            pending.append((current.right, -sign if inverse else sign))
+            pending.append((current.left, sign))
+        else:
+            operands.append((current, sign))
+    return operands
