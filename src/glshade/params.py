@@ -191,7 +191,7 @@ class Param:
                 raise SceneError(
                     self.path,
                     self.allowed(),
-                    value if isinstance(value, str) and len(value) < 80 else type(value).__name__,
+                    value if isinstance(value, str) else type(value).__name__,
                 )
             return value
         if self.value_type == "table":
