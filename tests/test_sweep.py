@@ -538,3 +538,27 @@ def test_the_optimiser_never_picks_a_view_it_cannot_read(renderer):
             base.with_value("emitter.period", 2.0), dims, [{}], metric="paper",
             executor=executor, grid_points=3, refine_evaluations=0,
         )  # fmt: skip
+
+
+def test_a_tampered_case_file_is_measured_again_and_said(local_table, renderer, tmp_path):
+    """A case file edited by hand fails its checksum: the sweep measures that case again,
+    says so once, and the table holds the measured number, not the edit."""
+    out, result = local_table
+    copy = tmp_path / "copy"
+    for path in out.rglob("*.json"):
+        target = copy / path.relative_to(out)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_bytes(path.read_bytes())
+    case = small_spec().cases()[2]
+    case_file = store.case_path(copy, case.case_id)
+    data = json.loads(case_file.read_text())
+    data["outputs"]["visibility_px"] = 1e308
+    case_file.write_text(json.dumps(data))
+    said: list[str] = []
+    again = run_sweep(small_spec(), copy, renderer=renderer, notify=said.append)
+    assert (again.computed, again.skipped) == (1, 7)
+    assert said == [
+        f"1 case file could not be trusted and is measured again: {case.case_id}.json fails "
+        "its checksum (edited or damaged)"
+    ]
+    assert again.rows == result.rows

@@ -426,6 +426,12 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
         help="in this process: threads for the metric's analysis while this thread traces "
         "(default 2)",
     )
+    p.add_argument(
+        "--yes",
+        action="store_true",
+        help="run a study of more cases (surfaces x thetas x sigma2s x dmaxs) than the "
+        "confirmation limit",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
         "--device", type=int, metavar="N", help="EGL device index (in this process only)"
@@ -454,6 +460,7 @@ def _cmd_paper(args: argparse.Namespace) -> int:
         size=args.size,
         metric=metric,
     )
+    study.check_size(plan, args.yes)  # before --out is touched, in both methods
     args.workers = paper_workers(args.workers, plan, args.device)
     if args.method == "pmd":
         pmd = pmd_plan(args, plan)  # bad input is refused before --out is touched

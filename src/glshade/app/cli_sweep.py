@@ -7,7 +7,6 @@ import argparse
 import json
 import sys
 import time
-from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -132,10 +131,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     from glshade.sweep.run import run_sweep
     from glshade.sweep.spec import load_spec
 
-    spec = load_spec(args.file, size=args.size)
+    spec = load_spec(args.file, size=args.size, yes=args.yes)  # a big grid: refused first
     distribution = _distribution(args)
     out = args.out if args.out is not None else Path(f"sweep_{args.file.stem}")
-    warn(line for case in spec.cases()[:1] for line in scene_warnings(case.scene))
+    warn(scene_warnings(spec.cases()[0].scene))
     reuse_freed_memory()
     result = run_sweep(
         spec,
@@ -144,6 +143,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         yes=args.yes,
         overwrite=args.overwrite,
         progress=not args.no_progress,
+        notify=lambda line: warn([line]),
     )
     rate = (
         f", {result.computed / result.seconds:.2f} cases/s"
@@ -151,11 +151,11 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         else ""
     )
     print(
-        f"wrote {out / 'results.parquet'} and results.csv: {len(result.rows)} cases "
+        f"wrote {out / 'results.parquet'} and results.csv: {result.cases} cases "
         f"measured by {spec.method} ({result.computed} measured, "
         f"{result.skipped} already done) in {result.seconds:.1f} s{rate}"
     )
-    counts = Counter(str(row.get("status", "ok")) for row in result.rows)
+    counts = result.statuses
     if set(counts) - {"ok"}:
         shown = ", ".join(f"{n} {status}" for status, n in counts.items() if status != "ok")
         print(f"not measurable: {shown} (the status and status_reason columns say why)")
@@ -224,6 +224,11 @@ def add_optimize(sub: argparse._SubParsersAction) -> None:
         "--plot", type=path_arg, metavar="PNG", help="write the objective's curve or map"
     )
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument(
+        "--yes",
+        action="store_true",
+        help="run a search of more cases (viewpoints x family members) than the confirmation limit",
+    )
     add_metric_flags(p)
     add_pmd_settings_flags(p)
     _add_distribution_flags(p)
@@ -235,10 +240,12 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     from glshade.measure.where import open_executor
     from glshade.process import reuse_freed_memory
     from glshade.sweep.optimize import (
+        check_cases,
+        family_members,
         goal_of,
         objective_figure,
         optimize_scene,
-        parse_family,
+        parse_family_axes,
         parse_over,
     )
 
@@ -262,7 +269,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         )
     if not 0 <= args.refine <= 1000:
         raise GlshadeError(f"--refine: must be an integer in [0, 1000], got {args.refine}")
-    family = parse_family(args.family, args.family_points)
+    family_axes = parse_family_axes(args.family, args.family_points)
+    check_cases(dimensions, family_axes, args.grid, args.refine, args.yes)  # before any member
+    family = family_members(family_axes)
     plot = [("--plot", args.plot, (".png",))] if args.plot is not None else []
     check_outputs(args, scene, plot)
     settings = metric_settings(args) if goal.method == "paper" else pmd_settings(args)

@@ -30,6 +30,16 @@ OVERLAY_CASES = {
     ("flat", 5.0, 1.0, 0.005): "fig09_contour_overlay_fold.png",
 }
 
+#: A study of more cases than this needs ``--yes`` (the sweep's limit: about an hour of
+#: llvmpipe at 256 px).
+MAX_CASES_UNCONFIRMED = 5000
+#: A study of more cases than this is refused: a run holds every case's scene and row in
+#: memory (about 2 KiB a case: 200 MiB here; a million would be the whole memory budget).
+MAX_STUDY_CASES = 100_000
+#: Most σ² of a study: its image grids draw a row of thumbnails for each (about 18 MiB of
+#: memory a row: 1.3 GiB at 64).
+MAX_SIGMA2S = 64
+
 #: A point of the plan: (surface, θ in degrees, σ² in mm², dmax in mm).
 PlanPoint = tuple[str, float, float, float]
 
@@ -69,6 +79,21 @@ def _scene_file(path: str, stamp: int) -> Scene:
     return Scene.load(path)
 
 
+def check_size(plan: StudyPlan, yes: bool) -> None:
+    """A study of more than :data:`MAX_CASES_UNCONFIRMED` cases runs only when confirmed
+    (``--yes``); one line says how its count arises."""
+    if plan.count > MAX_CASES_UNCONFIRMED and not yes:
+        raise GlshadeError(
+            f"{plan.count_text()} (more than {MAX_CASES_UNCONFIRMED}); add --yes to run it"
+        )
+
+
+def _shown(values: tuple[float, ...], most: int = 12) -> str:
+    """A list of numbers as a line shows it: a long one by its first values."""
+    shown = ", ".join(f"{v:g}" for v in values[:most])
+    return shown if len(values) <= most else f"{shown}, … ({len(values)} values)"
+
+
 def _float_list(
     name: str, values, lo: float, hi: float, closed_hi: bool = False
 ) -> tuple[float, ...]:
@@ -82,10 +107,13 @@ def _float_list(
             raise GlshadeError(
                 f"{name}: every value must be in ({lo:g}, {hi:g}{bracket}, got {v:g}"
             )
-    if len(set(values)) != len(values):
-        raise GlshadeError(
-            f"{name}: values must not repeat, got {', '.join(f'{v:g}' for v in values)}"
-        )
+    seen: set[float] = set()
+    for v in values:
+        if v in seen:
+            raise GlshadeError(
+                f"{name}: values must not repeat, got {v:g} twice in {_shown(values)}"
+            )
+        seen.add(v)
     return values
 
 
@@ -109,24 +137,47 @@ class StudyPlan:
                     f"surfaces: unknown surface {s!r}; allowed: {', '.join(PAPER_SURFACES)} or a "
                     "scene file (.toml) of a free-form surface"
                 )
-            if is_scene_file(s):
-                case_scene(s)  # the file loads: its errors name it
         if len({surface_label(s) for s in self.surfaces}) != len(self.surfaces):
             raise GlshadeError("surfaces: must not repeat (scene files by their names)")
         thetas = _float_list("thetas", self.thetas, MIN_THETA_DEG, 90.0)
         if any(a <= b for a, b in pairwise(thetas)):
             raise GlshadeError(
                 "thetas: must be strictly decreasing, from high to low viewpoints as in the paper "
-                f"(85 … 5), got {', '.join(f'{t:g}' for t in thetas)}"
+                f"(85 … 5), got {_shown(thetas)}"
             )
         object.__setattr__(self, "thetas", thetas)
         object.__setattr__(self, "sigma2s", _float_list("sigma2s", self.sigma2s, 0.0, math.inf))
         object.__setattr__(self, "dmaxs", _float_list("dmaxs", self.dmaxs, 0.0, math.inf))
+        if len(self.sigma2s) > MAX_SIGMA2S:
+            raise GlshadeError(
+                f"sigma2s: at most {MAX_SIGMA2S} values (the image grids draw a row for each), "
+                f"got {len(self.sigma2s)}"
+            )
+        if self.count > MAX_STUDY_CASES:  # before any scene is made
+            raise GlshadeError(f"{self.count_text()}; at most {MAX_STUDY_CASES} are allowed")
         Camera().resampled(self.size)  # validates the size
         for surface in self.surfaces:
+            if is_scene_file(surface):
+                case_scene(surface)  # the file loads: its errors name it
             self.metric.phases(
                 self.scene(surface, self.thetas[0], self.sigma2s[0], self.dmaxs[0]).emitter.period
             )
+
+    @property
+    def count(self) -> int:
+        """The plan's number of cases (counted, not listed)."""
+        return len(self.surfaces) * len(self.thetas) * len(self.sigma2s) * len(self.dmaxs)
+
+    def count_text(self) -> str:
+        """How the number of cases arises, in one line naming the flags."""
+        lists = (
+            (self.surfaces, "surfaces"),
+            (self.thetas, "thetas"),
+            (self.sigma2s, "sigma2s"),
+            (self.dmaxs, "dmaxs"),
+        )
+        factors = " x ".join(f"{len(values)} {name}" for values, name in lists)
+        return f"--surfaces/--thetas/--sigma2s/--dmaxs: {factors} = {self.count} cases"
 
     def scene(self, surface: str, theta: float, sigma2: float, dmax: float) -> Scene:
         return case_scene(surface, theta, sigma2, dmax).with_size(self.size)

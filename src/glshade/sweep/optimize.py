@@ -2,8 +2,9 @@
 worst-case visibility over a family of dents (``glshade optimize``, docs/sweeps.md).
 
 1. **Coarse grid** over the ``--over`` keys (their bounds), every point measured for every
-   member of the family, on the sweep machinery (in-process or on Dask: the grid is one
-   batch of cases).
+   member of the family, on the sweep machinery (in-process or on Dask: the grid's cases
+   go in batches of :data:`CHUNK_CASES`). How many cases a search may measure at most is
+   checked before any is made (:func:`check_cases`).
 2. **Bounded refinement** from the best grid point with SciPy's Nelder–Mead inside the
    grid cell around it (± one grid step per key, clipped to the bounds), initial simplex
    half a step wide, at most ``refine_evaluations`` points.
@@ -48,7 +49,7 @@ from glshade.measure.single import as_method
 from glshade.metrics.visibility import MetricSettings
 from glshade.scene import Scene
 from glshade.sweep.goals import GOALS, METRICS, Goal
-from glshade.sweep.spec import Settings, canonical_key, case_id
+from glshade.sweep.spec import Settings, canonical_key, case_id, check_count, count_text
 from glshade.units import examples, parse_quantity
 
 #: Tie-break weight of the continuous visibility in the paper metric's score.
@@ -170,12 +171,22 @@ def parse_over(text: str) -> tuple[Dimension, ...]:
     return tuple(dims)
 
 
+#: A family of dents as its axes: each key and its values (the members: every combination).
+FamilyAxes = tuple[tuple[str, tuple[float, ...]], ...]
+
+
 def parse_family(text: str | None, points: int = 3) -> list[dict[str, float]]:
     """``KEY=LO..HI`` (``points`` values, ends included) or ``KEY=V1|V2|...``, comma
     separated: the family's members are every combination ([{}] without a family)."""
+    return family_members(parse_family_axes(text, points))
+
+
+def parse_family_axes(text: str | None, points: int = 3) -> FamilyAxes:
+    """The axes of ``--family`` (:func:`parse_family`): how many members it has is the
+    product of their lengths, known before any member is made (:func:`check_cases`)."""
     if not text:
-        return [{}]
-    axes: list[tuple[str, list[float]]] = []
+        return ()
+    axes: list[tuple[str, tuple[float, ...]]] = []
     for item in _items(text, "--family"):
         key, sep, span = item.partition("=")
         key = canonical_key(key)
@@ -184,16 +195,48 @@ def parse_family(text: str | None, points: int = 3) -> list[dict[str, float]]:
         unit = _numeric_unit(key, "--family")
         if "|" in span:
             values = [_float(v, f"--family {key}", unit) for v in span.split("|")]
+            if len(set(values)) != len(values):
+                shown = "|".join(f"{v:g}" for v in values)
+                raise GlshadeError(f"--family {key}: values must not repeat, got {shown}")
         else:
             lo, hi = _span(span, f"--family {key}", allow_equal=True, unit=unit)
-            values = [lo] if lo == hi else list(np.linspace(lo, hi, points))
-        axes.append((key, values))
+            values = [lo] if lo == hi else [float(v) for v in np.linspace(lo, hi, points)]
+        axes.append((key, tuple(values)))
     if len({k for k, _ in axes}) != len(axes):
         raise GlshadeError("--family: a key is listed twice")
+    return tuple(axes)
+
+
+def family_members(axes: FamilyAxes) -> list[dict[str, float]]:
+    """Every combination of the family's axes ([{}]: no family)."""
+    keys = [key for key, _ in axes]
     return [
-        dict(zip([k for k, _ in axes], combo, strict=True))
-        for combo in itertools.product(*(v for _, v in axes))
+        dict(zip(keys, combo, strict=True))
+        for combo in itertools.product(*(values for _, values in axes))
     ]
+
+
+def check_cases(
+    dimensions: Sequence[Dimension],
+    family: FamilyAxes,
+    grid_points: int | None,
+    refine_evaluations: int,
+    yes: bool,
+) -> int:
+    """The most cases a search measures (every viewpoint of the grid and of the
+    refinement, times every member of the family), counted from the lengths alone, or one
+    line saying how the count arises: refused beyond :data:`~glshade.sweep.spec.MAX_CASES`,
+    and beyond :data:`~glshade.sweep.spec.MAX_CASES_UNCONFIRMED` unless ``yes``."""
+    per_key = grid_size(dimensions, grid_points)
+    grid = per_key ** len(dimensions)
+    viewpoints = grid + refine_evaluations
+    lengths = [len(values) for _, values in family]
+    members = math.prod(lengths)
+    how = f"{viewpoints} viewpoints ({grid} on the grid + at most {refine_evaluations} refining)"
+    if family:
+        how = f"{count_text(lengths, 'dents per viewpoint')} x {how}"
+    total = members * viewpoints
+    return check_count(total, f"--family/--over: {how} = {total} cases", yes)
 
 
 def _items(text: str, flag: str) -> list[str]:
@@ -243,7 +286,9 @@ def _float(text: str, where: str, unit: str = "") -> float:
 
 
 # --------------------------------------------------------------------------- the search
-def grid_axes(dimensions: Sequence[Dimension], points: int | None = None) -> list[np.ndarray]:
+def grid_size(dimensions: Sequence[Dimension], points: int | None = None) -> int:
+    """Grid points per key: ``points``, or the default for this many keys; at least 2,
+    at most :data:`MAX_GRID_POINTS` in all."""
     n = points or GRID_POINTS.get(len(dimensions), GRID_POINTS_MANY)
     if n < 2:
         raise GlshadeError(f"--grid: at least 2 points per key, got {n}")
@@ -251,6 +296,11 @@ def grid_axes(dimensions: Sequence[Dimension], points: int | None = None) -> lis
         raise GlshadeError(
             f"--grid: {n}^{len(dimensions)} points is more than {MAX_GRID_POINTS}; use fewer"
         )
+    return n
+
+
+def grid_axes(dimensions: Sequence[Dimension], points: int | None = None) -> list[np.ndarray]:
+    n = grid_size(dimensions, points)
     return [np.linspace(d.lo, d.hi, n) for d in dimensions]
 
 
@@ -372,11 +422,16 @@ def settings_for(metric: str, settings: Settings | None = None) -> Settings:
     return settings
 
 
+#: Cases measured per call to the executor: the objective holds at most this many scenes.
+CHUNK_CASES = 4096
+
+
 class SceneObjective:
     """The worst case of ``metric`` over a family, measured by an executor (in-process or
     Dask: :func:`glshade.measure.where.open_executor`); every case measured once (by
-    id). A phase-measuring metric measures each scene as a station does (its screen shows
-    the fringe sequence)."""
+    id), the points' cases in chunks of :data:`CHUNK_CASES`, and of each case only its
+    numbers kept. A phase-measuring metric measures each scene as a station does (its
+    screen shows the fringe sequence)."""
 
     def __init__(
         self,
@@ -392,11 +447,13 @@ class SceneObjective:
         self.base = as_method(base, self.goal.method)
         self.dimensions, self.family = tuple(dimensions), family
         self.settings, self.metric, self.executor = settings, metric, executor
-        self.records: dict[str, Measurement | PmdMeasurement] = {}
+        #: Case id -> the objective's number and the tie-break's (NaN: none), and whether
+        #: the number can be read.
+        self.numbers: dict[str, tuple[float, float, bool]] = {}
         #: Case id -> why its number cannot be read (status: reason).
         self.unreadable: dict[str, str] = {}
         for point in (tuple(d.lo for d in dimensions), tuple(d.hi for d in dimensions)):
-            for member in family:  # every corner and member is a valid scene before any work
+            for member in _each_value(family):  # valid scenes before any work
                 self._check(self.scene(point, member))
 
     def _check(self, scene: Scene) -> None:
@@ -420,23 +477,19 @@ class SceneObjective:
             raise GlshadeError(f"--over/--family: a bound gives no valid scene: {exc}") from None
 
     def __call__(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        grid = [[self.scene(p, m) for m in self.family] for p in points]
-        ids = [[case_id(s, self.settings) for s in row] for row in grid]
-        todo = {
-            i: Case(i, s)
-            for row_ids, row in zip(ids, grid, strict=True)
-            for i, s in zip(row_ids, row, strict=True)
-            if i not in self.records
-        }
-        for key, record, _ in self.executor.rows(list(todo.values()), self.settings, False):
-            self.records[key] = record
+        shape = (len(points), len(self.family))
+        chosen, tie = np.full(shape, np.nan), np.zeros(shape)
+        readable = np.zeros(shape, bool)
+        pairs = itertools.product(range(shape[0]), range(shape[1]))
+        while chunk := list(itertools.islice(pairs, CHUNK_CASES)):
+            ids = self._measured([(tuple(points[i]), self.family[j]) for i, j in chunk])
+            for (i, j), key in zip(chunk, ids, strict=True):
+                chosen[i, j], tie[i, j], readable[i, j] = self.numbers[key]
         goal = self.goal
-        chosen = self._numbers(ids, goal.column)
         if self.metric == "paper":  # whole pixels, ties broken by the continuous limit
-            score = chosen + TIE * self._numbers(ids, "visibility_continuous_px")
+            score = chosen + TIE * tie
         else:
             score = goal.sense * chosen
-        readable = np.array([[self._readable(i) for i in row] for row in ids], bool)
         # a point is only as good as its worst member, and a member whose number cannot be
         # read makes the point unusable: never the optimum, never near it
         usable = readable.all(axis=1)
@@ -445,28 +498,45 @@ class SceneObjective:
             value = np.where(usable, goal.sense * (goal.sense * chosen).min(axis=1), np.nan)
         return worst, value, chosen
 
-    def _numbers(self, ids: list[list[str]], column: str) -> np.ndarray:
-        """A column of the records of ``ids`` (NaN where a record has no number)."""
-        return np.array(
-            [[_number(getattr(self.records[i], column)) for i in row] for row in ids],
-            dtype=np.float64,
-        )
+    def _measured(self, cases: list[tuple[Sequence[float], dict[str, float]]]) -> list[str]:
+        """The ids of ``cases`` (a point and a member each), those not yet measured
+        measured now."""
+        scenes = [self.scene(point, member) for point, member in cases]
+        ids = [case_id(scene, self.settings) for scene in scenes]
+        todo = {i: Case(i, s) for i, s in zip(ids, scenes, strict=True) if i not in self.numbers}
+        for key, record, _ in self.executor.rows(list(todo.values()), self.settings, False):
+            self.numbers[key] = self._kept(key, record)
+        return ids
 
-    def _readable(self, key: str) -> bool:
-        """Whether a case gives the objective a number; if not, why is kept."""
-        record = self.records[key]
+    def _kept(self, key: str, record: Measurement | PmdMeasurement) -> tuple[float, float, bool]:
+        """What the objective keeps of a case's record: its number, the tie-break's, and
+        whether the number can be read (if not, why is kept in :attr:`unreadable`)."""
         number = _number(getattr(record, self.goal.column))
+        tie = 0.0
+        if self.metric == "paper" and isinstance(record, Measurement):
+            tie = _number(record.visibility_continuous_px)
         if self.goal.unreadable(record.status):
             self.unreadable[key] = f"{record.status}: {record.status_reason}"
-            return False
+            return number, tie, False
         if not math.isfinite(number):
             self.unreadable[key] = f"{record.status}: {self.goal.column} has no value"
-            return False
-        return True
+            return number, tie, False
+        return number, tie, True
 
     @property
     def cases(self) -> int:
-        return len(self.records)
+        return len(self.numbers)
+
+
+def _each_value(family: list[dict[str, float]]) -> list[dict[str, float]]:
+    """Members that give every value of every key of the family once: the first member
+    with one value changed (of a family of every combination, each of its values)."""
+    if not family or not family[0]:
+        return family[:1]
+    first = family[0]
+    values = {(key, value) for member in family for key, value in member.items()}
+    changed = [{**first, key: value} for key, value in sorted(values) if first.get(key) != value]
+    return [first, *changed]
 
 
 def _number(value) -> float:

@@ -10,35 +10,45 @@ file. The output directory is locked for the run (a second writer is refused).
 from __future__ import annotations
 
 import time
+from collections import Counter
 from collections.abc import Callable, Iterator
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from glshade.errors import GlshadeError
+from glshade.measure.case_files import Rejected
 from glshade.measure.executors import Distribution, Row
 from glshade.measure.locks import run_lock
 from glshade.measure.where import open_executor
 from glshade.sweep import store
-from glshade.sweep.spec import MAX_CASES_UNCONFIRMED, GridPoint, SweepSpec
+from glshade.sweep.spec import GridPoint, SweepSpec, check_grid
+from glshade.sweep.store import CaseRecord
+from glshade.sweep.table import TableWriter
 
 
 @dataclass
 class SweepResult:
-    rows: list[dict[str, Any]]
+    """What a run did: ``cases`` rows in the table (``statuses``: how many of each
+    status), ``computed`` measured now, ``skipped`` found measured, in ``seconds``; the
+    table itself is in ``out_dir`` (:attr:`rows` reads it back)."""
+
+    cases: int
+    statuses: dict[str, int]
     computed: int
     skipped: int
     seconds: float
     out_dir: Path
 
+    @property
+    def rows(self) -> list[dict[str, Any]]:
+        """The table's rows, read back from ``results.parquet``."""
+        return store.read_table(self.out_dir)
+
 
 def check_size(spec: SweepSpec, yes: bool) -> None:
     """A grid beyond :data:`MAX_CASES_UNCONFIRMED` cases runs only when confirmed."""
-    if spec.count > MAX_CASES_UNCONFIRMED and not yes:
-        raise GlshadeError(
-            f"{spec.source}: the grid has {spec.count} cases (more than {MAX_CASES_UNCONFIRMED}); "
-            "add --yes to run it"
-        )
+    check_grid([len(axis.entries) for axis in spec.axes], spec.source, yes)
 
 
 def run_sweep(
@@ -51,52 +61,110 @@ def run_sweep(
     progress: bool = False,
     renderer=None,
     on_row: Callable[[Row], None] | None = None,
+    notify: Callable[[str], None] | None = None,
 ) -> SweepResult:
-    """Run (or resume) ``spec`` into ``out_dir``; returns the table's rows.
+    """Run (or resume) ``spec`` into ``out_dir``; then write its table.
+
+    The grid is walked chunk by chunk (:meth:`~glshade.sweep.spec.GridCases.chunks`): a
+    chunk's cases are made, those with a case file are read back, the others measured and
+    written, and the chunk's rows go to the table (:class:`~glshade.sweep.table.
+    TableWriter`) before the next chunk is made. The first case is measured as soon as
+    the first chunk is made, and memory holds one chunk, whatever the grid's size.
 
     ``renderer``: an existing one for the in-process path. ``on_row`` is called after each
-    computed case is safely on disk (tests kill a run there)."""
+    computed case is safely on disk (tests kill a run there). ``notify(line)`` is told of
+    case files that fail their check (:mod:`glshade.measure.case_files`: they are measured
+    again): at the first chunk that has any, and the rest once at the end (a warning when
+    None)."""
     check_size(spec, yes)
     out_dir = Path(out_dir)
     with run_lock(out_dir, "glshade sweep"):
         store.prepare(out_dir, spec, overwrite)
-        cases = spec.cases()
-        records = {c.case_id: store.load_case(out_dir, c.case_id, spec.method) for c in cases}
-        done = {key: record for key, record in records.items() if record is not None}
-        pending = list({c.case_id: c for c in cases if c.case_id not in done}.values())
+        tally = _Tally(_progress_bar(spec.count, progress), notify)
         start = time.perf_counter()
-        bar = _progress_bar(len(records), len(done), progress)
-        try:
-            for row in _rows(spec, pending, distribution, renderer):
-                case_id, record, image = row
-                store.write_case(out_dir, case_id, record, image)
-                done[case_id] = record
-                if bar is not None:
-                    bar.update(1)
-                if on_row is not None:
-                    on_row(row)
-        finally:
-            if bar is not None:
-                bar.close()
-        rows = store.table_rows(spec, cases, done)
-        store.write_tables(out_dir, spec, rows)
+        with TableWriter(out_dir, spec) as table, ExitStack() as stack:
+            executor = None
+            try:
+                for chunk in spec.cases().chunks():
+                    done = tally.found(chunk, out_dir, spec.method)
+                    pending = list({c.case_id: c for c in chunk if c.case_id not in done}.values())
+                    if pending and executor is None:  # opened once, on the first case to measure
+                        executor = stack.enter_context(open_executor(distribution, renderer))
+                    for row in _rows(spec, pending, executor):
+                        case_id, record, image = row
+                        store.write_case(out_dir, case_id, record, image)
+                        done[case_id] = record
+                        tally.measured(case_id)
+                        if on_row is not None:
+                            on_row(row)
+                    table.add(tally.rows(spec, chunk, done))
+            finally:
+                tally.close()
+                tally.rejected.say(notify)
+            stack.close()  # the executor (a Dask cluster too) is done before the tables
+            seconds = time.perf_counter() - start
+            table.finish()
         return SweepResult(
-            rows, len(pending), len(records) - len(pending), time.perf_counter() - start, out_dir
+            table.rows, dict(tally.statuses), tally.computed, tally.skipped, seconds, out_dir
         )
 
 
-def _rows(
-    spec: SweepSpec, pending: list[GridPoint], distribution: Distribution, renderer
-) -> Iterator[Row]:
-    if not pending:
-        return
-    with open_executor(distribution, renderer) as executor:
+class _Tally:
+    """The counts of a run (found, measured, each status in the table) and its bar."""
+
+    def __init__(self, bar, notify: Callable[[str], None] | None = None) -> None:
+        self.bar = bar
+        self.notify = notify
+        self.rejected = Rejected()  # case files not trusted, not yet said
+        self.said_once = False
+        self.computed = self.skipped = 0
+        self.statuses: Counter[str] = Counter()
+        self._points: Counter[str] = Counter()  # the chunk's points of each case id
+
+    def found(self, chunk: list[GridPoint], out_dir: Path, method: str) -> dict[str, CaseRecord]:
+        """The chunk's cases already measured (their case files), by id."""
+        self._points = Counter(c.case_id for c in chunk)
+        records = {
+            key: store.load_case(out_dir, key, method, self.rejected) for key in self._points
+        }
+        if self.rejected.found and not self.said_once:  # the first at once, the rest at the end
+            self.rejected.say(self.notify)
+            self.rejected, self.said_once = Rejected(), True
+        done = {key: record for key, record in records.items() if record is not None}
+        self.skipped += len(done)
+        self._advance(sum(self._points[key] for key in done))
+        return done
+
+    def measured(self, case_id: str) -> None:
+        """One case of the chunk measured now (and on disk)."""
+        self.computed += 1
+        self._advance(self._points[case_id])
+
+    def rows(
+        self, spec: SweepSpec, chunk: list[GridPoint], done: dict[str, CaseRecord]
+    ) -> list[dict[str, Any]]:
+        """The chunk's rows of the table (:func:`glshade.sweep.store.table_rows`)."""
+        rows = store.table_rows(spec, chunk, done)
+        self.statuses.update(str(row.get("status", "ok")) for row in rows)
+        return rows
+
+    def _advance(self, cases: int) -> None:
+        if self.bar is not None and cases:
+            self.bar.update(cases)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _rows(spec: SweepSpec, pending: list[GridPoint], executor) -> Iterator[Row]:
+    if pending:
         yield from executor.rows([point.case for point in pending], spec.settings, spec.images)
 
 
-def _progress_bar(total: int, initial: int, enabled: bool):
+def _progress_bar(total: int, enabled: bool):
     if not enabled:
         return None
     from tqdm import tqdm
 
-    return tqdm(total=total, initial=initial, unit="case", desc="glshade sweep", dynamic_ncols=True)
+    return tqdm(total=total, unit="case", desc="glshade sweep", dynamic_ncols=True)

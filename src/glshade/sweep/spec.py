@@ -31,9 +31,10 @@ import hashlib
 import itertools
 import json
 import math
+from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
@@ -141,14 +142,15 @@ class SweepSpec:
         scene = self.base.with_values([(key, value) for key, value in pairs if key != SIZE_KEY])
         return scene.with_size(size) if size is not None else scene
 
-    def cases(self) -> list[GridPoint]:
-        """Every case of the grid, first axis outermost."""
-        ranges = [range(len(axis.entries)) for axis in self.axes]
-        cases = []
-        for index in itertools.product(*ranges):
-            scene = self.scene(index)
-            cases.append(GridPoint(index, Case(case_id(scene, self.settings), scene)))
-        return cases
+    def point(self, index: tuple[int, ...]) -> GridPoint:
+        """The case at one point of the grid (its scene made and hashed now)."""
+        scene = self.scene(index)
+        return GridPoint(index, Case(case_id(scene, self.settings), scene))
+
+    def cases(self) -> GridCases:
+        """Every case of the grid, first axis outermost: a sequence that makes each case
+        when it is asked for (:class:`GridCases`), never the whole grid at once."""
+        return GridCases(self)
 
     def swept_values(self, case: GridPoint) -> dict[str, Any]:
         """The row's swept columns: each linked axis's label, then each swept key's value
@@ -188,6 +190,58 @@ class SweepSpec:
         )
 
 
+class GridCases(Sequence[GridPoint]):
+    """The cases of a grid in its order (first axis outermost), each made (its scene
+    built, its id hashed: about 2 ms) only when it is asked for: iterating holds one case
+    at a time, :meth:`chunks` one chunk, and ``cases[n]`` makes case ``n`` alone. A slice
+    is a list of the cases it names."""
+
+    def __init__(self, spec: SweepSpec) -> None:
+        self.spec = spec
+        self._lengths = tuple(len(axis.entries) for axis in spec.axes)
+
+    def __len__(self) -> int:
+        return self.spec.count
+
+    @overload
+    def __getitem__(self, n: int) -> GridPoint: ...
+
+    @overload
+    def __getitem__(self, n: slice) -> list[GridPoint]: ...
+
+    def __getitem__(self, n: int | slice) -> GridPoint | list[GridPoint]:
+        if isinstance(n, slice):
+            return [self[i] for i in range(*n.indices(len(self)))]
+        if not -len(self) <= n < len(self):
+            raise IndexError(f"case {n} of a grid of {len(self)}")
+        return self.spec.point(self.place(n % len(self)))
+
+    def __iter__(self) -> Iterator[GridPoint]:
+        for index in itertools.product(*(range(length) for length in self._lengths)):
+            yield self.spec.point(index)
+
+    def place(self, n: int) -> tuple[int, ...]:
+        """The place in the grid (an index per axis) of case number ``n``."""
+        place = []
+        for length in reversed(self._lengths):
+            n, i = divmod(n, length)
+            place.append(i)
+        return tuple(reversed(place))
+
+    def chunks(self, first: int = 16, most: int = 4096) -> Iterator[list[GridPoint]]:
+        """The cases in consecutive lists: ``first`` cases, then twice as many each time
+        up to ``most`` (the first case comes soon; later chunks are long enough to share
+        each geometry's defect-free analysis and to keep many workers busy)."""
+        size, chunk = first, []
+        for point in self:
+            chunk.append(point)
+            if len(chunk) == size:
+                yield chunk
+                size, chunk = min(2 * size, most), []
+        if chunk:
+            yield chunk
+
+
 def _column_value(scene: Scene, key: str) -> Any:
     if key == SIZE_KEY:
         return scene.camera.width
@@ -224,31 +278,41 @@ def case_id(scene: Scene, settings: Settings) -> str:
 
 
 # --------------------------------------------------------------------------- reading
-def load_spec(path: str | Path, size: int | None = None) -> SweepSpec:
-    """Read and validate a sweep file; ``size`` overrides its ``size``. Any problem is a
-    :class:`GlshadeError` whose one line names the file and the field."""
+def load_spec(path: str | Path, size: int | None = None, *, yes: bool = True) -> SweepSpec:
+    """Read and validate a sweep file; ``size`` overrides its ``size``; ``yes`` False
+    refuses a grid beyond :data:`MAX_CASES_UNCONFIRMED` cases (``--yes`` not given). Any
+    problem is a :class:`GlshadeError` whose one line names the file and the field."""
     path = Path(path)
     data = read_toml(path, "sweep file")
-    return spec_from_dict(data, path.parent, source=str(path), size=size)
+    return spec_from_dict(data, path.parent, source=str(path), size=size, yes=yes)
 
 
 def spec_from_dict(
-    data: dict, directory: Path = Path("."), source: str = "<sweep>", size: int | None = None
+    data: dict,
+    directory: Path = Path("."),
+    source: str = "<sweep>",
+    size: int | None = None,
+    *,
+    yes: bool = True,
 ) -> SweepSpec:
+    """A validated sweep (:func:`load_spec`). The grid's size is checked first, from its
+    axes' lengths alone (no value built, no scene made): beyond :data:`MAX_CASES` cases it
+    is refused, beyond :data:`MAX_CASES_UNCONFIRMED` unless ``yes``."""
     unknown = sorted(set(data) - set(_TOP_KEYS))
     if unknown:
         raise GlshadeError(
             f"{source}: unknown key {unknown[0]!r}; a sweep file has {', '.join(_TOP_KEYS)}"
         )
-    base = _base_scene(data.get("base"), directory, source)
-    settings = _settings(data.get("metric", {}), source, base)
-    base = as_method(base, method_of(settings))
-    size = _size(size if size is not None else data.get("size"), f"{source}: size")
     grid = data.get("grid", {})
     if not isinstance(grid, dict) or not grid:
         raise GlshadeError(
             f'{source}: [grid] must hold at least one axis, e.g. "camera.theta_deg" = [85, 45, 5]'
         )
+    check_grid([_axis_length(name, value, source) for name, value in grid.items()], source, yes)
+    base = _base_scene(data.get("base"), directory, source)
+    settings = _settings(data.get("metric", {}), source, base)
+    base = as_method(base, method_of(settings))
+    size = _size(size if size is not None else data.get("size"), f"{source}: size")
     axes = tuple(_axis(name, value, source) for name, value in grid.items())
     output = data.get("output", {})
     if not isinstance(output, dict) or set(output) - set(_OUTPUT_KEYS):
@@ -257,10 +321,6 @@ def spec_from_dict(
     if not isinstance(images, bool):
         raise GlshadeError(f"{source}: output.images must be true or false, got {images!r}")
     spec = SweepSpec(base, axes, size, settings, images, source)
-    if spec.count > MAX_CASES:
-        raise GlshadeError(
-            f"{source}: the grid has {spec.count} cases; at most {MAX_CASES} are allowed"
-        )
     _check_keys_apart(axes, source)
     for axis in axes:  # every value applies to the base (the others at their first entry)
         for i in range(len(axis.entries)):
@@ -271,6 +331,35 @@ def spec_from_dict(
                 raise GlshadeError(f"{source}: grid.{axis.name}: {exc}") from None
             _check_case(scene, settings, f"{source}: grid.{axis.name}")
     return spec
+
+
+def count_text(lengths: Sequence[int], unit: str = "cases") -> str:
+    """How a count of cases arises from its factors: ``99 x 100 x 100 = 990000 cases``
+    (a factor repeated more than twice as a power: ``64^4 = 16777216``)."""
+    total = math.prod(lengths)
+    factors = []
+    for length, run in itertools.groupby(lengths):
+        times = len(list(run))
+        factors += [f"{length}^{times}"] if times > 2 else [str(length)] * times
+    shown = " x ".join(factors)
+    return f"{total} {unit}" if shown == str(total) else f"{shown} = {total} {unit}"
+
+
+def check_count(total: int, how: str, yes: bool) -> int:
+    """``total`` cases (counted, never listed), or one line that starts with ``how`` (what
+    is counted and how it arises, e.g. ``the grid has 99 x 100 x 100 = 990000 cases``):
+    beyond :data:`MAX_CASES` it is refused, beyond :data:`MAX_CASES_UNCONFIRMED` unless
+    ``yes`` (``--yes``)."""
+    if total > MAX_CASES:
+        raise GlshadeError(f"{how}; at most {MAX_CASES} are allowed")
+    if total > MAX_CASES_UNCONFIRMED and not yes:
+        raise GlshadeError(f"{how} (more than {MAX_CASES_UNCONFIRMED}); add --yes to run it")
+    return total
+
+
+def check_grid(lengths: Sequence[int], source: str, yes: bool) -> int:
+    """A grid of axes of these lengths (:func:`check_count`)."""
+    return check_count(math.prod(lengths), f"{source}: the grid has {count_text(lengths)}", yes)
 
 
 def _check_case(scene: Scene, settings: Settings, where: str) -> None:
@@ -399,6 +488,55 @@ def _unit(key: str) -> str:
         return ""
 
 
+def _axis_length(name: str, value, source: str) -> int:
+    """How many entries an axis has, from its list's length or its range's numbers (no
+    value is built or checked here but the range's own)."""
+    where = f"{source}: grid.{name}"
+    if isinstance(value, list):
+        if not value:
+            raise GlshadeError(f"{where}: an empty list sweeps nothing; give at least one value")
+        return len(value)
+    if isinstance(value, dict):
+        return _range(value, where, _unit(canonical_key(name)))[2]
+    return 1
+
+
+def _range(value: dict, where: str, unit: str) -> tuple[float, float, int, float | None]:
+    """A range's ``start``, ``stop``, number of values and ``step`` (None: given by
+    ``num``), checked: at most :data:`MAX_CASES` values."""
+    keys = set(value)
+    if keys not in ({"start", "stop", "num"}, {"start", "stop", "step"}):
+        raise GlshadeError(
+            f"{where}: a range is {{start, stop, num}} or {{start, stop, step}}, got "
+            f"{{{', '.join(sorted(keys))}}}"
+        )
+    start, stop = (_number(value[k], f"{where}.{k}", unit) for k in ("start", "stop"))
+    step = None
+    if "num" in value:
+        num = value["num"]
+        if isinstance(num, bool) or not isinstance(num, int) or num < 1:
+            raise GlshadeError(f"{where}.num: must be an integer >= 1, got {num!r}")
+    else:
+        step = _number(value["step"], f"{where}.step", unit)
+        if step <= 0:
+            raise GlshadeError(f"{where}.step: must be > 0, got {step:g}")
+        steps = (stop - start) / step  # an overflow is inf: refused below, never floored
+        num = math.floor(steps + 1e-9) + 1 if math.isfinite(steps) and steps < MAX_CASES else 0
+        if not num and stop > start:
+            raise GlshadeError(
+                f"{where}.step: {step:g} from {start:g} to {stop:g} makes more than "
+                f"{MAX_CASES} values"
+            )
+    if not (start < stop or (start == stop and num == 1)):
+        raise GlshadeError(
+            f"{where}: an inverted or empty range (start {start:g}, stop {stop:g}); "
+            "start must be below stop (list the values to sweep downwards)"
+        )
+    if num > MAX_CASES:
+        raise GlshadeError(f"{where}.num: at most {MAX_CASES}, got {num}")
+    return start, stop, num, step
+
+
 def _values(value, where: str, unit: str = "") -> list:
     """A list, or a range ``{start, stop, num}`` / ``{start, stop, step}`` (inclusive);
     a range's numbers may carry a unit (``start = "3 um"``)."""
@@ -407,30 +545,8 @@ def _values(value, where: str, unit: str = "") -> list:
             raise GlshadeError(f"{where}: an empty list sweeps nothing; give at least one value")
         return value
     if isinstance(value, dict):
-        keys = set(value)
-        if keys not in ({"start", "stop", "num"}, {"start", "stop", "step"}):
-            raise GlshadeError(
-                f"{where}: a range is {{start, stop, num}} or {{start, stop, step}}, got "
-                f"{{{', '.join(sorted(keys))}}}"
-            )
-        start, stop = (_number(value[k], f"{where}.{k}", unit) for k in ("start", "stop"))
-        if "num" in value:
-            num = value["num"]
-            if isinstance(num, bool) or not isinstance(num, int) or num < 1:
-                raise GlshadeError(f"{where}.num: must be an integer >= 1, got {num!r}")
-        else:
-            step = _number(value["step"], f"{where}.step", unit)
-            if step <= 0:
-                raise GlshadeError(f"{where}.step: must be > 0, got {step:g}")
-            num = math.floor((stop - start) / step + 1e-9) + 1
-        if not (start < stop or (start == stop and num == 1)):
-            raise GlshadeError(
-                f"{where}: an inverted or empty range (start {start:g}, stop {stop:g}); "
-                "start must be below stop (list the values to sweep downwards)"
-            )
-        if num > MAX_CASES:
-            raise GlshadeError(f"{where}.num: at most {MAX_CASES}, got {num}")
-        if "step" in value:
+        start, stop, num, step = _range(value, where, unit)
+        if step is not None:
             return [start + k * step for k in range(num)]
         return [start] if num == 1 else [start + (stop - start) * k / (num - 1) for k in range(num)]
     return [value]
