@@ -29,6 +29,32 @@ INSTALL_HINT = (
 )
 
 
+@contextlib.contextmanager
+def interrupts_deferred() -> Iterator[None]:
+    """SIGINT held back in this thread for the ``with`` block, then delivered (a Ctrl-C
+    meanwhile raises ``KeyboardInterrupt`` as the block ends).
+
+    For a driver's shader compile: Mesa's llvmpipe compiles with LLVM, which does not
+    survive a signal handler interrupting its system calls (measured: every process that
+    took a stream of SIGINTs while compiling ended in a segmentation fault; with the signal
+    held back, none did). Python handles signals on the main thread, which this blocks them
+    on (the kernel hands a Ctrl-C to another thread meanwhile, whose waits restart); in
+    any other thread it does nothing."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread() or not hasattr(
+        signal, "pthread_sigmask"
+    ):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
 @dataclass(frozen=True)
 class ContextInfo:
     """What ``glshade info`` prints."""

@@ -37,7 +37,7 @@ from glshade.components.base import UniformContext
 from glshade.errors import ContextError, GlshadeError, SceneError
 from glshade.frame import Frame, exposure_gain, normalize_outputs
 from glshade.gpu.compose import ShaderFeatures, compile_error, component_uniforms, compose
-from glshade.gpu.context import GLContext
+from glshade.gpu.context import GLContext, interrupts_deferred
 from glshade.scene import Scene
 
 #: Bytes per pixel of each output: GPU render target + host array (fp64 uv: an RGBA32F
@@ -410,7 +410,8 @@ class Renderer:
         vertex, fragment = compose(features)
         with self.context.current() as ctx:
             try:
-                program = ctx.program(vertex_shader=vertex, fragment_shader=fragment)
+                with interrupts_deferred():  # a Ctrl-C inside LLVM's compile crashes it
+                    program = ctx.program(vertex_shader=vertex, fragment_shader=fragment)
             except moderngl.Error as exc:
                 text = str(exc)
                 stage, source = (
