@@ -15,7 +15,7 @@ if [ -d .whl ]; then
         --target /tmp/site .whl/*.whl || exit 1
     export PYTHONPATH=/tmp/site:$PWD/src
 fi
-export PYTHONUNBUFFERED=1
+export PYTHONUNBUFFERED=1 GLSHADE_MEMORY_BUDGET_MB=32768  # a 128 GiB machine: 15 threads, 8 workers
 step() { echo; echo "== $*"; }
 run() { timeout "$1" "${@:2}" || echo "(step ended with status $?)"; }
 

@@ -363,6 +363,17 @@ def _table_entry(
     return param.path, checked(param, tuple(current.items()))
 
 
+def check_memory(cases, settings, threads: int, pooled: bool) -> None:
+    """The memory budget (``GLSHADE_MEMORY_BUDGET_MB``) checked for each geometry of
+    ``cases`` (a study's first case of each surface, a sweep's first chunk) before the
+    run's directory is touched: a run beyond it is refused with nothing written. The
+    engine checks every geometry again before tracing it."""
+    from glshade.gpu.renderer import memory_budget_from_env
+    from glshade.measure.engine import check_budget
+
+    check_budget(cases, settings, memory_budget_from_env(), threads=threads, pooled=pooled)
+
+
 def warn(lines) -> None:
     """Print each warning once, as one line on stderr."""
     for line in dict.fromkeys(lines):

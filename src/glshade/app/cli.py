@@ -27,6 +27,7 @@ from glshade.app.args import (
     add_pmd_settings_flags,
     add_save_scene,
     add_scene_flags,
+    check_memory,
     check_outputs,
     check_save_scene,
     metric_flags_given,
@@ -466,6 +467,15 @@ def _cmd_paper(args: argparse.Namespace) -> int:
         pmd = pmd_plan(args, plan)  # bad input is refused before --out is touched
         with run_lock(args.out):
             return cmd_paper_pmd(args, plan, pmd, _run_paper)
+    from glshade.measure.engine import Case
+
+    firsts = [(surface, *plan.cases()[0][1:]) for surface in plan.surfaces]
+    check_memory(
+        [Case(point, plan.scene(*point)) for point in firsts],
+        plan.metric,
+        threads=args.threads,
+        pooled=not args.workers,
+    )
     warn(
         tuple(
             line

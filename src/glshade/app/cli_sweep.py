@@ -14,6 +14,7 @@ from glshade.app.args import (
     add_metric_flags,
     add_pmd_settings_flags,
     add_scene_flags,
+    check_memory,
     check_outputs,
     metric_flags_given,
     metric_settings,
@@ -134,7 +135,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     spec = load_spec(args.file, size=args.size, yes=args.yes)  # a big grid: refused first
     distribution = _distribution(args)
     out = args.out if args.out is not None else Path(f"sweep_{args.file.stem}")
-    warn(scene_warnings(spec.cases()[0].scene))
+    first = next(iter(spec.cases().chunks()))  # the budget, before --out is touched
+    check_memory(
+        [point.case for point in first],
+        spec.settings,
+        threads=distribution.threads,
+        pooled=not (distribution.workers or distribution.scheduler),
+    )
+    warn(scene_warnings(first[0].scene))
     reuse_freed_memory()
     result = run_sweep(
         spec,

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from glshade.gpu.compose import ShaderFeatures
+from glshade.measure.memory import check_paper, check_pmd, paper_estimate
 from glshade.measure.pmd import PmdBaseline, PmdResult, PmdSettings, measure_pmd_scene, pmd_baseline
 from glshade.measure.record import Measurement, PmdMeasurement
 from glshade.measure.single import (
@@ -40,7 +41,7 @@ from glshade.metrics import visibility as vis
 from glshade.scene import Scene
 
 #: Cases traced ahead of the analysis: at most this many emitter maps wait in memory
-#: (4 MiB each at 1024²).
+#: (4 MiB each at 1024²; fewer where the memory budget cannot hold them, :func:`ahead_within`).
 AHEAD = 16
 
 
@@ -139,16 +140,90 @@ def measure_many(
     ``settings`` says the instrument: :class:`~glshade.metrics.visibility.MetricSettings`
     the paper's stripe metric, :class:`~glshade.measure.pmd.PmdSettings` phase measuring
     (every case's emitter shows the fringe sequence; one defect-free analysis per
-    geometry; ``extra`` gets a :class:`PmdView`)."""
-    if isinstance(settings, PmdSettings):
-        for group in grouped(cases, settings):
-            yield from _phase_measured(renderer, group, settings, extra)
-        return
+    geometry; ``extra`` gets a :class:`PmdView`).
+
+    Before a geometry is traced, its renderer's buffers and analysis (every thread's, and
+    the maps waiting for them) are held against the renderer's memory budget: beyond it,
+    a GlshadeError of one line (:mod:`glshade.measure.memory`); the defect-free stripe
+    maps kept take what the budget leaves."""
+    budget, threads = renderer.memory_budget_bytes, analysis_threads(pool)
     for group in grouped(cases, settings):
-        if shades_from_map(group[0].scene):
-            yield from _mapped(renderer, group, settings, pool, extra)
+        plan = budget_plan(group[0].scene, settings, budget, threads, pool is not None)
+        if isinstance(settings, PmdSettings):
+            yield from _phase_measured(renderer, group, settings, extra)
+        elif shades_from_map(group[0].scene):
+            yield from _mapped(renderer, group, settings, pool, extra, plan)
         else:
-            yield from _rendered(renderer, group, settings, extra)
+            yield from _rendered(renderer, group, settings, extra, plan.cache_bytes)
+
+
+@dataclass(frozen=True)
+class BudgetPlan:
+    """How one geometry is measured within the memory budget: the stripe maps its
+    baseline keeps (bytes) and the cases traced ahead of the analysis threads."""
+
+    cache_bytes: int
+    ahead: int
+
+
+def budget_plan(
+    scene: Scene,
+    settings: vis.MetricSettings | PmdSettings,
+    budget_bytes: int,
+    threads: int = 1,
+    pooled: bool = False,
+) -> BudgetPlan:
+    """The memory check of a geometry (``scene``) before it is traced: a GlshadeError of one
+    line where its renderer's buffers and analysis exceed ``budget_bytes``
+    (:mod:`glshade.measure.memory`), else its :class:`BudgetPlan`. ``threads``: analysis
+    threads; ``pooled``: the maps are analysed in a pool while the next are traced. The
+    caller holds the last result while the next case is measured."""
+    if isinstance(settings, PmdSettings):
+        check_pmd(scene, budget_bytes, results=1)
+        return BudgetPlan(0, 0)
+    if not shades_from_map(scene):
+        return BudgetPlan(check_paper(scene, settings, budget_bytes, waiting=1).cache_bytes, 0)
+    ahead = ahead_within(scene, settings, threads, budget_bytes) if pooled else 0
+    waiting = ahead + 1 if pooled else 1  # the most futures queued, or the caller's last
+    found = check_paper(scene, settings, budget_bytes, threads, waiting)
+    return BudgetPlan(found.cache_bytes, ahead)
+
+
+def check_budget(
+    cases: Sequence[Case],
+    settings: vis.MetricSettings | PmdSettings,
+    budget_bytes: int,
+    threads: int = 1,
+    pooled: bool = False,
+) -> None:
+    """:func:`budget_plan` of every geometry of ``cases``, nothing rendered: what a caller
+    runs before it writes anything (a study before its directory)."""
+    for group in grouped(cases, settings):
+        budget_plan(group[0].scene, settings, budget_bytes, threads, pooled)
+
+
+def ahead_within(
+    scene: Scene, settings: vis.MetricSettings, threads: int, budget_bytes: int
+) -> int:
+    """Cases to trace ahead of ``threads`` analysis threads: :data:`AHEAD`, halved until
+    the memory estimate fits ``budget_bytes`` (0 at least; the order of the results and
+    every number stay the same, only the overlap of tracing and analysis shrinks)."""
+
+    def need(ahead: int) -> int:
+        return paper_estimate(scene, settings, threads, ahead + 1).required_bytes
+
+    ahead = AHEAD
+    while ahead and need(ahead) > budget_bytes:
+        ahead //= 2
+    return ahead
+
+
+def analysis_threads(pool: Executor | None) -> int:
+    """Cases ``pool`` analyses at once: its workers (a thread pool's ``_max_workers``;
+    an executor that does not say is taken to run every case that may wait)."""
+    if pool is None:
+        return 1
+    return int(getattr(pool, "_max_workers", AHEAD + 1))
 
 
 def _traced(renderer, case: Case) -> tuple[np.ndarray, float]:
@@ -158,10 +233,12 @@ def _traced(renderer, case: Case) -> tuple[np.ndarray, float]:
     return v1, time.perf_counter() - start
 
 
-def _mapped(renderer, group, settings, pool, extra) -> Iterator[Measured]:
-    """One geometry shaded from its emitter maps: trace here, analyse in ``pool``."""
+def _mapped(renderer, group, settings, pool, extra, plan: BudgetPlan) -> Iterator[Measured]:
+    """One geometry shaded from its emitter maps: trace here, analyse in ``pool``, at most
+    ``plan.ahead`` cases traced ahead of the analysis."""
     normal = group[0].scene.without_defect()
-    baseline = map_baseline(normal, emitter_map(renderer, normal), settings)
+    baseline = map_baseline(normal, emitter_map(renderer, normal), settings, plan.cache_bytes)
+    ahead = plan.ahead
     waiting: deque = deque()
     for case in group:
         v1, trace_s = _traced(renderer, case)
@@ -169,7 +246,7 @@ def _mapped(renderer, group, settings, pool, extra) -> Iterator[Measured]:
             yield _analyse(case, baseline, v1, trace_s, extra)
             continue
         waiting.append(pool.submit(_analyse, case, baseline, v1, trace_s, extra))
-        while len(waiting) > AHEAD or (waiting and waiting[0].done()):
+        while len(waiting) > ahead or (waiting and waiting[0].done()):
             yield waiting.popleft().result()
     while waiting:
         yield waiting.popleft().result()
@@ -181,9 +258,9 @@ def _analyse(case, baseline, v1, trace_s, extra) -> Measured:
     return Measured(case, result, trace_s, made)
 
 
-def _rendered(renderer, group, settings, extra) -> Iterator[Measured]:
+def _rendered(renderer, group, settings, extra, cache_bytes: int) -> Iterator[Measured]:
     """One geometry whose pictures are rendered phase by phase, all on this thread."""
-    baseline = baseline_for(renderer, group[0].scene, settings)
+    baseline = baseline_for(renderer, group[0].scene, settings, cache_bytes)
     for case in group:
         v1, trace_s = _traced(renderer, case)
         result = measure_scene(renderer, case.scene, settings, baseline, v1=v1)

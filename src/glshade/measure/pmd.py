@@ -23,6 +23,7 @@ as the paper metric's :class:`~glshade.metrics.visibility.Baseline` is.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -147,6 +148,14 @@ class Capture:
         return min(peak, 1.0) if self.scene.active.records(self.scene) else peak
 
 
+def released(shot: Capture) -> Capture:
+    """``shot`` without its frames (an empty ``(0, H, W)`` stack): what a baseline keeps
+    once it has decoded them (its white frame, exact map and gain), so a dent measured
+    against it holds one sequence, its own, not two."""
+    # the white frame is a layer of the rendered stack: copied, it no longer holds the stack
+    return dataclasses.replace(shot, radiance=shot.radiance[:0].copy(), white=shot.white.copy())
+
+
 def capture(renderer: Renderer, scene: Scene) -> Capture:
     """Render ``scene``'s whole coded sequence and its white frame in one trace."""
     start = time.perf_counter()
@@ -196,7 +205,9 @@ def decode_sequence(
         if settings.min_modulation is not None
         else settings.modulation_share * em.amplitude * peak_response
     )
-    parts: list[pmd.Decoded] = []
+    # float32 as each direction is decoded: one direction's float64 maps at a time
+    shape = (len(em.directions), periods, height, width)
+    modulation, offset, wrapped = (np.empty(shape, np.float32) for _ in range(3))
     for d, direction in enumerate(em.directions):
         coding = pmd.FringeCoding.of(em, direction)
         block = recorded[d * periods * shifts : (d + 1) * periods * shifts]
@@ -206,16 +217,10 @@ def decode_sequence(
         axis = DIRECTIONS.index(direction) ^ 1
         uv[..., axis] = decoded.s_mm - em.half_size[axis]
         valid &= decoded.valid
-        parts.append(decoded)
+        modulation[d], offset[d], wrapped[d] = decoded.modulation, decoded.offset, decoded.wrapped
+        del decoded
     uv[~valid] = np.nan
-    return Decoding(
-        uv,
-        valid,
-        np.stack([p.modulation for p in parts]).astype(np.float32),
-        np.stack([p.offset for p in parts]).astype(np.float32),
-        np.stack([p.wrapped for p in parts]).astype(np.float32),
-        float(threshold),
-    )
+    return Decoding(uv, valid, modulation, offset, wrapped, float(threshold))
 
 
 def coded_axes(scene: Scene) -> list[int]:
@@ -498,7 +503,7 @@ def pmd_baseline(
     return PmdBaseline(
         normal,
         settings,
-        shot,
+        released(shot),
         decoding,
         twin,
         nominal,
@@ -621,9 +626,13 @@ def measure_pmd_scene(
 ) -> PmdResult:
     """What a PMD station measures of ``scene``'s dent, on an existing renderer
     (``baseline``: the defect-free analysis of the same geometry, when the caller has
-    it)."""
+    it; without one, a case whose buffers and analysis would exceed the renderer's memory
+    budget is refused first, in one line: :func:`glshade.measure.memory.check_pmd`)."""
     check_scene(scene)
     if baseline is None:
+        from glshade.measure.memory import check_pmd
+
+        check_pmd(scene, renderer.memory_budget_bytes)
         baseline = pmd_baseline(renderer, scene, settings)
     shot = capture(renderer, scene)
     start = time.perf_counter()

@@ -25,7 +25,13 @@ import numpy as np
 
 from glshade.errors import GlshadeError
 from glshade.metrics.status import assess, stripe_contrast
-from glshade.metrics.visibility import Baseline, MetricSettings, Visibility, stripe_radiance
+from glshade.metrics.visibility import (
+    STRIPE_CACHE_BYTES,
+    Baseline,
+    MetricSettings,
+    Visibility,
+    stripe_radiance,
+)
 from glshade.scene import Scene
 
 if TYPE_CHECKING:  # the GPU is loaded only by measure() when it must make a renderer
@@ -65,9 +71,14 @@ def levels_from_image(scene: Scene, settings: MetricSettings) -> bool:
 
 
 def baseline_for(
-    renderer: Renderer, scene: Scene, settings: MetricSettings = MetricSettings()
+    renderer: Renderer,
+    scene: Scene,
+    settings: MetricSettings = MetricSettings(),
+    stripe_cache_bytes: int = STRIPE_CACHE_BYTES,
 ) -> Baseline:
-    """The defect-free analysis of a scene's geometry (its defect is ignored)."""
+    """The defect-free analysis of a scene's geometry (its defect is ignored), keeping up
+    to ``stripe_cache_bytes`` of its stripe maps (:class:`~glshade.metrics.visibility.
+    StripeCache`)."""
     check_metric_size(scene)
     normal = scene.without_defect()
     images = None if shades_from_map(scene) else phase_images(renderer, normal)
@@ -78,14 +89,29 @@ def baseline_for(
         settings,
         images,
         image_levels=levels_from_image(scene, settings),
+        stripe_cache_bytes=stripe_cache_bytes,
     )
 
 
-def map_baseline(scene: Scene, v0: np.ndarray, settings: MetricSettings) -> Baseline:
+def map_baseline(
+    scene: Scene,
+    v0: np.ndarray,
+    settings: MetricSettings,
+    stripe_cache_bytes: int = STRIPE_CACHE_BYTES,
+) -> Baseline:
     """The defect-free analysis of ``scene``'s geometry from its traced emitter map ``v0``,
     shaded from the map (the engine's fast path, the viewer's live readout)."""
     check_metric_size(scene)
-    return Baseline(v0, scene.active.emitter.pattern(scene), settings)
+    pattern = scene.active.emitter.pattern(scene)
+    return Baseline(v0, pattern, settings, stripe_cache_bytes=stripe_cache_bytes)
+
+
+def reuses_stripes(scene: Scene) -> bool:
+    """Does one measurement of ``scene`` ask for each defect-free stripe map twice? Only
+    where the images are rendered and a sensor's noise floor sweeps them again: the maps
+    are worth keeping then (each is a render), otherwise :func:`measure_scene` keeps
+    none."""
+    return not shades_from_map(scene) and scene.sensor.on
 
 
 #: The fewest pixels across and down the paper's metric reads (the map's gradients and a
@@ -163,9 +189,17 @@ def measure_scene(
     caller already has it (:func:`baseline_for`). ``overlay``: also write the Fig. 9
     contour overlay at the best phase to this PNG path. ``v1``: the scene's emitter map,
     when the caller has traced it already (:func:`emitter_map`).
+
+    Without a ``baseline``, a case whose renderer's buffers and analysis would exceed the
+    renderer's memory budget is refused first, in one line
+    (:func:`glshade.measure.memory.check_paper`).
     """
     if baseline is None:
-        baseline = baseline_for(renderer, scene, settings)
+        from glshade.measure.memory import check_paper
+
+        estimate = check_paper(scene, settings, renderer.memory_budget_bytes)
+        cache = estimate.cache_bytes if reuses_stripes(scene) else 0
+        baseline = baseline_for(renderer, scene, settings, cache)
     images = None if shades_from_map(scene) else phase_images(renderer, scene)
     if v1 is None:
         v1 = emitter_map(renderer, scene)

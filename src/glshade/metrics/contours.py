@@ -76,6 +76,13 @@ class StripeMap:
         return np.bincount(self.labels.ravel(), minlength=len(self.roles))
 
     @property
+    def nbytes(self) -> int:
+        """Bytes its arrays take, with the per-label tables made on first use
+        (:attr:`areas`, :attr:`extents`: 40 bytes a label)."""
+        runs = sum(a.nbytes for r in (self.top, self.bottom) for a in (r.rows, r.cols, r.labels))
+        return self.labels.nbytes + self.roles.nbytes + runs + 40 * len(self.roles)
+
+    @property
     def bearing(self) -> np.ndarray:
         """Per label: True for a contour-bearing stripe (``CUT`` or ``BORDER``)."""
         return (self.roles == CUT) | (self.roles == BORDER)

@@ -87,9 +87,6 @@ class RegionBasis:
             near = near_levels(v0_cut, self.phases, period_mm, half_width_mm, self.tolerance_mm)
             self.near = np.flatnonzero(near)
         self.near_v0 = v0_cut.ravel()[self.near]
-        self.near_binary = (
-            [binary(self.near_v0, phase) for phase in self.phases] if binary is not None else []
-        )
 
     def influence(self, v1_cut: np.ndarray) -> Influence:
         """The region of the dent whose (cut) emitter map is ``v1_cut``."""
@@ -117,14 +114,19 @@ class RegionBasis:
         return Focus(influence.box, pixels, self.fold_pairs, SEARCHED_PX)
 
     def _flips(self, v1_cut: np.ndarray) -> np.ndarray:
-        """Near-level pixels (flat indices) whose binary value differs at some phase."""
+        """Near-level pixels (flat indices) whose binary value differs at some phase. Only
+        the pixels whose coordinate changed can flip (the binarisation is a function of
+        the coordinate alone); both maps are binarised there phase by phase, so nothing
+        is kept per phase."""
         if self.binary is None or not len(self.near):
             return self.near
         v1 = v1_cut.ravel()[self.near]
-        differs = np.zeros(len(v1), bool)
-        for phase, before in zip(self.phases, self.near_binary, strict=True):
-            differs |= self.binary(v1, phase) != before
-        return self.near[differs]
+        changed = np.flatnonzero(~(v1 == self.near_v0))  # NaN != NaN: kept, as before
+        v1, v0 = v1[changed], self.near_v0[changed]
+        differs = np.zeros(len(changed), bool)
+        for phase in self.phases:
+            differs |= self.binary(v1, phase) != self.binary(v0, phase)
+        return self.near[changed[differs]]
 
 
 def _box(rows: np.ndarray, cols: np.ndarray) -> Box | None:

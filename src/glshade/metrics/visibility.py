@@ -3,7 +3,8 @@ the three numbers of any defect measured against it.
 
 :class:`Baseline` holds everything that depends only on the defect-free scene and the
 metric settings: its emitter map ``v0``, the kept columns, the pixels that resolve the
-stripes, the binarisation level and, per phase, the labelled stripes of the normal image.
+stripes, the binarisation level and the labelled stripes of the normal image at the phases
+it keeps (:class:`StripeCache`: up to :data:`STRIPE_CACHE_BYTES`, the others labelled again).
 :meth:`Baseline.measure` takes a defect's emitter map ``v1`` and returns a
 :class:`Visibility`:
 
@@ -140,6 +141,14 @@ LEVEL_PERCENTILES = (1.0, 99.0)
 #: A patch covering more of the cut image than this is compared over the whole image: the
 #: region's bookkeeping would cost more than it saves.
 PATCH_SHARE = 0.4
+
+#: Bytes of defect-free stripe maps one :class:`Baseline` keeps (:class:`StripeCache`): the
+#: study measures every dent of a geometry against them. At 1024² a map takes 2–4 MiB, so
+#: the paper's 8 phases are kept up to 2048²; a phase beyond is labelled again each time it
+#: is needed (the same map, the same numbers), so a fine sweep holds no state per phase.
+STRIPE_CACHE_BYTES = 256 << 20
+#: Locks a :class:`StripeCache` labels its phases under (a phase's lock: its hash modulo).
+CACHE_LOCKS = 16
 
 #: Most phases one sweep may take (each is a shading and a contour comparison): the
 #: paper's sweep is 8 (2 mm period, 0.25 mm step), the finest in the benchmarks 160 (10 mm
@@ -317,6 +326,51 @@ def image_visibility(
 
 
 # --------------------------------------------------------------------------- one case
+class StripeCache:
+    """A baseline's defect-free stripe maps by phase: ``make(phase)`` labels one; at most
+    ``max_bytes`` of them are kept (:attr:`~glshade.metrics.contours.StripeMap.nbytes`), in
+    the order first asked for, never evicted (a sweep asks in order: its first phases stay).
+    A phase is labelled under a lock (one of :data:`CACHE_LOCKS`), so threads asking for it
+    at once label it once; once a map did not fit, the phases not kept are labelled without.
+    """
+
+    def __init__(self, make: Callable[[float], ct.StripeMap], max_bytes: int) -> None:
+        self._make = make
+        self.max_bytes = max_bytes
+        #: bytes of the maps kept
+        self.held_bytes = 0
+        self._maps: dict[float, ct.StripeMap] = {}
+        self._locks = tuple(threading.Lock() for _ in range(CACHE_LOCKS))
+        self._count = threading.Lock()
+        self._full = False
+
+    def __len__(self) -> int:
+        return len(self._maps)
+
+    def __call__(self, phase_mm: float) -> ct.StripeMap:
+        key = float(phase_mm)
+        found = self._maps.get(key)
+        if found is not None:
+            return found
+        if self._full:
+            return self._make(key)
+        with self._locks[hash(key) % CACHE_LOCKS]:
+            found = self._maps.get(key)
+            if found is None:
+                found = self._make(key)
+                self._keep(key, found)
+        return found
+
+    def _keep(self, key: float, stripes: ct.StripeMap) -> None:
+        with self._count:
+            size = stripes.nbytes
+            if self.held_bytes + size > self.max_bytes:
+                self._full = True
+                return
+            self._maps[key] = stripes
+            self.held_bytes += size
+
+
 @dataclass(frozen=True)
 class StageSeconds:
     """Where a measurement spent its time (seconds): binarising, the contour analysis,
@@ -412,6 +466,10 @@ class Baseline:
     the pixels it moves by more than :data:`glshade.metrics.region.SEARCHED_PX`. The numbers
     are those of the whole frame by construction; ``full_frame=True`` analyses the whole
     frame instead (the reference the region is checked against, slower).
+
+    Nothing it holds grows with the number of phases: the defect-free stripe maps are kept
+    up to ``stripe_cache_bytes`` (:class:`StripeCache`), and a measurement keeps of each
+    phase only its :class:`~glshade.metrics.contours.PhaseResult`.
     """
 
     def __init__(
@@ -422,6 +480,7 @@ class Baseline:
         normal_images: Callable[[float], np.ndarray] | None = None,
         image_levels: bool = False,
         full_frame: bool = False,
+        stripe_cache_bytes: int = STRIPE_CACHE_BYTES,
     ) -> None:
         self.v0 = np.asarray(v0)
         self.full_frame = full_frame
@@ -455,14 +514,12 @@ class Baseline:
         if image_levels and normal_images is not None:
             first = np.asarray(normal_images(float(self.phases[0])))[:, self.columns]
             self.level = image_level(first, self.valid, settings.threshold)
-        self._stripes: dict[float, ct.StripeMap] = {}
+        #: The defect-free stripes by phase, kept up to ``stripe_cache_bytes``.
+        self.stripe_cache = StripeCache(self._label_normal, stripe_cache_bytes)
         #: Numbers other modules derive from this analysis alone, computed once (the
         #: stripes' contrast): every dent measured against it shares them.
         self.derived: dict[str, Any] = {}
-        self._locks = {
-            float(phase): threading.Lock() for phase in self.phases
-        }  # one analysis per phase
-        self._lock = threading.Lock()  # for phases outside the sweep (the viewer's)
+        self._lock = threading.Lock()  # the region, made once
         self._region: RegionBasis | None = None
 
     # ---------------------------------------------------------------- images
@@ -480,15 +537,12 @@ class Baseline:
         return binary & self.valid
 
     def normal_stripes(self, phase_mm: float) -> ct.StripeMap:
-        """The defect-free image's stripes at a phase (computed once, then shared)."""
-        key = float(phase_mm)
-        with self._locks.get(key, self._lock):
-            stripes = self._stripes.get(key)
-            if stripes is None:
-                stripes = self._stripes[key] = ct.find_stripes(
-                    self.binary(self.v0, key, self.normal_images), self.edge
-                )
-        return stripes
+        """The defect-free image's stripes at a phase (computed once and shared while the
+        :attr:`stripe_cache` has room, else again each time)."""
+        return self.stripe_cache(phase_mm)
+
+    def _label_normal(self, phase_mm: float) -> ct.StripeMap:
+        return ct.find_stripes(self.binary(self.v0, phase_mm, self.normal_images), self.edge)
 
     # ---------------------------------------------------------------- metrics
     def at_phase(self, v1: np.ndarray, phase_mm: float) -> ct.PhaseResult:
@@ -518,18 +572,19 @@ class Baseline:
     ) -> tuple[PaperResult, float]:
         shading = 0.0
         box = influence.box if influence is not None and images is None else None
-        results = []
+        results = []  # of each phase only its PhaseResult: its maps go with the iteration
         for phase in self.phases:
-            start = time.perf_counter()
             phase = float(phase)
+            normal = self.normal_stripes(phase)
+            start = time.perf_counter()
             if self.full_frame:
                 defect = self.binary(v1, phase, images)
                 shading += time.perf_counter() - start
-                results.append(ct.compare(self.normal_stripes(phase), defect, self.edge, phase))
+                results.append(ct.compare(normal, defect, self.edge, phase))
                 continue
-            patch = self._patch(v1, phase, box, images)
+            patch = self._patch(normal, v1, phase, box, images)
             shading += time.perf_counter() - start
-            results.append(self._compared(phase, patch))
+            results.append(self._compared(normal, phase, patch))
         return summary(results, self.columns), shading
 
     def region(self) -> RegionBasis:
@@ -554,14 +609,16 @@ class Baseline:
 
     def _patch(
         self,
+        stripes: ct.StripeMap,
         v1: np.ndarray,
         phase_mm: float,
         box: tuple[slice, slice] | None,
         images: Callable[[float], np.ndarray] | None,
     ) -> ct.Patch | None:
-        """Where the defect image differs from the normal one at a phase (None: nowhere).
-        From images: the whole frame is binarised; from the map: the region's box only."""
-        normal = self.normal_stripes(phase_mm).labels
+        """Where the defect image differs from the normal one (its ``stripes``) at a phase
+        (None: nowhere). From images: the whole frame is binarised; from the map: the
+        region's box only."""
+        normal = stripes.labels
         if images is not None:
             box = (slice(0, normal.shape[0]), slice(0, normal.shape[1]))
             defect = self.binary(v1, phase_mm, images)
@@ -584,11 +641,12 @@ class Baseline:
             np.ascontiguousarray(defect[inner]),
         )
 
-    def _compared(self, phase_mm: float, patch: ct.Patch | None) -> ct.PhaseResult:
-        """The comparison at a phase of the defect image that is the normal one with
+    def _compared(
+        self, normal: ct.StripeMap, phase_mm: float, patch: ct.Patch | None
+    ) -> ct.PhaseResult:
+        """The comparison at a phase of the defect image that is the ``normal`` one with
         ``patch`` written over it (:func:`glshade.metrics.contours.compare_patched`; the
         whole image where that finds no distance above 0)."""
-        normal = self.normal_stripes(phase_mm)
         if patch is not None and patch.binary.size <= PATCH_SHARE * normal.labels.size:
             found = ct.compare_patched(normal, patch, self.edge, phase_mm)
             if found is not None:
