@@ -28,11 +28,11 @@ if ! python3 -m glshade info; then
 fi
 
 step "renderer core: glshade bench (1024², 2048²)"
-run 120 python3 -m glshade bench --size 1024 --repeats 9 --reference-rows 32
-run 120 python3 -m glshade bench --size 2048 --repeats 5 --reference-rows 16
+run 90 python3 -m glshade bench --size 1024 --repeats 9 --reference-rows 32
+run 90 python3 -m glshade bench --size 2048 --repeats 5 --reference-rows 16
 
 step "renderer comparison data"
-run 120 python3 benchmarks/renderer_compare.py save "$OUT/nvidia.npz"
+run 90 python3 benchmarks/renderer_compare.py save "$OUT/nvidia.npz"
 
 step "one case: glshade measure (1024², paper's default), three runs"
 for i in 1 2 3; do
@@ -40,17 +40,17 @@ for i in 1 2 3; do
 done
 
 step "the paper's study, 216 cases at 1024², in this process (15 analysis threads)"
-run 300 /usr/bin/time -f "wall %e s, cpu %U+%S s, peak RSS %M KiB" \
+run 150 /usr/bin/time -f "wall %e s, cpu %U+%S s, peak RSS %M KiB" \
     python3 -m glshade paper --workers 0 --threads 15 --out /tmp/study_inproc --no-progress
 cp /tmp/study_inproc/results.csv "$OUT/paper_results_gpu.csv"
 
+step "a phase-measuring case (1024²)"
+run 120 python3 benchmarks/pmd_case.py --size 1024 --repeats 3
+
 step "the paper's study on 8 Dask worker processes sharing the GPU"
-run 300 /usr/bin/time -f "wall %e s, peak RSS %M KiB" \
+run 120 /usr/bin/time -f "wall %e s, peak RSS %M KiB" \
     python3 -m glshade paper --workers 8 --out /tmp/study_dask --no-progress
 
-step "a phase-measuring case (1024²)"
-run 240 python3 benchmarks/pmd_case.py --size 1024 --repeats 3
-
 step "cases per second: the study as a sweep (256²)"
-run 300 python3 benchmarks/sweep_throughput.py --size 256 --workers 8
+run 150 python3 benchmarks/sweep_throughput.py --size 256 --workers 8
 echo; echo "== done"
