@@ -130,3 +130,13 @@ def test_entry_points_text_is_read_as_importlib_metadata_reads_it(tmp_path, text
     info = _dist(tmp_path, "some", text)
     assert reg._declared(str(info)) == expected
     assert _declared_by_metadata([str(tmp_path)]) == expected
+
+
+def test_a_checkout_that_is_not_installed_has_its_own_components(monkeypatch):
+    """``PYTHONPATH=src`` without ``pip install``: no distribution declares glshade's entry
+    point, and its built-in components are there all the same (a GPU machine ran the
+    benchmarks so, and found none: 'emitter.kind: must be one of , got stripes')."""
+    monkeypatch.setattr(reg, "only_builtin_declared", lambda path=None: False)
+    monkeypatch.setattr(reg, "_entry_points", lambda: [])
+    names = {(c.slot, c.name) for c in reg.discovered()}
+    assert ("emitter", "stripes") in names and ("surface", "flat") in names

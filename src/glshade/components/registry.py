@@ -287,7 +287,12 @@ def discovered() -> list[Component]:
     if only_builtin_declared():  # what importlib.metadata would find, without its ~20 ms
         found.extend(_instances(builtin_components, BUILTIN_ENTRY_POINT[0]))
     else:
-        for point in _entry_points():
+        points = _entry_points()
+        if not any(point.value == BUILTIN_ENTRY_POINT[1] for point in points):
+            # glshade run from a checkout (PYTHONPATH=src) without being installed: no
+            # distribution declares its own components, which are there all the same
+            found.extend(_instances(builtin_components, BUILTIN_ENTRY_POINT[0]))
+        for point in points:
             try:
                 loaded = point.load()
                 found.extend(_instances(loaded, point.name))
@@ -322,7 +327,7 @@ def only_builtin_declared(path: list[str] | None = None) -> bool:
     plain folder scan cannot be sure: a plug-in, a zip file or an egg on the path, a
     finder of distributions besides Python's own."""
     if any(
-        getattr(finder, "find_distributions", None) is not None and finder is not PathFinder
+        getattr(finder, "find_distributions", None) is not None and not _reads_sys_path(finder)
         for finder in sys.meta_path
     ):
         return False
@@ -349,6 +354,16 @@ def only_builtin_declared(path: list[str] | None = None) -> bool:
             elif not glshade_seen:
                 glshade_seen, builtin = True, declared == [BUILTIN_ENTRY_POINT]
     return builtin
+
+
+def _reads_sys_path(finder: Any) -> bool:
+    """Whether ``finder`` finds distributions exactly as Python's own does, in the folders
+    of ``sys.path``: Python's ``PathFinder``, or the ``importlib_metadata`` back-port's
+    ``MetadataPathFinder``, which Dask imports and which takes over from it."""
+    kind = type(finder)
+    return finder is PathFinder or (
+        kind.__name__ == "MetadataPathFinder" and kind.__module__.startswith("importlib_metadata")
+    )
 
 
 def _declared(info: str) -> list[tuple[str, str]]:

@@ -105,7 +105,7 @@ def egl_devices(count: int, libegl: str | None = None) -> list[str]:
     context says why)."""
     names = []
     for index in range(count):
-        kwargs: dict[str, Any] = {"backend": "egl", "device_index": index}
+        kwargs: dict[str, Any] = {"backend": "egl", "device_index": index, "require": REQUIRED_GL}
         if libegl:
             kwargs["libegl"] = libegl
         try:
@@ -168,7 +168,13 @@ class GLContext:
         self.device_index = _device_index_from_env() if device_index is None else int(device_index)
         if self.device_index < 0:
             raise ContextError(f"device_index: must be an integer >= 0, got {self.device_index}")
-        kwargs: dict[str, Any] = {"backend": "egl", "device_index": self.device_index}
+        # ask for 4.5 by name: moderngl asks for 3.3 by default, which Mesa answers with its
+        # highest core profile but NVIDIA's driver with exactly 3.3
+        kwargs: dict[str, Any] = {
+            "backend": "egl",
+            "device_index": self.device_index,
+            "require": REQUIRED_GL,
+        }
         libegl = libegl or os.environ.get("GLSHADE_LIBEGL") or _loadable("libEGL.so.1")
         if libegl:
             kwargs["libegl"] = libegl
