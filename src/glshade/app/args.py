@@ -368,7 +368,7 @@ def check_memory(cases, settings, threads: int, pooled: bool) -> None:
     ``cases`` (a study's first case of each surface, a sweep's first chunk) before the
     run's directory is touched: a run beyond it is refused with nothing written. The
     engine checks every geometry again before tracing it."""
-    from glshade.gpu.renderer import memory_budget_from_env
+    from glshade.budget import memory_budget_from_env
     from glshade.measure.engine import check_budget
 
     check_budget(cases, settings, memory_budget_from_env(), threads=threads, pooled=pooled)

@@ -43,7 +43,7 @@ from glshade.app.args import (
     scene_from_args,
     warn,
 )
-from glshade.app.entry import InterruptWatch
+from glshade.app.interrupts import InterruptWatch
 from glshade.errors import GlshadeError, GlshadeWarning, ShaderCompileError
 from glshade.files import atomic_write_bytes
 from glshade.measure.pmd_files import FRAME_FORMATS

@@ -3,10 +3,8 @@ and run inside a guard, so that Ctrl-C pressed while Python imports glshade's mo
 few hundred milliseconds of start-up) ends with one line and exit code 130, as it does at
 any later moment, never a traceback.
 
-A Ctrl-C that lands inside a C extension's import (NumPy's) does not arrive as
-``KeyboardInterrupt``: the extension's import fails, and NumPy raises an ``ImportError``
-that names a module it could not load. :class:`InterruptWatch` notes every SIGINT, so such
-an error is told apart from a broken installation.
+A Ctrl-C inside a C extension's import arrives as that import's failure: the
+:class:`~glshade.app.interrupts.InterruptWatch` tells it apart from a broken installation.
 """
 
 from __future__ import annotations
@@ -14,32 +12,11 @@ from __future__ import annotations
 import signal
 import sys
 
+from glshade.app.interrupts import InterruptWatch
+
 EXIT_INTERRUPTED = 130
 #: The exit code of a failure that is not the user's input (here: glshade cannot start).
 EXIT_DEFECT = 1
-
-
-class InterruptWatch:
-    """While held (``with``), SIGINT raises ``KeyboardInterrupt`` as Python's own handler
-    does, and is noted (:attr:`seen`); on leaving, SIGINT gets ``release_to`` (default:
-    the handler it had)."""
-
-    def __init__(self, release_to: object = None) -> None:
-        self.seen = False
-        self._previous: object = None
-        self._release_to = release_to
-
-    def _on_sigint(self, signum: int, frame: object) -> None:
-        self.seen = True
-        raise KeyboardInterrupt
-
-    def __enter__(self) -> InterruptWatch:
-        self._previous = signal.signal(signal.SIGINT, self._on_sigint)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        after = self._previous if self._release_to is None else self._release_to
-        signal.signal(signal.SIGINT, after)  # type: ignore[arg-type]
 
 
 def main() -> int:

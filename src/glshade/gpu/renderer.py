@@ -25,7 +25,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 import time
 from dataclasses import dataclass
 from typing import cast
@@ -33,6 +32,8 @@ from typing import cast
 import moderngl
 import numpy as np
 
+from glshade.budget import memory_budget_from_env
+from glshade.budget import number_from_env as _number_from_env
 from glshade.components.base import UniformContext
 from glshade.errors import ContextError, GlshadeError, SceneError
 from glshade.frame import Frame, exposure_gain, normalize_outputs
@@ -77,7 +78,6 @@ def _target_format(name: str, precision: str) -> tuple[int, str]:
     return 1, ("f1" if name == "mask" else "f4")
 
 
-DEFAULT_MEMORY_BUDGET_MB = 2048
 #: Most rays one frame may trace (pixels x rays per pixel) unless ``GLSHADE_MAX_RAYS``
 #: says otherwise: 4096² pixels at 16 x 16 rays each (87 s on the 2-core llvmpipe).
 DEFAULT_MAX_RAYS = 1 << 32
@@ -124,30 +124,6 @@ class RootSolver:
         if self.tolerance_mm is not None:
             return self.tolerance_mm
         return 1e-7 if precision == "fp32" else 1e-13
-
-
-def _number_from_env(
-    name: str, allowed: str, positive_only: bool, lowest: float = 0.0
-) -> float | None:
-    """The number in environment variable ``name`` (None when unset); a SceneError naming
-    the variable when it is not one above ``lowest`` (or at least it, unless
-    ``positive_only``)."""
-    raw = os.environ.get(name)
-    if raw is None:
-        return None
-    try:
-        value = float(raw)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and (value > lowest if positive_only else value >= lowest)):
-        raise SceneError(name, allowed, raw)
-    return value
-
-
-def memory_budget_from_env() -> int:
-    """Bytes allowed for one frame's buffers: ``GLSHADE_MEMORY_BUDGET_MB`` or 2048 MiB."""
-    mib = _number_from_env("GLSHADE_MEMORY_BUDGET_MB", "a number of MiB > 0", positive_only=True)
-    return DEFAULT_MEMORY_BUDGET_MB << 20 if mib is None else int(mib * (1 << 20))
 
 
 def max_rays_from_env() -> int:

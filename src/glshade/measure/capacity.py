@@ -93,7 +93,7 @@ class WorkerLimit:
 
 def worker_limit(pixels: int = 0, method: str = "paper") -> WorkerLimit:
     """This machine's :class:`WorkerLimit` (the budget read from the environment)."""
-    from glshade.gpu.renderer import memory_budget_from_env
+    from glshade.budget import memory_budget_from_env
 
     memory = WORKER_MEMORY.get(method, WORKER_MEMORY["pmd"])
     return WorkerLimit(

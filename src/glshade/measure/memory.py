@@ -1,6 +1,6 @@
 """The memory a measurement will take, estimated before anything is rendered and held
 against the memory budget (``GLSHADE_MEMORY_BUDGET_MB``,
-:func:`glshade.gpu.renderer.memory_budget_from_env`): the renderer's buffers and the
+:func:`glshade.budget.memory_budget_from_env`): the renderer's buffers and the
 analysis together.
 
 Nothing the analysis holds grows with the number of phases (a phase's images and stripe
@@ -128,8 +128,6 @@ def paper_estimate(
     """The paper metric's memory for ``scene`` with ``threads`` cases analysed at once and
     ``waiting`` emitter maps queued for them (the engine's; one case: 1 and 0). The stripe
     cache is not in it: :func:`stripe_cache_bytes` sizes it from what is left."""
-    from glshade.measure.single import shades_from_map
-
     cam = scene.camera
     pixels = cam.width * cam.height
     cut = kept_columns(cam.width, settings.keep_fraction)
@@ -137,7 +135,7 @@ def paper_estimate(
     per_cut = max(CUT_BYTES_PER_PIXEL, FOLD_BYTES_PER_SAMPLE * settings.limit_upsample)
     case = MAP_BYTES_PER_PIXEL * pixels + per_cut * cut_pixels
     outputs: tuple[tuple[str, ...], ...] = (("uv",),)
-    if not shades_from_map(scene):
+    if not scene.active.shades_from_emitter_map(scene):  # rendered images, not the map
         case += IMAGE_BYTES_PER_PIXEL * pixels
         outputs += (("image",),)
     analysis = FIXED_BYTES + threads * case + waiting * WAITING_BYTES_PER_PIXEL * pixels

@@ -8,6 +8,11 @@ from dataclasses import dataclass
 
 from glshade.params import Table, param
 
+#: The finest period an emitter may show, mm (exclusive): a nanometre. Below it the
+#: stripes' half period underflows (5e-324 mm halves to 0) long before any camera could
+#: see them.
+MIN_PERIOD_MM = 1e-6
+
 
 @dataclass(frozen=True)
 class EmitterTable(Table):

@@ -16,6 +16,7 @@ from typing import Any, cast
 import numpy as np
 
 from glshade.components.emitter.stripes.table import Emitter as StripesTable
+from glshade.components.emitter.table import MIN_PERIOD_MM
 from glshade.errors import SceneError
 from glshade.params import PARAM_KEY, Control, Table, param
 
@@ -77,9 +78,14 @@ def _check(values: dict[str, Any]) -> None:
     if values.get("kind") != "fringes":
         return
     periods, half = values["periods"], values["half_size"]
-    if any(b <= a for a, b in zip(periods, periods[1:], strict=False)) or periods[0] <= 0.0:
+    if (
+        any(b <= a for a, b in zip(periods, periods[1:], strict=False))
+        or periods[0] <= MIN_PERIOD_MM
+    ):
         raise SceneError(
-            "emitter.periods", "positive periods increasing from the finest", list(periods)
+            "emitter.periods",
+            f"periods above {MIN_PERIOD_MM:g} mm increasing from the finest",
+            list(periods),
         )
     if values["levels"] == 1:
         raise SceneError("emitter.levels", "0 (continuous) or at least 2 grey levels", 1)

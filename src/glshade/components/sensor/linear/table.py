@@ -20,6 +20,12 @@ def check_bit_depth(values: dict) -> None:
         raise SceneError("sensor.bit_depth", allowed, values["bit_depth"])
 
 
+#: The most electrons a pixel may hold at radiance 1 (exclusive): real sensors hold 1e3 to
+#: 1e6; beyond 1e9 the shot noise is negligible, and a Poisson draw of 1e300 electrons
+#: cannot be made.
+MAX_FULL_WELL_E = 1e9
+
+
 @dataclass(frozen=True)
 class Sensor(Table):
     """The camera's sensor (electrons, bits)."""
@@ -31,7 +37,7 @@ class Sensor(Table):
         "sensor.full_well_e", "e-", None,
         "electrons at radiance 1 (the emitter's peak in a perfect mirror); unset: no sensor "
         f"(a [sensor] table sets {DEFAULT_FULL_WELL_E:g})",
-        lo=0.0, flag="--full-well",
+        lo=0.0, hi=MAX_FULL_WELL_E, flag="--full-well",
     )  # fmt: skip
     read_noise_e: float = param(
         "sensor.read_noise_e", "e-", 5.0, "read noise, electrons rms", lo=0.0, closed=True,

@@ -104,7 +104,7 @@ class Formula(SurfaceComponent):
         return march_loop_iterations(scene, solver)
 
     def uniforms(self, scene, context):
-        from glshade.components.surface.formula.grammar import PARAMETER_PREFIX
+        from glshade.components.surface.formula.functions import PARAMETER_PREFIX
 
         lo, hi, curvature = bounds(scene)
         values = {PARAMETER_PREFIX + name: value for name, value in formula_of(scene).parameters}

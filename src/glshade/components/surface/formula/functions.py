@@ -28,6 +28,9 @@ from collections.abc import Callable
 import sympy
 from sympy import Function, S
 
+#: The uniform (and the SymPy symbol) of a formula's parameter ``name`` is this + name.
+PARAMETER_PREFIX = "u_surface_p_"
+
 
 class RealAbs(Function):
     """``|u|`` of a real ``u``; derivative ``sign(u)``."""

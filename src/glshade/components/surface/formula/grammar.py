@@ -43,7 +43,6 @@ from glshade.errors import GlshadeError, SceneError, printable
 from glshade.params import MAX_TEXT
 
 #: A parameter ``name`` of a formula is the uniform ``u_surface_p_<name>`` of its program.
-PARAMETER_PREFIX = "u_surface_p_"
 
 #: The longest expression (characters: a scene's limit on a text value) and the most
 #: tokens (numbers, names, operators, brackets) accepted. The token limit keeps every
@@ -394,6 +393,8 @@ class Formula:
 
 def _symbols(names: tuple[str, ...]) -> tuple[Any, ...]:
     import sympy
+
+    from glshade.components.surface.formula.functions import PARAMETER_PREFIX
 
     return (
         sympy.Symbol("x", real=True),

@@ -20,7 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from glshade.components.surface.formula.functions import NUMPY, distinct_nodes
+from glshade.components.surface.formula.functions import (
+    NUMPY,
+    PARAMETER_PREFIX,
+    distinct_nodes,
+)
 from glshade.errors import SceneError
 
 #: GLSL the formula's statements call (``real``: float or double, the program's
@@ -104,8 +108,6 @@ def glsl_body(expressions, precision: str, parameters: tuple[str, ...]) -> str:
     the ``parameters``' uniforms, the functions of the grammar and of
     :data:`GLSL_FUNCTIONS`, numbers, operators and brackets (a bug, never user text,
     would fail the check)."""
-    from glshade.components.surface.formula.grammar import PARAMETER_PREFIX
-
     suffix = "LF" if precision == "fp64" else ""
     names: dict[Any, str] = {}
 

@@ -174,7 +174,7 @@ def cached_height_map(path: str | os.PathLike[str], scale: float = 1.0) -> Heigh
 
 def memory_budget_bytes() -> int:
     """The memory budget a map must fit (``GLSHADE_MEMORY_BUDGET_MB``, 2048 MiB unset)."""
-    from glshade.gpu.renderer import memory_budget_from_env  # the renderer's one definition
+    from glshade.budget import memory_budget_from_env  # the renderer's one definition
 
     return memory_budget_from_env()
 
