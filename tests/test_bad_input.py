@@ -51,7 +51,7 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     (["render", "--theta", "nan"], "--theta (camera.theta_deg): must be a finite number", {}),
     (["render", "--dmax", "5xx"], "defect.dmax: must be a number in mm, or with a unit", {}),
     (["render", "--dmax", "5kg"], "units: cm, m, mm, nm, um", {}),
-    (["render", "--sigma2", "-1"], "--sigma2 (defect.sigma2): must be a finite number > 0", {}),
+    (["render", "--sigma2", "-1"], "--sigma2 (defect.sigma2): must be in (1e-06, 1e+08) mm²", {}),
     (["render", "--size", "0"], "--size (camera.width): must be an integer in [1, 16384]", {}),
     (
         ["render", "--supersample", "17"],

@@ -111,7 +111,7 @@ def test_info_reports_renderer_and_fp64():
             ["render", "--surface", "sphere", "--radius", "0"],
             "--radius (surface.radius): must be non-zero",
         ),
-        (["render", "--sigma2", "-1"], "--sigma2 (defect.sigma2): must be a finite number > 0"),
+        (["render", "--sigma2", "-1"], "--sigma2 (defect.sigma2): must be in (1e-06, 1e+08) mm²"),
         (["render", "--surface", "torus"], "invalid choice: 'torus'"),
         (["render", "missing.toml"], "scene file: must be an existing TOML file"),
         (

@@ -63,8 +63,8 @@ def test_family_and_over_take_units():
 @pytest.mark.parametrize(
     ("args", "named"),
     [
-        (["--sigma2", "0"], "--sigma2 (defect.sigma2): must be a finite number > 0"),
-        (["--set", "defect.sigma2=0"], "defect.sigma2: must be a finite number > 0"),
+        (["--sigma2", "0"], "--sigma2 (defect.sigma2): must be in (1e-06, 1e+08) mm²"),
+        (["--set", "defect.sigma2=0"], "defect.sigma2: must be in (1e-06, 1e+08) mm²"),
         (["--theta", "95"], "--theta (camera.theta_deg): must be in (0.001, 90) degrees"),
     ],
 )
@@ -378,7 +378,7 @@ def test_the_viewers_settings_are_named_as_typed():
 
     with pytest.raises(SceneError) as info:
         parse_sets(["sigma2=0"], Scene())
-    assert str(info.value).startswith("--set sigma2 (defect.sigma2): must be a finite number > 0")
+    assert str(info.value).startswith("--set sigma2 (defect.sigma2): must be in (1e-06, 1e+08) mm²")
     with pytest.raises(SceneError, match=r"^--set theta \(camera.theta_deg\): must be a number"):
         parse_sets(["theta=abc"], Scene())
     with pytest.raises(SceneError, match=r"^camera.theta_deg: must be in \(0.001, 90\)"):

@@ -13,10 +13,18 @@ from glshade.errors import SceneError
 from glshade.params import Control, Param, Table, param
 
 _WIDE = "a dent over 100 mm wide"
+#: The variances a dent may have, mm² (exclusive): from a micrometre wide to ten metres;
+#: beyond them the covariance's inverse and determinant leave float64 (1e308 mm² made the
+#: closed forms divide by zero).
+VARIANCE_RANGE_MM2 = (1e-6, 1e8)
+#: The largest depth or height of a dent, and the farthest centre, mm (exclusive).
+DEPTH_LIMIT_MM = 1e3
+CENTRE_LIMIT_MM = 1e4
 
 SIGMA2 = Param(
     "defect.sigma2", "mm²", 4.0,
-    "isotropic variance: sets sigma_x2 = sigma_z2 = sigma2, sigma_xz = 0", lo=0.0,
+    "isotropic variance: sets sigma_x2 = sigma_z2 = sigma2, sigma_xz = 0",
+    lo=VARIANCE_RANGE_MM2[0], hi=VARIANCE_RANGE_MM2[1],
     flag="--sigma2", control=Control("sigma2", 0.05, 100.0, log=True, fmt="%.2f mm2"),
     plausible_max=1e4, plausible_why=_WIDE, stored=False,
 )  # fmt: skip
@@ -44,16 +52,19 @@ class Defect(Table):
 
     dmax: float = param(
         "defect.dmax", "mm", 0.005, "depth: > 0 a dent, < 0 a bump, 0 none", flag="--dmax",
+        lo=-DEPTH_LIMIT_MM, hi=DEPTH_LIMIT_MM,
         control=Control("dmax", -0.05, 0.05, fmt="%.4f mm"), plausible_max=0.1,
         plausible_why="deeper than the shallow dents glshade simulates",
     )  # fmt: skip
     sigma_x2: float = param(
-        "defect.sigma_x2", "mm²", 4.0, "variance along x", lo=0.0,
+        "defect.sigma_x2", "mm²", 4.0, "variance along x",
+        lo=VARIANCE_RANGE_MM2[0], hi=VARIANCE_RANGE_MM2[1],
         control=Control("sigma_x2", 0.05, 100.0, log=True, fmt="%.2f mm2"),
         plausible_max=1e4, plausible_why=_WIDE,
     )  # fmt: skip
     sigma_z2: float = param(
-        "defect.sigma_z2", "mm²", 4.0, "variance along z", lo=0.0,
+        "defect.sigma_z2", "mm²", 4.0, "variance along z",
+        lo=VARIANCE_RANGE_MM2[0], hi=VARIANCE_RANGE_MM2[1],
         control=Control("sigma_z2", 0.05, 100.0, log=True, fmt="%.2f mm2"),
         plausible_max=1e4, plausible_why=_WIDE,
     )  # fmt: skip
@@ -62,11 +73,13 @@ class Defect(Table):
         control=Control("sigma_xz", -100.0, 100.0, fmt="%.3f mm2"),
     )  # fmt: skip
     x0: float = param(
-        "defect.x0", "mm", 0.0, "centre, x", control=Control("x0", -15.0, 15.0, fmt="%.2f mm")
-    )
+        "defect.x0", "mm", 0.0, "centre, x", lo=-CENTRE_LIMIT_MM, hi=CENTRE_LIMIT_MM,
+        control=Control("x0", -15.0, 15.0, fmt="%.2f mm"),
+    )  # fmt: skip
     z0: float = param(
-        "defect.z0", "mm", 0.0, "centre, z", control=Control("z0", -15.0, 15.0, fmt="%.2f mm")
-    )
+        "defect.z0", "mm", 0.0, "centre, z", lo=-CENTRE_LIMIT_MM, hi=CENTRE_LIMIT_MM,
+        control=Control("z0", -15.0, 15.0, fmt="%.2f mm"),
+    )  # fmt: skip
 
     @classmethod
     def isotropic_dent(cls, dmax: float, sigma2: float, x0: float = 0.0, z0: float = 0.0) -> Defect:
