@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
+
+from glshade_process import run_glshade
 
 #: (arguments, fragment the one error line must contain, extra environment).
 BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
@@ -207,16 +208,7 @@ def _listing(root: Path) -> dict[str, int]:
 
 
 def _run(args: list[str], cwd: Path, env: dict[str, str]) -> subprocess.CompletedProcess:
-    environment = {k: v for k, v in os.environ.items() if k not in env}
-    environment.update({k: v for k, v in env.items() if v})
-    return subprocess.run(
-        [sys.executable, "-m", "glshade", *args],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        env=environment,
-        timeout=120,
-    )
+    return run_glshade(*args, cwd=cwd, env=env)
 
 
 @pytest.fixture(scope="module")

@@ -17,7 +17,6 @@ import os
 import socket
 import struct
 import subprocess
-import sys
 import zlib
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -29,6 +28,8 @@ import numpy as np
 import pytest
 import tifffile
 import x3pio
+
+from glshade_process import run_glshade
 
 SIDE = 16384  # the declared side of the big maps
 MIB = 1 << 20
@@ -486,14 +487,8 @@ def _listing(root: Path) -> dict[str, int]:
 
 
 def _run(case: Case, folder: Path) -> subprocess.CompletedProcess:
-    environment = {**os.environ, **case.env}
-    return subprocess.run(
-        [sys.executable, "-m", "glshade", "render", "scene.toml", "--size", "16", "-o", "out.png"],
-        capture_output=True,
-        text=True,
-        cwd=folder,
-        env=environment,
-        timeout=120,
+    return run_glshade(
+        "render", "scene.toml", "--size", "16", "-o", "out.png", cwd=folder, env=case.env
     )
 
 

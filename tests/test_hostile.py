@@ -25,6 +25,7 @@ from glshade.errors import GlshadeError
 from glshade.files import check_entries, check_inside, check_output, read_regular
 from glshade.measure.case_files import case_file_bytes, read_case_file
 from glshade.scene import Scene
+from glshade_process import run_glshade
 
 #: The paper's study reduced to one case at 64² (about 4 s on two cores).
 ONE_CASE = [
@@ -46,16 +47,9 @@ ONE_CASE = [
 CASE = "flat_theta45_sigma2_4_dmax5um"
 
 
-def glshade(*args: str, cwd: Path, timeout: float = 120, env: dict | None = None):
+def glshade(*args: str, cwd: Path, timeout: float = 120):
     """``glshade ARGS`` as a user runs it; a hang fails the test (``timeout``)."""
-    return subprocess.run(
-        [sys.executable, "-m", "glshade", *args],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=timeout,
-        env={**os.environ, **(env or {})},
-    )
+    return run_glshade(*args, cwd=cwd, timeout=timeout)
 
 
 def one_error(result: subprocess.CompletedProcess, *fragments: str) -> str:

@@ -7,9 +7,6 @@ Memory is counted with tracemalloc (NumPy's and OpenCV's arrays are traced), nev
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import tracemalloc
 
 import numpy as np
@@ -23,6 +20,7 @@ from glshade.measure.pmd import measure_pmd_scene, pmd_baseline
 from glshade.measure.single import as_method, measure_scene
 from glshade.metrics import visibility as vis
 from glshade.scene import Scene, paper_scene
+from glshade_process import run_glshade
 
 SIZE = 128
 #: How much more the analysis of 64 phases may take than that of 8 (tracemalloc peaks):
@@ -134,15 +132,7 @@ def test_a_pmd_baseline_keeps_no_frames(renderer):
     ],
 )
 def test_cli_refuses_beyond_a_small_budget_in_one_line(tmp_path, argv, typed):
-    env = {**os.environ, "GLSHADE_MEMORY_BUDGET_MB": "64"}
-    done = subprocess.run(
-        [sys.executable, "-m", "glshade", *argv],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-        env=env,
-        timeout=300,
-    )
+    done = run_glshade(*argv, cwd=tmp_path, env={"GLSHADE_MEMORY_BUDGET_MB": "64"}, timeout=300)
     err = done.stderr.strip()
     assert done.returncode == 2 and done.stdout == ""
     assert err.count("\n") == 0 and err.startswith("glshade: error: "), err

@@ -33,6 +33,14 @@ _KINDS = (
 )
 
 
+def special_kind(mode: int) -> str | None:
+    """What a file of ``mode`` is when it is not a regular file (``"a FIFO"``), else
+    None."""
+    if stat.S_ISREG(mode):
+        return None
+    return next((name for test, name in _KINDS if test(mode)), "not a regular file")
+
+
 def check_output(
     path: str | os.PathLike[str],
     what: str = "output",
@@ -260,6 +268,9 @@ def open_regular(path: str | os.PathLike[str], what: str) -> int:
     blocks as usual. The caller closes it."""
     text = os.fspath(path)
     try:
+        kind = special_kind(os.stat(text).st_mode)  # before opening: opening a device acts
+        if kind is not None:
+            raise GlshadeError(f"{what} {text}: is {kind}; glshade reads only regular files")
         fd = os.open(text, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | getattr(os, "O_CLOEXEC", 0))
     except FileNotFoundError:
         raise GlshadeError(f"{what} {text}: does not exist") from None
@@ -269,10 +280,9 @@ def open_regular(path: str | os.PathLike[str], what: str) -> int:
         raise GlshadeError(f"{what} {text}: cannot read it ({exc.strerror or exc})") from None
     except ValueError:  # a NUL byte in the path
         raise GlshadeError(f"{what} {text!r}: expected a path without NUL bytes") from None
-    mode = os.fstat(fd).st_mode
-    if not stat.S_ISREG(mode):
+    kind = special_kind(os.fstat(fd).st_mode)  # what was opened: a FIFO swapped in meanwhile
+    if kind is not None:
         os.close(fd)
-        kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
         raise GlshadeError(f"{what} {text}: is {kind}; glshade reads only regular files")
     os.set_blocking(fd, True)
     return fd

@@ -102,13 +102,6 @@ _DAMAGED = (
     zlib.error,
     tokenize.TokenError,
 )
-_NOT_REGULAR = (
-    (stat.S_ISDIR, "a directory"),
-    (stat.S_ISCHR, "a character device"),
-    (stat.S_ISBLK, "a block device"),
-    (stat.S_ISFIFO, "a FIFO"),
-    (stat.S_ISSOCK, "a socket"),
-)
 #: How much of a compressed segment is read and inflated at a time (bytes).
 _PIECE = 1 << 20
 
@@ -235,8 +228,10 @@ def _open_regular(path: Path) -> BinaryIO:
 
 
 def _refuse_special(mode: int, name: str) -> None:
-    if not stat.S_ISREG(mode):
-        kind = next((what for test, what in _NOT_REGULAR if test(mode)), "not a regular file")
+    from glshade.files import special_kind
+
+    kind = special_kind(mode)
+    if kind is not None:
         raise SceneError(
             FIELD, f"a regular file ({name} is {kind}; glshade reads only regular files)"
         )
