@@ -63,8 +63,8 @@ def check_output(
         raise GlshadeError(f"{what} {text!r}: expected a file path")
     target = Path(os.path.realpath(text))
     mode = _mode(target, what, text)
-    if mode is not None and not stat.S_ISREG(mode):
-        kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+    kind = None if mode is None else special_kind(mode)
+    if kind is not None:
         raise GlshadeError(f"{what} {text}: is {kind}; glshade only writes regular files")
     if suffixes and target.suffix.lower() not in suffixes:
         raise GlshadeError(f"{what} {text}: {_suffix_problem(target.suffix.lower(), suffixes)}")
@@ -176,8 +176,8 @@ def check_entries(root: Path, folders: tuple[str, ...] = (), what: str = "--out"
             if entry.is_symlink():
                 check_inside(root, path, what)
             mode = _mode(path, what, entry.path) if os.path.lexists(path) else None
-            if mode is not None and not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
-                kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+            kind = None if mode is None or stat.S_ISDIR(mode) else special_kind(mode)
+            if kind is not None:
                 raise GlshadeError(
                     f"{what} {root}: {path} is {kind}; glshade keeps only regular files "
                     "there: remove it or choose another directory"

@@ -928,11 +928,8 @@ def main(argv: list[str] | None = None, interrupts: InterruptWatch | None = None
     ``interrupts``: the entry point's record of SIGINT (an error that a Ctrl-C caused is
     reported as the interruption it was)."""
     argv_given = sys.argv[1:] if argv is None else list(argv)
-    verbose = (
-        "--verbose" in argv_given[: argv_given.index("--")]
-        if "--" in argv_given
-        else ("--verbose" in argv_given)
-    )
+    options = argv_given[: argv_given.index("--")] if "--" in argv_given else argv_given
+    verbose = "--verbose" in options  # known before parsing: the parser's own errors obey it
     try:
         with guarded_warnings(verbose):
             code = _run(argv_given, verbose, interrupts)
