@@ -438,12 +438,14 @@ class Renderer:
         out: Frame | None = None,
         exposure: int = 0,
         frames=None,
+        develop: bool = True,
     ) -> Frame:
         """Render ``scene``; ``outputs`` is a subset of :data:`glshade.frame.OUTPUTS`.
 
         ``out``: a frame whose arrays (float32 image, float32 uv, bool mask of the right
         shape) are filled in place instead of allocating new ones. With a sensor the image
-        is what it records (``exposure``: which of several independent exposures).
+        is what it records (``exposure``: which of several independent exposures), unless
+        ``develop`` is False: then it is the radiance that reaches the sensor.
 
         ``frames`` (with the ``frames`` output): the emitter frames to shade, as the
         emitter describes them (:meth:`~glshade.components.base.EmitterComponent.sequence`);
@@ -479,7 +481,7 @@ class Renderer:
                 frame = self._draw(scene, features, out)
         if frame.rays is not None and "rays" not in wanted:
             frame = dataclasses.replace(frame, rays=None)
-        if frame.image is not None and scene.active.records(scene):
+        if frame.image is not None and develop and scene.active.records(scene):
             exposed = scene.with_value("camera.exposure", self.exposure_gain(scene))
             image = scene.active.develop(exposed, frame.image, exposure)
             if image is not frame.image:

@@ -94,10 +94,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from glshade.components.base import Active
+from glshade.errors import GlshadeError
 from glshade.frame import Frame, normalize_outputs
 from glshade.scene import Camera, Defect, Emitter, Scene, Surface
 
@@ -350,32 +353,83 @@ def _reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     return d - 2.0 * np.einsum("nk,nk->n", d, n)[:, None] * n
 
 
-def _shade(scene: Scene, origins: np.ndarray, d: np.ndarray, want_image: bool):
-    """Per-ray ``(value, u, v, reaches_emitter)`` for rays from ``origins`` along unit
-    directions ``d`` (N, 3 each)."""
+@dataclass(frozen=True)
+class Rays:
+    """A frame's rays traced to the surface and on to the emitter (:func:`trace_rays`),
+    ready to be shaded with any pattern the emitter shows (:func:`shade_rays`).
+
+    ``shape``: ``(h, w, S)``, the ``N = h w S`` rays (pixel-major), each from ``origins``
+    along unit ``directions`` (N, 3 each). Per ray: ``distance`` from its origin to its
+    surface hit (mm, NaN where it hits none), ``u``, ``v`` where its mirror ray meets the
+    emitter (mm, NaN where not), ``ok`` whether it does. The hit points and normals are
+    not kept: shading computes them again, as the trace did."""
+
+    shape: tuple[int, int, int]
+    origins: np.ndarray
+    directions: np.ndarray
+    distance: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    ok: np.ndarray
+
+    @property
+    def nbytes(self) -> int:
+        """The bytes its arrays hold."""
+        arrays = (self.origins, self.directions, self.distance, self.u, self.v, self.ok)
+        return sum(array.nbytes for array in arrays)
+
+    def chunks(self, scene: Scene):
+        """Per chunk of :data:`_CHUNK_RAYS` rays that hits the surface: the indices of its
+        rays that do, their hit points, unit directions and unit normals."""
+        parts = scene.active
+        for s in range(0, self.ok.size, _CHUNK_RAYS):
+            t = self.distance[s : s + _CHUNK_RAYS]
+            hit = np.isfinite(t)
+            if not hit.any():
+                continue
+            d = self.directions[s : s + _CHUNK_RAYS][hit]
+            p = self.origins[s : s + _CHUNK_RAYS][hit] + t[hit, None] * d
+            yield np.nonzero(hit)[0] + s, p, d, _normals(scene, parts, p[:, 0], p[:, 2])
+
+
+def trace_rays(scene: Scene, rows: slice | None = None, cols: slice | None = None) -> Rays:
+    """Trace every ray of ``scene``'s camera (``rows``/``cols``: a window of the full
+    sensor; ``render.supersample`` and a lens's samples as :func:`trace`) to its first
+    surface hit and its mirror ray to the emitter plane, chunk by chunk."""
     parts = scene.active
+    origins, dirs = parts.camera.sample_rays(scene, rows, cols, scene.render.supersample)
+    h, w, samples = dirs.shape[:3]
+    origins, d = np.ascontiguousarray(origins.reshape(-1, 3)), dirs.reshape(-1, 3)
     n = len(d)
-    value = np.zeros(n)
-    u = np.full(n, np.nan)
-    v = np.full(n, np.nan)
-    ok = np.zeros(n, dtype=bool)
+    distance = np.full(n, np.nan)
     for s in range(0, n, _CHUNK_RAYS):
-        dd = d[s : s + _CHUNK_RAYS]
-        oo = np.ascontiguousarray(origins[s : s + _CHUNK_RAYS])
-        t, hit = _first_hit_rays(scene, oo, dd)
-        if not hit.any():
-            continue
-        idx = np.nonzero(hit)[0] + s
-        dh = dd[hit]
-        p = oo[hit] + t[hit, None] * dh
-        n_s = _normals(scene, parts, p[:, 0], p[:, 2])
-        uu, vv, okk = parts.emitter.coordinates(scene, p, _reflect(dh, n_s))
-        u[idx], v[idx], ok[idx] = uu, vv, okk
-        if want_image:
-            along = parts.emitter.along(scene, uu, vv)
-            shaded = parts.reflection.shade(scene, p, dh, n_s, along, okk)
-            value[idx] = shaded * parts.fresnel.reflectance(scene, -np.einsum("nk,nk->n", dh, n_s))
-    return value, u, v, ok
+        distance[s : s + _CHUNK_RAYS] = _first_hit_rays(
+            scene, origins[s : s + _CHUNK_RAYS], d[s : s + _CHUNK_RAYS]
+        )[0]
+    u, v, ok = np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, dtype=bool)
+    rays = Rays((h, w, samples), origins, d, distance, u, v, ok)
+    for idx, p, dh, normals in rays.chunks(scene):
+        u[idx], v[idx], ok[idx] = parts.emitter.coordinates(scene, p, _reflect(dh, normals))
+    return rays
+
+
+def shade_rays(scene: Scene, rays: Rays, shown: tuple[Scene, ...]) -> np.ndarray:
+    """Each ray's value (len(shown), N) for each scene of ``shown``: ``scene`` itself or
+    ``scene`` showing another pattern (an emitter frame, a phase: the same rays, emitter
+    plane, reflection model and Fresnel term as ``scene``); 0 where a ray hits no surface.
+    Shaded a chunk of :data:`_CHUNK_RAYS` rays at a time."""
+    values = np.zeros((len(shown), rays.ok.size))
+    if not shown:
+        return values
+    fresnel = scene.active.fresnel
+    for idx, p, d, n in rays.chunks(scene):
+        u, v, ok = rays.u[idx], rays.v[idx], rays.ok[idx]
+        weight = fresnel.reflectance(scene, -np.einsum("nk,nk->n", d, n))
+        for k, view in enumerate(shown):
+            active = view.active
+            along = active.emitter.along(view, u, v)
+            values[k, idx] = active.reflection.shade(view, p, d, n, along, ok) * weight
+    return values
 
 
 def trace(
@@ -384,41 +438,72 @@ def trace(
     *,
     rows: slice | None = None,
     cols: slice | None = None,
+    frames: Iterable[Any] = (),
+    develop: bool = True,
+    rays: Rays | None = None,
 ) -> Frame:
     """Render ``scene`` in float64: ``image`` (H, W) radiance, ``uv`` (H, W, 2) in mm (NaN
     where no sample reaches the emitter), ``mask`` (H, W) bool; fields not asked for are
     None. ``rows``/``cols`` trace a window of the full sensor (the arrays have the
     window's shape). Supersampling follows :mod:`glshade.frame`; ``render.precision`` is
     ignored (always float64); ``rays`` is every pixel's count of rays, all traced. With
-    Blinn-Phong, ``uv``/``mask`` are the mirror ray's."""
+    Blinn-Phong, ``uv``/``mask`` are the mirror ray's.
+
+    ``distance`` (H, W): the distance (mm) from each ray's origin to its surface hit along
+    it, the mean over the samples that hit (NaN where none does). ``frames`` (F, H, W),
+    with the emitter frames ``frames`` (:meth:`EmitterComponent.sequence`): every ray is
+    traced once and shaded for each frame (the scene the emitter's ``showing`` gives),
+    radiance as ``image`` would be for that frame alone, never developed. ``develop``:
+    the image as the sensor records it (:meth:`Active.develop`, ``camera.exposure`` as
+    the sensor reads it) or, when False, the radiance. ``iterations`` is not computed
+    (None). ``rays``: this scene's rays traced already (:func:`trace_rays`, of the same
+    window), to be shaded only."""
     wanted = normalize_outputs(outputs if isinstance(outputs, str) else tuple(outputs))
-    n = scene.render.supersample
-    origins, dirs = scene.active.camera.sample_rays(scene, rows, cols, n)
-    h, w, samples = dirs.shape[:3]
-    value, u, v, ok = _shade(scene, origins.reshape(-1, 3), dirs.reshape(-1, 3), "image" in wanted)
-    value = value.reshape(h, w, samples)
-    ok = ok.reshape(h, w, samples)
-    count = ok.sum(axis=2)
-    image = uv = mask = None
+    stack = tuple(frames)
+    if ("frames" in wanted) != bool(stack):
+        raise GlshadeError("trace: the frames output and a non-empty list of frames go together")
+    emitter = scene.active.emitter
+    shown = ((scene,) if "image" in wanted else ()) + tuple(
+        emitter.showing(scene, frame) for frame in stack
+    )
+    traced = rays if rays is not None else trace_rays(scene, rows, cols)
+    h, w, samples = traced.shape
+    means = shade_rays(scene, traced, shown).reshape(len(shown), h, w, samples).mean(axis=3)
+    ok = traced.ok.reshape(h, w, samples)
+    image = uv = mask = distance = None
     if "image" in wanted:
-        image = value.mean(axis=2)
-        image = scene.active.develop(scene, image)
+        image = means[0]
+        if develop:
+            image = scene.active.develop(scene, image)
     if "uv" in wanted:
-        uv_s = np.stack([u, v], axis=-1).reshape(h, w, samples, 2)
-        total = np.where(ok[..., None], uv_s, 0.0).sum(axis=2)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            uv = np.where(count[..., None] > 0, total / count[..., None], np.nan)
+        uv = _mean_where(np.stack([traced.u, traced.v], axis=-1).reshape(h, w, samples, 2), ok)
     if "mask" in wanted:
-        mask = count > 0
-    rays = np.full((h, w), float(samples), np.float32) if "rays" in wanted else None
-    return Frame(image=image, uv=uv, mask=mask, rays=rays)
+        mask = ok.sum(axis=2) > 0
+    if "distance" in wanted:
+        t = traced.distance.reshape(h, w, samples)
+        distance = _mean_where(t[..., None], np.isfinite(t))[..., 0]
+    count = np.full((h, w), float(samples), np.float32) if "rays" in wanted else None
+    layers = means[len(shown) - len(stack) :] if stack else None
+    return Frame(image=image, uv=uv, mask=mask, distance=distance, rays=count, frames=layers)
+
+
+def _mean_where(values: np.ndarray, where: np.ndarray) -> np.ndarray:
+    """The mean of ``values`` (h, w, S, C) over the samples ``where`` (h, w, S) is True;
+    NaN where it is True for none."""
+    count = where.sum(axis=2)[..., None]
+    total = np.where(where[..., None], values, 0.0).sum(axis=2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, total / count, np.nan)
 
 
 __all__ = [
+    "Rays",
     "emitter_coordinates",
     "first_hit",
     "pixel_rays",
     "radiance",
+    "shade_rays",
     "surface_height",
     "trace",
+    "trace_rays",
 ]
