@@ -1,5 +1,6 @@
-"""Shared fixtures: one GL context and renderer per test session, GL error checks,
-and the ``--regenerate-snapshots`` option."""
+"""Shared fixtures: one GL context and renderer per test session, GL error checks. The
+snapshot tests' options (``--glshade-update``, ``--glshade-results``) are glshade's
+pytest plugin's (glshade.snapshot.plugin)."""
 
 from __future__ import annotations
 
@@ -7,15 +8,6 @@ import pytest
 
 from glshade.gpu.context import GLContext
 from glshade.gpu.renderer import Renderer
-
-
-def pytest_addoption(parser: pytest.Parser) -> None:
-    parser.addoption(
-        "--regenerate-snapshots",
-        action="store_true",
-        default=False,
-        help="rewrite the reference images under tests/snapshots/ instead of comparing",
-    )
 
 
 @pytest.fixture(scope="session")

@@ -244,6 +244,15 @@ class Scene:
             table: values for table, values in tables.items() if values or table in ALWAYS_WRITTEN
         }
 
+    def to_file_dict(
+        self, folder: str | os.PathLike[str], climb: bool = False
+    ) -> dict[str, dict[str, Any]]:
+        """:meth:`to_dict` as a scene file in ``folder`` holds it: the files the scene reads
+        (a height map) relative to ``folder`` where they lie under it, else absolute;
+        ``climb``: relative wherever they lie (``../maps/bump.npy``), for a record that
+        travels with its folder's tree."""
+        return _relative_paths(self.to_dict(), Path(folder), climb)
+
     @classmethod
     def from_dict(cls, data: dict[str, Any], base: Path | None = None) -> Scene:
         """Build from the scene-file layout; missing keys take the paper's defaults,
@@ -276,7 +285,7 @@ class Scene:
 
         from glshade.files import atomic_write_bytes
 
-        data = _relative_paths(self.to_dict(), Path(path).parent)
+        data = self.to_file_dict(Path(path).parent)
         atomic_write_bytes(Path(path), tomli_w.dumps(data).encode())
 
 
@@ -381,12 +390,17 @@ def _resolve_paths(table: str, values: dict[str, Any], base: Path | None) -> dic
     return values
 
 
-def _relative_paths(data: dict[str, dict[str, Any]], base: Path) -> dict[str, dict[str, Any]]:
-    """File paths written relative to the scene file's directory where they lie under it."""
+def _relative_paths(
+    data: dict[str, dict[str, Any]], base: Path, climb: bool = False
+) -> dict[str, dict[str, Any]]:
+    """File paths written relative to the scene file's directory where they lie under it
+    (``climb``: wherever they lie)."""
     for table, values in data.items():
         for param in registry().table_params(table):
             value = values.get(param.key)
-            if param.value_type == "path" and isinstance(value, str):
+            if param.value_type == "path" and isinstance(value, str) and climb:
+                values[param.key] = os.path.relpath(os.path.abspath(value), os.path.abspath(base))
+            elif param.value_type == "path" and isinstance(value, str):
                 try:
                     values[param.key] = str(
                         Path(os.path.abspath(value)).relative_to(os.path.abspath(base))

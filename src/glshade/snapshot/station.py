@@ -1,0 +1,107 @@
+"""What takes a snapshot: a renderer (the GL one, or the NumPy float64 oracle where no
+OpenGL context can be made) that renders a scene's image and measures its numbers.
+
+A :class:`Shot` holds the image (the emitter's peak at 1) and, per instrument, the
+measured columns of its record: the paper's (:class:`glshade.measure.record.Measurement`)
+always, a phase-measuring station's (:class:`~glshade.measure.record.PmdMeasurement`)
+too where the scene's emitter shows fringes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from glshade.errors import ContextError, GlshadeError
+from glshade.scene import Scene
+
+#: How a session picks its renderer: ``auto`` the GL renderer, or the oracle where no
+#: OpenGL context can be made; ``gl`` the GL renderer or an error; ``oracle`` the oracle.
+CHOICES = ("auto", "gl", "oracle")
+#: What the oracle calls itself in a baseline's ``renderer``.
+ORACLE = "NumPy float64 oracle"
+#: The largest image the oracle renders for a snapshot: 4096² (the memory budget holds too).
+ORACLE_MAX_PIXELS = 4096 * 4096
+
+
+@dataclass(frozen=True)
+class Shot:
+    """A scene rendered and measured: ``image`` (H, W) float64, the radiance that reaches
+    the camera (the emitter's peak at 1; before a sensor records it, whose noise no two
+    renderers draw alike); ``numbers`` per instrument the record's measured columns
+    (timings and closed forms left out); ``level_step`` the largest step between the
+    emitter's radiance levels (a quantised screen's; 0 for continuous stripes), by which
+    a pixel may flip between renderers."""
+
+    image: np.ndarray
+    numbers: dict[str, dict[str, Any]]
+    level_step: float = 0.0
+
+
+class Station:
+    """A renderer and what it is. ``identity``: the GL renderer string and version
+    (``llvmpipe (LLVM 15.0.6, 256 bits); 4.5 (Core Profile) Mesa 22.3.6``) or
+    :data:`ORACLE`; ``fallback``: why the oracle stands in for the GL renderer (empty when
+    it was asked for, or is not used)."""
+
+    def __init__(self, renderer: Any, identity: str, fallback: str = "") -> None:
+        self.renderer = renderer
+        self.identity = identity
+        self.fallback = fallback
+
+    @property
+    def oracle(self) -> bool:
+        return self.identity == ORACLE
+
+    def release(self) -> None:
+        self.renderer.release()
+
+    def shoot(self, scene: Scene) -> Shot:
+        """Render ``scene``'s image and measure its numbers."""
+        image = self.renderer.render(scene, ("image",), develop=False).output("image")
+        step = float(scene.active.emitter.radiance_step(scene))
+        return Shot(np.asarray(image, np.float64), measured_numbers(self.renderer, scene), step)
+
+
+def open_station(choice: str = "auto") -> Station:
+    """The renderer ``choice`` (:data:`CHOICES`) asks for."""
+    if choice not in CHOICES:
+        raise GlshadeError(
+            f"--glshade-renderer: must be one of {', '.join(CHOICES)}, got {choice!r}"
+        )
+    if choice == "oracle":
+        return _oracle_station("")
+    from glshade.gpu.renderer import Renderer
+
+    try:
+        renderer = Renderer()  # its own context, released with it
+    except ContextError as exc:
+        if choice == "gl":
+            raise
+        return _oracle_station(str(exc))
+    info = renderer.context.info()
+    return Station(renderer, f"{info.renderer}; {info.version}")
+
+
+def _oracle_station(fallback: str) -> Station:
+    from glshade.oracle.renderer import OracleRenderer
+
+    # at the baseline's size, however slow (about 50 µs a ray): never a smaller picture
+    return Station(OracleRenderer(max_pixels=ORACLE_MAX_PIXELS), ORACLE, fallback)
+
+
+def measured_numbers(renderer: Any, scene: Scene) -> dict[str, dict[str, Any]]:
+    """Per instrument, the measured columns of ``scene``'s record on ``renderer``."""
+    from glshade.measure.record import Measurement, PmdMeasurement
+    from glshade.measure.single import as_method, measure_scene
+
+    paper = as_method(scene, "paper")
+    numbers = {"paper": Measurement.of(paper, measure_scene(renderer, paper)).row(("measured",))}
+    if scene.active.emitter.measured_by == "pmd":
+        from glshade.measure.pmd import measure_pmd
+
+        result = measure_pmd(scene, renderer=renderer)
+        numbers["pmd"] = PmdMeasurement.of(scene, result).row(("measured",))
+    return numbers
