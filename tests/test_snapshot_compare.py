@@ -226,3 +226,29 @@ def test_loading_the_plugin_loads_nothing_heavy():
     code = f"import sys, glshade.snapshot.plugin; print([m for m in {heavy!r} if m in sys.modules])"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_the_summary_escapes_what_it_shows(tmp_path):
+    """A path, a scene value or a message reaches the page as text, never as markup."""
+    from glshade.snapshot.report import Entry, write_summary
+
+    entry = Entry(
+        "panel", "test_x.py::test<1>", "moved", "moved: <script>alert(1)</script>", "r&d",
+        scene_toml='[surface]\nfile = "<b>.npy"\n',
+    )  # fmt: skip
+    page = write_summary(tmp_path, [entry], {"baselines": "/tmp/<i>"}).read_text()
+    assert "<script>" not in page and "&lt;script&gt;alert(1)&lt;/script&gt;" in page
+    assert "&lt;b&gt;.npy" in page and "/tmp/&lt;i&gt;" in page and "r&amp;d" in page
+    assert "test_x.py::test&lt;1&gt;" in page
+
+
+def test_under_xdist_no_process_judges_unused_baselines():
+    from types import SimpleNamespace
+
+    from glshade.snapshot.plugin import _distributed
+
+    plain = SimpleNamespace(option=SimpleNamespace(dist="no"))
+    controller = SimpleNamespace(option=SimpleNamespace(numprocesses=2, dist="load"))
+    worker = SimpleNamespace(option=SimpleNamespace(), workerinput={"workerid": "gw0"})
+    assert not _distributed(plain)
+    assert _distributed(controller) and _distributed(worker)

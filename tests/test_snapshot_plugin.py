@@ -539,3 +539,12 @@ def test_a_sensor_scene_stores_the_radiance_and_its_noise_floor(pytester, render
     assert np.abs(stored - radiance).max() < 1e-4
     assert np.abs(stored - recorded).max() > 1e-2  # the noisy record is not what is kept
     pytester.runpytest("--glshade-renderer", "oracle").assert_outcomes(passed=1)
+
+
+def test_a_results_folder_that_is_a_file_is_a_usage_error(pytester):
+    user_test(pytester)
+    (pytester.path / "out").write_text("not a folder")
+    result = pytester.runpytest("--glshade-results", "out")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["ERROR: --glshade-results out: is not a directory"])
+    assert (pytester.path / "out").read_text() == "not a folder"

@@ -99,10 +99,18 @@ class SnapshotSession:
         return cls(
             directory=(base / str(config.getini("glshade_snapshot_dir"))).resolve(),
             update=bool(config.getoption("glshade_update")),
-            results=Path(results).resolve() if results else None,
+            results=_results_folder(results) if results else None,
             fail_unused=bool(config.getoption("glshade_fail_unused")),
             renderer=str(config.getoption("glshade_renderer")),
         )
+
+
+def _results_folder(text: str) -> Path:
+    """``--glshade-results``'s folder, or a usage error where something else is there."""
+    folder = Path(text).resolve()
+    if folder.exists() and not folder.is_dir():
+        raise pytest.UsageError(f"--glshade-results {text}: is not a directory")
+    return folder
 
 
 SESSION = pytest.StashKey[SnapshotSession]()
@@ -352,14 +360,24 @@ def _plain(data: dict) -> dict:
 # --------------------------------------------------------------------- the session's end
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     state = session.config.stash.get(SESSION, None)
-    if state is None or hasattr(session.config, "workerinput"):
-        return  # a pytest-xdist worker sees a share of the tests: no summary of its own
+    if state is None or _distributed(session.config):
+        return
     state.unused = _unused(state)
     quiet = (pytest.ExitCode.OK, pytest.ExitCode.NO_TESTS_COLLECTED)
     if state.unused and state.fail_unused and session.exitstatus in quiet:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
     if state.results is not None and state.entries:
         _write_summary(state)
+
+
+def _distributed(config: pytest.Config) -> bool:
+    """Under pytest-xdist each worker sees a share of the tests and the controller none:
+    neither can tell which baselines went unused, nor write the whole run's summary."""
+    if hasattr(config, "workerinput"):
+        return True
+    return bool(getattr(config.option, "numprocesses", None)) or getattr(
+        config.option, "dist", "no"
+    ) not in ("no", None)
 
 
 def _unused(state: SnapshotSession) -> list[str]:
