@@ -13,7 +13,7 @@ import pytest
 from glshade.errors import GlshadeError
 from glshade.snapshot import baseline as stored
 from glshade.snapshot.compare import compare, number_changes, renderer_floor, scene_changes
-from glshade.snapshot.station import ORACLE, Shot
+from glshade.snapshot.station import Shot
 from glshade.snapshot.tolerance import (
     ACROSS_RENDERERS,
     ACROSS_RENDERERS_FP64,
@@ -130,7 +130,7 @@ def test_a_stations_numbers_in_mm_and_its_depth_in_um():
 def test_another_renderer_raises_the_tolerances_to_the_measured_floor(tmp_path):
     floor, why = renderer_floor(LLVMPIPE, NVIDIA, "fp32")
     assert floor == ACROSS_RENDERERS and why.startswith(f"baseline made on {LLVMPIPE}, compared")
-    floor, _ = renderer_floor(LLVMPIPE, ORACLE, "fp64")
+    floor, _ = renderer_floor(LLVMPIPE, "NumPy float64 oracle (glshade 0.1.0)", "fp64")
     assert floor == ACROSS_RENDERERS_FP64
     floor, _ = renderer_floor(LLVMPIPE, NVIDIA, "fp32", level_step=1 / 255)
     assert floor is not None and floor.image == pytest.approx(2e-4 + 1 / 255)

@@ -13,7 +13,10 @@ the same set of rays either way, and ``rays`` counts them.
 
 from __future__ import annotations
 
+import json
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -33,6 +36,32 @@ def exposure_gain(exposure: float | str, radiance: np.ndarray) -> float:
     finite = values[np.isfinite(values)]
     peak = float(finite.max()) if finite.size else 0.0
     return AUTO_EXPOSURE_LEVEL / peak if peak > 0.0 else 1.0
+
+
+#: "auto" exposure gains a renderer keeps, at most (one per defect-free geometry).
+MAX_AUTO_GAINS = 64
+
+
+def auto_exposure_gain(
+    scene: Any, gains: dict[str, float], radiance_of: Callable[[Any], np.ndarray]
+) -> float:
+    """``scene``'s ``camera.exposure`` as a number. For ``"auto"``: :func:`exposure_gain`
+    of the radiance ``radiance_of`` renders of the defect-free scene its emitter exposes
+    by (:meth:`EmitterComponent.exposure_scene`: the stripes at phase 0, the fringe screen
+    at its brightest level), kept in ``gains`` by that scene (at most
+    :data:`MAX_AUTO_GAINS`), so the images with and without the dent, at every phase or
+    frame, are taken alike."""
+    if scene.camera.exposure != "auto":
+        return float(scene.camera.exposure)
+    normal = scene.active.emitter.exposure_scene(scene.without_defect())
+    key = json.dumps(normal.to_dict(), sort_keys=True, default=str)
+    gain = gains.get(key)
+    if gain is None:
+        gain = exposure_gain("auto", radiance_of(normal))
+        if len(gains) >= MAX_AUTO_GAINS:
+            gains.pop(next(iter(gains)))
+        gains[key] = gain
+    return gain
 
 
 #: The outputs a render can be asked for.

@@ -23,7 +23,6 @@ Numerics (the error budget, fp32):
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import time
 from dataclasses import dataclass
@@ -36,7 +35,7 @@ from glshade.budget import memory_budget_from_env
 from glshade.budget import number_from_env as _number_from_env
 from glshade.components.base import UniformContext
 from glshade.errors import ContextError, GlshadeError, SceneError
-from glshade.frame import Frame, exposure_gain, normalize_outputs
+from glshade.frame import Frame, auto_exposure_gain, normalize_outputs
 from glshade.gpu.compose import ShaderFeatures, compile_error, component_uniforms, compose
 from glshade.gpu.context import GLContext, interrupts_deferred
 from glshade.scene import Scene
@@ -506,24 +505,15 @@ class Renderer:
         return dataclasses.replace(first, frames=layers)
 
     def exposure_gain(self, scene: Scene) -> float:
-        """``camera.exposure`` as a number: for ``"auto"``, from the brightest point of
-        the defect-free scene's radiance as its emitter says (the stripes at phase 0, the
-        fringe screen at its brightest level; rendered once per geometry), so the images
-        with and without the dent, at every phase or frame, are taken alike."""
-        if scene.camera.exposure != "auto":
-            return float(scene.camera.exposure)
-        normal = scene.active.emitter.exposure_scene(scene.without_defect())
-        key = json.dumps(normal.to_dict(), sort_keys=True, default=str)
-        gain = self._gains.get(key)
-        if gain is None:
+        """``camera.exposure`` as a number (:func:`glshade.frame.auto_exposure_gain`; for
+        ``"auto"`` the defect-free scene drawn once per geometry)."""
+
+        def radiance_of(normal: Scene) -> np.ndarray:
             features = drawn_features(normal, ("image",))
             with self.context.current():
-                radiance = self._draw(normal, features, None).output("image")
-            gain = exposure_gain("auto", radiance)
-            if len(self._gains) >= 64:
-                self._gains.pop(next(iter(self._gains)))
-            self._gains[key] = gain
-        return gain
+                return self._draw(normal, features, None).output("image")
+
+        return auto_exposure_gain(scene, self._gains, radiance_of)
 
     def _draw(
         self, scene: Scene, features: ShaderFeatures, out: Frame | None, frames: tuple = ()

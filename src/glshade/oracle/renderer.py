@@ -31,7 +31,7 @@ import numpy as np
 from glshade import __version__
 from glshade.budget import memory_budget_from_env
 from glshade.errors import GlshadeError
-from glshade.frame import Frame, exposure_gain, normalize_outputs
+from glshade.frame import Frame, auto_exposure_gain, normalize_outputs
 from glshade.oracle.tracer import Rays, trace, trace_rays
 from glshade.scene import Scene
 
@@ -46,8 +46,6 @@ _BYTES_PER_RAY, _BYTES_PER_RAY_AND_PATTERN = 200, 16
 _CHUNK_BYTES = 256 << 20
 #: The outputs the oracle computes.
 ORACLE_OUTPUTS = ("image", "uv", "mask", "distance", "rays", "frames")
-#: Cached "auto" exposure gains, at most.
-_MAX_GAINS = 64
 #: Scenes whose traced rays are kept, at most (the metric alternates two).
 _MAX_TRACES = 4
 
@@ -213,23 +211,14 @@ class OracleRenderer:
         return rays
 
     def exposure_gain(self, scene: Scene) -> float:
-        """``camera.exposure`` as a number: for ``"auto"``, from the brightest point of the
-        defect-free scene's radiance as its emitter says (:meth:`EmitterComponent.
-        exposure_scene`; traced once per geometry), as the GL renderer does."""
-        if scene.camera.exposure != "auto":
-            return float(scene.camera.exposure)
-        normal = scene.active.emitter.exposure_scene(scene.without_defect())
-        key = json.dumps(normal.to_dict(), sort_keys=True, default=str)
-        gain = self._gains.get(key)
-        if gain is None:
-            need = self._check_size(normal, frozenset({"image"}), 0)
-            rays = self._rays(normal, need)
-            radiance = trace(normal, ("image",), develop=False, rays=rays).output("image")
-            gain = exposure_gain("auto", radiance)
-            if len(self._gains) >= _MAX_GAINS:
-                self._gains.pop(next(iter(self._gains)))
-            self._gains[key] = gain
-        return gain
+        """``camera.exposure`` as a number (:func:`glshade.frame.auto_exposure_gain`; for
+        ``"auto"`` the defect-free scene traced once per geometry), as the GL renderer's."""
+
+        def radiance_of(normal: Scene) -> np.ndarray:
+            rays = self._rays(normal, self._check_size(normal, frozenset({"image"}), 0))
+            return trace(normal, ("image",), develop=False, rays=rays).output("image")
+
+        return auto_exposure_gain(scene, self._gains, radiance_of)
 
 
 def geometry_key(scene: Scene) -> str:

@@ -61,6 +61,13 @@ def image_scale(image: np.ndarray) -> float:
     return largest if largest > 1.0 + 1.0 / _TOP else 1.0
 
 
+def encode_image(image: np.ndarray) -> bytes:
+    """``image`` as a baseline stores it: a 16-bit PNG of ``image / image_scale(image)``."""
+    from glshade.files import encode_png
+
+    return encode_png(np.clip(image / image_scale(image), 0.0, 1.0), bits=16)
+
+
 def finite_or_none(value: Any) -> Any:
     """A number JSON can hold: a non-finite float becomes None."""
     if isinstance(value, float) and not math.isfinite(value):
@@ -103,7 +110,7 @@ class Baseline:
 
     def write(self, directory: Path) -> None:
         """Write (or rewrite) the baseline's two files in ``directory`` (made if missing)."""
-        from glshade.files import atomic_write_bytes, encode_png
+        from glshade.files import atomic_write_bytes
 
         try:
             directory.mkdir(parents=True, exist_ok=True)
@@ -113,7 +120,7 @@ class Baseline:
             ) from None
         png, side = paths(directory, self.name)
         scale = image_scale(self.image)
-        pixels = encode_png(np.clip(self.image / scale, 0.0, 1.0), bits=16)
+        pixels = encode_image(self.image)
         text = json.dumps(self.sidecar(scale), indent=2, sort_keys=False, allow_nan=False)
         atomic_write_bytes(png, pixels, "snapshot image", within=directory)
         atomic_write_bytes(side, (text + "\n").encode(), "snapshot sidecar", within=directory)

@@ -62,7 +62,7 @@ def write_images(
 ) -> dict[str, str]:
     """The failure's images in ``folder/images``; caption -> path relative to ``folder``."""
     from glshade.files import atomic_write_bytes, encode_png, make_inside
-    from glshade.snapshot.baseline import image_scale
+    from glshade.snapshot.baseline import encode_image
 
     images = make_inside(folder, "images", "--glshade-results")
     written: dict[str, str] = {}
@@ -71,13 +71,12 @@ def write_images(
         atomic_write_bytes(images / f"{name}-{suffix}.png", data, "--glshade-results", folder)
         written[caption] = f"images/{name}-{suffix}.png"
 
-    put("actual", encode_png(np.clip(actual / image_scale(actual), 0, 1), 16), "actual")
+    put("actual", encode_image(actual), "actual")
+    if expected is not None:
+        put("expected", encode_image(expected), "expected")
     if expected is not None and expected.shape == actual.shape:
-        put("expected", encode_png(np.clip(expected / image_scale(expected), 0, 1), 16), "expected")
         rgb, gain = magnified_difference(expected, actual, tolerance)
         put("diff", encode_png(rgb), f"difference ×{gain:.3g} (red: brighter now, blue: darker)")
-    elif expected is not None:
-        put("expected", encode_png(np.clip(expected / image_scale(expected), 0, 1), 16), "expected")
     return written
 
 

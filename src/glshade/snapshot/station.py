@@ -20,8 +20,6 @@ from glshade.scene import Scene
 #: How a session picks its renderer: ``auto`` the GL renderer, or the oracle where no
 #: OpenGL context can be made; ``gl`` the GL renderer or an error; ``oracle`` the oracle.
 CHOICES = ("auto", "gl", "oracle")
-#: What the oracle calls itself in a baseline's ``renderer``.
-ORACLE = "NumPy float64 oracle"
 #: The largest image the oracle renders for a snapshot: 4096² (the memory budget holds too).
 ORACLE_MAX_PIXELS = 4096 * 4096
 
@@ -42,18 +40,14 @@ class Shot:
 
 class Station:
     """A renderer and what it is. ``identity``: the GL renderer string and version
-    (``llvmpipe (LLVM 15.0.6, 256 bits); 4.5 (Core Profile) Mesa 22.3.6``) or
-    :data:`ORACLE`; ``fallback``: why the oracle stands in for the GL renderer (empty when
-    it was asked for, or is not used)."""
+    (``llvmpipe (LLVM 15.0.6, 256 bits); 4.5 (Core Profile) Mesa 22.3.6``) or the
+    oracle's (``NumPy float64 oracle (glshade 0.1.0)``); ``fallback``: why the oracle
+    stands in for the GL renderer (empty when it was asked for, or is not used)."""
 
     def __init__(self, renderer: Any, identity: str, fallback: str = "") -> None:
         self.renderer = renderer
         self.identity = identity
         self.fallback = fallback
-
-    @property
-    def oracle(self) -> bool:
-        return self.identity == ORACLE
 
     def release(self) -> None:
         self.renderer.release()
@@ -89,7 +83,8 @@ def _oracle_station(fallback: str) -> Station:
     from glshade.oracle.renderer import OracleRenderer
 
     # at the baseline's size, however slow (about 50 µs a ray): never a smaller picture
-    return Station(OracleRenderer(max_pixels=ORACLE_MAX_PIXELS), ORACLE, fallback)
+    oracle = OracleRenderer(max_pixels=ORACLE_MAX_PIXELS)
+    return Station(oracle, oracle.renderer_string, fallback)
 
 
 def measured_numbers(renderer: Any, scene: Scene) -> dict[str, dict[str, Any]]:

@@ -24,12 +24,12 @@ from typing import Any
 
 from glshade.errors import GlshadeError
 
-#: Each tolerance's unit and meaning, in the order messages list them.
-MEANINGS: dict[str, tuple[str, str]] = {
-    "image": ("of the emitter's peak", "a pixel's difference"),
-    "image_pixels": ("pixels", "pixels allowed beyond the image tolerance"),
-    "visibility_px": ("px", "the paper's numbers"),
-    "pmd_mm": ("mm", "the phase-measuring numbers"),
+#: Each tolerance's unit, in the order messages list them.
+UNITS: dict[str, str] = {
+    "image": "of the emitter's peak",
+    "image_pixels": "pixels",
+    "visibility_px": "px",
+    "pmd_mm": "mm",
 }
 
 #: The most any tolerance may be: beyond it nothing would ever fail.
@@ -75,9 +75,9 @@ class Tolerances:
 
 
 def _check(name: str, value: Any, where: str) -> None:
-    if name not in MEANINGS:
+    if name not in UNITS:
         raise GlshadeError(
-            f"{where}: unknown tolerance {name!r}; the tolerances are " + ", ".join(MEANINGS)
+            f"{where}: unknown tolerance {name!r}; the tolerances are " + ", ".join(UNITS)
         )
     integer = name == "image_pixels"
     kinds = (int,) if integer else (int, float)
@@ -90,8 +90,7 @@ def _check(name: str, value: Any, where: str) -> None:
     ):
         what = "a whole number" if integer else "a number"
         raise GlshadeError(
-            f"{where}: {name} must be {what} from 0 to {limit:g} ({MEANINGS[name][0]}), "
-            f"got {value!r}"
+            f"{where}: {name} must be {what} from 0 to {limit:g} ({UNITS[name]}), got {value!r}"
         )
 
 
