@@ -4,7 +4,8 @@ in where no OpenGL context can be made (docs/BENCHMARKS.md, "Snapshot checks").
 
     python benchmarks/snapshot_check.py
 
-GL: the second check of each scene on one renderer (its programs compiled by the first).
+GL: the first check of each scene on one renderer (its programs compiled then) and the
+second.
 Oracle: the first check on a fresh one (it keeps traced rays between the metric's phases,
 and would keep them between two checks of one scene too).
 """
@@ -39,19 +40,20 @@ def seconds(station, scene) -> float:
 def main() -> None:
     from glshade.snapshot.station import open_station
 
+    start = time.perf_counter()
     gl = open_station("gl")
-    print(f"renderer: {gl.identity}")
-    print(f"{'scene':32s} {'GL s':>7s} {'oracle s':>9s}")
+    print(f"renderer: {gl.identity} (opened in {time.perf_counter() - start:.2f} s)")
+    print(f"{'scene':32s} {'GL first s':>10s} {'GL s':>7s} {'oracle s':>9s}")
     try:
         for name, scene in scenes().items():
-            seconds(gl, scene)
+            first = seconds(gl, scene)
             on_gl = seconds(gl, scene)
             oracle = open_station("oracle")
             try:
                 on_oracle = seconds(oracle, scene)
             finally:
                 oracle.release()
-            print(f"{name:32s} {on_gl:7.2f} {on_oracle:9.2f}")
+            print(f"{name:32s} {first:10.2f} {on_gl:7.2f} {on_oracle:9.2f}")
     finally:
         gl.release()
 

@@ -252,3 +252,25 @@ def test_under_xdist_no_process_judges_unused_baselines():
     worker = SimpleNamespace(option=SimpleNamespace(), workerinput={"workerid": "gw0"})
     assert not _distributed(plain)
     assert _distributed(controller) and _distributed(worker)
+
+
+def test_a_moved_number_says_when_its_status_makes_it_unreadable():
+    """As the tables mark them: an edge status makes every paper number unreadable,
+    unresolved stripes only visibility_px (the continuous numbers follow the rays)."""
+    before = json.loads(json.dumps(NUMBERS))
+    now = json.loads(json.dumps(NUMBERS))
+    now["paper"].update(visibility_px=3.0, deflection_px=1.5, status="unresolved")
+    moved = {c.name: c for c in number_changes(before, now, DEFAULT) if c.moved}
+    assert moved["visibility_px"].unreadable == "unresolved"
+    assert (
+        "(tolerance 0.01 px, not readable: status unresolved)" in moved["visibility_px"].describe()
+    )
+    assert moved["deflection_px"].unreadable == ""
+    now["paper"]["status"] = "edge"
+    moved = {c.name: c for c in number_changes(before, now, DEFAULT) if c.moved}
+    assert moved["deflection_px"].unreadable == "edge"
+    pmd_before = {"pmd": {"pmd_shift_mm": 0.7, "decode_rms_mm": 1e-6, "status": "ok"}}
+    pmd_now = {"pmd": {"pmd_shift_mm": 0.8, "decode_rms_mm": 1e-3, "status": "noise"}}
+    moved = {c.name: c for c in number_changes(pmd_before, pmd_now, DEFAULT) if c.moved}
+    assert moved["pmd_shift_mm"].unreadable == "noise"  # the dent's number
+    assert moved["decode_rms_mm"].unreadable == ""  # the station's own stays readable

@@ -82,6 +82,8 @@ class NumberChange:
     expected: Any
     actual: Any
     tolerance: float | None
+    #: The status that makes the number unreadable now or in the baseline ("" if none).
+    unreadable: str = ""
 
     @property
     def moved(self) -> bool:
@@ -101,9 +103,10 @@ class NumberChange:
         delta = ""
         if isinstance(self.expected, (int, float)) and isinstance(self.actual, (int, float)):
             delta = f", by {float(self.actual) - float(self.expected):+.4g}"
+        trust = f", not readable: status {self.unreadable}" if self.unreadable else ""
         return (
             f"{self.name} {_shown(self.expected)} -> {_shown(self.actual)}{unit}{delta} "
-            f"(tolerance {self.tolerance:g}{unit})"
+            f"(tolerance {self.tolerance:g}{unit}{trust})"
         )
 
 
@@ -121,6 +124,23 @@ def _records() -> dict[str, Any]:
     from glshade.measure.record import Measurement, PmdMeasurement
 
     return {"paper": Measurement, "pmd": PmdMeasurement}
+
+
+def unreadable_by(instrument: str, column: str, *statuses: Any) -> str:
+    """The first of ``statuses`` (now's, the baseline's) that makes ``column`` of
+    ``instrument``'s record unreadable, as the tables mark it; "" where none does."""
+    from glshade.measure.pmd import pmd_concerns
+    from glshade.metrics.status import concerns
+
+    paper_columns = ("visibility_px", "visibility_continuous_px", "deflection_px")
+    for status in statuses:
+        if not isinstance(status, str):
+            continue
+        if instrument == "pmd" and pmd_concerns(status, column):
+            return status
+        if instrument == "paper" and column in paper_columns and concerns(status, column):
+            return status
+    return ""
 
 
 def number_changes(
@@ -146,6 +166,7 @@ def number_changes(
                 NumberChange(
                     instrument, column.name, column.unit,
                     before.get(column.name), now.get(column.name), tolerance,
+                    unreadable_by(instrument, column.name, now.get("status"), before.get("status")),
                 )
             )  # fmt: skip
     return changes

@@ -112,7 +112,10 @@ def number_rows(entry: Entry) -> list[dict[str, str]]:
 def _tolerance_text(change: Any) -> str:
     if change is None:
         return ""
-    return "same" if change.tolerance is None else f"{change.tolerance:g} {change.unit}"
+    if change.tolerance is None:
+        return "same"
+    trust = f" (not readable: status {change.unreadable})" if change.unreadable else ""
+    return f"{change.tolerance:g} {change.unit}{trust}"
 
 
 def _numeric(value: Any) -> bool:
