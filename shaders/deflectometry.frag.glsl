@@ -32,6 +32,14 @@ layout(r32f, binding = 0) uniform writeonly image2DArray out_frames;
 {$ endif $}
 {$ endfor $}
 
+{$ if shading $}
+// The patterns shaded from every ray: the image's one, or the emitter frames of this draw
+// (one layer each). shade() adds each pattern's pixel value, times what the surface
+// reflects, to its sum.
+const int PATTERNS = {{ patterns }};
+float pattern_sums[PATTERNS];
+{$ endif $}
+
 {$ for stage in stages $}
 {$ if stage.header $}
 {$ include stage.header $}
@@ -44,13 +52,11 @@ layout(r32f, binding = 0) uniform writeonly image2DArray out_frames;
 {$ if "distance" in outputs $}
 float hit_distance;                          // of the last trace(): camera to hit, mm (-1: none)
 {$ endif $}
-{$ if "frames" in outputs $}
-float ray_weight;                            // of the last trace(): what the surface reflects (Fresnel)
-{$ endif $}
 
-// Trace ray k of sensor position (col, row) (pixel units, row 0 at the top).
-bool trace(real col, real row, int k, out float radiance, out real2 uv) {
-    radiance = 0.0;
+// Trace ray k of sensor position (col, row) (pixel units, row 0 at the top): its first hit,
+// its mirror ray's landing point uv on the emitter and, where it lands there, every pattern
+// shaded into pattern_sums. False where it misses the surface or the emitter.
+bool trace(real col, real row, int k, out real2 uv) {
     uv = real2(0.0);
     Ray ray = camera_ray(col, row, k);
     real3 d = ray.d;
@@ -71,17 +77,11 @@ bool trace(real col, real row, int k, out float radiance, out real2 uv) {
     real3 r = d - 2.0 * dot(d, n) * n;
     real dist;
     if (!emitter_hit(p, r, uv, dist)) return false;
-{$ if "frames" in outputs $}
+{$ if shading $}
 {$ if fresnel $}
-    ray_weight = fresnel(float(-dot(d, n)));
+    shade(p, d, n, r, uv, dist, fresnel(float(-dot(d, n))));
 {$ else $}
-    ray_weight = 1.0;
-{$ endif $}
-{$ endif $}
-{$ if "image" in outputs $}
-    radiance = shade(p, d, n, r, uv, dist);
-{$ if fresnel $}
-    radiance *= fresnel(float(-dot(d, n)));
+    shade(p, d, n, r, uv, dist, 1.0);
 {$ endif $}
 {$ endif $}
     return true;
@@ -112,12 +112,10 @@ bool loops_ran_whole() {
 void main() {
     real col = floor(real(gl_FragCoord.x));
     real row = floor(real(gl_FragCoord.y));  // framebuffer row 0 is image row 0 (top)
-    float radiance = 0.0;
     real2 uv = real2(0.0);
     bool reached = false;
-{$ if "frames" in outputs $}
-    float frame_sums[{{ frame_count }}];       // each frame's radiance, summed over the rays
-    for (int j = 0; j < {{ frame_count }}; ++j) frame_sums[j] = 0.0;
+{$ if shading $}
+    for (int j = 0; j < PATTERNS; ++j) pattern_sums[j] = 0.0;
 {$ endif $}
 {$ if "distance" in outputs $}
     float distance_sum = 0.0;                // over the samples that hit the surface
@@ -130,8 +128,8 @@ void main() {
 {$ if supersample or aperture $}
     // n x n sub-pixel positions, each with the camera's rays (a lens: its aperture
     // samples): sample index i = (a n + b) K + k. This draw traces indices
-    // [u_pass_first, u_pass_first + u_pass_count) and writes its share of the mean
-    // radiance (its sum over all n² K), and uv as the mean over its rays that reach the
+    // [u_pass_first, u_pass_first + u_pass_count) and writes its share of each pattern's
+    // mean (its sum over all n² K), and uv as the mean over its rays that reach the
     // emitter (the renderer weighs the draws by their counts).
     int hits = 0;
 {$ if supersample $}
@@ -147,19 +145,13 @@ void main() {
         int k = i - sub * rays;
         int a = sub / side;
         int b = sub - a * side;
-        float sample_radiance;
         real2 sample_uv;
 {$ if "iterations" in outputs $}
         g_evaluations = 0;
 {$ endif $}
-        if (trace(col + (real(b) + 0.5) * step, row + (real(a) + 0.5) * step, k, sample_radiance, sample_uv)) {
-            radiance += sample_radiance;
+        if (trace(col + (real(b) + 0.5) * step, row + (real(a) + 0.5) * step, k, sample_uv)) {
             uv += sample_uv;
             hits += 1;
-{$ if "frames" in outputs $}
-            for (int j = 0; j < {{ frame_count }}; ++j)
-                frame_sums[j] += ray_weight * emitter_frame_radiance(sample_uv, j);
-{$ endif $}
         }
 {$ if "distance" in outputs $}
         if (hit_distance >= 0.0) {
@@ -172,13 +164,11 @@ void main() {
 {$ endif $}
         traced += 1;
     }
-    radiance /= float(side * side * rays);
+{$ if shading $}
+    float count = float(side * side * rays);  // this draw's share of each pattern's mean: its sum over all n² K
+{$ endif $}
     reached = hits > 0;
     if (reached) uv /= real(hits);
-{$ if "frames" in outputs $}
-    for (int j = 0; j < {{ frame_count }}; ++j)   // this draw's share of each frame's mean
-        imageStore(out_frames, ivec3(gl_FragCoord.xy, j), vec4(frame_sums[j] / float(side * side * rays)));
-{$ endif $}
 {$ if "rays" in outputs $}
     // the ray being traced when the limiter ran out was cut short: not counted
     out_rays = vec4(float(loops_ran_whole() ? traced : traced - 1), float(hits), 0.0, 0.0);
@@ -187,11 +177,9 @@ void main() {
 {$ endif $}
 {$ endif $}
 {$ else $}
-    reached = trace(col + 0.5, row + 0.5, 0, radiance, uv);
-{$ if "frames" in outputs $}
-    for (int j = 0; j < {{ frame_count }}; ++j)
-        imageStore(out_frames, ivec3(gl_FragCoord.xy, j),
-                   vec4(reached ? ray_weight * emitter_frame_radiance(uv, j) : 0.0));
+    reached = trace(col + 0.5, row + 0.5, 0, uv);
+{$ if shading $}
+    const float count = 1.0;
 {$ endif $}
 {$ if "distance" in outputs $}
     if (hit_distance >= 0.0) {
@@ -210,7 +198,10 @@ void main() {
 {$ endif $}
 {$ endif $}
 {$ if "image" in outputs $}
-    out_image = radiance;
+    out_image = pattern_sums[0] / count;
+{$ elif "frames" in outputs $}
+    for (int j = 0; j < PATTERNS; ++j)
+        imageStore(out_frames, ivec3(gl_FragCoord.xy, j), vec4(pattern_sums[j] / count));
 {$ endif $}
 {$ if "uv" in outputs and precision == "fp64" $}
     vec2 uv_hi = vec2(uv);

@@ -1,12 +1,13 @@
 #version 450
 // The viewer's display pass: draws one view of the scene into the window.
 // mode 0: the emitter's pattern, shaded from a traced uv map at the current phase (a phase
-//         change re-shades, it does not re-trace): the emitter's own emitter_radiance();
+//         change re-shades, it does not re-trace): the emitter's own emitter_radiance(uv, 0);
 // mode 1: a radiance image (R32F);
 // mode 2: an RGBA8 picture (contour overlay, colour-mapped displacement).
 {$ for file in preamble $}
 {$ include file $}
 {$ endfor $}
+const int PATTERNS = 1;                  // the scene's own pattern
 {$ for stage in stages $}
 {$ include stage.header $}
 {$ for file in stage.files $}
@@ -24,7 +25,7 @@ out vec4 fragment;
 void main() {
     if (u_mode == 0) {
         vec2 uv = texture(u_uv, v_texcoord).xy;
-        float value = isnan(uv.y) ? 0.0 : emitter_radiance(uv);
+        float value = isnan(uv.y) ? 0.0 : emitter_radiance(uv, 0);
         fragment = vec4(vec3(clamp(value, 0.0, 1.0)), 1.0);
     } else if (u_mode == 1) {
         fragment = vec4(vec3(clamp(texture(u_gray, v_texcoord).r, 0.0, 1.0)), 1.0);

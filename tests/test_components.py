@@ -48,6 +48,18 @@ VARIANTS = {
     ),
     "fp64-supersampled": lambda s: s.updated(render={"precision": "fp64", "supersample": 2}),
     "axis-x-concave": lambda s: s.updated(surface={"axis": "x", "radius": -60.0}),
+    # a real screen (the stripes keep none of it): cover glass, pixels, black level, room
+    # light and a measured response
+    "real-screen": lambda s: s.updated(
+        emitter={
+            "glass_thickness": 1.1,
+            "pixel_pitch": 0.25,
+            "fill_factor": 0.8,
+            "black_level": 0.01,
+            "ambient": 0.02,
+            "response_file": sample_response(),
+        }
+    ),
 }
 
 
@@ -68,6 +80,22 @@ def sample_map(name: str = "map") -> str:
     return str(path)
 
 
+@functools.cache
+def sample_response() -> str:
+    """A measured screen response (an sRGB-like curve at 8-bit commanded values), for the
+    parameters that read one (one per process)."""
+    commanded = np.arange(256)
+    displayed = 0.4 + 120.0 * (commanded / 255.0) ** 2.2
+    path = Path(tempfile.gettempdir()) / f"glshade-test-response-{os.getpid()}.csv"
+    lines = ["# commanded, luminance (cd/m2)"] + [
+        f"{c}, {d:.5f}" for c, d in zip(commanded, displayed, strict=True)
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+#: Values other than the default for parameters that read a file of another kind.
+OTHER_FILES = {"emitter.response_file": sample_response}
 #: Values for parameters that have no usable default (a height map's file and spacing).
 NEEDS_VALUE = {"surface.file": sample_map, "surface.spacing": lambda: (0.5, 0.5)}
 
@@ -100,7 +128,8 @@ def output_sets(scene):
     sets = [(outputs, ()) for outputs in OUTPUT_SETS]
     if scene.emitter.kind == "fringes":
         frames = scene.active.emitter.sequence(scene)[:3]
-        sets += [(("frames",), frames), ((*SINGLE, "frames"), frames)]
+        others = tuple(name for name in SINGLE if name != "image")  # the image: its own program
+        sets += [(("frames",), frames), ((*others, "frames"), frames)]
     return sets
 
 
@@ -183,6 +212,8 @@ def _other_value(param):
         return tuple(0.01 * (k + 1) * (-1) ** k for k in range(param.size))
     if param.value_type == "names":
         return tuple(reversed(param.default))
+    if param.path in OTHER_FILES:
+        return OTHER_FILES[param.path]()
     if param.value_type == "path":
         return sample_map("flipped")
     if param.value_type == "text":

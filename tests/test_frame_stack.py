@@ -97,12 +97,16 @@ def test_only_the_needed_code_is_composed():
     scene = fringes()
     frames_only = compose(ShaderFeatures.from_scene(scene, ("frames",), 4))[1]
     image_only = compose(ShaderFeatures.from_scene(scene, ("image",)))[1]
-    assert "emitter_frame_radiance" in frames_only and "out_frames" in frames_only
-    assert "float emitter_radiance(" not in frames_only  # the single frame's lookup
-    assert "u_emitter_frame_period[4]" in frames_only
-    assert "float emitter_frame_radiance(" not in image_only and "out_frames" not in image_only
+    assert "out_frames" in frames_only and "const int PATTERNS = 4;" in frames_only
+    assert "uniform vec4 u_emitter_frame[PATTERNS];" in frames_only
+    assert "const int PATTERNS = 1;" in image_only and "out_frames" not in image_only
+    # one shading path: the image and the stack call the same reflection model
+    assert "void shade(" in frames_only and "void shade(" in image_only
+    uv_only = compose(ShaderFeatures.from_scene(scene, ("uv",)))[1]
+    assert "u_emitter_frame" not in uv_only and "float pattern_sums" not in uv_only
+    assert "emitter_radiance(" not in uv_only
     stripes = compose(ShaderFeatures.from_scene(paper_scene(), ("image",)))[1]
-    assert "fringe" not in stripes and "frame_sums" not in stripes
+    assert "fringe" not in stripes and "u_emitter_frame" not in stripes
 
 
 def test_a_stack_needs_a_sequence_emitter_and_its_frames(renderer):
@@ -113,3 +117,5 @@ def test_a_stack_needs_a_sequence_emitter_and_its_frames(renderer):
         renderer.render(scene, ("frames",))
     with pytest.raises(GlshadeError, match="frames output and a non-empty list"):
         renderer.render(scene, ("image",), frames=scene.active.emitter.sequence(scene))
+    with pytest.raises(GlshadeError, match="the image and the frames outputs are two programs"):
+        compose(ShaderFeatures.from_scene(scene, ("image", "frames"), 2))

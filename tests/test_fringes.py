@@ -149,17 +149,11 @@ def test_gpu_agrees_with_the_oracle_on_a_dented_plate_in_fp64(renderer):
 def test_each_emitters_code_is_absent_from_the_others_program():
     stripes_src = compose(ShaderFeatures.from_scene(paper_scene(), ("image",)))[1]
     fringes_src = compose(ShaderFeatures.from_scene(fringes(), ("image",)))[1]
-    assert "u_emitter_fringe_period" in fringes_src and "float stripes(" not in fringes_src
+    assert "u_emitter_frame_period" in fringes_src and "float stripes(" not in fringes_src
     assert "u_emitter_sigma" not in fringes_src
     assert "float stripes(" in stripes_src and "u_emitter_fringe" not in stripes_src
     for source in (stripes_src, fringes_src):
         assert "bool emitter_hit(" in source
-
-
-def test_lobes_are_refused_with_one_line():
-    scene = fringes().updated(render={"reflection": "blinn-phong"})
-    with pytest.raises(GlshadeError, match="fringes.*mirror"):
-        compose(ShaderFeatures.from_scene(scene, ("image",)))
 
 
 def test_the_stripe_metric_refuses_fringes():

@@ -41,7 +41,7 @@ MARKERS = {
     "blinn_phong": ["u_reflection_shininess", "Blinn-Phong"],
     "fp64": ["double", "dvec3", "lf"],
     "supersample": ["u_render_supersample"],
-    "image": ["out_image", "float shade(", "float stripes(", "u_emitter_sigma"],
+    "image": ["out_image", "void shade(", "float stripes(", "u_emitter_sigma"],
     "uv": ["out_uv"],
     "mask": ["out_mask"],
     "distance": ["out_distance", "hit_distance"],
@@ -166,9 +166,11 @@ def test_features_come_from_scene_values():
         "aperture": False,
         "distortion": False,
         "coherence": False,
-        "blur": "none",
+        "kernel": "none",
+        "filtered": False,
         "diffuse": False,
         "fresnel": False,
+        "cover_glass": False,
     }
     assert f.outputs == ("image", "uv")
     # theta, phase, sigma2, dmax (non-zero) are uniforms: same features

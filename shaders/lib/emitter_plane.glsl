@@ -8,22 +8,105 @@ uniform real u_emitter_dist;      // De, mm
 uniform real3 u_emitter_offset;   // (O.e_u, O.e_v, O.n_E) of the local origin O, mm
 uniform real2 u_emitter_half;     // half extents in u and v, mm
 
-// Hit of the ray p + t r (p local) with the emitter's front: (u, v) in mm and t.
+{$ if cover_glass $}
+// A cover glass of thickness t and index n in front of the emitting layer (the plane above):
+// its front face lies t nearer the origin; a ray refracts there and meets the layer
+// t (tan i - tan r) nearer its foot than it would straight on (sin r = sin i / n).
+uniform real u_emitter_glass_thickness;   // t, mm
+uniform real u_emitter_glass_index;       // n
+{$ endif $}
+
+// Hit of the ray p + t r (p local, r unit) with the emitter's front: (u, v) in mm on the
+// emitting layer and the path length to it.
 bool emitter_hit(real3 p, real3 r, out real2 uv, out real dist) {
     real facing = dot(r, u_emitter_normal);
     if (!(facing < 0.0)) return false;                 // away from, or along, the emitter
-    dist = (-u_emitter_dist - (dot(p, u_emitter_normal) + u_emitter_offset.z)) / facing;
+    real gap = -u_emitter_dist - (dot(p, u_emitter_normal) + u_emitter_offset.z);
+{$ if cover_glass $}
+    dist = (gap + u_emitter_glass_thickness) / facing; // to the glass's front face
+    if (!(dist > 0.0)) return false;                   // emitter behind the point
+    real2 along = real2(dot(r, u_emitter_eu), dot(r, u_emitter_ev));   // sin i along the face
+    real n = u_emitter_glass_index;
+    real cos_r = sqrt(max(1.0 - dot(along, along) / (n * n), 0.0));
+    uv = real2(dot(p, u_emitter_eu) + u_emitter_offset.x, dot(p, u_emitter_ev) + u_emitter_offset.y)
+         + dist * along + u_emitter_glass_thickness * along / (n * cos_r);
+    dist += u_emitter_glass_thickness / cos_r;
+{$ else $}
+    dist = gap / facing;
     if (!(dist > 0.0)) return false;                   // emitter behind the point
     uv = real2(dot(p, u_emitter_eu) + u_emitter_offset.x + dist * dot(r, u_emitter_eu),
                dot(p, u_emitter_ev) + u_emitter_offset.y + dist * dot(r, u_emitter_ev));
+{$ endif $}
     return abs(uv.x) <= u_emitter_half.x && abs(uv.y) <= u_emitter_half.y;   // else: curtain
 }
-{$ if "image" in outputs and blur != "none" $}
+{$ if shading and filtered $}
 
-// How fast v moves when the ray r (landing dist mm away) turns towards a: the plane's
-// Jacobian, dv = dist (a.e_v - a.n_E (r.e_v / r.n_E)) per radian.
-real emitter_v_rate(real3 r, real dist, real3 a) {
-    real lean = dot(r, u_emitter_ev) / dot(r, u_emitter_normal);
-    return dist * (dot(a, u_emitter_ev) - dot(a, u_emitter_normal) * lean);
+// How (u, v) moves as the ray r turns towards a, meeting a plane `to_plane` mm along r: the
+// plane's Jacobian, d(uv) = to_plane (a.e - a.n_E (r.e / r.n_E)) per radian, e = e_u, e_v.
+real2 emitter_rate(real3 r, real to_plane, real3 a) {
+    real facing = dot(r, u_emitter_normal);
+    real2 lean = real2(dot(r, u_emitter_eu), dot(r, u_emitter_ev)) / facing;
+    return to_plane * (real2(dot(a, u_emitter_eu), dot(a, u_emitter_ev)) - dot(a, u_emitter_normal) * lean);
+}
+{$ if cover_glass $}
+
+// The glass's part: the offset t x / (n cos r) inside it, x = (r.e_u, r.e_v), moves by
+// t (a_x / (n c) + x (x.a_x) / (n^3 c^3)), c = cos r, as r turns towards a.
+real2 glass_rate(real3 r, real3 a) {
+    real2 x = real2(dot(r, u_emitter_eu), dot(r, u_emitter_ev));
+    real2 ax = real2(dot(a, u_emitter_eu), dot(a, u_emitter_ev));
+    real n = u_emitter_glass_index;
+    real c = sqrt(max(1.0 - dot(x, x) / (n * n), 0.0));
+    return u_emitter_glass_thickness * (ax / (n * c) + x * (dot(x, ax) / (n * n * n * c * c * c)));
+}
+
+real2x2 emitter_jacobian(real3 p, real3 r, real dist, real3 a1, real3 a2) {
+    real gap = -u_emitter_dist - (dot(p, u_emitter_normal) + u_emitter_offset.z);
+    real to_face = (gap + u_emitter_glass_thickness) / dot(r, u_emitter_normal);
+    return real2x2(emitter_rate(r, to_face, a1) + glass_rate(r, a1),
+                   emitter_rate(r, to_face, a2) + glass_rate(r, a2));
+}
+{$ else $}
+
+real2x2 emitter_jacobian(real3 p, real3 r, real dist, real3 a1, real3 a2) {
+    return real2x2(emitter_rate(r, dist, a1), emitter_rate(r, dist, a2));
+}
+{$ endif $}
+{$ endif $}
+{$ if shading and diffuse $}
+
+// The emitter rectangle's form factor seen from p with unit normal n: (1/pi) times its
+// projected solid angle above the tangent plane, by Lambert's polygon formula on the
+// rectangle clipped to the plane (Sutherland-Hodgman).
+float emitter_form_factor(real3 p, real3 n) {
+    vec3 corner[4];
+    vec3 centre = vec3(-u_emitter_dist * u_emitter_normal - u_emitter_offset.x * u_emitter_eu - u_emitter_offset.y * u_emitter_ev
+                       - u_emitter_offset.z * u_emitter_normal - p);                  // emitter centre - p, mm
+    vec3 eu = vec3(u_emitter_eu) * float(u_emitter_half.x);
+    vec3 ev = vec3(u_emitter_ev) * float(u_emitter_half.y);
+    corner[0] = centre - eu - ev;
+    corner[1] = centre + eu - ev;
+    corner[2] = centre + eu + ev;
+    corner[3] = centre - eu + ev;
+    vec3 nf = vec3(n);
+    vec3 poly[5];
+    int count = 0;
+    for (int i = 0; i < 4; ++i) {
+        vec3 a = corner[i];
+        vec3 b = corner[(i + 1) % 4];
+        float da = dot(nf, a);
+        float db = dot(nf, b);
+        if (da >= 0.0) poly[count++] = a;
+        if ((da >= 0.0) != (db >= 0.0)) poly[count++] = a + (b - a) * (da / (da - db));
+    }
+    float sum = 0.0;
+    for (int i = 0; i < count; ++i) {
+        vec3 a = normalize(poly[i]);
+        vec3 b = normalize(poly[(i + 1) % count]);
+        vec3 c = cross(a, b);
+        float len = length(c);
+        if (len > 0.0) sum += acos(clamp(dot(a, b), -1.0, 1.0)) * dot(nf, c) / len;
+    }
+    return abs(sum) / 6.2831853;
 }
 {$ endif $}

@@ -210,6 +210,13 @@ class Component:
         dent solver (``march_steps``, ``newton_iterations``)."""
         return 0
 
+    def pattern_loop_iterations(self, scene: SceneView, solver: Any) -> int:
+        """The most loop iterations its GLSL runs for one camera ray and each pattern the
+        program shades (a reflection model's loop over the patterns, an emitter's series per
+        pattern), counted as :meth:`loop_iterations` counts; a frame stack shades up to 64
+        patterns from each ray."""
+        return 0
+
     def develop(self, scene: SceneView, image: np.ndarray, exposure: int = 0) -> np.ndarray:
         """What the sensor makes of a rendered radiance image (float32, in place or new);
         the identity but for the sensor. ``exposure`` numbers independent exposures of
@@ -398,6 +405,38 @@ class EmitterComponent(Component):
         """The radiance (float64) where rays land at screen coordinate ``v`` (mm)."""
         return self.pattern(scene).radiance(v)
 
+    def radiance_uv(self, scene: SceneView, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The radiance (float64) where rays land at screen points ``(u, v)`` (mm): the
+        float64 oracle of the GLSL ``emitter_radiance``."""
+        return self.radiance(scene, self.along(scene, u, v))
+
+    def diffuse(self, scene: SceneView, p: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """The Lambertian radiance of the emitter's pattern at hits ``p`` (N, 3) with unit
+        normals ``n`` (float64; the oracle of ``emitter_diffuse``): by default the pattern's
+        mean radiance times the emitter's form factor (a pattern much finer than the diffuse
+        kernel, which spans hundreds of mm of the emitter, averages out)."""
+        from glshade.components.emitter.plane import form_factor
+
+        return form_factor(scene, p, n) * self.pattern(scene).mean_radiance()
+
+    def jacobian(
+        self, scene: SceneView, points: np.ndarray, r: np.ndarray, a1: np.ndarray, a2: np.ndarray
+    ) -> np.ndarray:
+        """How the landing point ``(u, v)`` of rays ``points + t r`` (unit ``r``) moves as
+        they turn towards ``a1`` and ``a2``: (N, 2, 2), mm per radian (the float64 oracle of
+        the GLSL ``emitter_jacobian``)."""
+        raise NotImplementedError
+
+    def cover_glass(self, scene: SceneView) -> tuple[float, float] | None:
+        """A cover glass in front of the emitting layer, ``(thickness mm, refractive
+        index)``, or None (the default): rays refract through it to the layer."""
+        return None
+
+    def feature_mm(self, scene: SceneView) -> float:
+        """The finest length over which the radiance changes (mm): what a quadrature over
+        the emitter must resolve."""
+        return float(self.pattern(scene).feature_mm)
+
     def along(self, scene: SceneView, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The screen coordinate :meth:`radiance` takes (mm): ``v``, along which the
         stripes vary (an emitter varying along ``u`` says so)."""
@@ -451,8 +490,8 @@ def no_sequence(emitter: str) -> str:
 
 class ReflectionComponent(Component):
     """How the surface reflects. Oracle: ``shade``, the pixel value of hits ``p`` seen
-    along unit ``d`` with unit normals ``n`` whose mirror rays land at ``v`` (``ok``:
-    on the emitter)."""
+    along unit ``d`` with unit normals ``n`` whose mirror rays land at screen points ``uv``
+    ((N, 2) mm; ``ok``: on the emitter)."""
 
     slot = "reflection"
     #: The pixel is the emitter's radiance at the mirror ray's ``v``: a picture can be
@@ -468,10 +507,27 @@ class ReflectionComponent(Component):
         p: np.ndarray,
         d: np.ndarray,
         n: np.ndarray,
-        v: np.ndarray,
+        uv: np.ndarray,
         ok: np.ndarray,
     ) -> np.ndarray:
         raise NotImplementedError
+
+    def footprint(
+        self, scene: SceneView, p: np.ndarray, d: np.ndarray, n: np.ndarray
+    ) -> tuple[np.ndarray, str] | None:
+        """The lobe mapped onto the emitter, linearised about the mirror ray, at hits ``p``
+        (N, 3) seen along unit ``d`` with unit normals ``n``: ``(F, kernel)``, ``F`` (N, 2, 2)
+        the footprint matrix (mm; a lobe offset ``x`` of the unit ``kernel``,
+        ``shaders/lib/kernels.glsl``, lands ``F x`` from the mirror ray's point); None for a
+        model without a lobe. The float64 oracle of the footprint its GLSL hands
+        ``emitter_filtered``, and what the closed form of the modulation a finish leaves of
+        a fringe is computed from (:mod:`glshade.oracle.lobe`)."""
+        return None
+
+    def finish_name(self, scene: SceneView) -> str:
+        """The finish in a few words (its model and roughness), for a status that names
+        it."""
+        return self.name
 
     def lobe_std_rad(self, scene: SceneView) -> float | None:
         """The angular standard deviation of the reflected direction (rad), or None for
@@ -555,10 +611,14 @@ class Active:
             factor *= component.work_factor(scene)
         return factor
 
-    def loop_iterations(self, scene: SceneView, solver: Any) -> int:
-        """Loop iterations of one camera ray, all components together, the sample loop's
-        own included."""
-        return 1 + sum(c.loop_iterations(scene, solver) for c in self.components)
+    def loop_iterations(self, scene: SceneView, solver: Any, patterns: int = 1) -> int:
+        """Loop iterations of one camera ray shading ``patterns`` patterns (the image: 1; a
+        frame stack: the frames of a draw), all components together, the sample loop's own
+        included."""
+        return 1 + sum(
+            c.loop_iterations(scene, solver) + patterns * c.pattern_loop_iterations(scene, solver)
+            for c in self.components
+        )
 
     def textures(self, scene: SceneView) -> dict[str, np.ndarray]:
         textures: dict[str, np.ndarray] = {}

@@ -69,6 +69,11 @@ class ShaderFeatures:
         if "frames" in wanted:
             if frame_count < 1:
                 raise GlshadeError("the frames output needs frame_count >= 1 frames per draw")
+            if "image" in wanted:
+                raise GlshadeError(
+                    "the image and the frames outputs are two programs: render the image of "
+                    "the scene showing a frame (EmitterComponent.showing), or the frames"
+                )
             variables = {**variables, "frame_count": frame_count}
         return cls(
             components=scene.active.components,
@@ -77,10 +82,17 @@ class ShaderFeatures:
         )
 
     def template_variables(self) -> dict[str, object]:
-        """The components' variables, ``outputs`` and ``shading`` (a pixel value is
-        computed: the image, or a stack of emitter frames): what every GLSL file may use."""
+        """The components' variables, ``outputs``, ``shading`` (a pixel value is computed:
+        the image, or a stack of emitter frames) and ``patterns`` (how many patterns each ray
+        is shaded for: the image's one, or the frames of a draw): what every GLSL file may
+        use."""
         shading = "image" in self.outputs or "frames" in self.outputs
-        return {**dict(self.variables), "outputs": self.outputs, "shading": shading}
+        return {
+            **dict(self.variables),
+            "outputs": self.outputs,
+            "shading": shading,
+            "patterns": self.frame_count or 1,
+        }
 
     @property
     def frame_count(self) -> int:
@@ -232,7 +244,8 @@ def compose(features: ShaderFeatures) -> tuple[str, str]:
 # --------------------------------------------------------------------------- the viewer
 #: What the viewer's display pass shades: the emitter's radiance at a traced map, in fp32.
 DISPLAY_VARIABLES: dict[str, Hashable] = {
-    "blur": "none",
+    "kernel": "none",
+    "filtered": False,
     "diffuse": False,
     "precision": "fp32",
     "supersample": False,

@@ -304,3 +304,12 @@ class GLContext:
 
     def __exit__(self, *exc: object) -> None:
         self.release()
+
+
+def set_uniform(program: moderngl.Program, name: str, value: Any) -> None:
+    """Write a uniform's value: a list of values for an array, also for an array of one
+    element (which moderngl writes as a single value)."""
+    uniform = program[name]
+    if isinstance(value, list) and getattr(uniform, "array_length", 1) == 1 and len(value) == 1:
+        value = value[0]
+    uniform.value = value  # type: ignore[union-attr]

@@ -37,7 +37,7 @@ from glshade.components.base import UniformContext
 from glshade.errors import ContextError, GlshadeError, SceneError
 from glshade.frame import Frame, auto_exposure_gain, normalize_outputs
 from glshade.gpu.compose import ShaderFeatures, compile_error, component_uniforms, compose
-from glshade.gpu.context import GLContext, interrupts_deferred
+from glshade.gpu.context import GLContext, interrupts_deferred, set_uniform
 from glshade.scene import Scene
 
 #: Bytes per pixel of each output: GPU render target + host array (fp64 uv: an RGBA32F
@@ -156,10 +156,9 @@ def samples_per_draw(
     (:meth:`Active.loop_iterations <glshade.components.base.Active.loop_iterations>` per
     ray, and with ``frame_count`` emitter frames a loop over them per ray and two per
     pixel) within ``budget``, at least one, at most all."""
-    per_ray = scene.active.loop_iterations(scene, solver)
-    if frame_count:
-        per_ray += frame_count + 1
-        budget = max(1, budget - 2 * (frame_count + 1))
+    patterns = frame_count or 1
+    per_ray = scene.active.loop_iterations(scene, solver, patterns)
+    budget = max(1, budget - 2 * (patterns + 1))  # the pixel's loops over its pattern sums
     return max(1, min(pixel_samples(scene), budget // per_ray))
 
 
@@ -534,7 +533,7 @@ class Renderer:
                 raise GlshadeError(
                     f"uniform {name} of {features.selected()} is provided by no active component"
                 )
-            cast(moderngl.Uniform, program[name]).value = uniforms[name]  # only uniforms kept
+            set_uniform(program, name, uniforms[name])  # only the uniforms the program kept
         targets = self._render_targets(width, height, features)
         targets.fbo.use()
         targets.fbo.viewport = (0, 0, width, height)

@@ -425,10 +425,9 @@ def shade_rays(scene: Scene, rays: Rays, shown: tuple[Scene, ...]) -> np.ndarray
     for idx, p, d, n in rays.chunks(scene):
         u, v, ok = rays.u[idx], rays.v[idx], rays.ok[idx]
         weight = fresnel.reflectance(scene, -np.einsum("nk,nk->n", d, n))
+        uv = np.stack([u, v], axis=-1)
         for k, view in enumerate(shown):
-            active = view.active
-            along = active.emitter.along(view, u, v)
-            values[k, idx] = active.reflection.shade(view, p, d, n, along, ok) * weight
+            values[k, idx] = view.active.reflection.shade(view, p, d, n, uv, ok) * weight
     return values
 
 

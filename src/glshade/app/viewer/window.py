@@ -29,7 +29,7 @@ from glshade.app.viewer.pmd_view import PMD_VIEWS
 from glshade.errors import GlshadeError
 from glshade.files import write_png
 from glshade.gpu.compose import compose_display, display_features, display_uniforms
-from glshade.gpu.context import GLContext
+from glshade.gpu.context import GLContext, set_uniform
 from glshade.gpu.renderer import Renderer
 from glshade.rig import orbit
 
@@ -248,7 +248,7 @@ class ViewerWindow(mglw.WindowConfig):
         self.tex_rgba.use(2)
         for name, value in values.items():
             if name in program:
-                program[name].value = value
+                set_uniform(program, name, value)
         quad.render(moderngl.TRIANGLES, vertices=3)
 
     def fit(self, bottom: float) -> None:

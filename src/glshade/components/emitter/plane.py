@@ -3,6 +3,7 @@ uniforms (``lib/emitter_plane.glsl``) and where rays meet it (the float64 oracle
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -25,23 +26,88 @@ def uniforms(scene: Any, context: Any) -> dict[str, object]:
     }
 
 
-def coordinates(scene: Any, points: Any, directions: Any):
+def coordinates(scene: Any, points: Any, directions: Any, glass: tuple[float, float] | None = None):
     """Where rays ``points + t r`` (mm; ``r`` need not be unit) meet the emitter.
 
     Returns ``(u, v, valid)``: screen coordinates in mm, shape (…); ``valid`` requires
     ``r·n_E < 0`` (towards the front), ``t_e > 0`` and ``|u|, |v| <= half_size``.
-    ``u, v`` are NaN where not valid.
+    ``u, v`` are NaN where not valid. ``glass``: a cover glass ``(thickness mm, index)`` in
+    front of the emitting layer: the ray meets its front face ``thickness`` nearer the
+    origin, refracts (``sin r = sin i / n``) and meets the layer ``t tan r`` from there along
+    its plane of incidence.
     """
     plane = scene.emitter_plane()
-    p = np.asarray(points, dtype=np.float64)
-    r = np.asarray(directions, dtype=np.float64)
+    p = np.asarray(points, np.float64)
+    r = np.asarray(directions, np.float64)
+    if glass is not None:
+        r = r / np.linalg.norm(r, axis=-1, keepdims=True)
     denom = r @ plane.normal
     rel = p - plane.centre
+    thickness = glass[0] if glass is not None else 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
-        t_e = -(rel @ plane.normal) / denom
+        t_e = (thickness - rel @ plane.normal) / denom
         q = rel + t_e[..., None] * r
     u = q @ plane.e_u
     v = q @ plane.e_v
+    if glass is not None:
+        along = np.stack([r @ plane.e_u, r @ plane.e_v], axis=-1)  # sin i along the face
+        index = glass[1]
+        cos_r = np.sqrt(np.maximum(1.0 - np.sum(along**2, axis=-1) / index**2, 0.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inside = thickness * along / (index * cos_r[..., None])
+        u, v = u + inside[..., 0], v + inside[..., 1]
     hu, hv = scene.emitter.half_size
     valid = (denom < 0.0) & (t_e > 0.0) & (np.abs(u) <= hu) & (np.abs(v) <= hv)
     return np.where(valid, u, np.nan), np.where(valid, v, np.nan), valid
+
+
+def form_factor(scene: Any, p: np.ndarray, n: np.ndarray, points: int = 96) -> np.ndarray:
+    """``(1/π) ∫ cos θs cos θe / r² dA`` over the emitter rectangle seen from hits ``p``
+    (N, 3) with unit normals ``n``, the part below the tangent plane left out, by
+    Gauss–Legendre quadrature on the rectangle (``points``² nodes; the clipping kink limits
+    it to ~1e-5), independently of the shader's closed polygon formula."""
+    plane = scene.emitter_plane()
+    hu, hv = scene.emitter.half_size
+    x, w = np.polynomial.legendre.leggauss(points)
+    uu, vv = np.meshgrid(x * hu, x * hv, indexing="ij")
+    weights = np.outer(w, w).ravel() * hu * hv
+    q = plane.centre + uu.ravel()[:, None] * plane.e_u + vv.ravel()[:, None] * plane.e_v  # (M, 3)
+    out = np.empty(len(p))
+    for i in range(len(p)):
+        out[i] = np.sum(weights * lambert_kernel(plane, q - p[i], n[i])) / math.pi
+    return out
+
+
+def lambert_kernel(plane: Any, to_screen: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """``cos θs cos θe / r²`` (per mm² of screen) from a hit with unit normal ``n`` to the
+    screen points ``to_screen`` away (…, 3); 0 below the tangent plane or behind the
+    screen."""
+    dist2 = np.einsum("...k,...k->...", to_screen, to_screen)
+    cos_s = np.maximum(to_screen @ n, 0.0) / np.sqrt(dist2)
+    cos_e = np.maximum(-(to_screen @ plane.normal), 0.0) / np.sqrt(dist2)
+    return cos_s * cos_e / dist2
+
+
+def jacobian(
+    scene: Any,
+    points: np.ndarray,
+    r: np.ndarray,
+    a1: np.ndarray,
+    a2: np.ndarray,
+    glass: tuple[float, float] | None = None,
+) -> np.ndarray:
+    """How the landing point ``(u, v)`` of rays ``points + t r`` (unit ``r``, (N, 3)) moves
+    as they turn: ``J`` (N, 2, 2), column ``j`` the derivative along ``r + ε a_j`` (mm per
+    radian for a unit ``a_j`` orthogonal to ``r``); the float64 oracle of the GLSL
+    ``emitter_jacobian``. By central differences of :func:`coordinates` (step 1e-6 rad:
+    truncation ~1e-12, rounding ~1e-10 of the distance)."""
+    step = 1e-6
+    out = np.empty((len(r), 2, 2))
+    for column, a in enumerate((a1, a2)):
+        length = np.linalg.norm(a, axis=-1)
+        unit = a / np.where(length > 0.0, length, 1.0)[:, None]
+        ahead = coordinates(scene, points, r + step * unit, glass)
+        behind = coordinates(scene, points, r - step * unit, glass)
+        out[:, 0, column] = length * (ahead[0] - behind[0]) / (2.0 * step)
+        out[:, 1, column] = length * (ahead[1] - behind[1]) / (2.0 * step)
+    return out

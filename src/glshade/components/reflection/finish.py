@@ -62,29 +62,36 @@ def coherence_uniforms(scene) -> dict[str, object]:
     return {"u_reflection_coherence": 4.0 * math.pi * ratio}
 
 
-def features(scene, blur: str = "none", diffuse: bool = False) -> dict[str, object]:
+def features(
+    scene, kernel: str = "none", filtered: bool = False, diffuse: bool = False
+) -> dict[str, object]:
     """The template variables every reflection component declares: ``coherence`` (eq. (1)
-    is on) and what it asks of the emitter's GLSL: ``blur`` (``none``, ``gaussian``,
-    ``ggx``: the stripes seen through a lobe) and ``diffuse`` (a Lambertian reflection of
-    the emitter)."""
-    return {"coherence": coherence_on(scene), "blur": blur, "diffuse": diffuse}
+    is on), ``kernel`` (``none``, ``gaussian``, ``ggx``: the unit kernel of its lobe,
+    ``shaders/lib/kernels.glsl``) and what it asks of the emitter's GLSL: ``filtered`` (the
+    pattern seen through the lobe's footprint, ``emitter_filtered`` and
+    ``emitter_jacobian``) and ``diffuse`` (a Lambertian reflection of the emitter)."""
+    return {
+        "coherence": coherence_on(scene),
+        "kernel": kernel,
+        "filtered": filtered,
+        "diffuse": diffuse,
+    }
 
 
 def glsl(variables, *model_files: str) -> tuple[str, ...]:
     """A reflection model's files, after the library's ``coherence.glsl`` when eq. (1) is
-    on; none without an image output."""
-    if "image" not in variables["outputs"]:
+    on and its lobe's ``kernels.glsl``; none in a program that shades no pattern."""
+    if not variables["shading"]:
         return ()
-    return ("lib/coherence.glsl", *model_files) if variables["coherence"] else model_files
+    library = ("lib/kernels.glsl",) if variables["kernel"] != "none" else ()
+    if variables["coherence"]:
+        library = ("lib/coherence.glsl", *library)
+    return (*library, *model_files)
 
 
 def uniforms(scene, variables) -> dict[str, object]:
     """eq. (1)'s uniform where the program has it."""
-    return (
-        coherence_uniforms(scene)
-        if "image" in variables["outputs"] and variables["coherence"]
-        else {}
-    )
+    return coherence_uniforms(scene) if variables["shading"] and variables["coherence"] else {}
 
 
 def coherent_fraction(scene, cos_i: np.ndarray) -> np.ndarray:
@@ -93,31 +100,18 @@ def coherent_fraction(scene, cos_i: np.ndarray) -> np.ndarray:
     return np.exp(-((k * np.asarray(cos_i)) ** 2))
 
 
-def lambert(scene, p: np.ndarray, n: np.ndarray, points: int = 96) -> np.ndarray:
-    """Lambertian radiance at hits ``p`` (N, 3) with unit normals ``n``: the emitter pattern's
-    mean radiance times ``(1/π) ∫ cos θs cos θe / r² dA`` over the emitter, the part
-    below the tangent plane left out; by Gauss–Legendre quadrature on the rectangle
-    (``points``² nodes; the clipping kink limits it to ~1e-5), independently of the
-    shader's closed polygon formula."""
-    plane = scene.emitter_plane()
-    hu, hv = scene.emitter.half_size
-    x, w = np.polynomial.legendre.leggauss(points)
-    uu, vv = np.meshgrid(x * hu, x * hv, indexing="ij")
-    weights = np.outer(w, w).ravel() * hu * hv
-    q = plane.centre + uu.ravel()[:, None] * plane.e_u + vv.ravel()[:, None] * plane.e_v  # (M, 3)
-    out = np.empty(len(p))
-    for i in range(len(p)):
-        r = q - p[i]
-        dist2 = np.einsum("mk,mk->m", r, r)
-        cos_s = np.maximum(r @ n[i], 0.0) / np.sqrt(dist2)
-        cos_e = np.maximum(-(r @ plane.normal), 0.0) / np.sqrt(dist2)
-        out[i] = np.sum(weights * cos_s * cos_e / dist2) / math.pi
-    return out * scene.active.emitter.pattern(scene).mean_radiance()
+def lambert(scene, p: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Lambertian radiance of the emitter at hits ``p`` (N, 3) with unit normals ``n``: the
+    emitter component's oracle (:meth:`EmitterComponent.diffuse
+    <glshade.components.base.EmitterComponent.diffuse>`)."""
+    return scene.active.emitter.diffuse(scene, p, n)
 
 
-def mirror_radiance(scene, v: np.ndarray, ok: np.ndarray) -> np.ndarray:
-    """The emitter's radiance where mirror rays land at ``v`` (0 where not ``ok``)."""
-    radiance = scene.active.emitter.radiance(scene, np.where(ok, v, 0.0))
+def mirror_radiance(scene, uv: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """The emitter's radiance where mirror rays land at screen points ``uv`` ((…, 2) mm; 0
+    where not ``ok``)."""
+    safe = np.where(ok[..., None], uv, 0.0)
+    radiance = scene.active.emitter.radiance_uv(scene, safe[..., 0], safe[..., 1])
     return np.where(ok, radiance, 0.0)
 
 

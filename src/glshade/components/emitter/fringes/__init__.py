@@ -10,9 +10,13 @@ frame's radiance). Oracle: :meth:`Fringes.coordinates` (the plane's) and
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
+
 from glshade.components.base import EmitterComponent
 from glshade.components.emitter import plane
-from glshade.components.emitter.fringes.table import FringeFrame, FringesTable
+from glshade.components.emitter.fringes.table import FringeFrame, FringesTable, frame_radiance
 from glshade.errors import GlshadeError
 
 #: Why a fringe scene has no stripe metric.
@@ -29,41 +33,79 @@ class Fringes(EmitterComponent):
     table = FringesTable
     measured_by = "pmd"
 
+    def features(self, scene):
+        em = self.frame(scene)
+        return {
+            "cover_glass": em.glass_thickness > 0.0,
+            "fringe_pixels": em.pixel_pitch > 0.0,
+            "fringe_response": "curve" if em.response_file is not None else "gamma",
+        }
+
     def glsl(self, variables):
-        outputs = variables["outputs"]
-        if "image" not in outputs and "frames" not in outputs:
+        if not variables["shading"]:
             return ("lib/emitter_plane.glsl",)
-        if variables["blur"] != "none" or variables["diffuse"]:
-            raise GlshadeError(
-                'emitter.kind = "fringes" is rendered with render.reflection = "mirror" '
-                "and no coherence term (its lobes and diffuse part are the stripes' only)"
-            )
-        return ("lib/emitter_plane.glsl", "fringes.glsl")
+        kernels = ("lib/kernels.glsl",) if variables["filtered"] else ()
+        return ("lib/emitter_plane.glsl", *kernels, "fringes.glsl")
 
     def uniforms(self, scene, context):
         values = plane.uniforms(scene, context)
-        outputs = context.variables["outputs"]
         em = self.frame(scene)
-        if "image" in outputs or "frames" in outputs:
-            values.update(u_emitter_fringe_gamma=em.gamma, u_emitter_fringe_levels=float(em.levels))
-        if "image" in outputs:
-            axis = (1.0, 0.0) if em.axis == 0 else (0.0, 1.0)
+        if em.glass_thickness > 0.0:
             values.update(
-                u_emitter_fringe_axis=axis,
-                u_emitter_fringe_period=em.frame_period,
-                u_emitter_fringe_step=em.frame_step,
-                u_emitter_fringe_offset=em.offset,
-                u_emitter_fringe_amplitude=em.amplitude,
+                u_emitter_glass_thickness=em.glass_thickness, u_emitter_glass_index=em.glass_index
             )
-        if "frames" in outputs:
-            frames = context.frames
+        variables = context.variables
+        if not variables["shading"]:
+            return values
+        screen = em.screen()
+        patterns = context.frames if "frames" in variables["outputs"] else (em.shown(),)
+        values.update(
+            u_emitter_fringe_levels=float(em.levels),
+            u_emitter_fringe_floor=screen.floor,
+            u_emitter_fringe_gain=screen.gain,
+            u_emitter_frame=[(float(f.axis), f.shift_rad, f.offset, f.amplitude) for f in patterns],
+            u_emitter_frame_period=[f.period_mm for f in patterns],
+        )
+        if screen.curve is None:
+            values["u_emitter_fringe_gamma"] = em.gamma
+        if em.pixel_pitch > 0.0:
             values.update(
-                u_emitter_frame=[
-                    (float(f.axis), f.shift_rad, f.offset, f.amplitude) for f in frames
-                ],
-                u_emitter_frame_period=[f.period_mm for f in frames],
+                u_emitter_pixel_pitch=em.pixel_pitch,
+                u_emitter_pixel_lit=0.5 * math.sqrt(em.fill_factor) * em.pixel_pitch,
+                u_emitter_ambient=em.ambient,
             )
+            if variables["filtered"]:
+                values["u_emitter_footprint_samples"] = em.footprint_samples
+        if variables["filtered"] or variables["diffuse"]:
+            series = [em.harmonics(f) for f in patterns]
+            values["u_emitter_harmonics"] = [
+                tuple(float(b) for b in s[start : start + 4]) for s in series for start in (0, 4)
+            ]
         return values
+
+    def textures(self, scene):
+        em = self.frame(scene)
+        if em.response_file is None:
+            return {}
+        curve = em.screen().curve
+        assert curve is not None
+        return {"t_emitter_response": curve.texture}
+
+    def pattern_loop_iterations(self, scene, solver):
+        # per pattern shaded: its harmonics through a lobe (7), or the kernel's points over a
+        # pixelated screen; the diffuse part's harmonics times its stretches (7 x 24)
+        variables = scene.active.features(scene)
+        em = self.frame(scene)
+        count = 0
+        if variables.get("filtered"):
+            count += em.footprint_samples + 1 if em.pixel_pitch > 0.0 else 8
+        if variables.get("diffuse"):
+            count += 8 * 25
+        return count
+
+    def loop_iterations(self, scene, solver):
+        # once per hit: the diffuse part's marginals (25 x 8 Gauss points) and polygon
+        return 25 * 9 + 1 + 6 if scene.active.features(scene).get("diffuse") else 0
 
     def sequence(self, scene) -> tuple[FringeFrame, ...]:
         """The coding's frames (:meth:`FringesTable.sequence`)."""
@@ -97,23 +139,78 @@ class Fringes(EmitterComponent):
     def radiance_step(self, scene) -> float:
         return self.frame(scene).largest_step()
 
+    def feature_mm(self, scene) -> float:
+        """A sinusoid changes over ``period / 2π``; a pixelated screen's pixels and its
+        black matrix over their own widths."""
+        em = self.frame(scene)
+        finest = em.frame_period / (2.0 * math.pi)
+        if em.pixel_pitch:
+            edge = 0.5 * (1.0 - math.sqrt(em.fill_factor)) * em.pixel_pitch
+            finest = min(finest, em.pixel_pitch, *((edge,) if edge > 0.0 else ()))
+        return finest
+
     # ------------------------------------------------------------------ oracle
+    def cover_glass(self, scene) -> tuple[float, float] | None:
+        """The screen's cover glass ``(thickness mm, index)``, None without one."""
+        em = self.frame(scene)
+        return (em.glass_thickness, em.glass_index) if em.glass_thickness > 0.0 else None
+
+    def jacobian(self, scene, points, r, a1, a2):
+        """The plane's (:func:`glshade.components.emitter.plane.jacobian`)."""
+        return plane.jacobian(scene, points, r, a1, a2, self.cover_glass(scene))
+
     def coordinates(self, scene, points, directions):
-        """Where rays meet the screen: :func:`glshade.components.emitter.plane.coordinates`."""
-        return plane.coordinates(scene, points, directions)
+        """Where rays meet the screen's emitting layer (through its cover glass):
+        :func:`glshade.components.emitter.plane.coordinates`."""
+        return plane.coordinates(scene, points, directions, self.cover_glass(scene))
 
     def along(self, scene, u, v):
         return u if self.frame(scene).axis == 0 else v
 
     def radiance(self, scene, v):
         """The frame's displayed radiance at the screen coordinate along its direction
-        (``v`` for a ``"v"`` frame, ``u`` for a ``"u"`` frame: :meth:`along`)."""
+        (``v`` for a ``"v"`` frame, ``u`` for a ``"u"`` frame: :meth:`along`) of a
+        continuous screen."""
         return self.frame(scene).fringe_radiance(v)
 
-    def radiance_uv(self, scene, uv):
-        """The frame's displayed radiance at screen points ``uv`` (…, 2) mm."""
+    def radiance_uv(self, scene, u, v):
+        """The frame's displayed radiance at screen points ``(u, v)``, on the screen's
+        pixels where it has a pitch (:meth:`FringesTable.radiance_uv`)."""
+        return self.frame(scene).radiance_uv(u, v)
+
+    def diffuse(self, scene, p, n):
+        """The Lambertian radiance of the frame shown at hits ``p`` with unit normals ``n``:
+        ``(1/π) ∫ L cos θs cos θe / r² dA`` over the screen, by brute force: the kernel
+        integrated across the fringes by Gauss–Legendre (48 points) at midpoints along them
+        at least 16 a period. A pixelated screen is taken as its pixels average (the fill
+        factor's share of the fringe, the ambient light between: the kernel spans hundreds of
+        pixels)."""
         em = self.frame(scene)
-        return em.fringe_radiance(uv[..., em.axis])
+        frame, screen = em.shown(), em.screen()
+        axis = frame.axis
+        extent = 2.0 * em.half_size[axis]
+        count = int(max(400, math.ceil(16.0 * extent / frame.period_mm)))
+        s = (np.arange(count) + 0.5) * extent / count  # from the screen's edge
+        values = frame_radiance(frame, screen, s)
+        if em.pixel_pitch:
+            values = em.ambient + em.fill_factor * (values - em.ambient)
+        x, w = np.polynomial.legendre.leggauss(48)
+        across = x * em.half_size[1 - axis]
+        along = s - em.half_size[axis]
+        coords = (
+            (along[:, None], across[None, :]) if axis == 0 else (across[None, :], along[:, None])
+        )
+        plane_ = scene.emitter_plane()
+        points = (
+            plane_.centre + coords[0][..., None] * plane_.e_u + coords[1][..., None] * plane_.e_v
+        )
+        weights = (w * em.half_size[1 - axis])[None, :] * (extent / count)  # (1, 48)
+        out = np.empty(len(p))
+        for i in range(len(p)):
+            kernel = plane.lambert_kernel(plane_, points - p[i], n[i])  # (along, across)
+            marginal = np.sum(kernel * weights, axis=1)
+            out[i] = np.sum(marginal * values) / math.pi
+        return out
 
 
 COMPONENTS = (Fringes,)

@@ -15,6 +15,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from glshade.components.emitter.fringes.screen import ScreenResponse, read_response
 from glshade.components.emitter.stripes.table import Emitter as StripesTable
 from glshade.components.emitter.table import MIN_PERIOD_MM
 from glshade.errors import SceneError
@@ -63,13 +64,12 @@ class FringeFrame:
 
 
 def displayed(commanded: np.ndarray, levels: int, gamma: float) -> np.ndarray:
-    """What the screen shows for commanded values (float64): clamped to ``[0, 1]``,
-    rounded to the nearest of ``levels`` grey levels ``j / (levels - 1)`` (halves up:
-    ``floor(c (levels - 1) + 0.5)``; ``levels = 0``: not rounded), then ``** gamma``."""
-    c = np.clip(np.asarray(commanded, np.float64), 0.0, 1.0)
-    if levels:
-        c = np.floor(c * (levels - 1) + 0.5) / (levels - 1)
-    return c**gamma
+    """What a screen of ``levels`` grey levels and response ``commanded ** gamma`` shows
+    (float64), no black level, no ambient light: clamped to ``[0, 1]``, rounded to the
+    nearest of ``levels`` grey levels ``j / (levels - 1)`` (halves up: ``floor(c (levels -
+    1) + 0.5)``; ``levels = 0``: not rounded), then ``** gamma``
+    (:meth:`~glshade.components.emitter.fringes.screen.ScreenResponse.displayed`)."""
+    return ScreenResponse(levels, gamma).displayed(commanded)
 
 
 def _check(values: dict[str, Any]) -> None:
@@ -89,6 +89,7 @@ def _check(values: dict[str, Any]) -> None:
         )
     if values["levels"] == 1:
         raise SceneError("emitter.levels", "0 (continuous) or at least 2 grey levels", 1)
+    _check_screen(values)
     if values["offset"] + values["amplitude"] > 1.0:
         raise SceneError(
             "emitter.offset",
@@ -116,6 +117,27 @@ def _check(values: dict[str, Any]) -> None:
             "emitter.frame_shift_index",
             f"a phase step 0 to shifts - 1 = {values['shifts'] - 1}",
             values["frame_shift_index"],
+        )
+
+
+def _check_screen(values: dict[str, Any]) -> None:
+    """The real screen's parts together: one response (a gamma or a measured curve), a
+    pixel no larger than the screen."""
+    if values["response_file"] is not None:
+        if values["gamma"] != 1.0:
+            raise SceneError(
+                "emitter.gamma",
+                "1 where emitter.response_file gives the screen's measured response (one "
+                "response: a gamma or a curve)",
+                values["gamma"],
+            )
+        read_response(values["response_file"])
+    pitch, half = values["pixel_pitch"], values["half_size"]
+    if pitch > 2.0 * min(half):
+        raise SceneError(
+            "emitter.pixel_pitch",
+            f"0 (a continuous screen) or a pitch within the screen's {2.0 * min(half):g} mm",
+            pitch,
         )
 
 
@@ -162,6 +184,55 @@ class FringesTable(Table):
         value_type="integer", lo=0, hi=MAX_LEVELS,
         control=Control("levels", 0, 4096, log=True, fmt="%d"),
     )  # fmt: skip
+    black_level: float = param(
+        "emitter.black_level", "", 0.0,
+        "the screen's radiance at commanded black over its white (1 / its contrast ratio): "
+        "an offset in every frame",
+        lo=0.0, hi=0.5, closed=True, control=Control("black level", 0.0, 0.1, fmt="%.4f"),
+    )  # fmt: skip
+    ambient: float = param(
+        "emitter.ambient", "", 0.0,
+        "the room light the screen's face reflects, in units of its white: an offset in "
+        "every frame, the black matrix included",
+        lo=0.0, closed=True, plausible_max=1.0,
+        plausible_why="more room light than the screen's own white",
+        control=Control("ambient", 0.0, 0.2, fmt="%.4f"),
+    )  # fmt: skip
+    response_file: str | None = param(
+        "emitter.response_file", "", None,
+        "the screen's measured response instead of a gamma: a text file of commanded, "
+        "displayed pairs (commanded from 0 to its full scale; displayed in any unit, taken "
+        "as (L - L(0)) / (L(full) - L(0)))",
+        value_type="path", role="feature",
+    )  # fmt: skip
+    pixel_pitch: float = param(
+        "emitter.pixel_pitch", "mm", 0.0,
+        "the screen's pixel pitch: a fringe is shown on pixels, each ray seeing the value at "
+        "the centre of the pixel it lands in; 0: a continuous screen",
+        lo=0.0, closed=True, role="feature",
+    )  # fmt: skip
+    fill_factor: float = param(
+        "emitter.fill_factor", "", 1.0,
+        "the share of each screen pixel's area that emits, a centred square; the black "
+        "matrix between shows only the ambient light (with emitter.pixel_pitch)",
+        lo=0.01, hi=1.0, closed=True,
+    )  # fmt: skip
+    glass_thickness: float = param(
+        "emitter.glass_thickness", "mm", 0.0,
+        "the screen's cover glass in front of its emitting layer: rays refract through it "
+        "(0: none)",
+        lo=0.0, closed=True, hi=100.0, role="feature",
+    )  # fmt: skip
+    glass_index: float = param(
+        "emitter.glass_index", "", 1.52, "the cover glass's refractive index",
+        lo=1.0, hi=4.0, closed=True,
+    )  # fmt: skip
+    footprint_samples: int = param(
+        "emitter.footprint_samples", "", 64,
+        "points of a reflection lobe's kernel per value over a pixelated screen (no closed "
+        "form there)",
+        value_type="integer", lo=1, hi=4096,
+    )  # fmt: skip
     frame_direction: str = param(
         "emitter.frame_direction", "", "v",
         "the frame shown: its direction (v or u; it need not be one the sequence codes)",
@@ -206,14 +277,57 @@ class FringesTable(Table):
         """The frame's phase step ``2π n / N`` (rad)."""
         return 2.0 * math.pi * self.frame_shift_index / self.shifts
 
+    def screen(self) -> ScreenResponse:
+        """How the screen turns commanded values into radiance (its levels, response,
+        black level and ambient light)."""
+        curve = read_response(self.response_file) if self.response_file is not None else None
+        return ScreenResponse(self.levels, self.gamma, curve, self.black_level, self.ambient)
+
+    def shown(self) -> FringeFrame:
+        """The frame the scene shows alone (its ``frame_*`` values)."""
+        return FringeFrame(
+            self.frame_direction,
+            self.frame_period_index,
+            self.frame_shift_index,
+            self.frame_period,
+            self.frame_step,
+            self.offset,
+            self.amplitude,
+        )
+
     def fringe_radiance(self, along: np.ndarray) -> np.ndarray:
         """The displayed radiance (float64) at screen coordinate ``along`` (mm: ``v`` for a
-        ``"v"`` frame, ``u`` for a ``"u"`` frame); NaN propagates."""
-        s = np.asarray(along, np.float64) + self.half_size[self.axis]
-        x = s / self.frame_period
-        x = x - np.floor(x)
-        commanded = self.offset + self.amplitude * np.cos(2.0 * math.pi * x - self.frame_step)
-        return displayed(commanded, self.levels, self.gamma)
+        ``"v"`` frame, ``u`` for a ``"u"`` frame) of a continuous screen; NaN propagates."""
+        return frame_radiance(
+            self.shown(), self.screen(), np.asarray(along, np.float64) + self.half_size[self.axis]
+        )
+
+    def radiance_uv(self, u: np.ndarray, v: np.ndarray, frame: FringeFrame | None = None):
+        """What the screen shows at screen points ``(u, v)`` (mm; float64, NaN propagates):
+        ``frame`` (default: the scene's own), on the screen's pixels where it has a pitch
+        (the value at the centre of the pixel a point lies in; the black matrix shows the
+        ambient light)."""
+        frame = frame or self.shown()
+        s = [np.asarray(c, np.float64) + h for c, h in zip((u, v), self.half_size, strict=True)]
+        if not self.pixel_pitch:
+            return frame_radiance(frame, self.screen(), s[frame.axis])
+        pitch = self.pixel_pitch
+        centres = [(np.floor(c / pitch) + 0.5) * pitch for c in s]
+        lit = 0.5 * math.sqrt(self.fill_factor) * pitch
+        with np.errstate(invalid="ignore"):
+            dark = np.maximum(np.abs(s[0] - centres[0]), np.abs(s[1] - centres[1])) > lit
+        values = frame_radiance(frame, self.screen(), centres[frame.axis])
+        return np.where(dark, self.ambient, values)
+
+    def harmonics(self, frame: FringeFrame) -> np.ndarray:
+        """The cosine series ``b_0 … b_7`` of ``frame``'s displayed radiance against its
+        phase, as it averages over the screen's pixels (the fill factor's share of it, the
+        ambient light between)."""
+        series = self.screen().harmonics(frame.offset, frame.amplitude)
+        if self.pixel_pitch:
+            series = self.fill_factor * series
+            series[0] += (1.0 - self.fill_factor) * self.ambient
+        return series
 
     # ------------------------------------------------------------- the sequence
     def sequence(self) -> tuple[FringeFrame, ...]:
@@ -253,15 +367,25 @@ class FringesTable(Table):
 
     def brightest(self) -> float:
         """The brightest radiance the sequence displays: ``offset + amplitude`` (at most
-        the screen's white), quantised and through the gamma."""
+        the screen's white), quantised, through the response, above the black level."""
         top = np.array([min(1.0, self.offset + self.amplitude)])
-        return float(displayed(top, self.levels, self.gamma)[0])
+        return float(self.screen().displayed(top)[0])
 
     def largest_step(self) -> float:
         """The largest difference between neighbouring displayed levels (0: continuous)."""
         if not self.levels:
             return 0.0
-        return float(np.diff(np.linspace(0.0, 1.0, self.levels) ** self.gamma).max())
+        return float(np.diff(self.screen().displayed(np.linspace(0.0, 1.0, self.levels))).max())
+
+
+def frame_radiance(frame: FringeFrame, screen: ScreenResponse, s_mm: np.ndarray) -> np.ndarray:
+    """``frame`` displayed at ``s_mm`` (mm from the screen's edge along its direction):
+    ``screen.displayed(offset + amplitude cos(2π x - shift))``, ``x`` the fraction of the
+    period at ``s`` (float64, as the shader reduces it)."""
+    x = np.asarray(s_mm, np.float64) / frame.period_mm
+    x = x - np.floor(x)
+    commanded = frame.offset + frame.amplitude * np.cos(2.0 * math.pi * x - frame.shift_rad)
+    return screen.displayed(commanded)
 
 
 def fringes_of(scene: Any) -> FringesTable:

@@ -22,13 +22,17 @@ class Stripes(EmitterComponent):
     doc = "a plane of Gaussian stripes facing the origin, opposite the camera"
     table = Emitter
 
+    def features(self, scene):
+        return {"cover_glass": False}
+
     def glsl(self, variables):
         if "frames" in variables["outputs"]:
             raise GlshadeError(no_sequence(self.name))
-        if "image" not in variables["outputs"]:
+        if not variables["shading"]:
             return ("lib/emitter_plane.glsl",)
         return (
             "lib/emitter_plane.glsl",
+            *(("lib/kernels.glsl",) if variables["filtered"] else ()),
             "stripes.glsl",
             *(("diffuse.glsl",) if variables["diffuse"] else ()),
         )
@@ -36,7 +40,7 @@ class Stripes(EmitterComponent):
     def uniforms(self, scene, context):
         em = scene.emitter
         values = plane.uniforms(scene, context)
-        if "image" in context.variables["outputs"]:
+        if context.variables["shading"]:
             values.update(
                 u_emitter_period=em.period, u_emitter_sigma=em.sigma_mm, u_emitter_phase=em.phase_mm
             )
@@ -45,16 +49,22 @@ class Stripes(EmitterComponent):
         return values
 
     def loop_iterations(self, scene, solver):
-        # once per ray: the GGX blur's harmonics (at most 64), the diffuse polygon (at most 5)
+        # once per ray: the diffuse polygon (at most 5 corners)
+        return 6 if scene.active.features(scene).get("diffuse") else 0
+
+    def pattern_loop_iterations(self, scene, solver):
+        # per pattern shaded: the harmonics of the stripes seen through a GGX lobe (at most 64)
         variables = scene.active.features(scene)
-        return (65 if variables.get("blur") == "ggx" else 0) + (
-            6 if variables.get("diffuse") else 0
-        )
+        return 65 if variables.get("filtered") and variables.get("kernel") == "ggx" else 0
 
     def pattern(self, scene) -> Emitter:
         return scene.emitter
 
     # ------------------------------------------------------------------ oracle
+    def jacobian(self, scene, points, r, a1, a2):
+        """The plane's (:func:`glshade.components.emitter.plane.jacobian`)."""
+        return plane.jacobian(scene, points, r, a1, a2, self.cover_glass(scene))
+
     def coordinates(self, scene, points, directions):
         """Where rays meet the emitter: :func:`glshade.components.emitter.plane.coordinates`."""
         return plane.coordinates(scene, points, directions)

@@ -31,38 +31,32 @@ float stripes(real v, real width) {
     return total;
 }
 
-float emitter_radiance(real2 uv) {
+// The stripes are one pattern: every pattern number shows them.
+float emitter_radiance(real2 uv, int pattern) {
     return stripes(uv.y, u_emitter_sigma);
 }
-{$ if blur == "gaussian" $}
+{$ if filtered $}
 
-// A Gaussian stripe convolved with a Gaussian of variance s^2 along v stays Gaussian:
-// width sqrt(sigma^2 + s^2), peak sigma / sqrt(sigma^2 + s^2).
-float emitter_gaussian_blur(real2 uv, real variance) {
-    real width = sqrt(u_emitter_sigma * u_emitter_sigma + variance);
+// The stripes vary along v only: through the footprint, v moves by row . x.
+real2 v_row(real2x2 footprint) {
+    return real2(footprint[0].y, footprint[1].y);
+}
+{$ if kernel == "gaussian" $}
+
+// A Gaussian stripe convolved with a Gaussian of variance s^2 = |row|^2 along v stays
+// Gaussian: width sqrt(sigma^2 + s^2), peak sigma / sqrt(sigma^2 + s^2).
+float emitter_filtered(real2 uv, real2x2 footprint, int pattern) {
+    real2 row = v_row(footprint);
+    real width = sqrt(u_emitter_sigma * u_emitter_sigma + dot(row, row));
     return float(u_emitter_sigma / width) * stripes(uv.y, width);
 }
-{$ elif blur == "ggx" $}
+{$ else $}
 
-float x_k1(float x) {                         // x K1(x), Abramowitz & Stegun 9.8.7 / 9.8.8
-    if (x <= 2.0) {
-        float t = 0.25 * x * x;
-        float u = (x / 3.75) * (x / 3.75);
-        float i1 = x * (0.5 + u * (0.87890594 + u * (0.51498869 + u * (0.15084934 + u * (0.02658733
-                 + u * (0.00301532 + u * 0.00032411))))));
-        return x * log(0.5 * x) * i1 + (1.0 + t * (0.15443144 + t * (-0.67278579 + t * (-0.18156897
-                 + t * (-0.01919402 + t * (-0.00110404 + t * -0.00004686))))));
-    }
-    float s = 2.0 / x;
-    return sqrt(x) * exp(-x) * (1.25331414 + s * (0.23498619 + s * (-0.03655620 + s * (0.01504268
-           + s * (-0.00780353 + s * (0.00325614 + s * -0.00068245))))));
-}
-
-// Through GGX's slope marginal along v, alpha^2 / (2 (alpha^2 + s^2)^(3/2)) scaled by beta:
-// its characteristic function is beta w K1(beta w), which damps each Fourier harmonic of
-// the Gaussian stripes.
-float emitter_ggx_blur(real2 uv, float beta) {
+// Through the kernel's marginal along v, of scale beta = |row| (mm): each Fourier harmonic
+// of the Gaussian stripes is damped by the kernel's transfer (lib/kernels.glsl).
+float emitter_filtered(real2 uv, real2x2 footprint, int pattern) {
     const float TWO_PI = 6.2831853;
+    float beta = float(length(v_row(footprint)));
     real w = uv.y - u_emitter_phase;
     w -= u_emitter_period * floor(w / u_emitter_period + 0.5);
     float p = float(u_emitter_period);
@@ -73,9 +67,9 @@ float emitter_ggx_blur(real2 uv, float beta) {
         float omega = TWO_PI * float(m) / p;
         float envelope = exp(-0.5 * omega * omega * sigma * sigma);
         if (envelope < 1.0e-9) break;
-        float damp = beta > 0.0 ? x_k1(beta * omega) : 1.0;
-        total += 2.0 * envelope * damp * cos(omega * float(w));
+        total += 2.0 * envelope * kernel_transfer(beta * omega) * cos(omega * float(w));
     }
     return scale * total;
 }
+{$ endif $}
 {$ endif $}

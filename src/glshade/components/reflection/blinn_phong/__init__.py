@@ -68,31 +68,58 @@ class BlinnPhong(ReflectionComponent):
     table = BlinnPhongTable
 
     def features(self, scene):
-        return finish.features(scene, blur="gaussian")
+        return finish.features(scene, kernel="gaussian", filtered=True)
 
     def glsl(self, variables):
         return finish.glsl(variables, "blinn_phong.glsl")
 
     def uniforms(self, scene, context):
-        if "image" not in context.variables["outputs"]:
+        if not context.variables["shading"]:
             return {}
         values = finish.uniforms(scene, context.variables)
         return {"u_reflection_shininess": scene.render.shininess, **values}
 
+    def loop_iterations(self, scene, solver):
+        return 1  # the end of its loop over the patterns
+
+    def pattern_loop_iterations(self, scene, solver):
+        return 1  # each pattern once
+
     def keeps_emitter_scale(self, scene):
         return not finish.coherence_on(scene)
 
-    def shade(self, scene, p, d, n, v, ok):
+    def shade(self, scene, p, d, n, uv, ok):
         lobe = _blinn_phong(scene, p, d, n)
         if not finish.coherence_on(scene):
             return lobe
-        return finish.mix_coherent(scene, finish.mirror_radiance(scene, v, ok), lobe, d, n)
+        return finish.mix_coherent(scene, finish.mirror_radiance(scene, uv, ok), lobe, d, n)
 
     def accuracy_knob(self):
         # imported here: the knob is only run by `glshade accuracy`
         from glshade.components.reflection.blinn_phong.accuracy import BlinnPhongKnob
 
         return BlinnPhongKnob()
+
+    def footprint(self, scene, p, d, n):
+        """``J (2 a, 2 cos i b) / √N``: the reflected direction's Gaussian spread in (``a``)
+        and across (``b``) the plane of incidence, through the emitter's Jacobian ``J``."""
+        r = d - 2.0 * np.einsum("nk,nk->n", d, n)[:, None] * n
+        b = np.cross(n, r)
+        length = np.linalg.norm(b, axis=1)
+        helper = np.where(
+            np.abs(r[:, [0]]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]])
+        )
+        across = np.cross(r, helper)
+        b = np.where(length[:, None] > 1e-6, b, across)
+        b /= np.linalg.norm(b, axis=1, keepdims=True)
+        a = np.cross(b, r)
+        cos_i = -np.einsum("nk,nk->n", d, n)
+        scale = 2.0 / math.sqrt(scene.render.shininess)
+        emitter = scene.active.emitter
+        return emitter.jacobian(scene, p, r, scale * a, (scale * cos_i)[:, None] * b), "gaussian"
+
+    def finish_name(self, scene):
+        return f"blinn-phong, shininess {scene.render.shininess:.3g}"
 
     def lobe_std_rad(self, scene):
         """``(n·h)^N ≈ exp(-N α²/2)``: the half vector's angle has std ``1/√N``, the
@@ -120,7 +147,7 @@ def _lobe_basis(n_s: np.ndarray, wo: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def _lobe_samples(scene, p, wo, n_s, e1, e2, a, b):
-    """Weights ``∝ w dω_l`` and the emitter's ``v`` (mm) and validity at the gnomonic
+    """Weights ``∝ w dω_l`` and the emitter's ``u``, ``v`` (mm) and validity at the gnomonic
     half-vector offsets ``(a, b)`` (grid arrays (1, n1, n2)) for the N pixels of ``p``.
 
     ``h = (n + a e1 + b e2)/sqrt(1 + a² + b²)`` (unit: the basis is orthonormal), so
@@ -152,14 +179,21 @@ def _lobe_samples(scene, p, wo, n_s, e1, e2, a, b):
     h_v, wo_v = along(plane.e_v)
     h_u, wo_u = along(plane.e_u)
     l_n = 2.0 * wo_h * h_n - wo_n  # l·n_E
+    l_u, l_v = 2.0 * wo_h * h_u - wo_u, 2.0 * wo_h * h_v - wo_v
     rel = p - plane.centre
+    glass = scene.active.emitter.cover_glass(scene)
+    thickness = glass[0] if glass is not None else 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
-        t_e = -(rel @ plane.normal)[:, None, None] / l_n
-        v = (rel @ plane.e_v)[:, None, None] + t_e * (2.0 * wo_h * h_v - wo_v)
-        u = (rel @ plane.e_u)[:, None, None] + t_e * (2.0 * wo_h * h_u - wo_u)
+        t_e = (thickness - rel @ plane.normal)[:, None, None] / l_n
+        v = (rel @ plane.e_v)[:, None, None] + t_e * l_v
+        u = (rel @ plane.e_u)[:, None, None] + t_e * l_u
+        if glass is not None:  # through the cover glass to the emitting layer (l is unit)
+            cos_r = np.sqrt(np.maximum(1.0 - (l_u**2 + l_v**2) / glass[1] ** 2, 0.0))
+            u = u + thickness * l_u / (glass[1] * cos_r)
+            v = v + thickness * l_v / (glass[1] * cos_r)
     hu, hv = scene.emitter.half_size
     ok = (l_n < 0.0) & (t_e > 0.0) & (np.abs(u) <= hu) & (np.abs(v) <= hv) & (wo_h > 0.0)
-    return weight, v, ok
+    return weight, u, v, ok
 
 
 def _grid_points(scene, p, wo, n_s, e1, e2, half) -> tuple[np.ndarray, np.ndarray]:
@@ -170,12 +204,13 @@ def _grid_points(scene, p, wo, n_s, e1, e2, half) -> tuple[np.ndarray, np.ndarra
     n_lobe = 2.0 * half / step_lobe
     c = np.linspace(-1.0, 1.0, 9) * half
     a, b = np.meshgrid(c, c, indexing="ij")
-    _, v, ok = _lobe_samples(scene, p, wo, n_s, e1, e2, a[None], b[None])
+    _, u, v, ok = _lobe_samples(scene, p, wo, n_s, e1, e2, a[None], b[None])
+    v = scene.active.emitter.along(scene, u, v)  # the coordinate the pattern varies along
     step = 2.0 * half / 8.0
     with np.errstate(invalid="ignore"):
         dv1 = np.where(ok[:, 1:, :] & ok[:, :-1, :], np.abs(np.diff(v, axis=1)), 0.0) / step
         dv2 = np.where(ok[:, :, 1:] & ok[:, :, :-1], np.abs(np.diff(v, axis=2)), 0.0) / step
-    feature = scene.active.emitter.pattern(scene).feature_mm
+    feature = scene.active.emitter.feature_mm(scene)
     h_v = feature / _STRIPE_POINTS_PER_SIGMA
     sizes = []
     for slope in (dv1.max(axis=(1, 2)), dv2.max(axis=(1, 2))):
@@ -219,10 +254,10 @@ def _blinn_phong(scene: SceneView, p: np.ndarray, d: np.ndarray, n_s: np.ndarray
         batch = max(1, _LOBE_BATCH // (n1 * n2))
         for s in range(0, len(group), batch):
             idx = group[s : s + batch]
-            weight, v, ok = _lobe_samples(
+            weight, u, v, ok = _lobe_samples(
                 scene, p[idx], wo[idx], n_s[idx], e1[idx], e2[idx], a[None], b[None]
             )
-            lum = finish.mirror_radiance(scene, v, ok)
+            lum = finish.mirror_radiance(scene, np.stack([u, v], axis=-1), ok)
             out[idx] = np.sum(lum * weight, axis=(1, 2)) / np.sum(weight, axis=(1, 2))
     return out
 

@@ -103,13 +103,13 @@ class Microfacet(ReflectionComponent):
     #: Monte-Carlo samples per pixel of the NumPy oracle (standard error ~ 1/sqrt of it).
     oracle_samples = 1 << 14
 
-    #: What the closed form asks of the emitter: its pattern seen through this lobe.
-    blur: str = "none"
+    #: The lobe's unit kernel (``shaders/lib/kernels.glsl``): its slopes' law at unit scale.
+    kernel: str = "none"
 
     def features(self, scene):
         closed = scene.render.lobe_method == "closed"
         return {
-            **finish.features(scene, blur=self.blur if closed else "none"),
+            **finish.features(scene, kernel=self.kernel, filtered=closed),
             "lobe": self.name,
             "lobe_method": scene.render.lobe_method,
         }
@@ -118,7 +118,7 @@ class Microfacet(ReflectionComponent):
         return finish.glsl(variables, "microfacet.glsl")
 
     def uniforms(self, scene, context):
-        if "image" not in context.variables["outputs"]:
+        if not context.variables["shading"]:
             return {}
         values = finish.uniforms(scene, context.variables)
         values["u_reflection_alpha"] = scene.render.roughness
@@ -133,14 +133,49 @@ class Microfacet(ReflectionComponent):
         return 1 if scene.render.lobe_method == "closed" else scene.render.lobe_samples
 
     def loop_iterations(self, scene, solver):
-        # the lattice's loop over its slope samples (the closed form's loop is the emitter's)
-        return 0 if scene.render.lobe_method == "closed" else scene.render.lobe_samples + 1
+        # the lattice's loop over its slope samples, and the end of each loop over the
+        # patterns (one per sample, one for eq. (1)'s coherent part or the closed form's)
+        if scene.render.lobe_method == "closed":
+            return 1
+        return 2 * scene.render.lobe_samples + 2
+
+    def pattern_loop_iterations(self, scene, solver):
+        # every pattern once per slope sample (the closed form: once)
+        return 1 if scene.render.lobe_method == "closed" else scene.render.lobe_samples + 1
 
     def accuracy_knob(self):
         # imported here: the knob is only run by `glshade accuracy`
         from glshade.components.reflection.microfacet.accuracy import MicrofacetKnob
 
         return MicrofacetKnob()
+
+    def footprint(self, scene, p, d, n):
+        """``J (dl/dx, dl/dy) s``: the slopes' unit kernel at scale ``s`` (``α/√2`` for
+        Beckmann's Gaussian slopes, ``α`` for GGX) mapped onto the emitter through the
+        reflected direction's derivatives and the emitter's Jacobian ``J``; None for the
+        mirror (``α = 0``)."""
+        alpha = scene.render.roughness
+        if alpha == 0.0:
+            return None
+        wo = -d
+        cos_o = np.einsum("nk,nk->n", wo, n)
+        e1 = wo - cos_o[:, None] * n
+        length = np.linalg.norm(e1, axis=1)
+        helper = np.where(
+            np.abs(n[:, [0]]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]])
+        )
+        e1 = np.where(length[:, None] > 1e-6, e1, np.cross(n, helper))
+        e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+        e2 = np.cross(n, e1)
+        dl_x = 2.0 * np.einsum("nk,nk->n", wo, e1)[:, None] * n + 2.0 * cos_o[:, None] * e1
+        dl_y = 2.0 * cos_o[:, None] * e2
+        r = d - 2.0 * np.einsum("nk,nk->n", d, n)[:, None] * n
+        scale = alpha * (math.sqrt(0.5) if self.kernel == "gaussian" else 1.0)
+        emitter = scene.active.emitter
+        return emitter.jacobian(scene, p, r, scale * dl_x, scale * dl_y), self.kernel
+
+    def finish_name(self, scene):
+        return f"{self.name}, roughness {scene.render.roughness:.3g}"
 
     def lobe_std_rad(self, scene):
         """The reflected direction turns by twice the facet's tilt: std ``2 α/√2``
@@ -151,13 +186,13 @@ class Microfacet(ReflectionComponent):
         return f"render.roughness <= {scene.render.roughness / ratio:.3g}"
 
     # ---------------------------------------------------------------- oracle
-    def shade(self, scene, p, d, n, v, ok, samples: int | None = None, seed: int = 0):
+    def shade(self, scene, p, d, n, uv, ok, samples: int | None = None, seed: int = 0):
         """Monte-Carlo estimate (``samples`` per pixel, fixed ``seed``) of the lobe
         integral: slopes drawn from ``P22``, so ``l`` has the density
         ``pdf(l) = D(h) (n·h) / (4 (wo·h))`` with ``D = P22 / (n·h)⁴``; each sample weighs
         ``f cos θl / pdf(l)``, ``f = D G2 / (4 cos θo cos θl)``. With eq. (1) on, the
         coherent fraction is the mirror's."""
-        mirror = finish.mirror_radiance(scene, v, ok)
+        mirror = finish.mirror_radiance(scene, uv, ok)
         alpha = scene.render.roughness
         if alpha == 0.0:
             lobe = mirror
@@ -169,8 +204,6 @@ class Microfacet(ReflectionComponent):
         """``(mean, standard error)`` per hit."""
         alpha, kind = scene.render.roughness, self.name
         rng = np.random.default_rng(seed)
-        plane = scene.emitter_plane()
-        hu, hv = scene.emitter.half_size
         mean = np.zeros(len(p))
         error = np.zeros(len(p))
         for i in range(len(p)):
@@ -196,21 +229,11 @@ class Microfacet(ReflectionComponent):
             pdf_l = big_d * cos_h / (4.0 * np.abs(wo_h))
             g2 = 1.0 / (1.0 + smith_lambda(kind, alpha, cos_o) + smith_lambda(kind, alpha, cos_l))
             brdf = big_d * g2 / (4.0 * cos_o * np.where(cos_l > 0, cos_l, 1.0))
-            facing = l_dir @ plane.normal
-            rel = p[i] - plane.centre
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = -(rel @ plane.normal) / facing
-                uu = rel @ plane.e_u + t * (l_dir @ plane.e_u)
-                vv = rel @ plane.e_v + t * (l_dir @ plane.e_v)
-            seen = (
-                (facing < 0)
-                & (t > 0)
-                & (np.abs(uu) <= hu)
-                & (np.abs(vv) <= hv)
-                & (cos_l > 0)
-                & (wo_h > 0)
+            uu, vv, landed = scene.active.emitter.coordinates(
+                scene, np.broadcast_to(p[i], l_dir.shape), l_dir
             )
-            radiance = finish.mirror_radiance(scene, vv, seen)
+            seen = landed & (cos_l > 0) & (wo_h > 0)
+            radiance = finish.mirror_radiance(scene, np.stack([uu, vv], axis=-1), seen)
             values = np.where(seen, radiance * brdf * cos_l / pdf_l, 0.0)
             mean[i] = values.mean()
             error[i] = values.std() / math.sqrt(samples)
@@ -220,14 +243,14 @@ class Microfacet(ReflectionComponent):
 class Beckmann(Microfacet):
     name = "beckmann"
     rank = 2
-    blur = "gaussian"
+    kernel = "gaussian"
     doc = "a Beckmann microfacet lobe of roughness alpha (Gaussian slopes)"
 
 
 class GGX(Microfacet):
     name = "ggx"
     rank = 3
-    blur = "ggx"
+    kernel = "ggx"
     doc = "a GGX (Trowbridge-Reitz) microfacet lobe of roughness alpha (heavy-tailed slopes)"
 
 

@@ -34,46 +34,57 @@ void lobe_frame(real3 n, real3 wo, out real3 e1, out real3 e2) {
 }
 
 {$ if lobe_method == "closed" $}
-// Closed form along v: v(l) linearised about the mirror ray, v = v0 + jx x + jy y, so the
-// lobe spreads v by the slope density's marginal along (jx, jy), scaled by |j|:
+// Closed form: v(l) linearised about the mirror ray, l = r + x dl/dx + y dl/dy for slopes
+// (x, y), so the lobe maps onto the emitter as the footprint J (dl/dx, dl/dy) times the
+// slopes' scale: the unit kernel ({{ kernel }}) at alpha / sqrt 2 (Beckmann: Gaussian slopes
+// of that standard deviation) or alpha (GGX), through which the emitter's pattern is seen;
+// shadowing taken at the mirror direction.
 {$ if lobe == "beckmann" $}
-// a Gaussian of std |j| alpha / sqrt 2, through which the emitter's pattern is seen.
-float lobe_stripes(real2 uv, float spread) {
-    float s = spread * float(u_reflection_alpha) * 0.70710678;
-    return emitter_gaussian_blur(uv, real(s * s));
-}
+const float SLOPE_SCALE = 0.70710678;         // Beckmann's slopes: std alpha / sqrt 2 each
 {$ else $}
-// GGX: alpha^2 / (2 (alpha^2 + s^2)^(3/2)), the emitter's pattern seen through it.
-float lobe_stripes(real2 uv, float spread) {
-    return emitter_ggx_blur(uv, spread * float(u_reflection_alpha));
-}
+const float SLOPE_SCALE = 1.0;                // GGX's slope density at alpha = 1 is the kernel's
 {$ endif $}
 
-float lobe(real3 p, real3 d, real3 n, real3 r, real2 uv, real dist) {
+void shade(real3 p, real3 d, real3 n, real3 r, real2 uv, real dist, float weight) {
     real3 wo = -d;
     real3 e1, e2;
     lobe_frame(n, wo, e1, e2);
     real cos_o = dot(wo, n);
+    real scale = real(SLOPE_SCALE) * u_reflection_alpha;
     real3 dl_x = 2.0 * dot(wo, e1) * n + 2.0 * cos_o * e1;   // dl/dx at the mirror direction
     real3 dl_y = 2.0 * cos_o * e2;
-    real jx = emitter_v_rate(r, dist, dl_x);
-    real jy = emitter_v_rate(r, dist, dl_y);
+    real2x2 footprint = emitter_jacobian(p, r, dist, scale * dl_x, scale * dl_y);
     float shadowing = 1.0 / (1.0 + 2.0 * smith_lambda(float(cos_o)));
-    return shadowing * lobe_stripes(uv, float(sqrt(jx * jx + jy * jy)));
+{$ if coherence $}
+    float c = coherent_fraction(d, n);
+{$ endif $}
+    for (int k = 0; k < PATTERNS; ++k) {
+        float lobe = shadowing * emitter_filtered(uv, footprint, k);
+{$ if coherence $}
+        pattern_sums[k] += weight * (c * emitter_radiance(uv, k) + (1.0 - c) * lobe);
+{$ else $}
+        pattern_sums[k] += weight * lobe;
+{$ endif $}
+    }
 }
 {$ else $}
-// Importance sampling of the slope density: u_reflection_lobe_samples points of a Fibonacci lattice
-// in the unit square{$ if lobe_method == "sampling" $}, shifted per pixel by a hash (randomised
-// quasi-Monte Carlo: unbiased, with noise){$ endif $}, mapped to slopes by the inverse CDF
-// of the radius ({{ lobe }}) and a uniform angle.
-float lobe(real3 p, real3 d, real3 n, real3 r, real2 uv, real dist) {
+// Importance sampling of the slope density: u_reflection_lobe_samples points of a Fibonacci
+// lattice in the unit square{$ if lobe_method == "sampling" $}, shifted per pixel by a hash
+// (randomised quasi-Monte Carlo: unbiased, with noise){$ endif $}, mapped to slopes through
+// the kernel's inverse CDF of the radius (lib/kernels.glsl) and a uniform angle. Each sampled
+// direction lands on the emitter once and is shaded for every pattern.
+void shade(real3 p, real3 d, real3 n, real3 r, real2 uv, real dist, float weight) {
     real3 wo = -d;
     real3 e1, e2;
     lobe_frame(n, wo, e1, e2);
     float cos_o = float(dot(wo, n));
     float lambda_o = smith_lambda(cos_o);
-    float alpha = float(u_reflection_alpha);
-    float inv_count = 1.0 / float(u_reflection_lobe_samples);
+{$ if lobe == "beckmann" $}
+    float scale = 0.70710678 * float(u_reflection_alpha);   // slopes: std alpha / sqrt 2 each
+{$ else $}
+    float scale = float(u_reflection_alpha);
+{$ endif $}
+    int count = u_reflection_lobe_samples;
 {$ if lobe_method == "sampling" $}
     uvec2 key = uvec2(gl_FragCoord.xy) * uvec2(1664525u, 22695477u);
     uint h = (key.x ^ (key.y >> 7u) ^ 0x9e3779b9u) * 2654435761u;
@@ -81,17 +92,16 @@ float lobe(real3 p, real3 d, real3 n, real3 r, real2 uv, real dist) {
 {$ else $}
     vec2 shift = vec2(0.0);
 {$ endif $}
-    float total = 0.0;
-    for (int k = 0; k < u_reflection_lobe_samples; ++k) {
-        float u1 = fract((float(k) + 0.5) * inv_count + shift.x);
-        float u2 = fract(float(k) * 0.61803399 + shift.y);
-{$ if lobe == "beckmann" $}
-        float radius = alpha * sqrt(-log(1.0 - u1));
+{$ if coherence $}
+    float c = coherent_fraction(d, n);
+    for (int k = 0; k < PATTERNS; ++k) pattern_sums[k] += weight * c * emitter_radiance(uv, k);
+    float lobe_weight = weight * (1.0 - c) / float(count);
 {$ else $}
-        float radius = alpha * sqrt(u1 / (1.0 - u1));
+    float lobe_weight = weight / float(count);
 {$ endif $}
-        float phi = 6.2831853 * u2;
-        real3 h = normalize(n + real(radius * cos(phi)) * e1 + real(radius * sin(phi)) * e2);
+    for (int i = 0; i < count; ++i) {
+        vec2 slope = scale * kernel_point(i, count, shift);
+        real3 h = normalize(n + real(slope.x) * e1 + real(slope.y) * e2);
         real wo_h = dot(wo, h);
         if (!(wo_h > 0.0)) continue;
         real3 l = 2.0 * wo_h * h - wo;
@@ -101,17 +111,8 @@ float lobe(real3 p, real3 d, real3 n, real3 r, real2 uv, real dist) {
         real ldist;
         if (!emitter_hit(p, l, luv, ldist)) continue;
         float g2 = 1.0 / (1.0 + lambda_o + smith_lambda(cos_l));
-        total += emitter_radiance(luv) * g2 * float(wo_h) / (cos_o * float(dot(n, h)));
+        float w = lobe_weight * g2 * float(wo_h) / (cos_o * float(dot(n, h)));
+        for (int k = 0; k < PATTERNS; ++k) pattern_sums[k] += w * emitter_radiance(luv, k);
     }
-    return total * inv_count;
 }
 {$ endif $}
-
-float shade(real3 p, real3 d, real3 n, real3 r, real2 uv, real dist) {
-{$ if coherence $}
-    float c = coherent_fraction(d, n);
-    return c * emitter_radiance(uv) + (1.0 - c) * lobe(p, d, n, r, uv, dist);
-{$ else $}
-    return lobe(p, d, n, r, uv, dist);
-{$ endif $}
-}

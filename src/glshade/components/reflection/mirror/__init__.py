@@ -33,11 +33,17 @@ class Mirror(ReflectionComponent):
     def shades_from_emitter_map(self, scene):
         return not finish.coherence_on(scene)
 
+    def loop_iterations(self, scene, solver):
+        return 1  # the end of its loop over the patterns
+
+    def pattern_loop_iterations(self, scene, solver):
+        return 1  # each pattern once
+
     def keeps_emitter_scale(self, scene):
         return not finish.coherence_on(scene)
 
-    def shade(self, scene, p, d, n, v, ok):
-        mirror = finish.mirror_radiance(scene, v, ok)
+    def shade(self, scene, p, d, n, uv, ok):
+        mirror = finish.mirror_radiance(scene, uv, ok)
         if not finish.coherence_on(scene):
             return mirror
         return finish.mix_coherent(scene, mirror, finish.lambert(scene, p, n), d, n)

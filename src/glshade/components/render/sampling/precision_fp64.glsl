@@ -2,6 +2,7 @@
 #define real double
 #define real2 dvec2
 #define real3 dvec3
+#define real2x2 dmat2
 const real REAL_EPS = 2.220446049250313e-16lf;
 
 // GLSL has no double exp(); this one is accurate to a few ulp for x <= 0.
