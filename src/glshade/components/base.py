@@ -395,6 +395,8 @@ class EmitterComponent(Component):
     #: binarised edges) or ``pmd`` (a fringe sequence decoded; the emitter then describes
     #: its frames, :meth:`sequence`).
     measured_by: ClassVar[str] = "paper"
+    #: What one period of its pattern is called, in words ("stripe", "fringe").
+    pattern_noun: ClassVar[str] = "stripe"
 
     def coordinates(
         self, scene: SceneView, points: np.ndarray, directions: np.ndarray
@@ -441,6 +443,11 @@ class EmitterComponent(Component):
         """The screen coordinate :meth:`radiance` takes (mm): ``v``, along which the
         stripes vary (an emitter varying along ``u`` says so)."""
         return v
+
+    def pattern_axes(self, scene: SceneView) -> tuple[int, ...]:
+        """The screen coordinates its pattern varies along (0: ``u``, 1: ``v``): ``v`` for
+        the stripes."""
+        return (1,)
 
     def finest_period_mm(self, scene: SceneView) -> float:
         """The shortest period of the pattern shown (mm), for the warnings about blur."""

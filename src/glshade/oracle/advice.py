@@ -30,19 +30,27 @@ def scene_warnings(scene: Scene) -> tuple[str, ...]:
 
 
 def _lobe_warning(scene: Scene, component) -> tuple[str, ...]:
-    """A reflection lobe whose footprint on the emitter exceeds half the pattern's period
-    washes it out (docs/physics.md, 'Glossy lobes and stripes')."""
+    """A reflection lobe whose footprint on the emitter exceeds half the pattern's finest
+    period along a direction it varies in washes it out (docs/physics.md, 'Glossy lobes and
+    stripes')."""
     lobe = getattr(component, "lobe_std_rad", None)
     std = lobe(scene) if lobe is not None else None
     if std is None:
         return ()
-    width = footprint_mm(scene, std)
-    period = scene.active.emitter.finest_period_mm(scene)
-    if width is None or width <= 0.5 * period:
+    emitter = scene.active.emitter
+    period = emitter.finest_period_mm(scene)
+    found = [(footprint_mm(scene, std, axis), axis) for axis in emitter.pattern_axes(scene)]
+    widths = [(width, axis) for width, axis in found if width is not None]
+    if not widths:
+        return ()
+    width, axis = max(widths)
+    if width <= 0.5 * period:
         return ()
     hint = component.sharpen_hint(scene, width / (0.5 * period))
+    noun = emitter.pattern_noun
+    along = f" along {'uv'[axis]}" if len(found) > 1 else ""
     return (
         f"render.reflection = {component.name}: the lobe spreads each point over {width:.3g} mm "
-        f"of the emitter, more than half the {period:g} mm stripe period, so the stripes wash "
-        f"out; use {hint} (docs/physics.md, 'Glossy lobes and stripes')",
+        f"of the emitter{along}, more than half the {period:g} mm {noun} period, so the "
+        f"{noun}s wash out; use {hint} (docs/physics.md, 'Glossy lobes and stripes')",
     )

@@ -19,9 +19,10 @@ from glshade.scene import Scene
 _DALPHA = 1e-5
 
 
-def footprint_mm(scene: Scene, lobe_std_rad: float) -> float | None:
-    """The lobe's ±1σ width along ``v`` on the emitter (mm) for the image's centre pixel,
-    or None where the centre ray misses the surface or the emitter."""
+def footprint_mm(scene: Scene, lobe_std_rad: float, screen_axis: int = 1) -> float | None:
+    """The lobe's ±1σ width along the screen coordinate ``screen_axis`` (1: ``v``, 0: ``u``) on the
+    emitter (mm) for the image's centre pixel, or None where the centre ray misses the
+    surface or the emitter."""
     from glshade.oracle.tracer import first_hit  # a lobe only: most scenes never trace here
 
     cam = scene.camera
@@ -47,8 +48,9 @@ def footprint_mm(scene: Scene, lobe_std_rad: float) -> float | None:
     for turn in (axis, np.cross(r, axis)):  # in and across the plane of incidence
         turned = np.stack([r + s * _DALPHA * np.cross(turn, r) for s in (-1.0, 1.0)])
         start = np.repeat(points.reshape(-1, 3)[:1], 2, 0)
-        _, v, ok = scene.active.emitter.coordinates(scene, start, turned)
-        if not ok.all():
+        landed = scene.active.emitter.coordinates(scene, start, turned)
+        if not landed[2].all():
             return None
-        spread = max(spread, abs(v[1] - v[0]) / (2 * _DALPHA))
+        coordinate = landed[screen_axis]
+        spread = max(spread, abs(coordinate[1] - coordinate[0]) / (2 * _DALPHA))
     return 2.0 * lobe_std_rad * spread

@@ -16,7 +16,12 @@ import numpy as np
 
 from glshade.components.base import EmitterComponent
 from glshade.components.emitter import plane
-from glshade.components.emitter.fringes.table import FringeFrame, FringesTable, frame_radiance
+from glshade.components.emitter.fringes.table import (
+    DIRECTIONS,
+    FringeFrame,
+    FringesTable,
+    frame_radiance,
+)
 from glshade.errors import GlshadeError
 
 #: Why a fringe scene has no stripe metric.
@@ -32,6 +37,7 @@ class Fringes(EmitterComponent):
     doc = "a screen showing one frame of phase-shifted sinusoidal fringes (phase measuring)"
     table = FringesTable
     measured_by = "pmd"
+    pattern_noun = "fringe"
 
     def features(self, scene):
         em = self.frame(scene)
@@ -132,6 +138,10 @@ class Fringes(EmitterComponent):
 
     def pattern(self, scene):
         raise GlshadeError(NO_STRIPE_METRIC)
+
+    def pattern_axes(self, scene) -> tuple[int, ...]:
+        """The sequence's directions: ``u`` (0) and ``v`` (1) as coded."""
+        return tuple(sorted(DIRECTIONS.index(d) ^ 1 for d in self.frame(scene).directions))
 
     def finest_period_mm(self, scene) -> float:
         return self.frame(scene).periods[0]

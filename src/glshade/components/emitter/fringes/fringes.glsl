@@ -80,11 +80,12 @@ float harmonic(int pattern, int h) {
     return u_emitter_harmonics[2 * pattern + h / 4][h % 4];
 }
 {$ endif $}
-{$ if filtered and not fringe_pixels $}
+{$ if filtered $}
 
 // Through a lobe: each harmonic of the fringe along its direction is damped by the kernel's
-// transfer at its frequency times the footprint's scale along that direction.
-float emitter_filtered(real2 uv, real2x2 footprint, int pattern) {
+// transfer at its frequency times the footprint's scale along that direction{$ if fringe_pixels $},
+// and by the hold of each value over a pixel's emitting square (a box: its sinc){$ endif $}.
+float filtered_series(real2 uv, real2x2 footprint, int pattern) {
     const float TWO_PI = 6.2831853;
     vec4 f = u_emitter_frame[pattern];
     bool along_v = f.x > 0.5;
@@ -94,19 +95,40 @@ float emitter_filtered(real2 uv, real2x2 footprint, int pattern) {
     float theta = TWO_PI * float(x) - f.y;
     real2 row = along_v ? real2(footprint[0].y, footprint[1].y) : real2(footprint[0].x, footprint[1].x);
     float scale = TWO_PI * float(length(row) / u_emitter_frame_period[pattern]);   // rad per unit x
+{$ if fringe_pixels $}
+    float held = TWO_PI * float(u_emitter_pixel_lit / u_emitter_frame_period[pattern]);   // half its phase span
+{$ endif $}
     float total = harmonic(pattern, 0);
     for (int h = 1; h < 8; ++h) {
         float b = harmonic(pattern, h);
-        if (b != 0.0) total += b * kernel_transfer(float(h) * scale) * cos(float(h) * theta);
+        if (b == 0.0) continue;
+        float damp = kernel_transfer(float(h) * scale);
+{$ if fringe_pixels $}
+        damp *= sin(float(h) * held) / (float(h) * held);
+{$ endif $}
+        total += b * damp * cos(float(h) * theta);
     }
     return total;
+}
+{$ endif $}
+{$ if filtered and not fringe_pixels $}
+
+float emitter_filtered(real2 uv, real2x2 footprint, int pattern) {
+    return filtered_series(uv, footprint, pattern);
 }
 {$ elif filtered $}
 uniform int u_emitter_footprint_samples;    // points of the lobe's kernel per filtered value
 
-// Through a lobe over a pixelated screen (no closed form): the mean of the pattern over a
-// lattice of the kernel's points mapped onto the screen.
+// Through a lobe over a pixelated screen. A lobe at least a pixel wide each way sees the
+// pixels' average (the screen's lattice harmonics are below the kernel's transfer at 2 pi:
+// 3e-9 for a Gaussian, 0.006 for GGX): the closed form, the fill factor's share of the fringe
+// held on each pixel's emitting square and the black matrix's room light. A narrower one: the mean of the pattern over a lattice of the
+// kernel's points mapped onto the screen.
 float emitter_filtered(real2 uv, real2x2 footprint, int pattern) {
+    real2 row_u = real2(footprint[0].x, footprint[1].x);
+    real2 row_v = real2(footprint[0].y, footprint[1].y);
+    if (min(length(row_u), length(row_v)) >= u_emitter_pixel_pitch)
+        return filtered_series(uv, footprint, pattern);
     float total = 0.0;
     for (int i = 0; i < u_emitter_footprint_samples; ++i)
         total += emitter_radiance(uv + footprint * real2(kernel_point(i, u_emitter_footprint_samples, vec2(0.0))), pattern);
