@@ -9,6 +9,7 @@ import pytest
 from glshade.files import read_png
 from glshade.measure.pmd import measure_pmd, project
 from glshade.measure.pmd_files import (
+    DATA_FILES,
     MAP_FILES,
     NO_VALUE,
     dent_box,
@@ -33,7 +34,8 @@ def test_write_maps_writes_every_file_and_decodable_figures(case, tmp_path):
     scene, result = case
     written = write_maps(tmp_path, scene, result)
     assert sorted(p.name for p in written) == sorted(
-        f"{name}.{ext}" for name in MAP_FILES for ext in ("npy", "png")
+        [f"{name}.{ext}" for name in MAP_FILES for ext in ("npy", "png")]
+        + [f"{name}.npy" for name in DATA_FILES]
     )
     grey = np.round(np.array(NO_VALUE) * 255).astype(int)
     for name in MAP_FILES:

@@ -174,7 +174,10 @@ def test_auto_exposure_puts_the_brightest_fringe_near_full_scale(renderer):
     shot = capture(renderer, station(size=48).updated(sensor=SENSOR))
     recorded = shot.recorded()
     assert 0.85 < float(np.percentile(recorded, 99.9)) < 0.97
-    assert shot.peak_response == pytest.approx(0.9, rel=0.02)
+    # 0.9 of the range above the black level (64 DN of 4095 at 12 bits)
+    black = 64 / 4095
+    assert shot.black_level == black
+    assert shot.peak_response == pytest.approx((1 - black) * 0.9, rel=1e-6)
 
 
 # --------------------------------------------------------------------------- the API

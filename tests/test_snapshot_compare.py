@@ -65,7 +65,7 @@ def test_an_identical_shot_passes_at_zero_tolerance(tmp_path):
     """Storing rounds each pixel by up to half a 16-bit step: the comparison allows that
     much on top of the tolerance, so a shot identical to what was stored passes at 0."""
     back = make_baseline(tmp_path)
-    zero = Tolerances(image=0.0, image_pixels=0, visibility_px=0.0, pmd_mm=0.0)
+    zero = Tolerances(image=0.0, image_pixels=0, visibility_px=0.0, pmd_mm=0.0, pmd_um=0.0)
     result = compare("panel", back, Shot(stripes(), NUMBERS), zero, LLVMPIPE)
     assert result.passed and result.across == ""
 
@@ -119,12 +119,37 @@ def test_a_number_that_appears_or_vanishes_moved():
 
 def test_a_stations_numbers_in_mm_and_its_depth_in_um():
     before = {"pmd": {"pmd_shift_mm": 0.79, "pmd_depth_um": 4.9, "status": "ok"}}
-    now = {"pmd": {"pmd_shift_mm": 0.7903, "pmd_depth_um": 4.95, "status": "ok"}}
+    now = {"pmd": {"pmd_shift_mm": 0.7903, "pmd_depth_um": 4.9002, "status": "ok"}}
     moved = {c.name: c for c in number_changes(before, now, DEFAULT) if c.moved}
-    assert set(moved) == {"pmd_shift_mm"}  # 0.3 µm > 0.2 µm; depth 0.05 µm < 0.2 µm
+    assert set(moved) == {"pmd_shift_mm"}  # 0.3 µm > 0.2 µm; depth 2e-4 µm: exactly within
     assert moved["pmd_shift_mm"].tolerance == pytest.approx(2e-4)
     depth = next(c for c in number_changes(before, now, DEFAULT) if c.name == "pmd_depth_um")
-    assert depth.tolerance == pytest.approx(0.2) and depth.unit == "µm"
+    assert depth.tolerance == pytest.approx(2e-4) and depth.unit == "µm"
+    now["pmd"]["pmd_depth_um"] = 4.9003
+    moved = {c.name: c for c in number_changes(before, now, DEFAULT) if c.moved}
+    assert set(moved) == {"pmd_shift_mm", "pmd_depth_um"}
+    assert "(tolerance 0.0002 µm)" in moved["pmd_depth_um"].describe()
+    loose = DEFAULT.with_overrides({"pmd_um": 0.01}, "check()")
+    assert not next(c for c in number_changes(before, now, loose) if c.name == "pmd_depth_um").moved
+
+
+def test_a_dent_four_percent_deeper_fails_on_its_fitted_depth(_session_renderer):
+    """The paper's dent at 5 µm, then 5.2 µm, measured by the snapshot's station on one
+    renderer: the fitted depth moves by about 0.2 µm (which the former default, 0.2 µm,
+    let pass on that number), a thousand times the default ``pmd_um``."""
+    from glshade.scene import paper_scene
+    from glshade.snapshot.station import measured_numbers
+
+    scene = paper_scene("flat", 45.0, 4.0, 0.005).with_size(96)
+    scene = scene.updated(emitter={"kind": "fringes"})
+    before = measured_numbers(_session_renderer, scene)
+    now = measured_numbers(_session_renderer, scene.updated(defect={"dmax": 0.0052}))
+    assert before["pmd"]["status"] == now["pmd"]["status"] == "ok"
+    change = now["pmd"]["pmd_depth_um"] - before["pmd"]["pmd_depth_um"]
+    assert 0.15 < change <= 0.2
+    moved = {c.name: c for c in number_changes(before, now, DEFAULT) if c.moved}
+    assert "pmd_depth_um" in moved and moved["pmd_depth_um"].tolerance == DEFAULT.pmd_um
+    assert change > 100 * DEFAULT.pmd_um
 
 
 def test_another_renderer_raises_the_tolerances_to_the_measured_floor(tmp_path):
@@ -139,7 +164,7 @@ def test_another_renderer_raises_the_tolerances_to_the_measured_floor(tmp_path):
     back = make_baseline(tmp_path)
     moved = stripes()
     moved[5, 5] += 1.5e-4  # beyond a zero tolerance, within the renderers' floor
-    zero = Tolerances(image=0.0, image_pixels=0, visibility_px=0.0, pmd_mm=0.0)
+    zero = Tolerances(image=0.0, image_pixels=0, visibility_px=0.0, pmd_mm=0.0, pmd_um=0.0)
     assert not compare("panel", back, Shot(moved, NUMBERS), zero, LLVMPIPE).passed
     result = compare("panel", back, Shot(moved, NUMBERS), zero, NVIDIA)
     assert result.passed and result.tolerances.image == 2e-4

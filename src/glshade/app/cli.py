@@ -131,14 +131,16 @@ def add_pmd_flags(p: argparse.ArgumentParser) -> None:
         "--maps",
         type=path_arg,
         metavar="DIR",
-        help="pmd: write decoded.npy, modulation.npy, wrapped_phase.npy, error_mm.npy, "
-        "slopes.npy, height_um.npy and a PNG figure of each",
+        help="pmd: write the maps behind the numbers (decoded.npy, exact.npy, modulation.npy, "
+        "modulation_share.npy, wrapped_phase.npy, error_mm.npy, slopes.npy, height_um.npy, "
+        "the defect-free and noise-twin decodes, ...; docs/pmd.md) and figures",
     )
     p.add_argument(
         "--frames",
         type=path_arg,
         metavar="DIR",
-        help="pmd: write the recorded sequence and manifest.json (for external decoders)",
+        help="pmd: write the recorded sequence, the recorded white and manifest.json (all an "
+        "external decoder needs); an earlier run's frames there are replaced",
     )
     p.add_argument(
         "--frame-format",
@@ -218,7 +220,7 @@ def _cmd_measure_pmd(args: argparse.Namespace, scene: Scene) -> int:
     check_scene(scene)
     for flag, directory in (("--maps", args.maps), ("--frames", args.frames)):
         if directory is not None:
-            check_output_dir(directory, flag, run_inputs(args, scene))
+            check_output_dir(directory, flag, run_inputs(args, scene), flag == "--frames")
     check_save_scene(args, scene)
     warn(scene_warnings(scene))
     reuse_freed_memory()
@@ -231,7 +233,7 @@ def _cmd_measure_pmd(args: argparse.Namespace, scene: Scene) -> int:
     seconds = time.perf_counter() - start
     record = PmdMeasurement.of(scene, result)
     if args.frames is not None:
-        write_frames(args.frames, scene, result.maps.recorded, args.frame_format)
+        write_frames(args.frames, scene, result, args.frame_format)
     if args.maps is not None:
         write_maps(args.maps, scene, result)
     save_scene(args, scene)
@@ -286,7 +288,8 @@ def _print_pmd(scene: Scene, record) -> None:
          "defect-free)"),
         ("unwrap_failures", f"{record.unwrap_failures} pixels"),
         ("valid_fraction", f"{record.valid_fraction:.4f} of the pixels that see the screen"),
-        ("modulation", f"{number(record.modulation, '.3f')} of a sharp mirror's, at the dent"),
+        ("modulation", f"{number(record.modulation, '.3f')} of a sharp mirror's (the finest "
+         "fringe's share, at the dent, else where the screen is seen)"),
     ]  # fmt: skip
     for name, text in rows:
         print(f"  {name:<22}  {text}{flag(name)}")

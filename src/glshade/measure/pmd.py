@@ -41,6 +41,7 @@ from glshade.metrics.status import (
     combined,
     coverage_edge,
     dent_window,
+    no_dent,
     touches_edge,
 )
 from glshade.scene import Scene
@@ -55,7 +56,7 @@ REGION_SHARE = 0.2
 INVALID_SHARE = 0.25
 #: The version of what a PMD case measures: part of a PMD sweep case's identity and of its
 #: manifest. Raise it with any change that alters a number of a PMD record.
-PMD_VERSION = 1
+PMD_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -126,26 +127,49 @@ class Capture:
     def recorded(self, seed_offset: int = 0) -> np.ndarray:
         """The sequence as the sensor records it (float32, F × H × W; the radiance itself
         without a sensor): each frame with its own noise, drawn from the sensor's seed
-        (plus ``seed_offset``), the scene and the frame shown."""
-        scene = self.scene
-        if not scene.active.records(scene):
+        (plus ``seed_offset``), the scene and the frame shown; the sensor's black level
+        kept, as a camera's raw frames keep it."""
+        if not self.scene.active.records(self.scene):
             return self.radiance
+        out = np.empty_like(self.radiance)
+        for index, frame in enumerate(self.frames):
+            out[index] = self._developed(frame, self.radiance[index], seed_offset)
+        return out
+
+    def recorded_white(self, seed_offset: int = 0) -> np.ndarray:
+        """The screen's white as the sensor records it (H × W, exposed as the sequence,
+        with its own noise; the radiance without a sensor)."""
+        if not self.scene.active.records(self.scene):
+            return self.white
+        white = self.scene.active.emitter.white(self.scene)
+        return self._developed(white, self.white, seed_offset)
+
+    def _developed(self, frame: FringeFrame, radiance: np.ndarray, seed_offset: int) -> np.ndarray:
+        scene = self.scene
         base = scene.with_value("camera.exposure", self.gain)
         if seed_offset:
             base = base.with_value("sensor.seed", (scene.sensor.seed + seed_offset) % 2**63)
-        emitter = scene.active.emitter
-        out = np.empty_like(self.radiance)
-        for index, frame in enumerate(self.frames):
-            shown = emitter.showing(base, frame)
-            out[index] = shown.active.develop(shown, self.radiance[index].copy())
-        return out
+        shown = scene.active.emitter.showing(base, frame)
+        return shown.active.develop(shown, radiance.copy())
+
+    @property
+    def black_level(self) -> float:
+        """The sensor's black level in recorded units (0 without a sensor): what every
+        recorded value holds on top of its signal."""
+        records = self.scene.active.records(self.scene)
+        return self.scene.sensor.black_level if records else 0.0
 
     @property
     def peak_response(self) -> float:
-        """The recorded response of the brightest pixel to the screen's white."""
+        """The noise-free recorded response of the brightest pixel to the screen's white,
+        above the black level (recorded units; the radiance without a sensor): the base
+        of the validity threshold. The full well fills the range above the black level,
+        so a response ``gain · W`` is ``(1 - black) · min(gain · W, 1)`` of full scale."""
         white = self.white[np.isfinite(self.white)]
         peak = float(white.max()) * self.gain if white.size else 0.0
-        return min(peak, 1.0) if self.scene.active.records(self.scene) else peak
+        if not self.scene.active.records(self.scene):
+            return peak
+        return (1.0 - self.black_level) * min(peak, 1.0)
 
 
 def released(shot: Capture) -> Capture:
@@ -180,8 +204,11 @@ def capture(renderer: Renderer, scene: Scene) -> Capture:
 class Decoding:
     """A recorded sequence decoded: ``uv`` (H, W, 2) the decoded screen points in mm (NaN
     where a direction is not coded or not valid), ``valid`` (H, W) valid in every coded
-    direction, per direction ``modulation``, ``offset`` and ``wrapped`` (D, K, H, W),
-    ``threshold`` the modulation a valid pixel needs (recorded units)."""
+    direction, per screen coordinate ``modulation``, ``offset`` and ``wrapped`` (2, K, H,
+    W: the first axis in the screen's order (u, v) like ``uv``'s last, whatever order the
+    sequence shows them in; NaN for a coordinate the sequence does not code and, where
+    ``seen`` was given, for a pixel that sees no screen), ``threshold`` the modulation a
+    valid pixel needs (recorded units)."""
 
     uv: np.ndarray
     valid: np.ndarray
@@ -191,23 +218,33 @@ class Decoding:
     threshold: float
 
 
+def threshold_of(scene: Scene, peak_response: float, settings: PmdSettings) -> float:
+    """The modulation a valid pixel needs (recorded units): ``min_modulation`` where
+    given, else ``modulation_share`` of ``amplitude`` times ``peak_response`` (the
+    brightest pixel's response to the screen's white above the black level)."""
+    if settings.min_modulation is not None:
+        return float(settings.min_modulation)
+    return float(settings.modulation_share * fringes_of(scene).amplitude * peak_response)
+
+
 def decode_sequence(
-    scene: Scene, recorded: np.ndarray, peak_response: float, settings: PmdSettings
+    scene: Scene,
+    recorded: np.ndarray,
+    peak_response: float,
+    settings: PmdSettings,
+    seen: np.ndarray | None = None,
 ) -> Decoding:
-    """Decode every coded direction of a recorded ``(F, H, W)`` sequence."""
+    """Decode every coded direction of a recorded ``(F, H, W)`` sequence (``seen``: the
+    pixels that see the screen; the per-direction maps are NaN elsewhere)."""
     em = fringes_of(scene)
     periods, shifts = len(em.periods), em.shifts
     height, width = recorded.shape[1:]
     uv = np.full((height, width, 2), np.nan)
     valid = np.ones((height, width), bool)
-    threshold = (
-        settings.min_modulation
-        if settings.min_modulation is not None
-        else settings.modulation_share * em.amplitude * peak_response
-    )
+    threshold = threshold_of(scene, peak_response, settings)
     # float32 as each direction is decoded: one direction's float64 maps at a time
-    shape = (len(em.directions), periods, height, width)
-    modulation, offset, wrapped = (np.empty(shape, np.float32) for _ in range(3))
+    shape = (2, periods, height, width)
+    modulation, offset, wrapped = (np.full(shape, np.nan, np.float32) for _ in range(3))
     for d, direction in enumerate(em.directions):
         coding = pmd.FringeCoding.of(em, direction)
         block = recorded[d * periods * shifts : (d + 1) * periods * shifts]
@@ -217,10 +254,22 @@ def decode_sequence(
         axis = DIRECTIONS.index(direction) ^ 1
         uv[..., axis] = decoded.s_mm - em.half_size[axis]
         valid &= decoded.valid
-        modulation[d], offset[d], wrapped[d] = decoded.modulation, decoded.offset, decoded.wrapped
+        modulation[axis], offset[axis], wrapped[axis] = (
+            decoded.modulation,
+            decoded.offset,
+            decoded.wrapped,
+        )
         del decoded
     uv[~valid] = np.nan
-    return Decoding(uv, valid, modulation, offset, wrapped, float(threshold))
+    if seen is not None:
+        for per_direction in (modulation, offset, wrapped):
+            per_direction[:, :, ~seen] = np.nan
+    return Decoding(uv, valid, modulation, offset, wrapped, threshold)
+
+
+def seen_pixels(exact_uv: np.ndarray) -> np.ndarray:
+    """The pixels whose rays reach the screen (a finite exact screen point)."""
+    return np.all(np.isfinite(exact_uv), axis=-1)
 
 
 def coded_axes(scene: Scene) -> list[int]:
@@ -494,10 +543,12 @@ def pmd_baseline(
     normal = scene.without_defect()
     shot = capture(renderer, normal)
     start = time.perf_counter()
-    decoding = decode_sequence(normal, shot.recorded(), shot.peak_response, settings)
+    seen = seen_pixels(shot.uv)
+    decoding = decode_sequence(normal, shot.recorded(), shot.peak_response, settings, seen)
     twin = None
     if normal.active.records(normal):
-        twin = decode_sequence(normal, shot.recorded(seed_offset=1), shot.peak_response, settings)
+        twice = shot.recorded(seed_offset=1)
+        twin = decode_sequence(normal, twice, shot.peak_response, settings, seen)
     decode_s = time.perf_counter() - start
     nominal = nominal_geometry(renderer, scene)
     return PmdBaseline(
@@ -515,28 +566,79 @@ def pmd_baseline(
 def predicted_noise_mm(scene: Scene, decoding: Decoding, mask: np.ndarray) -> float:
     """``periods[0] / 2π · sqrt(2 / N) · σ_I / B`` per pixel of ``mask`` (valid ones),
     pooled as the root mean square (what the measured standard deviation estimates):
-    ``σ_I`` the sensor's noise at the pixel's mean level ``A`` (photon noise
-    ``sqrt(A / full_well)``, read noise and the quantisation's ``q / sqrt 12``, recorded
-    units), ``B`` its modulation of the finest period, each coded direction counted. 0
-    without a sensor."""
+    ``σ_I`` the sensor's noise at the pixel's mean level ``A`` (recorded units, the black
+    level ``b`` in it: the signal ``A - b`` fills ``1 - b`` of full scale at the full well,
+    so photon noise ``(1 - b) (A - b) / full_well`` and read noise ``((1 - b) read /
+    full_well)²`` in variance, and the quantisation's ``q² / 12``), ``B`` its modulation
+    of the finest period, each coded direction counted. 0 without a sensor."""
     sensor, em = scene.sensor, fringes_of(scene)
     if sensor.full_well_e is None:
         return 0.0
-    full_well = sensor.full_well_e
-    q = 1.0 / (2**sensor.bit_depth - 1)
+    full_well, black = sensor.full_well_e, sensor.black_level
+    q = 1.0 / sensor.full_scale_dn
     scale = em.periods[0] / (2.0 * math.pi)
     variances = []
-    for d in range(len(em.directions)):
-        level = decoding.offset[d, 0][mask].astype(np.float64)
-        modulation = decoding.modulation[d, 0][mask].astype(np.float64)
+    for axis in coded_axes(scene):
+        level = decoding.offset[axis, 0][mask].astype(np.float64)
+        modulation = decoding.modulation[axis, 0][mask].astype(np.float64)
         sigma2 = (
-            np.maximum(level, 0.0) / full_well
-            + (sensor.read_noise_e / full_well) ** 2
+            (1.0 - black) * np.maximum(level - black, 0.0) / full_well
+            + ((1.0 - black) * sensor.read_noise_e / full_well) ** 2
             + q * q / 12.0
         )
         variances.append(scale**2 * (2.0 / em.shifts) * sigma2 / modulation**2)
     pooled = np.concatenate(variances)
     return float(math.sqrt(pooled.mean())) if pooled.size else math.nan
+
+
+# --------------------------------------------------------------------------- modulation
+def modulation_share(scene: Scene, shot: Capture) -> np.ndarray:
+    """Per screen coordinate (u, v) and pixel (2, H, W, float32), the finest period's
+    modulation share of the noise-free radiance, ``B / (b_1 W)``: ``B`` the pixel's
+    modulation of the finest fringes, ``W`` its own response to the screen's white, and
+    ``b_1`` the fundamental of the fringe the screen displays over the white it displays
+    (:func:`displayed_fundamental`). What the finish, the lens and the pixel's footprint
+    leave of the fringe: 1 for a sharp mirror (within the screen's grey levels' rounding,
+    ±0.5 % at 256 levels), less where they average it out; an optical property, before
+    the sensor. NaN for a coordinate not coded and for a pixel that sees no screen."""
+    em = fringes_of(scene)
+    fundamental = displayed_fundamental(em)
+    white = shot.white.astype(np.float64)
+    seen = seen_pixels(shot.uv) & np.isfinite(white) & (white > 0.0)
+    share = np.full((2, *white.shape), np.nan, np.float32)
+    steps = 2.0 * np.pi * np.arange(em.shifts) / em.shifts
+    for d, direction in enumerate(em.directions):
+        first = d * len(em.periods) * em.shifts
+        finest = shot.radiance[first : first + em.shifts].astype(np.float64)
+        sine = np.tensordot(np.sin(steps), finest, axes=1)
+        cosine = np.tensordot(np.cos(steps), finest, axes=1)
+        modulation = (2.0 / em.shifts) * np.hypot(sine, cosine)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = modulation / (fundamental * white)
+        share[DIRECTIONS.index(direction) ^ 1] = np.where(seen, ratio, np.nan)
+    return share
+
+
+def displayed_fundamental(em) -> float:
+    """``b_1`` of the fringe the screen displays, ``displayed(offset + amplitude cos θ)``
+    (its grey levels, response, black level and ambient light included), over the white
+    it displays, ``displayed(1)``: a sharp mirror's modulation per unit of its response to
+    the white. (For a screen of grey levels and a gamma alone, the white is 1 and ``b_1``
+    is :func:`~glshade.metrics.coding_laws.screen_harmonics`' ``b_1``.)"""
+    screen = em.screen()
+    white = float(screen.displayed(np.array(1.0)))
+    return float(screen.harmonics(em.offset, em.amplitude)[1]) / white
+
+
+def median_share(scene: Scene, share: np.ndarray, region: np.ndarray) -> float:
+    """The record's ``modulation``: the median of :func:`modulation_share` over the coded
+    coordinates of the dent's region, else (no region) of every pixel that sees the
+    screen; NaN where none does."""
+    values = share[coded_axes(scene)].astype(np.float64)
+    where = region if region.any() else np.isfinite(values).all(axis=0)
+    picked = values[:, where]
+    picked = picked[np.isfinite(picked)]
+    return float(np.median(picked)) if picked.size else math.nan
 
 
 # --------------------------------------------------------------------------- one case
@@ -566,24 +668,59 @@ class PmdResult:
 
 
 @dataclass(frozen=True)
+class Recording:
+    """How a case's frames were recorded, what decoding them takes: ``gain`` the exposure
+    applied (``camera.exposure`` as a number, ``"auto"`` worked out: radiance ``1 / gain``
+    fills the full well, the range from the black level to full scale; 1 without a
+    sensor), ``black_level`` (recorded units, full scale 1; 0 without a sensor),
+    ``white_response`` the brightest pixel's noise-free response to the screen's white
+    above the black level (the validity threshold's base), ``threshold`` the modulation a
+    valid pixel needs (recorded units) and ``modulation_share`` the share of ``amplitude``
+    times ``white_response`` it is (None where ``PmdSettings.min_modulation`` set it),
+    ``white`` (H, W) the screen's white as recorded."""
+
+    gain: float
+    black_level: float
+    white_response: float
+    threshold: float
+    modulation_share: float | None
+    white: np.ndarray
+
+
+@dataclass(frozen=True)
 class PmdMaps:
-    """The maps of one case, image-aligned (H, W[, 2]) unless said: ``decoded`` the
-    decoded screen points (mm, NaN invalid), ``exact`` the traced ones, ``error`` decoded
-    minus exact (mm), ``modulation`` and ``wrapped`` (D, K, H, W), ``slopes`` (µrad),
-    ``height_um`` and the heights' grid, ``failed`` (unwrapping failures), ``region`` (the
-    dent's region), ``recorded`` the case's recorded sequence (F, H, W)."""
+    """The maps of one case, image-aligned (H, W[, 2]) unless said; every per-direction
+    axis in the screen's order (u, v), NaN for a coordinate the sequence does not code.
+
+    ``decoded`` the decoded screen points (mm, NaN invalid), ``exact`` the traced ones,
+    ``error`` decoded minus exact (mm); the defect-free scene's ``exact_defect_free``,
+    ``decoded_defect_free`` and ``decoded_twin`` (its second recording, another seed: the
+    noise; without a sensor the same radiance, so the same decode); ``modulation`` and
+    ``wrapped`` (2, K, H, W; NaN where no screen is seen), ``modulation_share`` (2, H, W:
+    :func:`modulation_share`); ``slopes_urad``, ``height_um`` and the heights' grid;
+    ``failed`` (unwrapping failures), ``region`` (the dent's region), ``shift_pixels`` and
+    ``noise_pixels`` (the pixels ``pmd_shift_mm`` and ``pmd_noise_mm`` are taken over);
+    ``recorded`` the case's recorded sequence (F, H, W, in the order shown) and
+    ``recording`` how it was recorded."""
 
     decoded: np.ndarray
     exact: np.ndarray
     error: np.ndarray
+    exact_defect_free: np.ndarray
+    decoded_defect_free: np.ndarray
+    decoded_twin: np.ndarray
     modulation: np.ndarray
     wrapped: np.ndarray
+    modulation_share: np.ndarray
     slopes_urad: np.ndarray
     height_um: np.ndarray
     heights: Heights
     failed: np.ndarray
     region: np.ndarray
+    shift_pixels: np.ndarray
+    noise_pixels: np.ndarray
     recorded: np.ndarray
+    recording: Recording
 
 
 def interior(seen: np.ndarray) -> np.ndarray:
@@ -637,25 +774,23 @@ def measure_pmd_scene(
     shot = capture(renderer, scene)
     start = time.perf_counter()
     recorded = shot.recorded()
-    decoding = decode_sequence(scene, recorded, baseline.capture.peak_response, settings)
+    peak = baseline.capture.peak_response
+    decoding = decode_sequence(scene, recorded, peak, settings, seen_pixels(shot.uv))
+    share = settings.modulation_share if settings.min_modulation is None else None
+    white = shot.recorded_white()
+    recording = Recording(shot.gain, shot.black_level, peak, decoding.threshold, share, white)
     decode_s = time.perf_counter() - start
     start = time.perf_counter()
     slopes = slope_map(scene, baseline.nominal, decoding.uv)
     heights = reconstruct(scene, baseline.nominal, slopes, settings)
     heights_s = time.perf_counter() - start
-    return _result(
-        scene,
-        baseline,
-        shot,
-        recorded,
-        decoding,
-        slopes,
-        heights,
-        {"render": shot.seconds, "decode": decode_s, "heights": heights_s},
-    )
+    seconds = {"render": shot.seconds, "decode": decode_s, "heights": heights_s}
+    return _result(scene, baseline, shot, recorded, recording, decoding, slopes, heights, seconds)
 
 
-def _result(scene, baseline, shot, recorded, decoding, slopes, heights, seconds) -> PmdResult:
+def _result(
+    scene, baseline, shot, recorded, recording, decoding, slopes, heights, seconds
+) -> PmdResult:
     axes = coded_axes(scene)
     base, exact0 = baseline.decoding, baseline.capture.uv
     window = dent_window(scene, decoding.valid.shape)
@@ -671,6 +806,8 @@ def _result(scene, baseline, shot, recorded, decoding, slopes, heights, seconds)
     region = dent_region(scene, exact0, shot.uv)
     status = assess_pmd(scene, baseline, shot, decoding, region, failed, _largest(moved), noise)
     shift_mm = _largest(np.where(both, shift, np.nan))
+    slope = np.hypot(slopes[..., 0], slopes[..., 1])
+    share = modulation_share(scene, shot)
     dent = heights.dent
     return PmdResult(
         pmd_shift_mm=shift_mm,
@@ -679,32 +816,34 @@ def _result(scene, baseline, shot, recorded, decoding, slopes, heights, seconds)
         pmd_noise_floor_mm=noise.floor,
         pmd_noise_predicted_mm=noise.predicted,
         pmd_snr=shift_mm / noise.std if noise.std > 0 else math.inf,
-        pmd_slope_urad=1e6
-        * _largest(
-            np.where(
-                region & decoding.valid & ~failed, np.hypot(slopes[..., 0], slopes[..., 1]), np.nan
-            )
-        ),
+        pmd_slope_urad=1e6 * _largest(np.where(region & decoding.valid & ~failed, slope, np.nan)),
         pmd_depth_um=dent.depth if dent is not None else math.nan,
         pmd_sigma_mm=dent.sigma_mm if dent is not None else math.nan,
         decode_rms_mm=_decode_rms(scene, baseline),
         unwrap_failures=int(failed.sum()),
         valid_fraction=_valid_share(decoding, shot.uv[..., axes[0]]),
-        modulation=_modulation_share(scene, decoding, region, baseline.capture.peak_response),
+        modulation=median_share(scene, share, region),
         status=status.status,
         status_reason=status.reason,
         maps=PmdMaps(
             decoded=decoding.uv,
             exact=shot.uv,
             error=decoding.uv - shot.uv,
+            exact_defect_free=exact0,
+            decoded_defect_free=base.uv,
+            decoded_twin=base.uv if baseline.twin is None else baseline.twin.uv,
             modulation=decoding.modulation,
             wrapped=decoding.wrapped,
+            modulation_share=share,
             slopes_urad=(1e6 * slopes).astype(np.float32),
             height_um=heights.per_pixel_um,
             heights=heights,
             failed=failed,
             region=region,
+            shift_pixels=both,
+            noise_pixels=baseline.noise_pixels(window),
             recorded=recorded,
+            recording=recording,
         ),
         seconds=seconds,
     )
@@ -731,18 +870,6 @@ def _valid_share(decoding: Decoding, exact: np.ndarray) -> float:
     return float(decoding.valid[seen].mean()) if seen.any() else 0.0
 
 
-def _modulation_share(scene: Scene, decoding: Decoding, region: np.ndarray, peak: float) -> float:
-    """The finest period's median modulation in the dent's region (else over the seen
-    pixels), as a share of ``amplitude`` times the peak response: 1 for a sharp mirror,
-    less where the pixels' footprints average the fringes out."""
-    finest = decoding.modulation[:, 0]
-    where = region if region.any() else np.isfinite(finest).all(axis=0)
-    values = finest[:, where]
-    values = values[np.isfinite(values)]
-    scale = fringes_of(scene).amplitude * peak
-    return float(np.median(values) / scale) if values.size and scale > 0 else math.nan
-
-
 # --------------------------------------------------------------------------- status
 def assess_pmd(
     scene: Scene,
@@ -761,8 +888,12 @@ def assess_pmd(
     ``saturated``/``underexposed`` (the recorded frames), ``noise`` (the shift the dent
     makes, ``exact_mm`` from the traced maps, is not above the largest shift noise alone
     makes, so the decoded shift is noise's; or the unwrapping fails in the dent's
-    region)."""
-    if scene.defect.dmax != 0.0 and not region.any():
+    region). A scene without a dent is ``outside`` whatever else holds
+    (:func:`~glshade.metrics.status.no_dent`, as the stripe metric says it)."""
+    absent = no_dent(scene)
+    if absent is not None:
+        return absent
+    if not region.any():
         return Status(
             "outside",
             "the dent is not seen: no pixel that sees the screen moves (move the dent, "
@@ -825,10 +956,13 @@ def _pmd_resolution(scene: Scene, region: np.ndarray, decoding: Decoding) -> Sta
 
 
 def _pmd_exposure(baseline: PmdBaseline) -> Status:
-    recorded_peak = baseline.capture.white * baseline.capture.gain
-    recorded_peak = recorded_peak * fringes_of(baseline.scene).brightest()
-    seen = np.isfinite(recorded_peak) & (baseline.capture.white > 0)
-    values = recorded_peak[seen]
+    """``saturated``/``underexposed`` from the brightest fringe's noise-free signal,
+    ``gain`` × radiance: the share of the range above the black level it fills (the full
+    well fills that range), so the black level is left out by construction."""
+    signal = baseline.capture.white * baseline.capture.gain
+    signal = signal * fringes_of(baseline.scene).brightest()
+    seen = np.isfinite(signal) & (baseline.capture.white > 0)
+    values = signal[seen]
     if not values.size:
         return Status()
     clipped = float((values >= 1.0).mean())
@@ -842,8 +976,8 @@ def _pmd_exposure(baseline: PmdBaseline) -> Status:
     if peak < 0.1:
         return Status(
             "underexposed",
-            f"the fringes peak at {peak:.1%} of full scale; raise camera.exposure or set it "
-            'to "auto"',
+            f"the fringes peak at {peak:.1%} of the range above the black level; raise "
+            'camera.exposure or set it to "auto"',
         )
     return Status()
 

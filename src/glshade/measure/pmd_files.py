@@ -2,15 +2,19 @@
 DIR``) and the maps behind its numbers with a figure of each (``--maps DIR``).
 
 Every file is written atomically (:mod:`glshade.files`); the directories are checked
-before any work (:func:`check_output_dir`)."""
+before any work (:func:`check_output_dir`). A ``--frames`` folder holds exactly the
+manifest's frames afterwards: the frames an earlier run wrote there under glshade's names
+and this run does not write are removed (regular files inside the folder only)."""
 
 from __future__ import annotations
 
 import json
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -21,6 +25,7 @@ from glshade.files import (
     check_inside,
     check_output,
     encode_image,
+    remove_inside,
     write_npy,
 )
 from glshade.measure.figures import new_figure, save_figure
@@ -28,17 +33,45 @@ from glshade.scene import Scene
 
 #: Frame file formats: 16-bit PNG (the recorded values times 65535) or 32-bit float TIFF.
 FRAME_FORMATS = {"png": (".png", 16), "tif": (".tif", 32)}
-#: The files ``--maps`` writes (each ``.npy`` beside a ``.png`` figure of it).
-MAP_FILES = ("decoded", "modulation", "wrapped_phase", "error_mm", "slopes", "height_um")
+#: How a frame file holds the recorded value, by format (the manifest's ``format``).
+FRAME_ENCODING = {
+    "png": "16-bit greyscale PNG: recorded value = pixel value / 65535",
+    "tif": "32-bit float greyscale TIFF: recorded value = pixel value",
+}
+#: The files ``--maps`` writes with a ``.png`` figure of each.
+MAP_FILES = (
+    "decoded",
+    "modulation",
+    "modulation_share",
+    "wrapped_phase",
+    "error_mm",
+    "slopes",
+    "height_um",
+)
+#: The files ``--maps`` writes without a figure: what the numbers are recomputed from.
+DATA_FILES = (
+    "exact",
+    "exact_defect_free",
+    "decoded_defect_free",
+    "decoded_twin",
+    "region",
+    "shift_pixels",
+    "noise_pixels",
+)
+#: The screen's white, recorded like the frames (``frame_white.png``).
+WHITE_FRAME = "frame_white"
+#: The frame files glshade names in a ``--frames`` folder (what a rerun may remove).
+FRAME_FILE = re.compile(r"frame_(?:\d{3,}_[uv]_p\d+_n\d+|white)\.(?:png|tif)")
 
 
 def check_output_dir(
-    path: str | os.PathLike[str], what: str, inputs: tuple[Path, ...] = ()
+    path: str | os.PathLike[str], what: str, inputs: tuple[Path, ...] = (), frames: bool = False
 ) -> Path:
     """A directory results may be written into (made when missing: its parent must
     exist and be writable), or a one-line error naming ``what``; it must not hold one of
     the run's ``inputs`` under a name glshade writes there (a height map called
-    ``decoded.npy``)."""
+    ``decoded.npy``). ``frames``: a ``--frames`` folder, whose earlier frames the run
+    replaces or removes: such a file must be a regular file, not a link."""
     target = Path(path)
     for source in inputs:
         if _written_here(source, target):
@@ -58,9 +91,17 @@ def check_output_dir(
         raise GlshadeError(f"{what} {path}: is not writable")
     else:
         for entry in os.scandir(target):
-            if _written_name(entry.name):  # what the run would replace: a regular file inside
-                check_output(entry.path, what, probe=False)
-                check_inside(target, Path(entry.path), what)
+            if not _written_name(entry.name):
+                continue
+            if frames and FRAME_FILE.fullmatch(entry.name) and entry.is_symlink():
+                raise GlshadeError(
+                    f"{what} {path}: {entry.name} is a symbolic link; glshade replaces or "
+                    "removes an earlier run's frames there and removes only regular files: "
+                    "remove it or choose another directory"
+                )
+            # what the run would replace: a regular file inside
+            check_output(entry.path, what, probe=False)
+            check_inside(target, Path(entry.path), what)
     return target
 
 
@@ -77,6 +118,7 @@ def _written_name(name: str) -> bool:
         name == "manifest.json"
         or name.startswith("frame_")
         or any(name in (f"{m}.npy", f"{m}.png") for m in MAP_FILES)
+        or name in (f"{m}.npy" for m in DATA_FILES)
     )
 
 
@@ -85,22 +127,25 @@ def frame_name(index: int, frame, suffix: str) -> str:
     return f"frame_{index:03d}_{frame.direction}_p{frame.period_index}_n{frame.shift_index}{suffix}"
 
 
-def write_frames(directory: Path, scene: Scene, recorded: np.ndarray, fmt: str = "png") -> Path:
-    """The recorded sequence, one image per frame, and ``manifest.json``: the frames in
-    order, each ``{file, direction, period_mm, period_index, shift_index, shift_rad}``,
-    the coding and the scene (as a scene file's tables). Returns the manifest's path."""
+def write_frames(directory: Path, scene: Scene, result, fmt: str = "png") -> Path:
+    """The recorded sequence of a :class:`~glshade.measure.pmd.PmdResult`, one image per
+    frame in the order shown, the screen's white recorded alike (``frame_white``), and
+    ``manifest.json``: all a decoder needs (:func:`frames_manifest`). The frames of an
+    earlier run that this one does not write are removed, and the old manifest first (an
+    interrupted run leaves no manifest naming another run's frames). Returns the
+    manifest's path."""
     suffix, bits = FRAME_FORMATS[fmt]
     directory.mkdir(parents=False, exist_ok=True)
-    frames = scene.active.emitter.sequence(scene)
+    remove_inside(directory, directory / "manifest.json")
+    maps = result.maps
     entries = []
-    for index, frame in enumerate(frames):
+    for index, frame in enumerate(scene.active.emitter.sequence(scene)):
         name = frame_name(index, frame, suffix)
-        path = directory / name
-        image = encode_image(recorded[index], suffix, bits)
-        atomic_write_bytes(path, image, "--frames", within=directory)
+        _write_frame(directory / name, maps.recorded[index], suffix, bits)
         entries.append(
             {
                 "file": name,
+                "index": index,
                 "direction": frame.direction,
                 "period_mm": frame.period_mm,
                 "period_index": frame.period_index,
@@ -108,43 +153,138 @@ def write_frames(directory: Path, scene: Scene, recorded: np.ndarray, fmt: str =
                 "shift_rad": frame.shift_rad,
             }
         )
-    em = fringes_of(scene)
-    manifest = {
-        "format": {"png": "16-bit PNG: recorded value x 65535", "tif": "32-bit float TIFF"}[fmt],
-        "units": "recorded: 1 = the sensor's full scale (radiance 1 without a sensor)",
-        "coding": {
-            "periods_mm": list(em.periods),
-            "shifts": em.shifts,
-            "directions": list(em.directions),
-            "offset": em.offset,
-            "amplitude": em.amplitude,
-            "gamma": em.gamma,
-            "levels": em.levels,
-            "screen_half_size_mm": list(em.half_size),
-            "phase": "L = offset + amplitude cos(2 pi s / period_mm - shift_rad), s = the screen "
-            "coordinate along the direction + half_size (mm from the screen's edge)",
-        },
-        "frames": entries,
-        "scene": scene.to_dict(),
-    }
+    white = WHITE_FRAME + suffix
+    _write_frame(directory / white, maps.recording.white, suffix, bits)
+    manifest = frames_manifest(scene, result, fmt, entries, white)
     path = directory / "manifest.json"
     text = json.dumps(manifest, indent=2, default=str) + "\n"
     atomic_write_bytes(path, text.encode(), "--frames", within=directory)
+    _remove_stale_frames(directory, {entry["file"] for entry in entries} | {white})
     return path
 
 
+def _write_frame(path: Path, image: np.ndarray, suffix: str, bits: int) -> None:
+    atomic_write_bytes(path, encode_image(image, suffix, bits), "--frames", within=path.parent)
+
+
+def _remove_stale_frames(directory: Path, keep: set[str]) -> None:
+    """Remove the regular files of ``directory`` glshade names as frames
+    (:data:`FRAME_FILE`) that are not in ``keep``: an earlier run's."""
+    for entry in os.scandir(directory):
+        if FRAME_FILE.fullmatch(entry.name) and entry.name not in keep:
+            remove_inside(directory, Path(entry.path))
+
+
+def frames_manifest(
+    scene: Scene, result, fmt: str, entries: list[dict[str, Any]], white: str
+) -> dict[str, Any]:
+    """What decoding the written frames takes, with nothing else known: the files'
+    encoding and units, the sensor and its black level, the exposure applied, the white
+    frame and the response the validity threshold is based on, the threshold's rule and
+    value, the coding, the directions' order and the scene."""
+    em, rec = fringes_of(scene), result.maps.recording
+    return {
+        "format": FRAME_ENCODING[fmt],
+        "units": "recorded units: 1 = the sensor's full scale, the sensor's black level "
+        "included (without a sensor: radiance, 1 = the screen's white seen in a perfect "
+        "mirror)",
+        "sensor": _sensor_entry(scene),
+        "sensor_black_level": rec.black_level,
+        "exposure": {
+            "camera_exposure": scene.camera.exposure,
+            "gain": rec.gain,
+            "rule": "recorded = sensor_black_level + (1 - sensor_black_level) x gain x "
+            "radiance, before the sensor's noise, clipping to [0, 1] and rounding (without a "
+            "sensor: recorded = radiance)",
+        },
+        "white": {
+            "file": white,
+            "response": rec.white_response,
+            "rule": "response = the brightest pixel's noise-free response to the screen's white "
+            "above the sensor's black level, in recorded units: (1 - sensor_black_level) x "
+            "min(gain x radiance, 1); the file is that white as recorded, noise and black "
+            "level in it",
+        },
+        "validity": {
+            "modulation_share": rec.modulation_share,
+            "min_modulation": rec.threshold,
+            "rule": "a pixel is valid where every frame is finite and, in every coded "
+            "direction, every period's modulation B = (2 / N) |sum_n I_n exp(i shift_rad_n)| "
+            "(recorded units) is at least min_modulation = modulation_share x "
+            "coding.amplitude x white.response (min_modulation alone where "
+            "modulation_share is null: given as such)",
+        },
+        "coding": _coding_entry(em),
+        "frames": entries,
+        "scene": scene.to_dict(),
+    }
+
+
+def _sensor_entry(scene: Scene) -> dict[str, Any] | None:
+    """The sensor as it recorded (None without one), its black level worked out."""
+    if not scene.active.records(scene):
+        return None
+    sensor = scene.sensor
+    return {
+        "full_well_e": sensor.full_well_e,
+        "read_noise_e": sensor.read_noise_e,
+        "bit_depth": sensor.bit_depth,
+        "black_level_dn": sensor.black_dn,
+        "black_level": sensor.black_level,
+        "full_scale_dn": sensor.full_scale_dn,
+    }
+
+
+def _coding_entry(em) -> dict[str, Any]:
+    """The fringe coding: every value a frame's radiance and its decoding take."""
+    return {
+        "periods_mm": list(em.periods),
+        "shifts": em.shifts,
+        "directions": list(em.directions),
+        "directions_note": "directions are listed, and their frames stored, in the order "
+        "shown; a frame's direction v codes the screen coordinate v (fringes of constant "
+        "v), u codes u. Every per-direction axis of the --maps files is in the order "
+        "(u, v)",
+        "offset": em.offset,
+        "amplitude": em.amplitude,
+        "gamma": em.gamma,
+        "levels": em.levels,
+        "screen_half_size_mm": list(em.half_size),
+        "screen_black_level": em.black_level,
+        "screen_ambient": em.ambient,
+        "screen_response_file": em.response_file,
+        "phase": "commanded = offset + amplitude cos(2 pi s / period_mm - shift_rad), "
+        "shift_rad = 2 pi shift_index / shifts; quantised to levels grey levels "
+        "(floor(c (levels - 1) + 1/2) / (levels - 1); levels 0: continuous); displayed = "
+        "screen_ambient + screen_black_level + (1 - screen_black_level) R(commanded), R = "
+        "commanded ** gamma or the measured response of screen_response_file",
+        "coordinate": "s = the screen coordinate along the frame's direction + "
+        "screen_half_size_mm of that coordinate (mm from the screen's edge; u is index 0, "
+        "v index 1); the decoded screen point is s - that half size",
+        "units": "lengths in mm, shifts in rad",
+    }
+
+
 def write_maps(directory: Path, scene: Scene, result) -> list[Path]:
-    """Each map of a :class:`~glshade.measure.pmd.PmdResult` as ``.npy`` and a ``.png``
-    figure with a colour bar (:data:`MAP_FILES`); returns the paths written."""
+    """Each map of a :class:`~glshade.measure.pmd.PmdResult` as ``.npy`` (:data:`MAP_FILES`
+    with a ``.png`` figure, :data:`DATA_FILES` without); returns the paths written."""
     directory.mkdir(parents=False, exist_ok=True)
     maps = result.maps
     arrays = {
-        "decoded": maps.decoded.astype(np.float32),
+        "decoded": maps.decoded,
         "modulation": maps.modulation,
+        "modulation_share": maps.modulation_share,
         "wrapped_phase": maps.wrapped,
-        "error_mm": maps.error.astype(np.float32),
+        "error_mm": maps.error,
         "slopes": maps.slopes_urad,
         "height_um": maps.height_um,
+        "exact": maps.exact,
+        "exact_defect_free": maps.exact_defect_free,
+        "decoded_defect_free": maps.decoded_defect_free,
+        "decoded_twin": maps.decoded_twin,
+        "region": maps.region,
+        "shift_pixels": maps.shift_pixels,
+        "noise_pixels": maps.noise_pixels,
     }
     written = []
     for name, array in arrays.items():
@@ -194,19 +334,28 @@ def map_images(scene: Scene, result) -> dict[str, MapView]:
     maps, em = result.maps, fringes_of(scene)
     finest, direction = em.periods[0], em.directions[0]
     axes = [0 if d == "u" else 1 for d in em.directions]
+    first = axes[0]  # the first coded direction's layer (the layers are in (u, v) order)
     frame = f"the image, {scene.camera.width}x{scene.camera.height} px"
     slope = np.hypot(maps.slopes_urad[..., 0], maps.slopes_urad[..., 1])
     records = "recorded units, full scale 1" if scene.active.records(scene) else "radiance"
     return {
         "wrapped_phase": MapView(
             f"wrapped phase of the {finest:g} mm fringes along {direction}",
-            ((frame, decoded_only(maps.wrapped[0, 0], maps.decoded)),),
+            ((frame, decoded_only(maps.wrapped[first, 0], maps.decoded)),),
             "wrapped phase (rad)", "twilight", "cyclic",
         ),
         "modulation": MapView(
             f"modulation B of the {finest:g} mm fringes along {direction}",
-            ((frame, maps.modulation[0, 0]),),
+            ((frame, maps.modulation[first, 0]),),
             f"modulation B ({records})", "viridis", "magnitude",
+            no_value="no screen seen",
+        ),
+        "modulation_share": MapView(
+            f"modulation share B / (b1 W) of the {finest:g} mm fringes along {direction}, "
+            "noise-free",
+            ((frame, maps.modulation_share[first]),),
+            "modulation share (1: a sharp mirror)", "viridis", "magnitude",
+            no_value="no screen seen",
         ),
         "error_mm": MapView(
             "decoding error: decoded - exact screen point",

@@ -297,8 +297,8 @@ class PmdMeasurement(Record):
     pmd_noise_predicted_mm: float | None = column(
         "mm",
         "periods[0] / 2π · sqrt(2 / N) · σ_I / B, σ_I the sensor's noise at each pixel's mean "
-        "level and B its modulation, pooled as a root mean square over the same pixels (0 "
-        "without a sensor)",
+        "level above the black level and B its modulation, pooled as a root mean square over "
+        "the same pixels (0 without a sensor)",
     )
     pmd_noise_floor_mm: float | None = column(
         "mm",
@@ -340,8 +340,10 @@ class PmdMeasurement(Record):
     )
     modulation: float | None = column(
         "",
-        "the finest fringe's median modulation in the dent's region, over amplitude times the "
-        "brightest pixel's response to white: 1 for a sharp mirror, less where pixels average "
+        "the finest fringe's modulation share B / (b1 W) of the noise-free radiance (b1 the "
+        "displayed fringe's fundamental over the displayed white, W the pixel's own response "
+        "to the white), its median over the dent's region, else over the pixels that see the "
+        "screen: 1 for a sharp mirror, less where the finish, the lens or the pixels average "
         "the fringes out",
     )
     status: str = column(

@@ -3,7 +3,9 @@
 ``ok``, or the reason the number cannot be read, checked in this order (the first that
 applies is the status; every one that applies is in the reason):
 
-- ``outside``: no pixel that sees the emitter moves: the dent is not seen.
+- ``outside``: no pixel that sees the emitter moves: the dent is not seen; or the scene
+  has no dent at all (``defect.dmax = 0``, :func:`no_dent`: the same answer from every
+  instrument).
 - ``edge``: the dent's region in the image (where it moves the emitter map by at least
   :data:`REGION_SHARE` of its largest move) touches the image's border or the edge of
   the region that sees the emitter, or (a height map) unmeasured samples or
@@ -219,9 +221,10 @@ def unresolved_share(region: np.ndarray, resolved: np.ndarray, seen: np.ndarray)
     return float((inside & ~resolved).sum() / count) if count else 0.0
 
 
-def exposure_problem(image: np.ndarray, seen: np.ndarray) -> Status | None:
+def exposure_problem(image: np.ndarray, seen: np.ndarray, black: float = 0.0) -> Status | None:
     """``saturated`` or ``underexposed`` from a recorded image (1 = full scale) over its
-    seen pixels, or None."""
+    seen pixels, or None; ``black``: the sensor's black level (recorded units), which
+    the underexposure's peak is measured above, as a share of the range above it."""
     values = np.asarray(image, np.float64)[seen & np.isfinite(image)]
     if values.size == 0:
         return None
@@ -232,12 +235,12 @@ def exposure_problem(image: np.ndarray, seen: np.ndarray) -> Status | None:
             f"{clipped:.1%} of the seen pixels clip at full scale; lower camera.exposure or "
             'set it to "auto"',
         )
-    peak = float(np.percentile(values, 99.5))
+    peak = float(np.percentile(values, 99.5) - black) / (1.0 - black)
     if peak < UNDEREXPOSED_PEAK:
         return Status(
             "underexposed",
-            f"the stripes peak at {peak:.1%} of full scale; raise camera.exposure or set it "
-            'to "auto"',
+            f"the stripes peak at {peak:.1%} of the range above the black level; raise "
+            'camera.exposure or set it to "auto"',
         )
     return None
 
@@ -285,13 +288,29 @@ def combined(found: list[Status]) -> Status:
 
 
 # --------------------------------------------------------------------------- one case
+def no_dent(scene) -> Status | None:
+    """``outside`` for a scene without a dent (``defect.dmax = 0``), None for one with a
+    dent: nothing moves, so no number of a dent can be read. Every instrument answers a
+    scene without a dent with this one status and reason, before any other check."""
+    if scene.defect.dmax != 0.0:
+        return None
+    return Status(
+        "outside",
+        "the scene has no dent (defect.dmax = 0): nothing moves, so there is no dent to "
+        "measure (give defect.dmax a depth)",
+    )
+
+
 def assess(scene, baseline, v1: np.ndarray, result) -> Status:
     """The status of ``result``, the metric's measurement of ``scene``'s defect (emitter
     map ``v1``) against ``baseline`` (:class:`glshade.metrics.visibility.Baseline`)."""
+    absent = no_dent(scene)
+    if absent is not None:
+        return absent
     v0 = baseline.v0
     seen = np.isfinite(v0)
     region = dent_region(v0, v1, dent_window(scene, v0.shape))
-    if scene.defect.dmax != 0.0 and not region.mask.any():
+    if not region.mask.any():
         return Status(
             "outside",
             "the dent is not seen: no pixel that sees the emitter moves (move the dent, "
@@ -320,7 +339,7 @@ def _exposure(scene, baseline, seen: np.ndarray) -> Status:
     found = baseline.derived.get("exposure")
     if found is None:
         image = baseline.normal_images(float(baseline.phases[0]))
-        found = exposure_problem(image, seen) or Status()
+        found = exposure_problem(image, seen, scene.sensor.black_level) or Status()
         if found.status == "underexposed":
             causes = scene.active.dimming(scene)
             found = Status(found.status, found.reason + "".join(f"; {c}" for c in causes))

@@ -114,8 +114,8 @@ def _shown(value: Any) -> str:
     return "none" if value is None else f"{value:.6g}" if isinstance(value, float) else str(value)
 
 
-#: The tolerance of a record's column, by its unit: (field of Tolerances, factor).
-_UNIT_TOLERANCE = {"px": ("visibility_px", 1.0), "mm": ("pmd_mm", 1.0), "µm": ("pmd_mm", 1e3)}
+#: The tolerance of a record's column, by its unit: the field of Tolerances.
+_UNIT_TOLERANCE = {"px": "visibility_px", "mm": "pmd_mm", "µm": "pmd_um"}
 #: Which units each instrument's numbers are compared in.
 _COMPARED_UNITS = {"paper": ("px",), "pmd": ("mm", "µm")}
 
@@ -158,8 +158,7 @@ def number_changes(
             if column.name == "status":
                 tolerance = None
             elif column.unit in _COMPARED_UNITS[instrument]:
-                field, factor = _UNIT_TOLERANCE[column.unit]
-                tolerance = getattr(tolerances, field) * factor
+                tolerance = getattr(tolerances, _UNIT_TOLERANCE[column.unit])
             else:
                 continue
             changes.append(

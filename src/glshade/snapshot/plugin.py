@@ -120,7 +120,7 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers",
         f"{MARKER}(**tolerances): glshade snapshot tolerances for a test, class or file "
-        "(image, image_pixels, visibility_px, pmd_mm)",
+        "(image, image_pixels, visibility_px, pmd_mm, pmd_um)",
     )
     config.stash[SESSION] = SnapshotSession.from_config(config)
 

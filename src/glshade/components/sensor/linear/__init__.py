@@ -1,4 +1,5 @@
-"""The sensor (``[sensor]`` of a scene file): photon and read noise, full well, quantisation.
+"""The sensor (``[sensor]`` of a scene file): photon and read noise, full well, black level,
+quantisation.
 
 Off unless the scene has a ``[sensor]`` table (``full_well_e`` unset: the noiseless float
 radiance). When on, a rendered radiance image ``L`` (1 = the emitter's peak
@@ -6,13 +7,19 @@ seen in a perfect mirror) taken with the camera's exposure ``g`` (``camera.expos
 ``"auto"``: 0.9 over the brightest point of the defect-free scene) becomes
 
     electrons = Poisson(g · L · full_well_e) + Normal(0, read_noise_e)
-    stored    = round(clip(electrons / full_well_e, 0, 1) · (2^bits - 1)) / (2^bits - 1)
+    recorded  = b + (1 - b) · electrons / full_well_e
+    stored    = round(clip(recorded, 0, 1) · (2^bits - 1)) / (2^bits - 1)
 
-in the units of the noiseless radiance (1 = full well), quantised to ``bit_depth``. The
-noise is drawn in NumPy (identical on every GPU) from ``seed``, the scene itself (every
-other parameter: two different images never share a noise pattern) and the exposure
-number (two exposures of one scene differ: what the metric's noise floor compares).
-No shader code: the sensor works on the image after read-back. Table:
+in recorded units (1 = full scale), quantised to ``bit_depth``, with ``b`` the black level
+(``black_level_dn / (2^bits - 1)``): the offset a camera adds before its converter clips at
+0, so read noise in the dark is kept, not clipped; the full well fills the range from the
+black level to full scale, so ``g · L = 1`` still just saturates and ``"auto"`` keeps a
+tenth of that range as headroom. The recorded values keep the black level (a camera's raw
+frames do); a decoder subtracts it (:attr:`Sensor.black_level`). The noise is drawn in
+NumPy (identical on every GPU) from ``seed``, the scene itself (every other parameter: two
+different images never share a noise pattern) and the exposure number (two exposures of
+one scene differ: what the metric's noise floor compares). No shader code: the sensor
+works on the image after read-back. Table:
 :class:`~glshade.components.sensor.linear.table.Sensor`.
 """
 
@@ -39,8 +46,8 @@ def noise_key(scene, exposure: int) -> list[int]:
 class LinearSensor(SensorComponent):
     name = "linear"
     doc = (
-        "photon (Poisson) and read noise, full well and quantisation, when a [sensor] table "
-        "is given"
+        "photon (Poisson) and read noise, full well, black level and quantisation, when a "
+        "[sensor] table is given"
     )
     table = Sensor
 
@@ -70,8 +77,10 @@ class LinearSensor(SensorComponent):
         electrons = rng.poisson(np.maximum(radiance, 0.0) * sensor.full_well_e).astype(np.float64)
         if sensor.read_noise_e > 0:
             electrons += rng.normal(0.0, sensor.read_noise_e, radiance.shape)
-        levels = float(2**sensor.bit_depth - 1)
-        counts = np.round(np.clip(electrons / sensor.full_well_e, 0.0, 1.0) * levels)
+        black = sensor.black_level
+        recorded = black + (1.0 - black) * (electrons / sensor.full_well_e)
+        levels = float(sensor.full_scale_dn)
+        counts = np.round(np.clip(recorded, 0.0, 1.0) * levels)
         return (counts / levels).astype(np.float32)
 
 
