@@ -290,7 +290,13 @@ def test_fresnel_against_tabulated_values(renderer, n, k, incidence, expected):
 def test_sensor_noise_statistics_on_a_uniform_image():
     scene = flat(size=8).updated(
         camera={"exposure": 1.0},
-        sensor={"full_well_e": 10000.0, "read_noise_e": 5.0, "bit_depth": 16, "seed": 4},
+        sensor={
+            "full_well_e": 10000.0,
+            "read_noise_e": 5.0,
+            "bit_depth": 16,
+            "seed": 4,
+            "black_level_dn": 0,  # the statistics without an offset (test_sensor_black_level)
+        },
     )
     sensor = registry().active(scene).sensor
     uniform = np.full((400, 400), 0.5, np.float32)

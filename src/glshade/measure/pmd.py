@@ -44,6 +44,7 @@ from glshade.metrics.status import (
     no_dent,
     touches_edge,
 )
+from glshade.oracle.lobe import finish_share
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
@@ -51,6 +52,9 @@ if TYPE_CHECKING:
 
 #: The share of its largest move above which a pixel belongs to the dent's region.
 REGION_SHARE = 0.2
+#: Where the finish's lobe keeps less than this share of the finest fringe (its closed
+#: form), an unresolved case names the finish as the cause.
+FINISH_CAUSE_SHARE = 0.5
 #: The share of the dent's seen region that may be invalid (modulation too low) before
 #: its numbers cannot be read.
 INVALID_SHARE = 0.25
@@ -947,10 +951,18 @@ def _pmd_resolution(scene: Scene, region: np.ndarray, decoding: Decoding) -> Sta
     share = float((region & ~decoding.valid).sum() / count)
     if share <= INVALID_SHARE:
         return Status()
+    finest = fringes_of(scene).periods[0]
+    said = f"{share:.0%} of the dent's region has a modulation below {decoding.threshold:.3g}: "
+    finish = finish_share(scene, region, finest, tuple(coded_axes(scene)))
+    if finish is not None and finish.share < FINISH_CAUSE_SHARE:
+        return Status(
+            "unresolved",
+            said + finish.phrase(finest) + " (a longer emitter.periods[0], a smoother finish "
+            "or a screen nearer the part resolves them)",
+        )
     return Status(
         "unresolved",
-        f"{share:.0%} of the dent's region has a modulation below {decoding.threshold:.3g}: "
-        f"the pixels average the {fringes_of(scene).periods[0]:g} mm fringes out there (a longer "
+        said + f"the pixels average the {finest:g} mm fringes out there (a longer "
         "emitter.periods[0], a sharper focus or a finer camera resolves them)",
     )
 

@@ -132,7 +132,7 @@ class MetricSettings:
 
 #: Changes whenever the metric's definition changes: results of another version are never
 #: mixed into a study or a sweep.
-METRIC_VERSION = 2
+METRIC_VERSION = 3
 #: What a binarisation threshold may be a fraction of (:class:`MetricSettings`).
 LEVEL_SOURCES = ("auto", "emitter", "image")
 #: Percentiles of the defect-free image taken as its dark and bright levels.

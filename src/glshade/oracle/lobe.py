@@ -26,20 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glshade.components.reflection.kernels import half_frequency, kernel_transfer
 from glshade.scene import Scene
-
-
-def kernel_transfer(kernel: str, k: np.ndarray) -> np.ndarray:
-    """The characteristic function of the unit kernel's marginal at angular frequency ``k``
-    (per unit of the kernel's variable): ``exp(-k²/2)`` (gaussian) or ``k K1(k)`` (ggx, 1 at
-    0)."""
-    k = np.abs(np.asarray(k, np.float64))
-    if kernel == "gaussian":
-        return np.exp(-0.5 * k * k)
-    from scipy.special import k1
-
-    with np.errstate(invalid="ignore", over="ignore"):
-        return np.where(k > 0.0, k * k1(np.where(k > 0.0, k, 1.0)), 1.0)
 
 
 @dataclass(frozen=True)
@@ -96,3 +84,58 @@ def lobe_footprint(
             return None
         kernel = probe[1]
     return LobeFootprint(matrix.reshape(*shape, 2, 2), kernel, reflection.finish_name(scene))
+
+
+@dataclass(frozen=True)
+class FinishShare:
+    """What the finish leaves of a fringe over some pixels: ``share`` (the median ``B /
+    B0``), ``scale_mm`` (the lobe's median spread along the fringe's direction, mm),
+    ``half_period_mm`` (the period it halves), ``axis`` (the direction, 0: u, 1: v) and
+    ``finish`` (in words)."""
+
+    share: float
+    scale_mm: float
+    half_period_mm: float
+    axis: int
+    finish: str
+
+    def phrase(self, period_mm: float) -> str:
+        """The finish as the cause of a washed-out fringe, in words."""
+        kept = f"{self.share:.2g}" if self.share >= 1e-3 else "nothing"
+        return (
+            f"the finish ({self.finish}) spreads each screen point over "
+            f"±{self.scale_mm:.3g} mm along {'uv'[self.axis]} and keeps {kept} of the "
+            f"{period_mm:g} mm fringes' modulation (closed form); fringes of "
+            f"{self.half_period_mm:.3g} mm keep half"
+        )
+
+
+def finish_share(
+    scene: Scene, pixels: np.ndarray, period_mm: float, axes: tuple[int, ...]
+) -> FinishShare | None:
+    """The finish's share of a fringe of ``period_mm`` over ``pixels`` (H, W bool), along
+    whichever of ``axes`` it keeps least of; None without a lobe or where no pixel's ray
+    lands on the emitter."""
+    rows, cols = np.flatnonzero(pixels.any(axis=1)), np.flatnonzero(pixels.any(axis=0))
+    if not rows.size:
+        return None
+    window = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+    footprint = lobe_footprint(scene, *window)
+    if footprint is None:
+        return None
+    inside = pixels[window]
+    worst: FinishShare | None = None
+    for axis in axes:
+        scale = footprint.scale_mm(axis)[inside]
+        scale = scale[np.isfinite(scale)]
+        if not scale.size:
+            continue
+        median = float(np.median(scale))
+        share = float(
+            kernel_transfer(footprint.kernel, np.array(2.0 * math.pi * median / period_mm))
+        )
+        half = 2.0 * math.pi * median / half_frequency(footprint.kernel)
+        found = FinishShare(share, median, half, axis, footprint.finish)
+        if worst is None or found.share < worst.share:
+            worst = found
+    return worst

@@ -57,14 +57,15 @@ def pmd_map(view: str, scene: Scene, result: PmdResult) -> tuple[np.ndarray, Col
     """The map ``view`` shows (H, W, float64, NaN where there is none) and its scale."""
     em = fringes_of(scene)
     finest, direction = em.periods[0], em.directions[0]
+    shown = coded_axes(scene)[0]  # the first coded direction's layer of the (u, v) maps
     maps = result.maps
     if view == "pmd-phase":
         caption = f"phase, {finest:g} mm fringes along {direction}"
-        return decoded_only(maps.wrapped[0, 0], maps.decoded), ColourScale(
+        return decoded_only(maps.wrapped[shown, 0], maps.decoded), ColourScale(
             0.0, 2.0 * math.pi, "rad", caption, "twilight"
         )
     if view == "pmd-modulation":
-        values = maps.modulation[0, 0].astype(np.float64)
+        values = maps.modulation[shown, 0].astype(np.float64)
         units = "of full scale" if scene.active.records(scene) else "radiance"
         caption = f"modulation ({units}), {finest:g} mm"
         return values, ColourScale(0.0, _top(values), "", caption, "viridis")
