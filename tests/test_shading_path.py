@@ -204,3 +204,28 @@ def test_the_kernels_transfer_functions():
             assert np.mean(np.cos(frequency * x)) == pytest.approx(
                 float(kernel_transfer(kernel, np.array(frequency))), abs=3e-3
             )
+
+
+def test_a_station_reads_a_finish_by_its_closed_form_or_names_it():
+    """The silent mirror, gone: a PMD station on a glossy part reports the modulation the
+    finish leaves (its closed form), and a finish that washes the finest fringe out is
+    unresolved, named."""
+    from glshade.measure.pmd import measure_pmd
+    from glshade.metrics.status import dent_window
+
+    station = paper_scene("flat", theta_deg=45.0).with_size(64)
+    station = station.updated(emitter={"kind": "fringes", "directions": ("v",), "levels": 0})
+    gloss = station.updated(render={"reflection": "beckmann", "roughness": 1e-3})
+    record = measure_pmd(gloss)
+    window = dent_window(gloss, (64, 64))
+    footprint = lobe_footprint(gloss)
+    assert footprint is not None
+    closed = float(np.median(footprint.modulation(1, 2.0)[window]))
+    assert record.status == "ok" and record.modulation == pytest.approx(closed, rel=0.05)
+    assert closed < 0.6  # the finish really takes half the fringe
+    rough = station.updated(
+        render={"reflection": "ggx", "roughness": 0.02, "lobe_method": "lattice"}
+    )
+    washed = measure_pmd(rough)
+    assert washed.status == "unresolved"
+    assert "the finish (ggx, roughness 0.02) spreads each screen point" in washed.status_reason
