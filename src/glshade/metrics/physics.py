@@ -23,6 +23,10 @@ one pixel row sees and ``θ`` the elevation:
   dent's image (0 on a flat plate). A contour that reaches the cut columns therefore moves
   by at most ``Δ(t1 b) / m``, ``t1`` the root beyond 1 of ``D φ(t) - m b t = s``
   (``φ(t) = t e^((1-t²)/2)``); without a saddle offset that is ``b sqrt(2 ln(F/m))``.
+- A PMD station's largest decoded shift on the screen (mm) is ``2 α_max (De + σ cos θ)``
+  on a flat base, times the factor ``G`` by which a base curved along the plane of
+  incidence bends it (:func:`pmd_shift_mm`, :func:`curved_base_factor`); it does not hold
+  where the base's horizon falls inside the dent's window (:func:`pmd_shift_law_check`).
 """
 
 from __future__ import annotations
@@ -31,15 +35,21 @@ import math
 from dataclasses import dataclass
 
 from glshade.components.image_scale import base_curvatures, magnification
+from glshade.metrics.status import WINDOW_SIGMAS
 from glshade.scene import Scene
 
 __all__ = [
+    "LawCheck",
     "Laws",
     "base_curvatures",
+    "curved_base_factor",
+    "flat_pmd_shift_mm",
     "fold_onset_theta_deg",
     "laws",
+    "pmd_shift_law_check",
     "pmd_shift_mm",
     "rig_inverse_covariance",
+    "steepest_sigma_mm",
 ]
 
 
@@ -164,20 +174,114 @@ def fold_onset_theta_deg(scene: Scene) -> float:
 
 
 def pmd_shift_mm(scene: Scene) -> float:
-    """The closed form of a PMD station's largest decoded shift on the screen (mm): a
-    slope ``α`` turns the reflected ray by ``2 α``, which lands ``2 α De`` away on the
-    screen, the steepest flank ``σ cos θ`` farther from it. ``α_max = |dmax| e^(-1/2) / σ``
-    along the steepest coded direction: the dent's steepest overall where both ``u`` and
-    ``v`` are coded (``σ²`` the covariance's smallest eigenvalue), along the plane of
-    incidence for ``v`` alone (``σ_z``), across it for ``u`` alone (``σ_x``)."""
+    """The closed form of a PMD station's largest decoded shift on the screen (mm).
+
+    On a flat base a slope ``α`` turns the reflected ray by ``2 α``, which lands ``2 α De``
+    away on the screen, the steepest flank ``σ cos θ`` farther from it:
+    ``2 α_max (De + σ cos θ)`` (:func:`flat_pmd_shift_mm`). Along the plane of incidence
+    a base of curvature ``κ_t`` multiplies that by :func:`curved_base_factor` (1 exactly
+    where ``κ_t = 0``: the flat plate, the cylinder with its axis in the plane). Where
+    both ``u`` and ``v`` are coded and the steepest flank lies across or oblique to the
+    plane, the larger of its flat law and the in-plane flank's curved one. Whether the
+    number holds: :func:`pmd_shift_law_check`."""
+    directions = set(getattr(scene.emitter, "directions", ("v",)))
+    flat = flat_pmd_shift_mm(scene)
+    if "v" not in directions:
+        return flat
+    sigma_z = 1.0 / math.sqrt(rig_inverse_covariance(scene)[1])
+    along = _flat_shift(scene, sigma_z) * curved_base_factor(scene, sigma_z)
+    if sigma_z <= steepest_sigma_mm(scene) * (1.0 + 1e-9):  # the steepest flank is in-plane
+        return along
+    return max(flat, along)
+
+
+def steepest_sigma_mm(scene: Scene) -> float:
+    """The dent's σ (mm) along its steepest coded direction: the covariance's smallest
+    eigenvalue where both ``u`` and ``v`` are coded, ``σ_z`` along the plane of incidence
+    for ``v`` alone, ``σ_x`` across it for ``u`` alone."""
     inv_xx, inv_zz = rig_inverse_covariance(scene)
     directions = set(getattr(scene.emitter, "directions", ("v",)))
     if directions >= {"u", "v"}:
         a, b, c = scene.defect.inverse_covariance()
         largest = 0.5 * (a + c) + math.sqrt(0.25 * (a - c) ** 2 + b * b)
-        sigma = 1.0 / math.sqrt(largest)
-    else:
-        sigma = 1.0 / math.sqrt(inv_zz if "v" in directions else inv_xx)
+        return 1.0 / math.sqrt(largest)
+    return 1.0 / math.sqrt(inv_zz if "v" in directions else inv_xx)
+
+
+def flat_pmd_shift_mm(scene: Scene) -> float:
+    """``2 α_max (De + σ cos θ)``, ``α_max = |dmax| e^(-1/2) / σ`` along the steepest coded
+    direction (:func:`steepest_sigma_mm`): the shift on a flat base (mm)."""
+    return _flat_shift(scene, steepest_sigma_mm(scene))
+
+
+def _flat_shift(scene: Scene, sigma: float) -> float:
     slope = abs(scene.defect.dmax) * math.exp(-0.5) / sigma
     de = scene.emitter.distance
     return 2.0 * slope * (de + sigma * math.cos(scene.camera.theta_rad))
+
+
+def curved_base_factor(scene: Scene, sigma: float) -> float:
+    """``G``: how much a base of curvature ``κ_t`` along the plane of incidence scales the
+    flat law of a flank ``σ`` mm from the dent's centre (docs/physics.md, "The PMD
+    shift on a curved base"). The ray meets the dent ``|D| / tan e`` farther along than
+    the base, where the base's normal is turned by ``κ_t |D| / tan e`` (``e`` the flank's
+    local elevation): the reflected ray turns by twice that beside the slope's ``2 α``.
+    With ``c = s κ_t / tan e_s`` on the flank ``s`` (−1 towards the camera, +1 towards the
+    screen) the shift ``∝ exp(-w²/2) (w / σ + c)`` peaks at ``w² + c σ w = 1``, and the
+    flank's reflected ray meets the screen ``ψ = 2 κ_t σ`` off its normal, which stretches
+    the shift by ``1 / cos² ψ``:
+
+        G = max_s  (L_s / L_-) e^((1 - w²)/2) (w + c σ) / cos² ψ,
+        L_s = De - s σ cos θ,   e_s = θ - s σ sin θ / Dc + s κ_t σ.
+
+    1 exactly for ``κ_t = 0``; NaN where neither flank is seen above its horizon."""
+    tangential = base_curvatures(scene)[0]
+    theta = scene.camera.theta_rad
+    dc, de = scene.camera.distance, scene.emitter.distance
+    far = de + sigma * math.cos(theta)
+    stretch = math.cos(2.0 * tangential * sigma) ** 2
+    best = -math.inf
+    for side in (-1.0, 1.0):
+        elevation = theta - side * sigma * math.sin(theta) / dc + side * tangential * sigma
+        if not 0.0 < elevation < math.pi:
+            continue
+        c_sigma = side * tangential * sigma / math.tan(elevation)
+        w = 0.5 * (math.sqrt(c_sigma * c_sigma + 4.0) - c_sigma)
+        lever = (de - side * sigma * math.cos(theta)) / far
+        factor = lever * math.exp(0.5 * (1.0 - w * w)) * (w + c_sigma) / stretch
+        best = max(best, factor)
+    return best if best > -math.inf else math.nan
+
+
+@dataclass(frozen=True)
+class LawCheck:
+    """Whether a closed form holds for a scene: ``status`` ``ok`` or why not
+    (``grazing``), and ``reason`` (empty when ok)."""
+
+    status: str = "ok"
+    reason: str = ""
+
+
+def pmd_shift_law_check(scene: Scene) -> LawCheck:
+    """Whether :func:`pmd_shift_mm` can be read for ``scene``: ``grazing`` where the local
+    elevation of the base falls to 0 within the dent's window along the plane of
+    incidence (±``WINDOW_SIGMAS`` σ_z; ``e(z) = θ + z (κ_t - sin θ / Dc)``). There the
+    pixels near the base's horizon see the screen through grazing rays, whose screen
+    points the dent's faint tail swings by more than its flank's slope does, and the
+    largest shift need not be the flank's the law describes (docs/physics.md)."""
+    sigma_z = 1.0 / math.sqrt(rig_inverse_covariance(scene)[1])
+    theta = scene.camera.theta_rad
+    turn = base_curvatures(scene)[0] - math.sin(theta) / scene.camera.distance
+    reach = WINDOW_SIGMAS * sigma_z
+    lowest = theta - reach * abs(turn)
+    if lowest > 0.0:
+        return LawCheck()
+    side = "far" if turn < 0.0 else "near"
+    return LawCheck(
+        "grazing",
+        f"the base's local elevation falls to {math.degrees(lowest):.1f}° within the dent's "
+        f"±{WINDOW_SIGMAS:g} σ ({reach:.3g} mm) along the plane of incidence, on its {side} "
+        "side: pixels there see the screen through grazing rays, the dent's tail may move "
+        "their screen points more than its flank does, and the closed form describes only "
+        "the flank (a higher θ keeps the horizon out of the dent's window)",
+    )

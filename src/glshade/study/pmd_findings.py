@@ -5,7 +5,9 @@ Each case of the PMD study (``pmd_results.csv``) is paired with the same case of
 stripe study (``results.csv``). The report gives, with its numbers: the θ a PMD station is
 best placed at per (surface, σ², dmax), by SNR and by depth error, beside the paper
 metric's; where the stripe map folds and the paper's metric is capped, whether the PMD
-shift follows its closed form ``2 α_max (De + σ cos θ)``; whether the decoded noise follows
+shift follows its closed form ``2 α_max (De + σ cos θ) · G`` (``G`` the curved base's
+factor, :func:`glshade.metrics.physics.pmd_shift_mm`; a case whose law is marked
+``grazing`` is left out of that comparison); whether the decoded noise follows
 ``periods[0]/(2π) · sqrt(2/N) · σ_I / B``; the paper's findings 1-5 judged for both
 instruments (:func:`glshade.study.findings.evaluate`); and every case side by side. A
 number whose status is not ``ok`` is never shown as a plain number, and no verdict or
@@ -22,6 +24,7 @@ from pathlib import Path
 
 from glshade.files import atomic_write_bytes
 from glshade.measure.pmd import pmd_concerns
+from glshade.metrics.physics import pmd_shift_law_check
 from glshade.metrics.status import concerns
 from glshade.study import findings
 from glshade.study.findings import CLASSES, FINDING_TEXT, NEAR_BEST, RULES, Scale, um
@@ -62,10 +65,17 @@ def point_of(row: Mapping) -> Point:
 @dataclass(frozen=True)
 class Pair:
     """One case measured by both instruments: its PMD row and its stripe row (None
-    where the stripe study has no such case)."""
+    where the stripe study has no such case), and whether the PMD shift's closed form
+    holds for it (``law``: ``ok``, or ``grazing``:
+    :func:`~glshade.metrics.physics.pmd_shift_law_check`)."""
 
     pmd: Mapping
     paper: Mapping | None
+    law: str = "ok"
+
+    @property
+    def law_holds(self) -> bool:
+        return self.law == "ok"
 
     @property
     def point(self) -> Point:
@@ -78,10 +88,31 @@ class Pair:
         return ratio is not None and float(ratio) > 1.0
 
 
-def pair_rows(pmd_rows: Sequence[Mapping], paper_rows: Sequence[Mapping]) -> list[Pair]:
-    """Every PMD row with the stripe row of the same case, in the PMD rows' order."""
+def pair_rows(pmd_rows: Sequence[Mapping], paper_rows: Sequence[Mapping], plan=None) -> list[Pair]:
+    """Every PMD row with the stripe row of the same case, in the PMD rows' order; with
+    the study's ``plan``, each with whether its shift law holds (:func:`law_status`)."""
     paper = {point_of(r): r for r in paper_rows}
-    return [Pair(r, paper.get(point_of(r))) for r in pmd_rows]
+    return [
+        Pair(r, paper.get(point_of(r)), law_status(plan, point_of(r)) if plan else "ok")
+        for r in pmd_rows
+    ]
+
+
+def law_status(plan, point: Point) -> str:
+    """Whether the PMD shift's closed form holds for the case at ``point`` of ``plan``
+    (``ok`` or ``grazing``, :func:`~glshade.metrics.physics.pmd_shift_law_check`; ``ok``
+    for a surface the plan does not hold)."""
+    surface, theta, sigma2, dmax = point
+    named = {surface_label(s): s for s in plan.surfaces}
+    if surface not in named:
+        return "ok"
+    return pmd_shift_law_check(plan.scene(named[surface], theta, sigma2, dmax)).status
+
+
+def law_cell(pair: Pair, fmt: str = "{:.4f}") -> str:
+    """The shift law as a table shows it: the number, or its status where it does not
+    hold."""
+    return _num(pair.pmd["pmd_shift_law_mm"], fmt) if pair.law_holds else f"*{pair.law}*"
 
 
 def judged_rows(pairs: Sequence[Pair]) -> list[dict]:
@@ -198,7 +229,7 @@ def write_pmd_report(
 ) -> Path:
     """``pmd_report.md`` in ``out_dir``: the answer, the folds, the closed forms, the
     findings for both instruments, the depths, the figures and every case."""
-    pairs = pair_rows(pmd_rows, paper_rows)
+    pairs = pair_rows(pmd_rows, paper_rows, plan)
     lines = _opening(pairs, plan, paper_size)
     lines += _in_short(pairs, plan)
     lines += _answer_section(pairs, plan)
@@ -717,7 +748,7 @@ def fold_numbers(pairs: Sequence[Pair]) -> FoldNumbers:
     folded = [p for p in pairs if p.folds]
     both = [p for p in folded if is_measurable(p.pmd) and is_measurable(p.paper or {})]
     papers = [p.paper for p in both if p.paper is not None]
-    errors = [_law_error(p.pmd) for p in both]
+    errors = [_law_error(p.pmd) for p in both if p.law_holds]
     return FoldNumbers(
         folded,
         both,
@@ -727,13 +758,14 @@ def fold_numbers(pairs: Sequence[Pair]) -> FoldNumbers:
         [
             _law_error(p.pmd)
             for p in pairs
-            if not p.folds and p.paper is not None and is_measurable(p.pmd)
+            if not p.folds and p.paper is not None and is_measurable(p.pmd) and p.law_holds
         ],
         sum(abs(e) <= LAW_TOLERANCE for e in _finite(errors)),
         sum(
             abs(_float(p.pmd["pmd_shift_mm"]) - _float(p.pmd["pmd_shift_law_mm"]))
             <= _float(p.pmd["pmd_noise_floor_mm"])
             for p in both
+            if p.law_holds
         ),
     )
 
@@ -752,7 +784,7 @@ def _fold_section(pairs: Sequence[Pair]) -> list[str]:
             f"{_median(f.paper_kept, '{:.0%}')}), its continuous limit "
             f"{_span(f.limit_kept, '{:.0%}')} (median {_median(f.limit_kept, '{:.0%}')}). A "
             "PMD station decodes each pixel's screen point on its own, so a fold cannot cap "
-            "its shift; against the closed form 2 α_max (De + σ cos θ) (`pmd_shift_law_mm`) "
+            "its shift; against the closed form 2 α_max (De + σ cos θ) · G (`pmd_shift_law_mm`) "
             f"shift / law − 1 is {_span(f.errors, '{:+.1%}')} (median "
             f"{_median(f.errors, '{:+.1%}')}) on these cases: {f.within} of {len(f.both)} "
             f"within {LAW_TOLERANCE:.0%}, {f.within_noise} within the noise floor; on the "
@@ -770,8 +802,8 @@ def _fold_section(pairs: Sequence[Pair]) -> list[str]:
         r, q = p.pmd, p.paper or {}
         law_ratio = (
             f"{_ratio(r['pmd_shift_mm'], r['pmd_shift_law_mm']):.3f}"
-            if not pmd_concerns(status_of(r), "pmd_shift_mm")
-            else f"*{status_of(r)}*"
+            if not pmd_concerns(status_of(r), "pmd_shift_mm") and p.law_holds
+            else f"*{status_of(r) if p.law_holds else p.law}*"
         )
         share = (
             f"{_ratio(q['visibility_continuous_px'], q['deflection_px']):.0%}"
@@ -784,7 +816,7 @@ def _fold_section(pairs: Sequence[Pair]) -> list[str]:
             f"{paper_cell(q, 'visibility_px')} | "
             f"{paper_cell(q, 'visibility_continuous_px', '{:.2f}')} | "
             f"{paper_cell(q, 'deflection_px', '{:.2f}')} | {share} | "
-            f"{pmd_cell(r, 'pmd_shift_mm', '{:.4f}')} | {_num(r['pmd_shift_law_mm'], '{:.4f}')} "
+            f"{pmd_cell(r, 'pmd_shift_mm', '{:.4f}')} | {law_cell(p)} "
             f"| {law_ratio} | {pmd_cell(r, 'pmd_snr', '{:.0f}')} | "
             f"{pmd_cell(r, 'pmd_depth_um', '{:.3f}')} | {status_of(r)} |"
         )
@@ -823,10 +855,13 @@ def _laws_section(pairs: Sequence[Pair]) -> list[str]:
         "## The closed forms against the PMD simulation",
         "",
         (
-            "Shift: `pmd_shift_law_mm` = 2 α_max (De + σ cos θ), α_max = dmax e^(-1/2) / σ "
+            "Shift: `pmd_shift_law_mm` = 2 α_max (De + σ cos θ) · G, α_max = dmax e^(-1/2) / σ "
             "(the dent's steepest slope; a slope α turns the reflected ray by 2 α, which "
-            "lands 2 α De away on the screen, the steepest flank σ cos θ farther). It ignores "
-            "the base's curvature and the noise: the measured shift is the largest decoded "
+            "lands 2 α De away on the screen, the steepest flank σ cos θ farther), G the "
+            "factor by which a base curved along the plane of incidence bends it (1 on the "
+            "flat plate and the paper's cylinder; docs/physics.md, section 7). Where the "
+            "base's horizon falls inside the dent's window the law is marked *grazing* and "
+            "left out here. It ignores the noise: the measured shift is the largest decoded "
             "move over the pixels, so noise adds up to the noise floor (`pmd_noise_floor_mm`, "
             "the largest difference of two noisy decodes of the defect-free scene). Noise: "
             "`pmd_noise_predicted_mm` = periods[0] / (2π) · sqrt(2/N) · σ_I / B (σ_I the "
@@ -838,13 +873,14 @@ def _laws_section(pairs: Sequence[Pair]) -> list[str]:
         ),
         "",
         "| surface | cases | shift within 5 % of the law | shift / law − 1 (median; range) | "
-        "shift − law within the noise floor | noise: measured / predicted (median; range) | "
-        "noise cases left out |",
-        "|---|---:|---:|---|---:|---|---:|",
+        "shift − law within the noise floor | law marked grazing | noise: measured / "
+        "predicted (median; range) | noise cases left out |",
+        "|---|---:|---:|---|---:|---:|---|---:|",
     ]
     for surface in dict.fromkeys(p.pmd["surface"] for p in pairs):
-        rows = [p.pmd for p in pairs if p.pmd["surface"] == surface]
-        ok = [r for r in rows if is_measurable(r)]
+        mine = [p for p in pairs if p.pmd["surface"] == surface]
+        rows = [p.pmd for p in mine]
+        ok = [p.pmd for p in mine if is_measurable(p.pmd) and p.law_holds]
         errors = [_ratio(r["pmd_shift_mm"], r["pmd_shift_law_mm"]) - 1 for r in ok]
         within = sum(abs(e) <= LAW_TOLERANCE for e in _finite(errors))
         floor = sum(
@@ -854,9 +890,10 @@ def _laws_section(pairs: Sequence[Pair]) -> list[str]:
         )
         clean = [r for r in rows if not fringe_noise(r)]
         noise = [_ratio(r["pmd_noise_mm"], r["pmd_noise_predicted_mm"]) for r in clean]
+        grazing = sum(not p.law_holds for p in mine)
         lines.append(
             f"| {surface_label(surface)} | {len(ok)} | {within} | {_median(errors, '{:+.1%}')}; "
-            f"{_span(errors, '{:+.1%}')} | {floor} | {_median(noise, '{:.3f}')}; "
+            f"{_span(errors, '{:+.1%}')} | {floor} | {grazing} | {_median(noise, '{:.3f}')}; "
             f"{_span(noise, '{:.3f}')} | {len(rows) - len(clean)} |"
         )
     worst = _worst_law_cases(pairs)
@@ -873,7 +910,7 @@ def fringe_noise(row: Mapping) -> bool:
 
 
 def _worst_law_cases(pairs: Sequence[Pair]) -> str:
-    ok = [p.pmd for p in pairs if is_measurable(p.pmd)]
+    ok = [p.pmd for p in pairs if is_measurable(p.pmd) and p.law_holds]
     scored = [(abs(_ratio(r["pmd_shift_mm"], r["pmd_shift_law_mm"]) - 1), r) for r in ok]
     scored = [(e, r) for e, r in scored if math.isfinite(e)]
     scored.sort(key=lambda er: -er[0])
@@ -976,7 +1013,8 @@ def _cases_section(pairs: Sequence[Pair]) -> list[str]:
             "Paper: `visibility_px` (px) and its continuous limit, whether the stripe map "
             "folds (fold ratio). PMD: shift (mm on the screen) and its law, SNR, depth (µm, "
             "true dmax beside it), unwrapping failures, status. A number its status makes "
-            "unreadable is replaced by the status in italics; the reasons are in "
+            "unreadable is replaced by the status in italics, and a law that does not hold "
+            "by its caveat (*grazing*: docs/physics.md, section 7); the reasons are in "
             "`pmd_results.csv` and `results.csv`."
         ),
         "",
@@ -992,7 +1030,7 @@ def _cases_section(pairs: Sequence[Pair]) -> list[str]:
             f"{1000 * r['dmax_mm']:g} | {paper_cell(q, 'visibility_px')} | "
             f"{paper_cell(q, 'visibility_continuous_px', '{:.2f}')} | {ratio} | "
             f"{status_of(q) if q is not None else 'not run'} | "
-            f"{pmd_cell(r, 'pmd_shift_mm', '{:.4f}')} | {_num(r['pmd_shift_law_mm'], '{:.4f}')} "
+            f"{pmd_cell(r, 'pmd_shift_mm', '{:.4f}')} | {law_cell(p)} "
             f"| {pmd_cell(r, 'pmd_snr', '{:.0f}')} | {pmd_cell(r, 'pmd_depth_um', '{:.3f}')} | "
             f"{r['unwrap_failures']} | {status_of(r)} |"
         )

@@ -111,10 +111,10 @@ def visibility_plot(
             theta = np.array([float(p.pmd["theta_deg"]) for p, _ in good])
             value = np.array([_value(r, key) for _, r in good])
             (handle,) = ax.plot(theta, value, marker="o", label=f"σ² = {s2:g} mm²")
-            if law is not None:
+            if law is not None:  # where the law holds (not at grazing views)
                 ax.plot(
                     [float(p.pmd["theta_deg"]) for p, _ in series],
-                    [_value(p.pmd, law) for p, _ in series],
+                    [_value(p.pmd, law) if p.law_holds else math.nan for p, _ in series],
                     ls="--", lw=1, color=handle.get_color(),
                 )  # fmt: skip
             folds = np.array([p.folds for p, _ in good], bool)
@@ -139,7 +139,10 @@ def visibility_plot(
         ax.set_ylabel(pixels_label(paper_image) if unit == "px" else (unit or "ratio"))
         ax.grid(alpha=0.3)
     axes[0].invert_xaxis()
-    extra = [Line2D([], [], color="k", ls="--", lw=1, label="closed form 2 α (De + σ cos θ)")]
+    extra = [
+        Line2D([], [], color="k", ls="--", lw=1,
+               label="closed form 2 α (De + σ cos θ) · G (none where it is marked grazing)")
+    ]  # fmt: skip
     if folded_any:
         extra.append(
             Line2D(
@@ -246,15 +249,17 @@ def depth_plot(pairs: Sequence[Pair], path: Path, surfaces, dmaxs) -> None:
 
 def law_plot(pairs: Sequence[Pair], path: Path) -> None:
     """The PMD shift against its closed form (left; triangles where the stripe map
-    folds) and the measured noise against its prediction (right), every measurable case
-    (the noise: every case whose two noisy decodes agree on the fringe)."""
+    folds; every measurable case whose law holds) and the measured noise against its
+    prediction (right; every case whose two noisy decodes agree on the fringe)."""
     from glshade.study.pmd_findings import fringe_noise
 
     fig = new_figure(12, 5)
     axes = fig.subplots(1, 2)
     colours = surface_colours(dict.fromkeys(p.pmd["surface"] for p in pairs))
     for surface, colour in colours.items():
-        mine = [p for p in pairs if p.pmd["surface"] == surface and is_measurable(p.pmd)]
+        mine = [
+            p for p in pairs if p.pmd["surface"] == surface and is_measurable(p.pmd) and p.law_holds
+        ]
         for folds, marker in ((False, "o"), (True, "^")):
             pick = [p for p in mine if p.folds == folds]
             if pick:
@@ -272,7 +277,7 @@ def law_plot(pairs: Sequence[Pair], path: Path) -> None:
                 c=colour, s=22, label=surface_name(surface),
             )  # fmt: skip
     for ax, title, unit in (
-        (axes[0], "largest decoded shift: 2 α_max (De + σ cos θ)", "mm on the screen"),
+        (axes[0], "largest decoded shift: 2 α_max (De + σ cos θ) · G", "mm on the screen"),
         (axes[1], "decoded noise: p₀/(2π) · sqrt(2/N) · σ_I / B", "mm on the screen"),
     ):
         ax.set_xscale("log")
@@ -315,7 +320,7 @@ def write_pmd_figures(
 ) -> list[Path]:
     """Every figure of the PMD study; returns their paths."""
     out_dir = Path(out_dir)
-    pairs = pair_rows(pmd_rows, paper_rows)
+    pairs = pair_rows(pmd_rows, paper_rows, plan)
     written: list[Path] = []
     if len(plan.thetas) >= 2:
         for surface in plan.surfaces:
