@@ -1,8 +1,10 @@
 """Choosing the fringe coding (``glshade coding``): the rendered modulation against the
 box-footprint closed form on a flat mirror and its further fall behind a defocused lens;
 the recommended shifts measured end to end against the target noise; the ladder's
-unwrapping margin against the noise law computed by hand; the closed forms themselves;
-the JSON keys, the text, the outputs and the one-line refusals."""
+unwrapping margin against the noise law computed by hand; the memory budget (the
+budget a coding needs, named exactly, and the least noise within a smaller one); the
+finest period's floor; the closed forms themselves; the JSON keys, the text, the outputs
+and the one-line refusals."""
 
 from __future__ import annotations
 
@@ -17,7 +19,9 @@ from glshade.components.emitter.fringes.table import FringesTable, fringes_of
 from glshade.errors import GlshadeError
 from glshade.measure import coding, coding_files
 from glshade.measure.coding import CodingSettings, choose_coding
+from glshade.measure.memory import check_pmd, pmd_estimate
 from glshade.measure.pmd import measure_pmd_scene
+from glshade.measure.single import as_method
 from glshade.metrics import coding_laws as laws
 from glshade.scene import Scene, paper_scene
 
@@ -196,6 +200,73 @@ def test_the_ladder_keeps_the_unwrapping_margin(_session_renderer):
     assert judged.margin_sigmas < settings.margin_sigmas and judged.status == "unsafe"
 
 
+@pytest.fixture(scope="module")
+def two_microns(_session_renderer):
+    """The flat plate at 128² through a sensor, coded for a noise of 2 µm (N 14, three
+    periods: 84 frames), under the default memory budget."""
+    scene = flat(size=128).updated(sensor=SENSOR)
+    settings = CodingSettings(target_noise_mm=2e-3)
+    return choose_coding(_session_renderer, scene, settings), settings
+
+
+def test_a_coding_beyond_the_memory_budget_names_the_budget_it_needs(two_microns):
+    """Under a budget 4 MiB short of what measuring the recommended coding takes, the
+    report keeps the coding that reaches the target and says ``over_budget``, naming the
+    GLSHADE_MEMORY_BUDGET_MB it needs: exactly, the coded scene passes the check
+    ``glshade measure --method pmd`` makes under it and fails 1 MiB below. It also names
+    the least noise within the smaller budget: fewer shifts, above the target, a coding
+    that passes the check there."""
+    roomy, settings = two_microns
+    rec = roomy.recommended
+    assert rec.status == "ok" and roomy.within_budget is None
+    assert rec.frames == 2 * len(rec.periods_mm) * rec.shifts
+    assert rec.memory_bytes == pmd_estimate(coding_files.coded_scene(roomy)).required_bytes
+    small = rec.memory_bytes - (4 << 20)
+    report = coding.judge(roomy.scene, roomy.probe, settings, small)
+    tight = report.recommended
+    assert tight.status == "over_budget"
+    assert (tight.periods_mm, tight.shifts) == (rec.periods_mm, rec.shifts)
+    assert f"GLSHADE_MEMORY_BUDGET_MB={tight.budget_mib}" in tight.reason
+    assert "\n" not in tight.reason
+    coded = coding_files.coded_scene(report)
+    check_pmd(coded, tight.budget_mib << 20)
+    with pytest.raises(GlshadeError, match="memory budget"):
+        check_pmd(coded, (tight.budget_mib - 1) << 20)
+    fallback = report.within_budget
+    assert fallback is not None and fallback.status == "ok"
+    assert fallback.shifts < rec.shifts and fallback.noise_mm > settings.target_noise_mm
+    assert f"N {fallback.shifts}," in tight.reason
+    check_pmd(coding.coded(report.scene, fallback.periods_mm, fallback.shifts), small)
+    # one shift more would not fit: it is the most the budget holds
+    more = coding.judge_plan(report.scene, report.probe, fallback.periods_mm,
+                             fallback.shifts + 1, settings, small)  # fmt: skip
+    assert more.status == "over_budget"
+
+
+def test_the_dent_shift_carries_its_laws_caveat(two_microns):
+    """The ranges give the dent's closed-form shift with whether it holds: ``ok`` on the
+    flat plate, ``grazing`` for a wide dent seen at θ 5° on the sphere (docs/physics.md)."""
+    report, _ = two_microns
+    assert report.ranges.shift_status == "ok" and report.ranges.shift_reason == ""
+    sphere = as_method(paper_scene("sphere", 5.0, 16.0), "pmd")
+    grazing = coding.ranges(sphere, report.probe, report.recommended)
+    assert grazing.shift_status == "grazing"
+    assert "local elevation" in grazing.shift_reason
+
+
+def test_the_finest_period_keeps_its_floor(two_microns, pinhole):
+    """The one place a lower bound on the finest period applies: today none (0), and a
+    floor above the least-noise period moves the recommendation up to it."""
+    report, settings = two_microns
+    assert coding.finest_floor_mm(report.scene) == 0.0
+    best = coding.best_finest(report.probe, report.resolved, settings.resolved_share)
+    assert best == report.recommended.periods_mm[0]
+    floored = coding.best_finest(report.probe, report.resolved, 0.5, floor_mm=3.0 * best)
+    assert floored >= 3.0 * best
+    no_noise = coding.best_finest(pinhole.probe, pinhole.resolved, 0.5, floor_mm=7.0)
+    assert no_noise == 7.0
+
+
 def test_without_a_sensor_the_shifts_stay_and_the_noise_is_zero(pinhole):
     rec = pinhole.recommended
     assert not pinhole.sensor and rec.noise_mm == 0.0 and rec.shifts == 4
@@ -225,10 +296,13 @@ def test_json_keys(capsys):
             "finest_resolved_mm"} <= set(out["modulation"]["v"])  # fmt: skip
     assert len(out["modulation"]["v"]["rendered"]) == 12
     rec = out["recommended"]
-    assert {"periods_mm", "shifts", "ratios", "noise_mm", "margin_sigmas", "status"} <= set(rec)
+    assert {"periods_mm", "shifts", "ratios", "noise_mm", "margin_sigmas", "status",
+            "frames", "memory_mib"} <= set(rec)  # fmt: skip
     assert rec["noise_mm"] <= 0.005 and rec["periods_mm"][-1] >= 330
+    assert rec["memory_mib"] <= out["memory_budget_mib"] and out["within_budget"] is None
     assert {"unambiguous_mm", "slope_range_mrad", "dent_shift_mm", "snr_recommended",
-            "status"} <= set(out["ranges"])  # fmt: skip
+            "status", "dent_shift_status", "dent_shift_reason"} <= set(out["ranges"])  # fmt: skip
+    assert out["ranges"]["dent_shift_status"] == "ok"
 
 
 def test_text_plot_and_coded_scene(tmp_path, capsys):
@@ -237,7 +311,8 @@ def test_text_plot_and_coded_scene(tmp_path, capsys):
     assert main([*args, "--plot", str(plot), "--coded-scene", str(coded)]) == 0
     text = capsys.readouterr().out
     for words in ("finest resolved period", "mm", "shifts N", "unambiguous range",
-                  "slope range", "mrad", "no sensor", "expected SNR"):  # fmt: skip
+                  "slope range", "mrad", "no sensor", "expected SNR",
+                  "within the memory budget of", "GLSHADE_MEMORY_BUDGET_MB >="):  # fmt: skip
         assert words in text, words
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     scene = Scene.load(coded)

@@ -125,19 +125,20 @@ def test_a_pmd_baseline_keeps_no_frames(renderer):
 
 
 @pytest.mark.parametrize(
-    ("argv", "typed"),
+    ("argv", "budget", "typed"),
     [
-        (["measure", "--size", "1024", "--step", "0.001"], "--step 0.001 mm: 2000 phases"),
-        (["measure", "--method", "pmd", "--size", "512"], "32 frames: 2 directions"),
+        (["measure", "--size", "1024", "--step", "0.001"], 64, "--step 0.001 mm: 2000 phases"),
+        (["measure", "--method", "pmd", "--size", "512"], 200, "32 frames: 2 directions"),
     ],
 )
-def test_cli_refuses_beyond_a_small_budget_in_one_line(tmp_path, argv, typed):
-    done = run_glshade(*argv, cwd=tmp_path, env={"GLSHADE_MEMORY_BUDGET_MB": "64"}, timeout=300)
+def test_cli_refuses_beyond_a_small_budget_in_one_line(tmp_path, argv, budget, typed):
+    env = {"GLSHADE_MEMORY_BUDGET_MB": str(budget)}
+    done = run_glshade(*argv, cwd=tmp_path, env=env, timeout=300)
     err = done.stderr.strip()
     assert done.returncode == 2 and done.stdout == ""
     assert err.count("\n") == 0 and err.startswith("glshade: error: "), err
     assert "(--size): " in err and typed in err
-    assert "more than the memory budget of 64 MiB (GLSHADE_MEMORY_BUDGET_MB)" in err
+    assert f"more than the memory budget of {budget} MiB (GLSHADE_MEMORY_BUDGET_MB)" in err
     assert "; at most --size " in err and " fits" in err
     assert list(tmp_path.iterdir()) == []
 

@@ -249,7 +249,7 @@ def _coding_lines(report) -> list[str]:
     )
     periods = ", ".join(f"{p:g}" for p in rec.periods_mm)
     ratios = ", ".join(f"{r:.3g}" for r in rec.ratios)
-    flag = "" if rec.status == "ok" else f"  [{rec.status}: {rec.reason}]"
+    flag = "" if rec.status in ("ok", "over_budget") else f"  [{rec.status}: {rec.reason}]"
     lines += [
         f"  finest period p1         {rec.periods_mm[0]:g} mm ({why}; share {rec.share:.2f})",
         f"  shifts N                 {rec.shifts} ({how}){flag}",
@@ -263,6 +263,7 @@ def _coding_lines(report) -> list[str]:
         "every capture: not in the noise)",
         f"  emitter settings         --set emitter.periods={periods.replace(' ', '')} "
         f"--set emitter.shifts={rec.shifts}",
+        _memory_line(report, rec),
     ]
     if target is not None and rec.quantisation_mm > target:
         lines.append(
@@ -272,15 +273,41 @@ def _coding_lines(report) -> list[str]:
     return lines
 
 
+def _memory_line(report, plan) -> str:
+    """What measuring ``plan`` takes against the memory budget; beyond it, the status
+    with the budget it needs."""
+    from glshade.measure.memory import size_text
+
+    budget = report.budget_bytes / (1 << 20)
+    if plan.status == "over_budget":
+        fits = f"[{plan.status}: {plan.reason}]"
+    elif plan.memory_bytes > report.budget_bytes:
+        fits = f"more than the memory budget of {budget:.0f} MiB"
+    else:
+        fits = f"within the memory budget of {budget:.0f} MiB"
+    return (
+        f"  memory                   {size_text(plan.memory_bytes)} for {plan.frames} frames "
+        f"(glshade measure --method pmd; GLSHADE_MEMORY_BUDGET_MB >= {plan.budget_mib}) {fits}"
+    )
+
+
 def _current_lines(report) -> list[str]:
     cur = report.current
     periods = ", ".join(f"{p:g}" for p in cur.periods_mm)
     flag = "" if cur.status == "ok" else f"  [{cur.status}: {cur.reason}]"
-    return [
+    lines = [
         f"The scene's own coding (periods {periods} mm, N {cur.shifts}){flag}",
         f"  predicted noise {_mm(cur.noise_mm)} mm; worst unwrapping margin "
         f"{_margin(cur.margin_sigmas)} σ; finest period's share {_mm(cur.share, '.2f')}",
     ]
+    if cur.memory_bytes:
+        from glshade.measure.memory import size_text
+
+        lines.append(
+            f"  memory {size_text(cur.memory_bytes)} for {cur.frames} frames "
+            f"(GLSHADE_MEMORY_BUDGET_MB >= {cur.budget_mib})"
+        )
+    return lines
 
 
 def _range_lines(report) -> list[str]:
@@ -288,6 +315,8 @@ def _range_lines(report) -> list[str]:
     screen = ", ".join(f"{v:g} mm along {d}" for d, v in rng.screen_mm.items())
     slopes = ", ".join(f"±{_mm(v)} mrad along {d}" for d, v in rng.slope_range_mrad.items())
     flag = "" if rng.status == "ok" else f"  [{rng.status}: {rng.reason}]"
+    law = "" if rng.shift_status == "ok" else f"  [{rng.shift_status}: {rng.shift_reason}]"
+    snr_law = "" if rng.shift_status == "ok" else f"  [{rng.shift_status}: the dent's shift]"
     u, v = rng.screen_point_mm
     return [
         "Ranges",
@@ -297,9 +326,9 @@ def _range_lines(report) -> list[str]:
         f"  slope range              {slopes} (the screen's edge from the dent's screen point: "
         f"(half_size - |point|) / 2 De){flag}",
         f"  dent's shift             {rng.dent_shift_mm:.4g} mm on the screen (closed form; a "
-        f"slope of about {rng.dent_slope_mrad:.3g} mrad)",
+        f"slope of about {rng.dent_slope_mrad:.3g} mrad){law}",
         f"  expected SNR             {_snr(rng.dent_shift_mm, rec.noise_mm)} with the recommended "
-        f"coding, {_snr(rng.dent_shift_mm, cur.noise_mm)} with the scene's",
+        f"coding, {_snr(rng.dent_shift_mm, cur.noise_mm)} with the scene's{snr_law}",
     ]
 
 

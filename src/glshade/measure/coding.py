@@ -20,6 +20,10 @@ A station designer asks, for one part and one camera:
    error times the ratio stays below π with a margin of :attr:`CodingSettings.margin_sigmas`.
 3. the ranges: the unambiguous range (the coarsest period), the slopes the screen can
    measure around the dent's screen point, and the dent's shift against the noise.
+4. whether ``glshade measure --method pmd`` can measure the coding within the memory
+   budget (:func:`glshade.measure.memory.pmd_estimate`): where it cannot, the budget it
+   needs (``GLSHADE_MEMORY_BUDGET_MB``), the least noise within the budget
+   (:func:`within_budget`) and the largest image that fits, before anything is measured.
 
 Everything here is per coded direction (``emitter.directions``); a scene of stripes is
 measured with the fringes on the same screen (:func:`~glshade.measure.single.as_method`).
@@ -36,6 +40,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from glshade.budget import memory_budget_from_env
 from glshade.components.emitter.fringes.table import (
     MAX_SHIFTS,
     FringeFrame,
@@ -43,6 +48,7 @@ from glshade.components.emitter.fringes.table import (
     fringes_of,
 )
 from glshade.errors import GlshadeError
+from glshade.measure.memory import largest_size, pmd_estimate, size_text
 from glshade.measure.pmd import check_scene
 from glshade.measure.single import as_method
 from glshade.metrics.coding_laws import (
@@ -61,7 +67,7 @@ from glshade.metrics.coding_laws import (
     round_up,
     screen_harmonics,
 )
-from glshade.metrics.physics import pmd_shift_mm
+from glshade.metrics.physics import pmd_shift_law_check, pmd_shift_mm
 from glshade.metrics.status import dent_window
 from glshade.scene import Scene
 
@@ -76,6 +82,8 @@ PROBE_SHIFTS = 4
 COARSEST_MARGIN = 1.1
 #: The most periods a recommended ladder may hold.
 MAX_PERIODS = 32
+#: Bytes in a MiB, the unit of ``GLSHADE_MEMORY_BUDGET_MB``.
+MIB = 1 << 20
 
 
 @dataclass(frozen=True)
@@ -303,15 +311,25 @@ def shifts_for(probe: Probe, period_mm: float, target_mm: float) -> int:
     return min(needed, MAX_SHIFTS + 1)
 
 
-def best_finest(probe: Probe, resolved: Resolved, level: float) -> float:
+def finest_floor_mm(scene: Scene) -> float:
+    """The shortest finest period the chooser may recommend on ``scene``'s screen (mm),
+    whatever the camera resolves: the one lower bound :func:`best_finest` applies. Today
+    there is none (0); a screen's pixel pitch would set it here (fringes of at least two
+    screen pixels)."""
+    return 0.0
+
+
+def best_finest(probe: Probe, resolved: Resolved, level: float, floor_mm: float = 0.0) -> float:
     """The finest period with the least noise among the resolved probed ones (every
-    direction's share at least ``level``): the smallest ``p · rms(σ_I / B)``; without
-    a sensor, the finest resolved. Rounded up to two significant digits
+    direction's share at least ``level``) not below ``floor_mm``
+    (:func:`finest_floor_mm`): the smallest ``p · rms(σ_I / B)``; without a sensor, the
+    finest resolved. Rounded up to two significant digits
     (:func:`~glshade.metrics.coding_laws.round_up`)."""
-    ok = np.all(probe.share >= level, axis=0) & (probe.periods_mm >= resolved.period_mm * 0.999)
+    lowest = max(resolved.period_mm * 0.999, floor_mm)
+    ok = np.all(probe.share >= level, axis=0) & (probe.periods_mm >= lowest)
     pooled = np.sqrt(np.mean(probe.noise_ratio**2, axis=0))
     if not np.any(pooled[ok] > 0.0):
-        return round_up(resolved.period_mm)
+        return round_up(max(resolved.period_mm, floor_mm))
     merit = np.where(ok, probe.periods_mm * pooled, np.inf)
     return round_up(float(probe.periods_mm[int(np.argmin(merit))]))
 
@@ -352,7 +370,11 @@ class CodingPlan:
     mean square and its bound, the gamma's aliasing), the finest period's modulation
     share, and a status (``ok``; ``unreachable``: no ``N`` up to
     :data:`MAX_SHIFTS` reaches the target; ``unsafe``: a step's margin is below the
-    settings'; ``unresolved``: its finest period is not resolved or below the probe)."""
+    settings'; ``unresolved``: its finest period is not resolved or below the probe;
+    ``over_budget``: ``glshade measure --method pmd`` would need more memory than the
+    budget). ``frames`` the sequence's (directions x periods x shifts) and
+    ``memory_bytes`` what measuring it needs (:func:`measure_bytes`; 0 where the plan is
+    not available)."""
 
     periods_mm: tuple[float, ...]
     shifts: int
@@ -364,6 +386,8 @@ class CodingPlan:
     share: float
     status: str = "ok"
     reason: str = ""
+    frames: int = 0
+    memory_bytes: int = 0
 
     @classmethod
     def unavailable(cls, periods: tuple[float, ...], shifts: int, reason: str) -> CodingPlan:
@@ -376,6 +400,12 @@ class CodingPlan:
         p = self.periods_mm
         return tuple(b / a for a, b in zip(p, p[1:], strict=False))
 
+    @property
+    def budget_mib(self) -> int:
+        """The least ``GLSHADE_MEMORY_BUDGET_MB`` (MiB) under which ``glshade measure
+        --method pmd`` measures this coding: its memory, rounded up."""
+        return math.ceil(self.memory_bytes / MIB)
+
 
 @dataclass(frozen=True)
 class Ranges:
@@ -386,8 +416,10 @@ class Ranges:
     the dent's screen point on the screen, ``(half_size - |point|) / 2 De``;
     ``dent_shift_mm`` the dent's closed-form shift
     (:func:`~glshade.metrics.physics.pmd_shift_mm`) and ``dent_slope_mrad`` the slope
-    it means, ``shift / 2 De``; ``status``/``reason``: ``outside`` where the dent's
-    window sees no screen (its numbers are NaN)."""
+    it means, ``shift / 2 De``, with whether that law holds (``shift_status``:
+    ``ok`` or ``grazing``, :func:`~glshade.metrics.physics.pmd_shift_law_check`, and
+    ``shift_reason``); ``status``/``reason``: ``outside`` where the dent's window sees no
+    screen (its numbers are NaN)."""
 
     unambiguous_mm: float
     screen_mm: dict[str, float]
@@ -397,11 +429,16 @@ class Ranges:
     dent_slope_mrad: float
     status: str = "ok"
     reason: str = ""
+    shift_status: str = "ok"
+    shift_reason: str = ""
 
 
 @dataclass(frozen=True)
 class CodingReport:
-    """The answer to a station designer for one scene (see the module's docstring)."""
+    """The answer to a station designer for one scene (see the module's docstring):
+    ``budget_bytes`` the memory budget the codings were judged against, and
+    ``within_budget`` where the recommended coding exceeds it, the least noise a coding
+    of its finest period reaches within it (None otherwise, or where none fits)."""
 
     scene: Scene
     settings: CodingSettings
@@ -417,6 +454,8 @@ class CodingReport:
     ranges: Ranges
     sensor: bool
     notes: tuple[str, ...]
+    budget_bytes: int
+    within_budget: CodingPlan | None = None
 
 
 def choose_coding(
@@ -428,7 +467,7 @@ def choose_coding(
     check_scene(scene)
     periods = probe_periods(scene, settings)
     probe = render_probe(renderer, scene, periods)
-    return judge(scene, probe, settings)
+    return judge(scene, probe, settings, renderer.memory_budget_bytes)
 
 
 #: Rays per pixel side the probe traces where the scene samples each pixel at its centre.
@@ -445,16 +484,24 @@ def integrating(scene: Scene) -> Scene:
     return scene.updated(render={"supersample": PIXEL_RAYS})
 
 
-def judge(scene: Scene, probe: Probe, settings: CodingSettings) -> CodingReport:
-    """The report of a rendered probe: closed forms, resolution, the codings, ranges."""
+def judge(
+    scene: Scene, probe: Probe, settings: CodingSettings, budget_bytes: int | None = None
+) -> CodingReport:
+    """The report of a rendered probe: closed forms, resolution, the codings (measurable
+    within ``budget_bytes``; default ``GLSHADE_MEMORY_BUDGET_MB``), ranges."""
     em = fringes_of(scene)
+    budget = memory_budget_from_env() if budget_bytes is None else budget_bytes
     directions = probe.directions
     closed = np.stack([closed_form_share(scene, d, probe.periods_mm) for d in directions])
     box = np.stack([box_share(footprint_mm(scene, d), probe.periods_mm) for d in directions])
     each, resolved = resolution(probe, settings.resolved_share)
     sensor = bool(np.any(probe.noise_ratio > 0.0))
-    recommended = recommend(scene, probe, resolved, settings, sensor)
-    current = judge_plan(scene, probe, tuple(em.periods), em.shifts, settings)
+    recommended = recommend(scene, probe, resolved, settings, sensor, budget)
+    fallback = None
+    if recommended.status == "over_budget":
+        fallback = within_budget(scene, probe, recommended, settings, budget)
+        recommended = explain_budget(scene, recommended, fallback, budget)
+    current = judge_plan(scene, probe, tuple(em.periods), em.shifts, settings, budget)
     return CodingReport(
         scene,
         settings,
@@ -470,20 +517,28 @@ def judge(scene: Scene, probe: Probe, settings: CodingSettings) -> CodingReport:
         ranges(scene, probe, recommended),
         sensor,
         notes(scene, probe, settings, sensor),
+        budget,
+        fallback,
     )
 
 
 def recommend(
-    scene: Scene, probe: Probe, resolved: Resolved, settings: CodingSettings, sensor: bool
+    scene: Scene,
+    probe: Probe,
+    resolved: Resolved,
+    settings: CodingSettings,
+    sensor: bool,
+    budget_bytes: int,
 ) -> CodingPlan:
     """The coding for ``settings``: the best resolved finest period, the smallest ``N``
     reaching the target (the scene's own without a target or a sensor), the shortest
-    safe ladder to :func:`coarsest_period_mm`."""
+    safe ladder to :func:`coarsest_period_mm`; ``over_budget`` where measuring it needs
+    more than ``budget_bytes``."""
     em = fringes_of(scene)
     coarsest = coarsest_period_mm(scene)
     if resolved.status == "unresolved":
         return CodingPlan.unavailable((coarsest,), em.shifts, resolved.reason)
-    finest = best_finest(probe, resolved, settings.resolved_share)
+    finest = best_finest(probe, resolved, settings.resolved_share, finest_floor_mm(scene))
     shifts, status, reason = em.shifts, "ok", ""
     target = settings.target_noise_mm
     if target is not None and sensor:
@@ -495,17 +550,25 @@ def recommend(
                 "brighter exposure, a larger full well or a finer resolved period does)"
             )
     periods, budget = choose_ladder(probe, em, finest, coarsest, shifts, settings.margin_sigmas)
-    plan = judge_plan(scene, probe, periods, shifts, settings)
+    plan = judge_plan(scene, probe, periods, shifts, settings, budget_bytes)
     if budget is None and status == "ok":
         status, reason = "unsafe", plan.reason or "no ladder keeps the unwrapping margin"
-    return replace(plan, status=status if status != "ok" else plan.status,
-                   reason=reason or plan.reason)  # fmt: skip
+    if status != "ok":
+        return replace(plan, status=status, reason=reason)
+    return plan
 
 
 def judge_plan(
-    scene: Scene, probe: Probe, periods: tuple[float, ...], shifts: int, settings: CodingSettings
+    scene: Scene,
+    probe: Probe,
+    periods: tuple[float, ...],
+    shifts: int,
+    settings: CodingSettings,
+    budget_bytes: int | None = None,
 ) -> CodingPlan:
-    """``periods`` at ``shifts`` steps judged by the probe: noise, margin, bounds."""
+    """``periods`` at ``shifts`` steps judged by the probe: noise, margin, bounds, and
+    the memory measuring it needs against ``budget_bytes`` (default
+    ``GLSHADE_MEMORY_BUDGET_MB``)."""
     em = fringes_of(scene)
     finest = periods[0]
     share = float(np.min(interpolated(probe, probe.share, finest)))
@@ -531,7 +594,7 @@ def judge_plan(
         reason = (
             f"its worst step unwraps with {margin:.3g} σ of margin < {settings.margin_sigmas:g}"
         )
-    return CodingPlan(
+    plan = CodingPlan(
         tuple(periods),
         shifts,
         coordinate_noise_mm(probe, finest, shifts),
@@ -543,6 +606,92 @@ def judge_plan(
         status,
         reason,
     )
+    return with_memory(scene, plan, budget_bytes)
+
+
+# --------------------------------------------------------------------------- memory
+def coded(scene: Scene, periods: tuple[float, ...], shifts: int) -> Scene:
+    """``scene`` with the coding ``periods`` (finest first) at ``shifts`` steps."""
+    return scene.updated(emitter={"periods": list(periods), "shifts": shifts})
+
+
+def with_memory(scene: Scene, plan: CodingPlan, budget_bytes: int | None = None) -> CodingPlan:
+    """``plan`` with its frames and the memory measuring it needs; ``over_budget`` where
+    that exceeds ``budget_bytes`` (default ``GLSHADE_MEMORY_BUDGET_MB``) and nothing else
+    is wrong with it."""
+    budget = memory_budget_from_env() if budget_bytes is None else budget_bytes
+    memory = measure_bytes(scene, plan.periods_mm, plan.shifts)
+    frames = len(fringes_of(scene).directions) * len(plan.periods_mm) * plan.shifts
+    plan = replace(plan, frames=frames, memory_bytes=memory)
+    if plan.status == "ok" and memory > budget:
+        return replace(plan, status="over_budget", reason=over_budget_text(scene, memory, budget))
+    return plan
+
+
+def measure_bytes(scene: Scene, periods: tuple[float, ...], shifts: int) -> int:
+    """What ``glshade measure --method pmd`` of ``scene`` with this coding needs within
+    the memory budget (bytes: :func:`~glshade.measure.memory.pmd_estimate`, the check
+    that command makes before it renders)."""
+    return pmd_estimate(coded(scene, periods, shifts)).required_bytes
+
+
+def over_budget_text(scene: Scene, memory: int, budget: int) -> str:
+    """Why a coding cannot be measured within ``budget`` bytes, and the budget it needs."""
+    cam = scene.camera
+    return (
+        f"glshade measure --method pmd needs about {size_text(memory)} for it at "
+        f"{cam.width}x{cam.height}, more than the memory budget of {budget / MIB:.0f} MiB: "
+        f"run it with GLSHADE_MEMORY_BUDGET_MB={math.ceil(memory / MIB)}"
+    )
+
+
+def explain_budget(
+    scene: Scene, plan: CodingPlan, fallback: CodingPlan | None, budget_bytes: int
+) -> CodingPlan:
+    """``plan``, and where measuring it exceeds ``budget_bytes`` (``over_budget``) what
+    else would do, added to its reason: ``fallback``, the least noise within the budget
+    (:func:`within_budget`), and the largest ``--size`` that measures ``plan``."""
+    if plan.status != "over_budget":
+        return plan
+    budget = f"{budget_bytes / MIB:.0f} MiB"
+    if fallback is None:
+        alternatives = [
+            f"no coding of {plan.periods_mm[0]:g} mm and 3 or more shifts fits {budget}"
+        ]
+    else:
+        periods = ", ".join(f"{p:g}" for p in fallback.periods_mm)
+        alternatives = [
+            f"within {budget} the least noise is {fallback.noise_mm:.3g} mm (periods {periods} "
+            f"mm, N {fallback.shifts}, {fallback.frames} frames)"
+        ]
+    fits = largest_size(coded(scene, plan.periods_mm, plan.shifts), pmd_estimate, budget_bytes)
+    if fits is not None:
+        alternatives.append(f"at most --size {fits} measures it within the budget")
+    return replace(plan, reason=f"{plan.reason}; or else: {'; '.join(alternatives)}")
+
+
+def within_budget(
+    scene: Scene, probe: Probe, plan: CodingPlan, settings: CodingSettings, budget: int
+) -> CodingPlan | None:
+    """The coding of ``plan``'s finest period with the least noise that measuring fits
+    within ``budget`` bytes: the most shifts (fewer than ``plan``'s) whose shortest safe
+    ladder fits (None: not even 3 shifts do). No coding of that finest period reaches the
+    target with fewer frames than ``plan``: the noise fixes the shifts, and the shortest
+    safe ladder at those shifts already has the fewest periods (fewer periods need more
+    shifts than they save, the unwrapping margin growing only as ``sqrt(N)``)."""
+    em = fringes_of(scene)
+    finest, coarsest = plan.periods_mm[0], plan.periods_mm[-1]
+
+    def fitting(shifts: int) -> CodingPlan | None:
+        periods, safe = choose_ladder(probe, em, finest, coarsest, shifts, settings.margin_sigmas)
+        judged = judge_plan(scene, probe, periods, shifts, settings, budget)
+        return judged if safe is not None and judged.status == "ok" else None
+
+    low, high = 2, plan.shifts  # fitting(high) is None; low = 2 stands for "none"
+    while high - low > 1:  # more shifts take more memory
+        middle = (low + high) // 2
+        low, high = (middle, high) if fitting(middle) is not None else (low, middle)
+    return fitting(low) if low >= 3 else None
 
 
 def ranges(scene: Scene, probe: Probe, plan: CodingPlan) -> Ranges:
@@ -550,6 +699,7 @@ def ranges(scene: Scene, probe: Probe, plan: CodingPlan) -> Ranges:
     em = fringes_of(scene)
     de = scene.emitter.distance
     shift = pmd_shift_mm(scene)
+    law = pmd_shift_law_check(scene)
     screen = {d: 2.0 * em.half_size[coded_axis(d)] for d in probe.directions}
     point = (float(probe.screen_point[0]), float(probe.screen_point[1]))
     slopes = {
@@ -574,6 +724,8 @@ def ranges(scene: Scene, probe: Probe, plan: CodingPlan) -> Ranges:
         1e3 * shift / (2.0 * de),
         status,
         reason,
+        law.status,
+        law.reason,
     )
 
 

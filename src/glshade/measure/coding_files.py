@@ -32,6 +32,8 @@ def _plan(plan: CodingPlan) -> dict[str, Any]:
         "quantisation_mm": _number(plan.quantisation_mm),
         "quantisation_bound_mm": _number(plan.quantisation_bound_mm),
         "gamma_mm": _number(plan.gamma_mm),
+        "frames": plan.frames,
+        "memory_mib": plan.budget_mib if plan.memory_bytes else None,
         "status": plan.status,
         "status_reason": plan.reason,
     }
@@ -51,6 +53,7 @@ def summary(report: CodingReport) -> dict[str, Any]:
         "target_noise_mm": report.settings.target_noise_mm,
         "resolved_share": report.settings.resolved_share,
         "margin_sigmas": report.settings.margin_sigmas,
+        "memory_budget_mib": round(report.budget_bytes / (1 << 20), 3),
         "modulation": {
             "periods_mm": [_number(p) for p in probe.periods_mm],
             "pixels": probe.pixels,
@@ -71,6 +74,7 @@ def summary(report: CodingReport) -> dict[str, Any]:
         "finest_resolved_status": report.resolved.status,
         "finest_resolved_reason": report.resolved.reason,
         "recommended": _plan(rec),
+        "within_budget": _plan(report.within_budget) if report.within_budget else None,
         "current": _plan(report.current),
         "slope_noise_urad": _number(1e6 * rec.noise_mm / (2.0 * de)),
         "ranges": {
@@ -80,6 +84,8 @@ def summary(report: CodingReport) -> dict[str, Any]:
             "slope_range_mrad": {d: _number(v) for d, v in rng.slope_range_mrad.items()},
             "dent_shift_mm": _number(rng.dent_shift_mm),
             "dent_slope_mrad": _number(rng.dent_slope_mrad),
+            "dent_shift_status": rng.shift_status,
+            "dent_shift_reason": rng.shift_reason,
             "snr_recommended": _number(_snr(rng.dent_shift_mm, rec.noise_mm)),
             "snr_current": _number(_snr(rng.dent_shift_mm, report.current.noise_mm)),
             "status": rng.status,

@@ -46,28 +46,33 @@ FIXED_BYTES = 16 << 20
 #: (its displacement map) and the per-case figures: bytes per pixel.
 WAITING_BYTES_PER_PIXEL = 12
 
-#: Phase measuring, per pixel: the nominal geometry, both exact maps, the decoded points,
-#: slopes, heights and the decoder's float64 work (with the decoded maps below: 384 for
-#: the default coding, where 236–279 were measured beside the frames' terms at 1024²).
-PMD_BYTES_PER_PIXEL = 192
-#: … per pixel and decoded map (direction x period): the baseline's and the case's
-#: modulation, offset and wrapped phase (float32) and the decoder's float64 sums.
-PMD_BYTES_PER_MAP = 24
-#: … per pixel and frame: the case's recorded sequence (float32), and with a sensor its
-#: developed copy (measured: 3.9 a frame between 128 and 256 frames); and per pixel and
-#: frame of one draw (at most :data:`~glshade.gpu.renderer.MAX_FRAMES_PER_DRAW`), the
-#: driver's copy of the layers as they are read back, and, where the sequence takes more
-#: than one draw, the first draw's layers, held while the next are read (at 1024² with
-#: 129 frames the run took 1835 bytes a pixel above an idle process).
+#: Phase measuring's coefficients are fitted to the peak resident memory of
+#: :func:`glshade.measure.pmd.measure_pmd_scene` above a process that has imported glshade
+#: and opened its GL context (sampled every 10 ms through the whole case: 256² to 1024²,
+#: 24 to 252 frames, 3 and 5 periods a direction, one and two directions, with and
+#: without a sensor; docs/coding.md), rounded up: the estimate lies 5-25 % above every one
+#: measured.
+#: Per pixel: the nominal geometry, both exact maps, the decoded points, slopes, heights.
+PMD_BYTES_PER_PIXEL = 160
+#: … per pixel and decoded map (direction x period): the float32 modulation, offset and
+#: wrapped phase the baseline's decodes and the case's hold, and the decoder's float64
+#: work on a direction's periods.
+PMD_BYTES_PER_MAP = 30
+#: … per pixel and frame: the case's rendered sequence (float32), and with a sensor its
+#: recorded copy (measured together: 7.1 a frame; the sensor's copy alone: 4.0). The
+#: layers a draw renders and reads back are the renderer's (:func:`render_bytes`).
 PMD_BYTES_PER_FRAME = 4
-PMD_READ_BYTES_PER_FRAME = 4
+#: … per pixel and shift: the finest period's frames of a direction in float64, and their
+#: sums' copy, while the result's modulation share is taken (measured: 16-17).
+PMD_BYTES_PER_SHIFT = 16
 #: A finished case's maps, per pixel (decoded, exact and error points, slopes, heights,
 #: masks), beside its modulation and wrapped phase (8 a map) and its recorded sequence
 #: (4 a frame).
 PMD_RESULT_BYTES_PER_PIXEL = 64
-#: Phase measuring's share that does not grow with the pixels: the height grid and the
-#: fitted Gaussian.
-PMD_FIXED_BYTES = 32 << 20
+#: Phase measuring's share that does not grow with the pixels (measured: 101-105 MiB):
+#: the libraries the analysis loads (SciPy's sparse solver and fits, 44 MiB), the
+#: sequence's shader compiled, the height grid's solve and the fitted Gaussian.
+PMD_FIXED_BYTES = 112 << 20
 
 GIB = float(1 << 30)
 
@@ -163,17 +168,14 @@ def pmd_estimate(scene: Scene, results: int = 0) -> MemoryEstimate:
     engine's caller holds the last one while the next is measured) with their maps and
     recorded sequences."""
     from glshade.components.emitter.fringes.table import fringes_of
-    from glshade.gpu.renderer import MAX_FRAMES_PER_DRAW
 
     em, cam = fringes_of(scene), scene.camera
     maps = len(em.directions) * len(em.periods)
     frames = maps * em.shifts
     per_pixel = PMD_BYTES_PER_PIXEL + PMD_BYTES_PER_MAP * maps + PMD_BYTES_PER_FRAME * (frames + 1)
-    per_draw = min(frames + 1, MAX_FRAMES_PER_DRAW)
-    draws = 1 if frames + 1 <= MAX_FRAMES_PER_DRAW else 2  # the first draw's, held
-    per_pixel += PMD_READ_BYTES_PER_FRAME * per_draw * draws
-    if scene.active.records(scene):  # the developed copy and the twin's decoding
-        per_pixel += PMD_BYTES_PER_FRAME * frames + PMD_BYTES_PER_MAP * maps
+    per_pixel += PMD_BYTES_PER_SHIFT * em.shifts
+    if scene.active.records(scene):  # the recorded copy of the sequence
+        per_pixel += PMD_BYTES_PER_FRAME * frames
     per_pixel += results * (PMD_RESULT_BYTES_PER_PIXEL + 8 * maps + 4 * (frames + 1))
     analysis = PMD_FIXED_BYTES + per_pixel * cam.width * cam.height
     renders = (("frames", "uv"), ("distance",))
