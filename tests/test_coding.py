@@ -161,6 +161,26 @@ def test_a_defocused_lens_lowers_the_modulation_further(_session_renderer, pinho
     assert report.blur_mm["v"] == pytest.approx(25.0 / 16.0 * 256.0 / 175.6)
 
 
+def test_a_glossy_finish_picks_longer_periods_by_its_closed_form(_session_renderer, pinhole):
+    """The finish is in the rendered modulation and in its closed form (box times the
+    lobe's transfer), so the finest period the coding recommends grows with the lobe."""
+    gloss = flat().updated(render={"reflection": "beckmann", "roughness": 1.5e-3})
+    report = choose_coding(_session_renderer, gloss, FAST)
+    assert np.abs(report.probe.share - report.closed_form).max() < 0.02
+    assert report.resolved.period_mm > 1.4 * pinhole.resolved.period_mm
+    assert report.recommended.periods_mm[0] >= report.resolved.period_mm * 0.999
+    assert any("the finish (beckmann, roughness 0.0015)" in note for note in report.notes)
+
+
+def test_no_fringe_under_two_screen_pixels(_session_renderer, pinhole):
+    """A screen of 1.5 mm pixels shows no fringe under 3 mm, whatever the camera resolves."""
+    coarse = flat().updated(emitter={"kind": "fringes", "pixel_pitch": 1.5})
+    assert pinhole.recommended.periods_mm[0] < 3.0
+    report = choose_coding(_session_renderer, coarse, FAST)
+    assert report.recommended.periods_mm[0] >= 3.0
+    assert any("at least 2 of the screen's 1.5 mm pixels" in note for note in report.notes)
+
+
 def test_the_recommended_shifts_reach_the_target_when_measured(_session_renderer):
     target = 2e-3
     scene = flat(size=128).updated(sensor=SENSOR)

@@ -272,10 +272,15 @@ def _print_pmd(scene: Scene, record) -> None:
         return "n/a" if value is None else format(value, fmt)
 
     snr = "inf (no sensor: noise-free)" if record.pmd_snr is None else f"{record.pmd_snr:.1f}"
+    law_caveat = (
+        ""
+        if record.pmd_shift_law_status == "ok"
+        else f" [{record.pmd_shift_law_status}: {record.pmd_shift_law_reason}]"
+    )
     dmax_um, sigma_mm = 1e3 * scene.defect.dmax, scene.defect.sigma_z2**0.5
     rows = [
         ("pmd_shift_mm", f"{number(record.pmd_shift_mm, '.4f')} mm on the screen (closed form "
-         f"{number(record.pmd_shift_law_mm, '.4f')})"),
+         f"{number(record.pmd_shift_law_mm, '.4f')}{law_caveat})"),
         ("pmd_noise_mm", f"{number(record.pmd_noise_mm, '.2e')} mm (predicted "
          f"{number(record.pmd_noise_predicted_mm, '.2e')}; noise alone shifts up to "
          f"{number(record.pmd_noise_floor_mm, '.2e')})"),

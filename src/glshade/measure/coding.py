@@ -66,6 +66,7 @@ from glshade.metrics.coding_laws import (
     quantisation_rms_rad,
     round_up,
     screen_harmonics,
+    white_fundamental,
 )
 from glshade.metrics.physics import pmd_shift_law_check, pmd_shift_mm
 from glshade.metrics.status import dent_window
@@ -190,7 +191,7 @@ def render_probe(renderer: Renderer, scene: Scene, periods: np.ndarray) -> Probe
     white = layers[0].astype(np.float64)
     where, in_window = probe_pixels(normal, uv, white)
     gain = renderer.exposure_gain(normal) if normal.active.records(normal) else 1.0
-    fundamental = screen_harmonics(em)[1]
+    fundamental = white_fundamental(em)
     stats: list[tuple[float, float, float]] = []
     stack = layers[1:]
     for offset in range(0, len(frames), per_chunk):
@@ -311,12 +312,16 @@ def shifts_for(probe: Probe, period_mm: float, target_mm: float) -> int:
     return min(needed, MAX_SHIFTS + 1)
 
 
+#: The fewest screen pixels a recommended fringe period spans: a fringe of two pixels is
+#: the finest a pixelated screen can show (its Nyquist limit).
+MIN_SCREEN_PIXELS = 2
+
+
 def finest_floor_mm(scene: Scene) -> float:
     """The shortest finest period the chooser may recommend on ``scene``'s screen (mm),
-    whatever the camera resolves: the one lower bound :func:`best_finest` applies. Today
-    there is none (0); a screen's pixel pitch would set it here (fringes of at least two
-    screen pixels)."""
-    return 0.0
+    whatever the camera resolves: the one lower bound :func:`best_finest` applies, two of
+    the screen's pixels (``emitter.pixel_pitch``; 0 for a continuous screen)."""
+    return MIN_SCREEN_PIXELS * fringes_of(scene).pixel_pitch
 
 
 def best_finest(probe: Probe, resolved: Resolved, level: float, floor_mm: float = 0.0) -> float:
@@ -750,5 +755,26 @@ def notes(scene: Scene, probe: Probe, settings: CodingSettings, sensor: bool) ->
         out.append(
             "the dent's window sees no screen point: the modulation and noise are taken "
             "over every pixel that sees the screen"
+        )
+    floor = finest_floor_mm(scene)
+    if floor > 0.0:
+        out.append(
+            f"the finest period is at least {MIN_SCREEN_PIXELS} of the screen's "
+            f"{fringes_of(scene).pixel_pitch:g} mm pixels, {floor:g} mm (finer fringes are "
+            "not shown faithfully)"
+        )
+    else:
+        out.append(
+            "the screen has no pixel pitch (emitter.pixel_pitch = 0, continuous): a real "
+            f"screen shows no fringe finer than {MIN_SCREEN_PIXELS} of its pixels; give its "
+            "pitch to hold the recommendation to it"
+        )
+    lobe = scene.active.reflection.lobe_std_rad(scene)
+    if lobe is not None:
+        out.append(
+            f"the finish ({scene.active.reflection.finish_name(scene)}) is in the rendered "
+            "modulation and in its closed form: its lobe spread on the screen takes "
+            "exp(-2π² s² / p²) of a period p (GGX: its own transfer; "
+            "docs/finishes-and-screens.md)"
         )
     return tuple(out)

@@ -35,6 +35,7 @@ from glshade.components.base import no_sequence
 from glshade.components.emitter.fringes.table import DIRECTIONS, FringeFrame, fringes_of
 from glshade.errors import GlshadeError
 from glshade.metrics import pmd
+from glshade.metrics.coding_laws import white_fundamental
 from glshade.metrics.status import (
     STATUSES,
     Status,
@@ -627,11 +628,8 @@ def displayed_fundamental(em) -> float:
     """``b_1`` of the fringe the screen displays, ``displayed(offset + amplitude cos θ)``
     (its grey levels, response, black level and ambient light included), over the white
     it displays, ``displayed(1)``: a sharp mirror's modulation per unit of its response to
-    the white. (For a screen of grey levels and a gamma alone, the white is 1 and ``b_1``
-    is :func:`~glshade.metrics.coding_laws.screen_harmonics`' ``b_1``.)"""
-    screen = em.screen()
-    white = float(screen.displayed(np.array(1.0)))
-    return float(screen.harmonics(em.offset, em.amplitude)[1]) / white
+    the white (:func:`~glshade.metrics.coding_laws.white_fundamental`)."""
+    return white_fundamental(em)
 
 
 def median_share(scene: Scene, share: np.ndarray, region: np.ndarray) -> float:

@@ -356,9 +356,19 @@ class PmdMeasurement(Record):
     )
     pmd_shift_law_mm: float | None = column(
         "mm",
-        "closed form of pmd_shift_mm: 2 α_max (De + σ cos θ), α_max the dent's steepest slope "
-        "along the coded directions (docs/pmd.md)",
+        "closed form of pmd_shift_mm: 2 α_max (De + σ cos θ) · G, α_max the dent's steepest "
+        "slope along the coded directions, G the curved base's factor along the plane of "
+        "incidence (docs/physics.md, section 7)",
         "law",
+    )
+    pmd_shift_law_status: str = column(
+        "",
+        "whether pmd_shift_law_mm holds: ok, or grazing where the base's horizon falls inside "
+        "the dent's window (docs/physics.md, section 7)",
+        "law",
+    )
+    pmd_shift_law_reason: str = column(
+        "", "why pmd_shift_law_mm does not hold (empty when it does)", "law"
     )
     render_s: float = column("s", "time to render both sequences (GL)", "timing")
     decode_s: float = column("s", "time to record and decode the dent's sequence", "timing")
@@ -368,6 +378,7 @@ class PmdMeasurement(Record):
     def of(cls, scene: Scene, result: Any, baseline_seconds: float = 0.0) -> PmdMeasurement:
         """The record of ``result`` (a :class:`glshade.measure.pmd.PmdResult`)."""
         spent = result.seconds
+        law = physics.pmd_shift_law_check(scene)
         return cls(
             pmd_shift_mm=_finite(result.pmd_shift_mm, 6),
             pmd_shift_exact_mm=_finite(result.pmd_shift_exact_mm, 6),
@@ -385,6 +396,8 @@ class PmdMeasurement(Record):
             status=result.status,
             status_reason=result.status_reason,
             pmd_shift_law_mm=_finite(physics.pmd_shift_mm(scene), 6),
+            pmd_shift_law_status=law.status,
+            pmd_shift_law_reason=law.reason,
             render_s=round(spent.get("render", 0.0) + baseline_seconds, 4),
             decode_s=round(spent.get("decode", 0.0), 4),
             heights_s=round(spent.get("heights", 0.0), 4),
