@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The benchmarks on a GPU machine, in one run (docs/BENCHMARKS.md, "On a GPU"): the renderer
 # core, one case, the paper's study (in this process and on Dask workers), cases per
-# second of a sweep, a phase-measuring case, and the renderer comparison's data.
+# second of a sweep, a phase-measuring case (its sequence through each finish), what each
+# finish leaves of the fringes, and the renderer comparison's data.
 #
 # On a bare machine with an NVIDIA driver but without glshade's packages: the wheels in
 # .whl/ and libEGL's packages in .gl/ (see the device tool's notes) are installed first.
@@ -44,8 +45,11 @@ run 150 /usr/bin/time -f "wall %e s, cpu %U+%S s, peak RSS %M KiB" \
     python3 -m glshade paper --workers 0 --threads 15 --out /tmp/study_inproc --no-progress
 cp /tmp/study_inproc/results.csv "$OUT/paper_results_gpu.csv"
 
-step "a phase-measuring case (1024²)"
-run 120 python3 benchmarks/pmd_case.py --size 1024 --repeats 3
+step "a phase-measuring case (1024²), its sequence through each finish"
+run 150 python3 benchmarks/pmd_case.py --size 1024 --repeats 3
+
+step "what each finish leaves of the fringes (512²)"
+run 120 python3 benchmarks/finish_modulation.py --size 512
 
 step "the paper's study on 8 Dask worker processes sharing the GPU"
 run 120 /usr/bin/time -f "wall %e s, peak RSS %M KiB" \

@@ -3,7 +3,8 @@
 1. The sequence render: the default coding's 32 frames and the screen's white shaded from
    one trace (the ``frames`` output), against the same 33 frames rendered one by one (an
    image each): frames per second both ways, for the paper's dented flat plate and sphere,
-   pinhole and 2 x 2 supersampling.
+   pinhole and 2 x 2 supersampling; and on the flat plate through each reflection model
+   (every frame shaded through the finish's lobe, eq. (1)'s diffuse part).
 2. One whole case (``measure_pmd_scene``, its defect-free analysis included) through a
    10 000 e- sensor: the seconds of each stage.
 
@@ -29,6 +30,17 @@ def station(surface: str, size: int, supersample: int = 1) -> Scene:
     return scene.updated(
         emitter={"kind": "fringes", "periods": periods}, render={"supersample": supersample}
     )
+
+
+#: The finishes the sequence is shaded through (render table values).
+FINISHES = {
+    "mirror": {},
+    "blinn-phong (closed)": {"reflection": "blinn-phong", "shininess": 2e6},
+    "beckmann (closed)": {"reflection": "beckmann", "roughness": 1e-3},
+    "ggx (closed)": {"reflection": "ggx", "roughness": 1e-3},
+    "ggx (lattice, 64 samples)": {"reflection": "ggx", "roughness": 1e-3, "lobe_method": "lattice"},
+    "mirror with eq. (1)": {"height_rms_um": 0.03},
+}
 
 
 def median_s(action, repeats: int) -> float:
@@ -88,6 +100,13 @@ def main() -> None:
                 stacked, single = sequence_rates(renderer, scene, args.repeats)
                 label = f"{surface}, dent, {supersample}² rays/px"
                 print(f"| {label} | {stacked:.1f} | {single:.1f} | {stacked / single:.1f} |")
+        print()
+        print("| finish (flat, 1 ray/px) | frames/s, one trace | frames/s, frame by frame |")
+        print("|---|---|---|")
+        for name, values in FINISHES.items():
+            scene = station("flat", args.size).updated(render=values)
+            stacked, single = sequence_rates(renderer, scene, args.repeats)
+            print(f"| {name} | {stacked:.1f} | {single:.1f} |")
         print()
         print("| stage (flat, 10 000 e- sensor) | s |")
         print("|---|---|")

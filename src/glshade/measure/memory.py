@@ -170,8 +170,8 @@ def pmd_estimate(scene: Scene, results: int = 0) -> MemoryEstimate:
     from glshade.components.emitter.fringes.table import fringes_of
 
     em, cam = fringes_of(scene), scene.camera
-    maps = len(em.directions) * len(em.periods)
-    frames = maps * em.shifts
+    maps = 2 * len(em.periods)  # the per-direction maps hold both coordinates, (u, v)
+    frames = len(em.directions) * len(em.periods) * em.shifts
     per_pixel = PMD_BYTES_PER_PIXEL + PMD_BYTES_PER_MAP * maps + PMD_BYTES_PER_FRAME * (frames + 1)
     per_pixel += PMD_BYTES_PER_SHIFT * em.shifts
     if scene.active.records(scene):  # the recorded copy of the sequence
