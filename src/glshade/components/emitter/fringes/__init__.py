@@ -67,6 +67,7 @@ class Fringes(EmitterComponent):
         patterns = context.frames if "frames" in variables["outputs"] else (em.shown(),)
         values.update(
             u_emitter_fringe_levels=float(em.levels),
+            u_emitter_fringe_step=1.0 / (em.levels - 1) if em.levels else 0.0,
             u_emitter_fringe_floor=screen.floor,
             u_emitter_fringe_gain=screen.gain,
             u_emitter_frame=[(float(f.axis), f.shift_rad, f.offset, f.amplitude) for f in patterns],

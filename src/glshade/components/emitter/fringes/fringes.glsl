@@ -8,6 +8,7 @@
 {$ endif $}
 // The image shows one pattern (the scene's frame), a frame stack the frames of its draw.
 uniform real u_emitter_fringe_levels;       // commanded grey levels (0: continuous)
+uniform real u_emitter_fringe_step;         // one grey level, 1 / (levels - 1) (0: continuous)
 {$ if fringe_response == "gamma" $}
 uniform real u_emitter_fringe_gamma;        // displayed = commanded ** gamma
 {$ else $}
@@ -28,7 +29,9 @@ uniform real u_emitter_ambient;             // what the black matrix shows: the 
 float fringe_displayed(float commanded) {
     commanded = clamp(commanded, 0.0, 1.0);
     float levels = float(u_emitter_fringe_levels);
-    if (levels > 0.0) commanded = floor(commanded * (levels - 1.0) + 0.5) / (levels - 1.0);
+    // the level's index times the level (a product is rounded alike by every driver, a
+    // quotient need not be: the white stays exactly 1)
+    if (levels > 0.0) commanded = floor(commanded * (levels - 1.0) + 0.5) * float(u_emitter_fringe_step);
 {$ if fringe_response == "gamma" $}
     float gamma = float(u_emitter_fringe_gamma);
     float response = gamma == 1.0 ? commanded : pow(commanded, gamma);
