@@ -16,6 +16,7 @@ OpenCV; the ``metrics``, ``oracle`` and ``study`` planning modules need no GL.
 """
 
 from glshade.errors import ContextError, GlshadeError, SceneError, ShaderCompileError
+from glshade.version import __version__
 
 TYPE_CHECKING = False  # typing's own costs 20 ms; type checkers read this one as True
 if TYPE_CHECKING:  # loaded on first use (:func:`__getattr__`), so that ``import glshade``
@@ -32,8 +33,6 @@ if TYPE_CHECKING:  # loaded on first use (:func:`__getattr__`), so that ``import
         Surface,
         paper_scene,
     )
-
-__version__ = "0.1.0"
 
 _LAZY = {
     "Frame": ("glshade.frame", "Frame"),

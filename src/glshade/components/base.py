@@ -528,7 +528,7 @@ class ReflectionComponent(Component):
         ``shaders/lib/kernels.glsl``, lands ``F x`` from the mirror ray's point); None for a
         model without a lobe. The float64 oracle of the footprint its GLSL hands
         ``emitter_filtered``, and what the closed form of the modulation a finish leaves of
-        a fringe is computed from (:mod:`glshade.oracle.lobe`)."""
+        a fringe is computed from (the oracle's ``lobe_footprint``)."""
         return None
 
     def finish_name(self, scene: SceneView) -> str:

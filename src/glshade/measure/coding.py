@@ -70,6 +70,7 @@ from glshade.metrics.coding_laws import (
 )
 from glshade.metrics.physics import pmd_shift_law_check, pmd_shift_mm
 from glshade.metrics.status import dent_window
+from glshade.oracle.lobe import gaze_share
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
@@ -497,7 +498,14 @@ def judge(
     em = fringes_of(scene)
     budget = memory_budget_from_env() if budget_bytes is None else budget_bytes
     directions = probe.directions
-    closed = np.stack([closed_form_share(scene, d, probe.periods_mm) for d in directions])
+    closed = np.stack(
+        [
+            closed_form_share(
+                scene, d, probe.periods_mm, gaze_share(scene, coded_axis(d), probe.periods_mm)
+            )
+            for d in directions
+        ]
+    )
     box = np.stack([box_share(footprint_mm(scene, d), probe.periods_mm) for d in directions])
     each, resolved = resolution(probe, settings.resolved_share)
     sensor = bool(np.any(probe.noise_ratio > 0.0))

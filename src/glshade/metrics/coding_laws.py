@@ -4,8 +4,8 @@
   point: one pixel's footprint on the screen (:func:`footprint_mm`, the stripes' scale of
   :mod:`glshade.components.image_scale` along ``v`` and its sagittal twin along ``u``)
   as a box sampled like the renderer's supersampling (:func:`box_share`), a thin lens's
-  blur disc (:func:`blur_mm`, :func:`disc_share`), the finish's reflection lobe
-  (:func:`finish_share`), and their product (:func:`closed_form_share`).
+  blur disc (:func:`blur_mm`, :func:`disc_share`), and their product with what the finish's
+  reflection lobe keeps (:func:`closed_form_share`).
 - The screen's fixed patterns: its grey levels (:func:`quantisation_rms_rad`,
   :func:`quantisation_error_rad`) and its gamma's harmonics aliased by ``N`` steps
   (:func:`screen_harmonics`, :func:`gamma_error_rad`).
@@ -26,7 +26,6 @@ import numpy as np
 
 from glshade.components.emitter.fringes.table import DIRECTIONS, FringesTable
 from glshade.components.image_scale import base_curvatures, emitter_mm_per_row
-from glshade.components.reflection.kernels import kernel_transfer
 
 #: Significant digits the recommended periods are rounded to.
 PERIOD_DIGITS = 2
@@ -90,40 +89,18 @@ def disc_share(blur: float, periods: np.ndarray) -> np.ndarray:
     return np.abs(np.where(x == 0.0, 1.0, share))
 
 
-def finish_share(scene: Any, direction: str, periods: np.ndarray) -> np.ndarray:
-    """What the finish's reflection lobe keeps of each period along ``direction`` at the
-    gaze point (the image's centre pixel): the lobe's kernel transfer at its scale on the
-    screen, ``exp(-2π² s² / p²)`` for a Gaussian lobe (:mod:`glshade.oracle.lobe`); 1 for a
-    mirror."""
-    from glshade.oracle.lobe import lobe_footprint  # a lobe only: most scenes need none
-
-    periods = np.asarray(periods, np.float64)
-    if scene.active.reflection.lobe_std_rad(scene) is None:
-        return np.ones_like(periods)
-    cam = scene.camera
-    centre = (
-        slice(cam.height // 2, cam.height // 2 + 1),
-        slice(cam.width // 2, cam.width // 2 + 1),
-    )
-    footprint = lobe_footprint(scene, *centre)
-    if footprint is None:
-        return np.ones_like(periods)
-    scale = float(footprint.scale_mm(coded_axis(direction)).reshape(-1)[0])
-    if not math.isfinite(scale):
-        return np.ones_like(periods)
-    return kernel_transfer(footprint.kernel, 2.0 * math.pi * scale / periods)
-
-
-def closed_form_share(scene: Any, direction: str, periods: np.ndarray) -> np.ndarray:
+def closed_form_share(
+    scene: Any, direction: str, periods: np.ndarray, finish: np.ndarray | None = None
+) -> np.ndarray:
     """The chain's closed form at the gaze point: the box footprint as the renderer
-    samples it, the lens's blur disc and the finish's lobe (the transfer functions
-    multiply)."""
+    samples it, the lens's blur disc and ``finish``, what the finish's reflection lobe keeps
+    of each period (the oracle's ``gaze_share``; None: a mirror's 1), the
+    transfer functions multiplied."""
     w = footprint_mm(scene, direction)
-    return (
-        box_share(w, periods, scene.render.supersample)
-        * disc_share(blur_mm(scene, direction), periods)
-        * finish_share(scene, direction, periods)
+    share = box_share(w, periods, scene.render.supersample) * disc_share(
+        blur_mm(scene, direction), periods
     )
+    return share if finish is None else share * finish
 
 
 def screen_harmonics(em: FringesTable, count: int = 4096) -> np.ndarray:

@@ -139,3 +139,24 @@ def finish_share(
         if worst is None or found.share < worst.share:
             worst = found
     return worst
+
+
+def gaze_share(scene: Scene, axis: int, periods: np.ndarray) -> np.ndarray:
+    """What the finish's lobe keeps of each period along screen coordinate ``axis`` at the
+    gaze point (the image's centre pixel): its kernel transfer at its scale there; 1 for a
+    mirror, or where the centre ray meets no surface or lands off the emitter."""
+    periods = np.asarray(periods, np.float64)
+    cam = scene.camera
+    centre = (
+        slice(cam.height // 2, cam.height // 2 + 1),
+        slice(cam.width // 2, cam.width // 2 + 1),
+    )
+    if scene.active.reflection.lobe_std_rad(scene) is None:
+        return np.ones_like(periods)
+    footprint = lobe_footprint(scene, *centre)
+    if footprint is None:
+        return np.ones_like(periods)
+    scale = float(footprint.scale_mm(axis).reshape(-1)[0])
+    if not math.isfinite(scale):
+        return np.ones_like(periods)
+    return kernel_transfer(footprint.kernel, 2.0 * math.pi * scale / periods)

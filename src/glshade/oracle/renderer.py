@@ -2,8 +2,8 @@
 NumPy float64 oracle (:func:`glshade.oracle.tracer.trace`).
 
 Where no OpenGL context can be made at all, :class:`OracleRenderer` takes the GL renderer's
-place: :func:`glshade.measure.single.measure_scene` and
-:func:`glshade.measure.pmd.measure_pmd` run on it unchanged, and its numbers are the GL
+place: the measuring floor measures one scene, or a PMD station's, on it unchanged (that
+floor hands this one its scenes, never the other way round), and its numbers are the GL
 renderer's within the fp32 error budget (``tests/test_oracle_renderer.py``). It returns
 what the GL renderer returns, in the same types: float32 ``image``, ``distance``,
 ``rays`` and ``frames``, ``uv`` float32 for an fp32 scene and float64 for an fp64 one (the
@@ -28,12 +28,12 @@ from typing import Any
 
 import numpy as np
 
-from glshade import __version__
 from glshade.budget import memory_budget_from_env
 from glshade.errors import GlshadeError
 from glshade.frame import Frame, auto_exposure_gain, normalize_outputs
 from glshade.oracle.tracer import Rays, trace, trace_rays
 from glshade.scene import Scene
+from glshade.version import __version__
 
 #: The most pixels a frame may have unless ``max_pixels`` says otherwise: 512² (a ray per
 #: pixel: about 15 s on one core).

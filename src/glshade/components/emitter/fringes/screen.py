@@ -33,6 +33,9 @@ RESPONSE_SAMPLES = 4096
 #: The most points a response file may hold, and its size limit.
 MAX_RESPONSE_POINTS = 65536
 MAX_RESPONSE_BYTES = 4 << 20
+#: The largest magnitude a normalised response may reach (a curve that rises 1000 times its
+#: white above it is not a screen's).
+MAX_RESPONSE_RATIO = 1000.0
 #: Harmonics of a displayed fringe the shader keeps (b_0 to b_7): beyond the 7th a
 #: quantised, gamma-curved fringe holds a fraction of a grey level.
 HARMONICS = 8
@@ -110,15 +113,25 @@ def _normalised(path: str, rows: np.ndarray) -> np.ndarray:
             "at least two points whose commanded values increase from 0",
             name,
         )
-    span = displayed[-1] - displayed[0]
-    if not span > 0.0:
+    with np.errstate(over="ignore"):
+        span = displayed[-1] - displayed[0]
+    if not (span > 0.0 and math.isfinite(span)):
         raise SceneError(
             "emitter.response_file",
             "a curve whose full scale displays more than its 0 (displayed[-1] > displayed[0])",
             name,
         )
     grid = np.linspace(0.0, 1.0, RESPONSE_SAMPLES)
-    return np.interp(grid, commanded / commanded[-1], (displayed - displayed[0]) / span)
+    with np.errstate(over="ignore", invalid="ignore"):
+        table = np.interp(grid, commanded / commanded[-1], (displayed - displayed[0]) / span)
+    if not np.all(np.isfinite(table)) or np.abs(table).max() > MAX_RESPONSE_RATIO:
+        raise SceneError(
+            "emitter.response_file",
+            f"a curve whose displayed values stay within {MAX_RESPONSE_RATIO:g} times its "
+            "range (L(full) - L(0))",
+            name,
+        )
+    return table
 
 
 @dataclass(frozen=True)
