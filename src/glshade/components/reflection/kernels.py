@@ -32,3 +32,21 @@ def half_frequency(kernel: str) -> float:
     from scipy.optimize import brentq
 
     return float(brentq(lambda k: float(kernel_transfer(kernel, np.array(k))) - 0.5, 1e-3, 20.0))
+
+
+def lobe_frame(n: np.ndarray, wo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The tangent frame of a lobe about unit normals ``n`` (N, 3) seen from ``wo``: ``e1``
+    towards ``wo`` (in the plane of incidence, the direction in which the emitter's
+    coordinates mostly change), ``e2 = n × e1`` across; at normal incidence any
+    perpendicular of ``n`` (the GLSL ``lobe_frame``'s choice)."""
+    e1 = wo - np.einsum("nk,nk->n", wo, n)[:, None] * n
+    norm = np.linalg.norm(e1, axis=1)
+    degenerate = norm < 1e-12
+    if degenerate.any():
+        helper = np.where(
+            np.abs(n[:, [0]]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]])
+        )
+        e1 = np.where(degenerate[:, None], np.cross(n, helper), e1)
+        norm = np.linalg.norm(e1, axis=1)
+    e1 = e1 / norm[:, None]
+    return e1, np.cross(n, e1)

@@ -18,6 +18,7 @@ import numpy as np
 
 from glshade.components.base import ReflectionComponent, SceneView
 from glshade.components.reflection import finish
+from glshade.components.reflection.kernels import lobe_frame
 from glshade.errors import SceneError
 from glshade.params import Control, param
 
@@ -130,22 +131,6 @@ class BlinnPhong(ReflectionComponent):
         return f"render.shininess >= {scene.render.shininess * ratio**2:.3g}"
 
 
-def _lobe_basis(n_s: np.ndarray, wo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Tangent basis of the normal: ``e1`` towards ``wo`` (in the plane of incidence, the
-    direction in which ``v`` mostly changes), ``e2 = n × e1`` across."""
-    e1 = wo - np.einsum("nk,nk->n", wo, n_s)[:, None] * n_s
-    norm = np.linalg.norm(e1, axis=1)
-    degenerate = norm < 1e-12  # normal incidence: any perpendicular of n
-    if degenerate.any():
-        helper = np.where(
-            np.abs(n_s[:, [0]]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]])
-        )
-        e1 = np.where(degenerate[:, None], np.cross(n_s, helper), e1)
-        norm = np.linalg.norm(e1, axis=1)
-    e1 = e1 / norm[:, None]
-    return e1, np.cross(n_s, e1)
-
-
 def _lobe_samples(scene, p, wo, n_s, e1, e2, a, b):
     """Weights ``∝ w dω_l`` and the emitter's ``u``, ``v`` (mm) and validity at the gnomonic
     half-vector offsets ``(a, b)`` (grid arrays (1, n1, n2)) for the N pixels of ``p``.
@@ -243,7 +228,7 @@ def _blinn_phong(scene: SceneView, p: np.ndarray, d: np.ndarray, n_s: np.ndarray
     if not len(p):
         return out
     wo = -d
-    e1, e2 = _lobe_basis(n_s, wo)
+    e1, e2 = lobe_frame(n_s, wo)
     half = math.tan(min(_LOBE_SPAN_STD / math.sqrt(shininess), _LOBE_MAX_ANGLE))
     sizes1, sizes2 = _grid_points(scene, p, wo, n_s, e1, e2, half)
     for n1, n2 in sorted(set(zip(sizes1.tolist(), sizes2.tolist(), strict=False))):

@@ -35,6 +35,7 @@ import numpy as np
 
 from glshade.components.base import ReflectionComponent
 from glshade.components.reflection import finish
+from glshade.components.reflection.kernels import lobe_frame
 from glshade.params import Control, param
 
 LOBE_METHODS = ("closed", "lattice", "sampling")
@@ -159,14 +160,7 @@ class Microfacet(ReflectionComponent):
             return None
         wo = -d
         cos_o = np.einsum("nk,nk->n", wo, n)
-        e1 = wo - cos_o[:, None] * n
-        length = np.linalg.norm(e1, axis=1)
-        helper = np.where(
-            np.abs(n[:, [0]]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]])
-        )
-        e1 = np.where(length[:, None] > 1e-6, e1, np.cross(n, helper))
-        e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
-        e2 = np.cross(n, e1)
+        e1, e2 = lobe_frame(n, wo)
         dl_x = 2.0 * np.einsum("nk,nk->n", wo, e1)[:, None] * n + 2.0 * cos_o[:, None] * e1
         dl_y = 2.0 * cos_o[:, None] * e2
         r = d - 2.0 * np.einsum("nk,nk->n", d, n)[:, None] * n
