@@ -22,7 +22,14 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
-from glshade.files import check_entries, check_inside, check_output, read_regular
+from glshade.files import (
+    atomic_write_bytes,
+    check_entries,
+    check_inside,
+    check_output,
+    read_regular,
+    reading_inputs,
+)
 from glshade.measure.case_files import case_file_bytes, read_case_file
 from glshade.scene import Scene
 from glshade_process import run_glshade
@@ -108,7 +115,9 @@ def _traps(root: Path) -> dict[str, list[str]]:
     (root / "maps.toml").write_text(
         '[surface]\nkind = "heightmap"\nfile = "maps/decoded.npy"\nspacing = [1.0, 1.0]\n'
     )
+    _input_traps(root)
     return {
+        **_INPUT_TRAPS,
         "cases link": [*ONE_CASE, "--out", "linked_cases"],
         "report link": [*ONE_CASE, "--out", "linked_report"],
         "lock fifo": [*ONE_CASE, "--out", "fifo_lock"],
@@ -133,8 +142,61 @@ def _traps(root: Path) -> dict[str, list[str]]:
     }  # fmt: skip
 
 
+def _input_traps(root: Path) -> None:
+    """Links inside output folders that lead to one of the run's inputs or to a sibling,
+    and an output folder glshade cannot write in: each refused before any work."""
+    (root / "maps_link").mkdir()
+    (root / "maps_link" / "decoded.npy").symlink_to(root / "heights.npy")
+    (root / "frames_link").mkdir()
+    (root / "frames_link" / "manifest.json").symlink_to(root / "scene.toml")
+    (root / "sweep.toml").write_text('size = 8\n[grid]\n"camera.theta_deg" = [30, 45]\n')
+    (root / "sweep_link").mkdir()
+    (root / "sweep_link" / "results.csv").symlink_to(root / "sweep.toml")
+    sibling = root / "sibling"
+    sibling.mkdir()
+    (sibling / "notes.md").write_text("the user's notes, beside the study\n")
+    (sibling / "report.md").symlink_to("notes.md")
+    study = root / "pmd_out"
+    study.mkdir()
+    (study / "bowl.toml").write_text(
+        '[surface]\nkind = "formula"\nexpression = "0.0005*x^2 + 0.0005*z^2"\n'
+    )
+    (study / "pmd_report.md").symlink_to("bowl.toml")
+    cases = root / "case_sibling" / "cases"
+    cases.mkdir(parents=True)
+    (cases / "other.json").write_text("{}\n")
+    (cases / f"{CASE}.json").symlink_to("other.json")
+
+
+#: Commands that would write over one of their inputs, or into a place they cannot write.
+_INPUT_TRAPS = {
+    "maps link to the height map": [
+        "measure", "map.toml", "--method", "pmd", "--size", "8", "--maps", "maps_link",
+    ],
+    "manifest link to the scene": [
+        "measure", "scene.toml", "--method", "pmd", "--size", "8", "--frames", "frames_link",
+    ],
+    "maps under /proc": [
+        "measure", "--method", "pmd", "--size", "8", "--frames", "fresh_frames", "--maps",
+        "/proc/self/fd",
+    ],
+    "results link to the sweep file": ["sweep", "sweep.toml", "--out", "sweep_link"],
+    "report link to a sibling": [*ONE_CASE, "--out", "sibling"],
+    "pmd report link to a scene read": [
+        *ONE_CASE[:2], "pmd_out/bowl.toml", *ONE_CASE[3:], "--method", "pmd", "--out", "pmd_out",
+    ],
+    "case link to a sibling": [*ONE_CASE, "--out", "case_sibling"],
+}  # fmt: skip
+
 #: What each trap's one line says.
 TRAP_MESSAGES = {
+    "maps link to the height map": ("--maps maps_link: decoded.npy is a symbolic link",),
+    "manifest link to the scene": ("--frames frames_link: manifest.json is a symbolic link",),
+    "maps under /proc": ("--maps /proc/self/fd: cannot write in /proc/self/fd",),
+    "results link to the sweep file": ("results.csv is a link to", "outside the output"),
+    "report link to a sibling": ("sibling/report.md is a symbolic link (to notes.md)",),
+    "pmd report link to a scene read": ("pmd_report.md is a symbolic link (to bowl.toml)",),
+    "case link to a sibling": (f"{CASE}.json is a symbolic link (to other.json)",),
     "cases link": ("linked_cases/cases is a link to", "outside the output directory"),
     "report link": ("report.md is a link to", "outside the output directory"),
     "lock fifo": (".glshade.lock.json is a FIFO",),
@@ -403,4 +465,70 @@ def test_measuring_a_one_pixel_image_is_one_line(capsys):
     assert err == (
         "glshade: error: --size / camera.width, camera.height: the paper's metric needs at "
         "least 2 pixels each way, got 1x1\n"
+    )
+
+
+# ------------------------------------------------------------------- never over an input
+def test_a_file_the_run_read_is_never_written(tmp_path):
+    """Inside a run's record of its inputs, a file a reader opened is refused as an
+    output however it is named: its path, a link to it, a hard link to it; outside the
+    run it is an ordinary file again."""
+    scene = tmp_path / "scene.toml"
+    scene.write_text("[camera]\ntheta_deg = 30.0\n")
+    (tmp_path / "link.toml").symlink_to(scene)
+    os.link(scene, tmp_path / "hard.toml")
+    with reading_inputs():
+        Scene.load(scene)
+        for name in ("scene.toml", "link.toml", "hard.toml"):
+            with pytest.raises(GlshadeError, match=r"is one of this run's inputs \(.*scene"):
+                atomic_write_bytes(tmp_path / name, b"x", "-o")
+            with pytest.raises(GlshadeError, match="is one of this run's inputs"):
+                check_output(tmp_path / name, "-o")
+        atomic_write_bytes(tmp_path / "other.toml", b"x", "-o")
+    assert scene.read_text() == "[camera]\ntheta_deg = 30.0\n"
+    atomic_write_bytes(tmp_path / "hard.toml", b"x", "-o")  # the run is over
+
+
+def test_a_named_output_is_never_written_through_a_link(tmp_path):
+    """A file glshade names inside its output folder is its own: a link there (to a
+    sibling, to a file elsewhere) is refused, and the file it leads to keeps its bytes."""
+    (tmp_path / "notes.md").write_text("mine\n")
+    (tmp_path / "report.md").symlink_to("notes.md")
+    with pytest.raises(GlshadeError, match=r"report.md is a symbolic link \(to notes.md\)"):
+        atomic_write_bytes(tmp_path / "report.md", b"x", within=tmp_path)
+    with pytest.raises(GlshadeError, match="report.md is a symbolic link"):
+        check_entries(tmp_path)
+    assert (tmp_path / "notes.md").read_text() == "mine\n"
+
+
+def test_the_viewer_saves_neither_over_its_scene_nor_through_a_link(tmp_path):
+    """T over the scene the viewer opened (``glshade_view.toml`` itself) and T or S
+    through a link: refused in the panel's message line; the files are as they were."""
+    from types import SimpleNamespace
+
+    from glshade.app.viewer.window import ViewerWindow
+
+    opened = tmp_path / "glshade_view.toml"
+    opened.write_text("[camera]\ntheta_deg = 20.0\n")
+    shots: list[Path] = []
+    window = SimpleNamespace(
+        model=SimpleNamespace(scene=Scene.load(opened)),
+        stats={"frames": 7},
+        status={},
+        screenshot=lambda path, redraw: shots.append(path),
+    )
+    with reading_inputs():
+        Scene.load(opened)
+        ViewerWindow._save(window, False, tmp_path)
+        assert "is one of this run's inputs" in window.status["message"]
+    assert opened.read_text() == "[camera]\ntheta_deg = 20.0\n"
+    elsewhere = tmp_path / "elsewhere.png"
+    (tmp_path / "glshade_view_7.png").symlink_to(elsewhere)
+    ViewerWindow._save(window, True, tmp_path)
+    assert "glshade_view_7.png is a symbolic link" in window.status["message"]
+    assert not shots and not elsewhere.exists()
+    opened.unlink()
+    ViewerWindow._save(window, False, tmp_path)  # no input in the way: written
+    assert (
+        window.status["message"] == f"wrote {opened}" and "theta_deg = 20.0" in opened.read_text()
     )

@@ -14,7 +14,9 @@ import io
 import os
 import stat
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextvars import ContextVar
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +33,62 @@ _KINDS = (
     (stat.S_ISFIFO, "a FIFO"),
     (stat.S_ISSOCK, "a socket"),
 )
+
+
+@dataclass
+class RunInputs:
+    """The files one run has read as its inputs (its scene, the sweep file, a height map,
+    a screen's response curve), by identity (device, inode) and resolved path: no output
+    of the run is ever one of them, whatever link or name leads there. Filled as the
+    readers open them (:func:`note_input`) while :func:`reading_inputs` is active."""
+
+    identities: dict[tuple[int, int], str] = field(default_factory=dict)
+    resolved: dict[str, str] = field(default_factory=dict)
+
+    def note(self, path: str | os.PathLike[str], fd: int | None = None) -> None:
+        """Record ``path`` (opened as ``fd``, when given: its identity is then that of
+        what was read, not of what the name leads to now)."""
+        shown = os.fspath(path)
+        try:
+            info = os.fstat(fd) if fd is not None else os.stat(shown)
+        except OSError:
+            return
+        self.identities[(info.st_dev, info.st_ino)] = shown
+        self.resolved[os.path.realpath(shown)] = shown
+
+    def clash(self, target: Path) -> str | None:
+        """The input (as the user named it) that writing ``target`` would replace."""
+        found = self.resolved.get(os.path.realpath(target))
+        if found is not None:
+            return found
+        try:
+            info = os.stat(target)
+        except OSError:
+            return None
+        return self.identities.get((info.st_dev, info.st_ino))
+
+
+_RUN_INPUTS: ContextVar[RunInputs | None] = ContextVar("glshade_run_inputs", default=None)
+
+
+@contextlib.contextmanager
+def reading_inputs() -> Iterator[RunInputs]:
+    """One run's record of its inputs (:class:`RunInputs`): inside, every file a reader
+    notes is refused as an output by :func:`check_output` and :func:`atomic_write_bytes`.
+    The command line opens one per command; outside one, nothing is recorded."""
+    inputs = RunInputs()
+    token = _RUN_INPUTS.set(inputs)
+    try:
+        yield inputs
+    finally:
+        _RUN_INPUTS.reset(token)
+
+
+def note_input(path: str | os.PathLike[str], fd: int | None = None) -> None:
+    """Record ``path`` as an input of the current run (:func:`reading_inputs`), if any."""
+    inputs = _RUN_INPUTS.get()
+    if inputs is not None:
+        inputs.note(path, fd)
 
 
 def special_kind(mode: int) -> str | None:
@@ -73,15 +131,25 @@ def check_output(
         raise GlshadeError(f"{what} {text}: directory {shown} does not exist")
     if not os.access(target.parent, os.W_OK | os.X_OK):
         raise GlshadeError(f"{what} {text}: directory {shown} is not writable")
-    for source in inputs:
-        if _same_file(target, source):
-            raise GlshadeError(
-                f"{what} {text}: is one of this run's inputs ({os.fspath(source)}); glshade "
-                "never writes over its inputs: choose another path"
-            )
+    _refuse_input(target, what, text, inputs)
     if probe:
-        _probe_directory(target.parent, what, text)
+        probe_directory(target.parent, what, text)
     return target
+
+
+def _refuse_input(
+    target: Path, what: str, text: str, inputs: Iterable[str | os.PathLike[str]]
+) -> None:
+    """One line if writing ``target`` would replace one of ``inputs`` or a file the
+    current run has read as an input (:func:`reading_inputs`)."""
+    recorded = _RUN_INPUTS.get()
+    found = recorded.clash(target) if recorded is not None else None
+    found = found or next((os.fspath(s) for s in inputs if _same_file(target, s)), None)
+    if found is not None:
+        raise GlshadeError(
+            f"{what} {text}: is one of this run's inputs ({found}); glshade never writes "
+            "over its inputs: choose another path"
+        )
 
 
 def _mode(target: Path, what: str, text: str) -> int | None:
@@ -106,13 +174,15 @@ def _same_file(target: Path, source: str | os.PathLike[str]) -> bool:
         return False
 
 
-def _probe_directory(directory: Path, what: str, text: str) -> None:
-    """Create and remove a file in ``directory``, or one line saying why it cannot be
-    written (read-only mount, a pseudo file system, no space for a new entry)."""
+def probe_directory(directory: Path, what: str, text: str, shown: str | None = None) -> None:
+    """Create and remove a file in ``directory``, or one line naming ``what`` and ``text``
+    (the output as the user typed it; ``shown``: the directory as they typed it, by
+    default ``text``'s) saying why it cannot be written (read-only mount, a pseudo file
+    system such as ``/proc``, no space for a new entry)."""
     try:
         fd, probe = tempfile.mkstemp(prefix=".glshade-probe.", dir=directory)
     except OSError as exc:
-        shown = os.path.dirname(text) or "."
+        shown = shown or os.path.dirname(text) or "."
         raise GlshadeError(
             f"{what} {text}: cannot write in {shown} ({exc.strerror or exc})"
         ) from None
@@ -143,6 +213,17 @@ def check_inside(root: str | os.PathLike[str], path: str | os.PathLike[str], wha
     return resolved
 
 
+def refuse_link(root: str | os.PathLike[str], path: str | os.PathLike[str], what: str) -> None:
+    """One line if ``path``, a file glshade names inside the output directory ``root``, is
+    a symbolic link: written through, it would replace the file it leads to (a sibling,
+    one of the run's inputs) instead of glshade's own."""
+    if os.path.islink(path):
+        raise GlshadeError(
+            f"{what} {root}: {path} is a symbolic link (to {os.readlink(path)}); glshade "
+            "writes its own files there, never through a link: remove it"
+        )
+
+
 def make_inside(root: Path, name: str, what: str = "--out") -> Path:
     """The folder ``root/name`` (``cases``, ``images``), made when missing, checked to be a
     directory inside ``root`` (:func:`check_inside`: never a link to a folder elsewhere)."""
@@ -161,9 +242,10 @@ def make_inside(root: Path, name: str, what: str = "--out") -> Path:
 def check_entries(root: Path, folders: tuple[str, ...] = (), what: str = "--out") -> None:
     """Before a run writes into the output directory ``root``: every entry in it (and in
     its sub-folders ``folders``) is a regular file or a folder inside it. A symbolic link
-    that leads out of ``root``, or a FIFO, device or socket (which a reader would wait on
-    forever, and a writer must not replace), is refused with one line naming it, before
-    any work and before anything is written."""
+    that leads out of ``root`` or to a file (a sibling the run would replace through it),
+    or a FIFO, device or socket (which a reader would wait on forever, and a writer must
+    not replace), is refused with one line naming it, before any work and before anything
+    is written."""
     for folder in (Path(root), *(Path(root) / name for name in folders)):
         if folder != Path(root) and not folder.is_dir():
             continue
@@ -175,6 +257,8 @@ def check_entries(root: Path, folders: tuple[str, ...] = (), what: str = "--out"
             path = Path(entry.path)
             if entry.is_symlink():
                 check_inside(root, path, what)
+                if not path.is_dir():  # written through, it would replace its sibling
+                    refuse_link(root, path, what)
             mode = _mode(path, what, entry.path) if os.path.lexists(path) else None
             kind = None if mode is None or stat.S_ISDIR(mode) else special_kind(mode)
             if kind is not None:
@@ -217,6 +301,7 @@ def atomic_write_bytes(
     written through)."""
     if within is not None:
         check_inside(within, path, what)
+        refuse_link(within, path, what)
     target = check_output(path, what, probe=False)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)

@@ -45,7 +45,7 @@ from glshade.app.args import (
 )
 from glshade.app.interrupts import InterruptWatch
 from glshade.errors import GlshadeError, GlshadeWarning, ShaderCompileError
-from glshade.files import atomic_write_bytes
+from glshade.files import atomic_write_bytes, reading_inputs
 from glshade.measure.pmd_files import FRAME_FORMATS
 from glshade.measure.single import METHODS, as_method, method_for
 from glshade.metrics.status import concerns, contrast_warning
@@ -220,7 +220,7 @@ def _cmd_measure_pmd(args: argparse.Namespace, scene: Scene) -> int:
     check_scene(scene)
     for flag, directory in (("--maps", args.maps), ("--frames", args.frames)):
         if directory is not None:
-            check_output_dir(directory, flag, run_inputs(args, scene), flag == "--frames")
+            check_output_dir(directory, flag, run_inputs(args, scene))
     check_save_scene(args, scene)
     warn(scene_warnings(scene))
     reuse_freed_memory()
@@ -939,7 +939,7 @@ def main(argv: list[str] | None = None, interrupts: InterruptWatch | None = None
     options = argv_given[: argv_given.index("--")] if "--" in argv_given else argv_given
     verbose = "--verbose" in options  # known before parsing: the parser's own errors obey it
     try:
-        with guarded_warnings(verbose):
+        with guarded_warnings(verbose), reading_inputs():  # no output over what it reads
             code = _run(argv_given, verbose, interrupts)
     except KeyboardInterrupt:  # between the command's own handlers (start-up, shut-down)
         code = _interrupted(None)

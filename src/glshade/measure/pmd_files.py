@@ -25,6 +25,7 @@ from glshade.files import (
     check_inside,
     check_output,
     encode_image,
+    probe_directory,
     remove_inside,
     write_npy,
 )
@@ -65,13 +66,13 @@ FRAME_FILE = re.compile(r"frame_(?:\d{3,}_[uv]_p\d+_n\d+|white)\.(?:png|tif)")
 
 
 def check_output_dir(
-    path: str | os.PathLike[str], what: str, inputs: tuple[Path, ...] = (), frames: bool = False
+    path: str | os.PathLike[str], what: str, inputs: tuple[Path, ...] = ()
 ) -> Path:
     """A directory results may be written into (made when missing: its parent must
-    exist and be writable), or a one-line error naming ``what``; it must not hold one of
-    the run's ``inputs`` under a name glshade writes there (a height map called
-    ``decoded.npy``). ``frames``: a ``--frames`` folder, whose earlier frames the run
-    replaces or removes: such a file must be a regular file, not a link."""
+    exist and be writable, proven by a probe before any work), or a one-line error naming
+    ``what``; it must not hold one of the run's ``inputs`` under a name glshade writes
+    there (a height map called ``decoded.npy``), and a file of such a name (which the run
+    replaces or removes) must be a regular file inside it, not a link."""
     target = Path(path)
     for source in inputs:
         if _written_here(source, target):
@@ -87,21 +88,23 @@ def check_output_dir(
             raise GlshadeError(f"{what} {path}: directory {parent} does not exist")
         if not os.access(parent, os.W_OK | os.X_OK):
             raise GlshadeError(f"{what} {path}: directory {parent} is not writable")
-    elif not os.access(target, os.W_OK | os.X_OK):
+        probe_directory(parent, what, os.fspath(path))  # before the work, not after it
+        return target
+    if not os.access(target, os.W_OK | os.X_OK):
         raise GlshadeError(f"{what} {path}: is not writable")
-    else:
-        for entry in os.scandir(target):
-            if not _written_name(entry.name):
-                continue
-            if frames and FRAME_FILE.fullmatch(entry.name) and entry.is_symlink():
-                raise GlshadeError(
-                    f"{what} {path}: {entry.name} is a symbolic link; glshade replaces or "
-                    "removes an earlier run's frames there and removes only regular files: "
-                    "remove it or choose another directory"
-                )
-            # what the run would replace: a regular file inside
-            check_output(entry.path, what, probe=False)
-            check_inside(target, Path(entry.path), what)
+    probe_directory(target, what, os.fspath(path), os.fspath(path))  # /proc/self/fd: W_OK
+    for entry in os.scandir(target):
+        if not _written_name(entry.name):
+            continue
+        if entry.is_symlink():  # written through, it would replace what it leads to
+            raise GlshadeError(
+                f"{what} {path}: {entry.name} is a symbolic link; glshade replaces or "
+                "removes an earlier run's files there, never through a link: remove it "
+                "or choose another directory"
+            )
+        # what the run would replace: a regular file inside, none of the run's inputs
+        check_output(entry.path, what, probe=False, inputs=inputs)
+        check_inside(target, Path(entry.path), what)
     return target
 
 

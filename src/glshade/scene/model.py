@@ -348,7 +348,7 @@ def read_toml(path: Path, what: str = "scene file") -> dict[str, Any]:
 def _read_scene_bytes(path: Path, what: str) -> bytes:
     """The first ``MAX_SCENE_FILE_BYTES + 1`` bytes of a scene file, read only from a
     regular file (a FIFO or a device is refused without waiting on it)."""
-    from glshade.files import open_regular
+    from glshade.files import note_input, open_regular
 
     text = os.fspath(path)
     if "\0" in text:
@@ -361,6 +361,7 @@ def _read_scene_bytes(path: Path, what: str) -> bytes:
         fd = open_regular(text, what)
     except GlshadeError as exc:
         raise SceneError(f"{what} {path}", f"a readable TOML file ({_reason(exc)})") from None
+    note_input(text, fd)  # a file this run reads: never one of its outputs
     try:
         with os.fdopen(fd, "rb") as fh:
             return fh.read(MAX_SCENE_FILE_BYTES + 1)

@@ -27,7 +27,7 @@ from glshade.app.viewer.model import FrameSchedule, ViewerModel, ViewerOptions
 from glshade.app.viewer.panel import PANEL_WIDTH, draw_panel, panel_height, panel_style
 from glshade.app.viewer.pmd_view import PMD_VIEWS
 from glshade.errors import GlshadeError
-from glshade.files import write_png
+from glshade.files import refuse_link, write_png
 from glshade.gpu.compose import compose_display, display_features, display_uniforms
 from glshade.gpu.context import GLContext, set_uniform
 from glshade.gpu.renderer import Renderer
@@ -293,12 +293,13 @@ class ViewerWindow(mglw.WindowConfig):
     def _save(self, screenshot: bool, out_dir: Path) -> None:
         """S and T: a screenshot or the scene; a refusal (an unwritable directory, a
         special file in the way) is shown in the panel, the window stays open."""
+        name = f"glshade_view_{self.stats['frames']}.png" if screenshot else "glshade_view.toml"
+        path = out_dir / name
         try:
+            refuse_link(out_dir, path, "S" if screenshot else "T")  # a name glshade chose
             if screenshot:
-                name = f"glshade_view_{self.stats['frames']}.png"
-                path = self.screenshot(out_dir / name, redraw=True)
-            else:
-                path = out_dir / "glshade_view.toml"
+                self.screenshot(path, redraw=True)
+            else:  # never over the scene file the viewer opened (the run's input)
                 self.model.scene.save(path)
         except GlshadeError as exc:
             self.status["message"] = f"not saved: {exc}"

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from glshade.errors import SceneError
-from glshade.files import read_regular_text
+from glshade.files import note_input, read_regular_text
 
 #: Samples of a measured response curve as the renderer holds it: the file's piecewise-
 #: linear curve taken at this many evenly spaced commanded values (the shader and the
@@ -68,6 +68,7 @@ def read_response(path: str) -> ResponseCurve:
     comment). Commanded values increase from 0 to their full scale (1, 255, 1023, …: the
     last one), displayed values are the screen's measured output in any unit; the response
     is ``(L - L(0)) / (L(full) - L(0))`` (the black level is ``emitter.black_level``)."""
+    note_input(path)  # a file this run reads: never one of its outputs
     try:
         stat = os.stat(path)
     except OSError:

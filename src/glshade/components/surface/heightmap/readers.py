@@ -155,7 +155,10 @@ def load_height_map(path_str: str, mtime_ns: int, size: int, scale: float) -> He
 
 def cached_height_map(path: str | os.PathLike[str], scale: float = 1.0) -> HeightMap:
     """:func:`read_height_map`, read again only when the file changed."""
+    from glshade.files import note_input
+
     path_str = os.fspath(path)
+    note_input(path_str)  # a file this run reads: never one of its outputs
     try:
         st = os.stat(path_str)
     except OSError:
