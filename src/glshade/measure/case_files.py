@@ -9,7 +9,13 @@ the run measures that case again and says so (:func:`rejected_line`). No GL here
 
 The checksum is the SHA-256 of the record's canonical JSON (keys sorted, no spaces, the
 case id included), so any change to a number, a key or the id breaks it. It guards
-against accidents and careless edits, not against someone who recomputes it.
+against accidents and careless edits, not against someone who recomputes it: an
+integrity check, not a signature. So what a file holds is checked as well, by the store
+that reads it (:meth:`glshade.measure.record.Record.json_problem`): every field against
+its column's declared type, range and words (a status from the status list, a finite
+number in its unit's range, a count a non-negative int below 2**31, a text of at most
+4096 characters without a control character). A forged file with a recomputed checksum
+that fails that is measured again, with the same one line as a damaged one.
 """
 
 from __future__ import annotations

@@ -13,20 +13,56 @@ from __future__ import annotations
 
 import functools
 import math
+import unicodedata
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields
+from dataclasses import Field, dataclass, field, fields
 from typing import Any, ClassVar
 
 from glshade.metrics import physics
+from glshade.metrics.status import STATUSES
 from glshade.metrics.visibility import Visibility
 from glshade.scene import Scene
 
 ROLES = ("measured", "law", "timing")
 
 
-def column(unit: str, meaning: str, role: str = "measured") -> Any:
-    """A record field with its unit, meaning and role (as ``docs/results.md`` prints them)."""
-    return field(metadata={"unit": unit, "meaning": meaning, "role": role})
+def column(
+    unit: str,
+    meaning: str,
+    role: str = "measured",
+    *,
+    low: float | None = None,
+    choices: tuple[str, ...] = (),
+) -> Any:
+    """A record field with its unit, meaning and role (as ``docs/results.md`` prints them);
+    ``low``: its least value where that is not its unit's (:data:`UNIT_RANGES`: 0 for a
+    distance or a noise); ``choices``: the words a text column may hold (none: any line)."""
+    return field(
+        metadata={"unit": unit, "meaning": meaning, "role": role, "low": low, "choices": choices}
+    )
+
+
+#: The range of a number by its unit, what a stored record may hold (a file read back
+#: outside it is not one glshade wrote): no image is 1e6 px across (camera.width is at
+#: most 16384), no length on a part or screen 1 km, no slope π rad; a count is a count
+#: of pixels or contours (a 16384² image has 2.7e8 pixels). The ends are included.
+UNIT_RANGES: dict[str, tuple[float, float]] = {
+    "px": (-1e6, 1e6),
+    "mm": (-1e6, 1e6),
+    "mm²": (0.0, 1e12),
+    "µm": (-1e9, 1e9),
+    "µrad": (-1e7, 1e7),
+    "deg": (-360.0, 360.0),
+    "fraction": (0.0, 1.0),
+    "count": (0, 2**31 - 1),
+    "s": (0.0, 1e7),
+    "": (-1e12, 1e12),
+}
+#: What ``pmd_shift_law_status`` says (:func:`glshade.metrics.physics.pmd_shift_law_check`).
+LAW_STATUSES = ("ok", "grazing")
+#: The longest text a stored record's column may hold (a status reason joins a few
+#: sentences: a few hundred characters).
+MAX_TEXT = 4096
 
 
 @dataclass(frozen=True)
@@ -118,6 +154,18 @@ class Record:
                 isinstance(value, bool) and kind != "bool"
             ):
                 return f"holds {type(value).__name__} as {item.name}, not {kind}"
+            problem = value_problem(item, value)
+            if problem is not None:
+                return problem
+        return None
+
+    def problem(self) -> str | None:
+        """Why this record's values (read from a table's text) are not ones glshade
+        writes (:func:`value_problem`), or None."""
+        for item in fields(self):  # type: ignore[arg-type]
+            problem = value_problem(item, getattr(self, item.name))
+            if problem is not None:
+                return problem
         return None
 
     def row(self, roles: tuple[str, ...] = ROLES) -> dict[str, Any]:
@@ -130,6 +178,51 @@ class Record:
 
     def seconds(self) -> dict[str, float]:
         return self.row(("timing",))
+
+
+#: Characters no stored text may hold: controls (line breaks, escapes), format characters
+#: (bidirectional overrides), lone surrogates, line and paragraph separators.
+_CONTROL_CATEGORIES = frozenset({"Cc", "Cf", "Cs", "Zl", "Zp"})
+
+
+def value_problem(item: Field, value: Any) -> str | None:
+    """Why ``value``, of the type a record's field ``item`` is written as, is not one it
+    holds, or None: a number not finite or outside its unit's range
+    (:data:`UNIT_RANGES`, from the column's own ``low``); a text that is not one of the
+    column's ``choices``, is longer than :data:`MAX_TEXT` or holds a control character."""
+    if isinstance(value, str):
+        return _text_problem(item.name, item.metadata.get("choices") or (), value)
+    if value is None or isinstance(value, bool):
+        return None
+    low, high = UNIT_RANGES.get(item.metadata.get("unit", ""), UNIT_RANGES[""])
+    if item.metadata.get("low") is not None:
+        low = item.metadata["low"]
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"holds {value!r} as {item.name}, not a finite number"
+    if not low <= value <= high:  # exact for an int of any size
+        return f"holds {_shown(value)} as {item.name}, outside {_end(low)} to {_end(high)}"
+    return None
+
+
+def _text_problem(name: str, choices: tuple[str, ...], text: str) -> str | None:
+    if choices and text not in choices:
+        return f"holds {_shown(text)} as {name}, not one of {', '.join(choices)}"
+    if len(text) > MAX_TEXT:
+        return f"holds {len(text)} characters as {name}, more than {MAX_TEXT}"
+    odd = next((c for c in text if unicodedata.category(c) in _CONTROL_CATEGORIES), None)
+    if odd is not None:
+        return f"holds the control character U+{ord(odd):04X} in {name}"
+    return None
+
+
+def _end(bound: float) -> str:
+    return str(bound) if isinstance(bound, int) else f"{bound:g}"
+
+
+def _shown(value: Any) -> str:
+    """``value`` in a message: its repr (escaped: one line), at most 40 characters."""
+    text = repr(value)
+    return text if len(text) <= 40 else f"{text[:37]}..."
 
 
 @functools.cache
@@ -150,17 +243,20 @@ class Measurement(Record):
         "px",
         "the paper's metric: the largest distance between corresponding stripe contours over "
         "the phase sweep, whole pixels of the image",
+        low=0.0,
     )
     visibility_continuous_px: float = column(
         "px",
         "the limit of the paper's metric for a vanishing phase step and pixel size, by the "
         "same contour rules (sub-pixel)",
+        low=0.0,
     )
     deflection_px: float = column(
         "px",
         "how far the dent moves the emitter map: the largest distance between a row r and the "
         "row r0 where v0(r0) = v1(r), in a kept column; equals the continuous visibility where "
         "nothing folds",
+        low=0.0,
     )
     folded: bool = column(
         "",
@@ -193,11 +289,13 @@ class Measurement(Record):
         "px",
         "with a sensor: the paper's metric between two noisy exposures of the defect-free "
         "scene, the contour jitter noise alone makes (empty without a sensor)",
+        low=0.0,
     )
     status: str = column(
         "",
         "whether the numbers can be read: ok, or why not (outside, edge, unresolved, "
         "saturated, underexposed, noise; docs/study.md, 'Whether a number can be trusted')",
+        choices=STATUSES,
     )
     status_reason: str = column(
         "", "why the numbers cannot be read, and what to change (empty when status is ok)"
@@ -207,6 +305,7 @@ class Measurement(Record):
         "Michelson contrast of the defect-free stripes over the resolved kept pixels (0.5th to "
         "99.5th percentile) relative to the emitter's own: 1 for a sharp mirror; below 0.5 "
         "warned about, with its causes",
+        low=0.0,
     )
     fold_ratio: float | None = column(
         "",
@@ -281,11 +380,13 @@ class PmdMeasurement(Record):
         "the largest distance between the decoded screen points with and without the dent, "
         "near the dent, over the pixels valid in both and off the edge of that region "
         "(unwrapping failures left out)",
+        low=0.0,
     )
     pmd_shift_exact_mm: float | None = column(
         "mm",
         "the same shift of the exact (traced) screen points: what a noise-free station "
         "would decode; the status compares it with pmd_noise_floor_mm",
+        low=0.0,
     )
     pmd_noise_mm: float | None = column(
         "mm",
@@ -293,26 +394,31 @@ class PmdMeasurement(Record):
         "decodes of the defect-free scene with different seeds, over sqrt 2, over the pixels "
         "near the dent valid in both, off that region's edge and unwrapped right in both (0 "
         "without a sensor)",
+        low=0.0,
     )
     pmd_noise_predicted_mm: float | None = column(
         "mm",
         "periods[0] / 2π · sqrt(2 / N) · σ_I / B, σ_I the sensor's noise at each pixel's mean "
         "level above the black level and B its modulation, pooled as a root mean square over "
         "the same pixels (0 without a sensor)",
+        low=0.0,
     )
     pmd_noise_floor_mm: float | None = column(
         "mm",
         "the largest difference between the two noisy decodes of the defect-free scene over "
         "the same pixels: the shift noise alone makes (0 without a sensor)",
+        low=0.0,
     )
     pmd_snr: float | None = column(
         "",
         "pmd_shift_mm / pmd_noise_mm; empty without a sensor (noise-free: unbounded)",
+        low=0.0,
     )
     pmd_slope_urad: float | None = column(
         "µrad",
         "the largest measured slope deviation (normals against the nominal surface's) in the "
         "dent's region",
+        low=0.0,
     )
     pmd_depth_um: float | None = column(
         "µm",
@@ -321,12 +427,15 @@ class PmdMeasurement(Record):
         "of these heights can be (beyond twice their range, or off the grid)",
     )
     pmd_sigma_mm: float | None = column(
-        "mm", "the σ of that Gaussian, to compare with sqrt(sigma2)"
+        "mm",
+        "the σ of that Gaussian, to compare with sqrt(sigma2)",
+        low=0.0,
     )
     decode_rms_mm: float | None = column(
         "mm",
         "root mean square of the decoded minus the exact screen points over the valid pixels "
         "of the defect-free scene",
+        low=0.0,
     )
     unwrap_failures: int = column(
         "count",
@@ -345,11 +454,13 @@ class PmdMeasurement(Record):
         "to the white), its median over the dent's region, else over the pixels that see the "
         "screen: 1 for a sharp mirror, less where the finish, the lens or the pixels average "
         "the fringes out",
+        low=0.0,
     )
     status: str = column(
         "",
         "whether the numbers can be read: ok, or why not (docs/pmd.md, 'Status: whether a "
         "number can be trusted')",
+        choices=STATUSES,
     )
     status_reason: str = column(
         "", "why the numbers cannot be read, and what to change (empty when status is ok)"
@@ -366,6 +477,7 @@ class PmdMeasurement(Record):
         "whether pmd_shift_law_mm holds: ok, or grazing where the base's horizon falls inside "
         "the dent's window (docs/physics.md, section 7)",
         "law",
+        choices=LAW_STATUSES,
     )
     pmd_shift_law_reason: str = column(
         "", "why pmd_shift_law_mm does not hold (empty when it does)", "law"

@@ -19,6 +19,7 @@ import numpy as np
 
 from glshade.files import atomic_write_bytes
 from glshade.metrics import physics
+from glshade.study.escape import markdown_text
 from glshade.study.notation import image_size, laws_section, symbols_section
 from glshade.study.plan import case_scene, surface_label
 from glshade.study.shapes import CONCAVE, CONVEX, FLAT, Shape, curvature_text, shape
@@ -739,8 +740,8 @@ def _opening(rows: Sequence[Mapping], plan) -> list[str]:
         "",
     ]
     excluded = excluded_sentence(rows)
-    if excluded:
-        lines += [f"**{excluded}**", ""]
+    if excluded:  # it quotes the rows' reasons: stored text, escaped
+        lines += [f"**{markdown_text(excluded)}**", ""]
     return lines
 
 

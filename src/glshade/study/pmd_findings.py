@@ -27,6 +27,7 @@ from glshade.measure.pmd import pmd_concerns
 from glshade.metrics.physics import pmd_shift_law_check
 from glshade.metrics.status import concerns
 from glshade.study import findings
+from glshade.study.escape import markdown_text
 from glshade.study.findings import CLASSES, FINDING_TEXT, NEAR_BEST, RULES, Scale, um
 from glshade.study.plan import surface_label
 from glshade.study.pmd_store import REPORT_NAME
@@ -140,7 +141,7 @@ def pmd_cell(row: Mapping, column: str, fmt: str = "{:.3g}") -> str:
     status where the status makes it unreadable."""
     status = status_of(row)
     if pmd_concerns(status, column):
-        return f"*{status}*"
+        return f"*{markdown_text(status)}*"
     value = row.get(column)
     return "—" if value is None or not math.isfinite(float(value)) else fmt.format(value)
 
@@ -151,7 +152,7 @@ def paper_cell(row: Mapping | None, column: str, fmt: str = "{:g}") -> str:
         return "not run"
     status = status_of(row)
     if concerns(status, column):
-        return f"*{status}*"
+        return f"*{markdown_text(status)}*"
     value = row.get(column)
     return "—" if value is None or not math.isfinite(float(value)) else fmt.format(value)
 
@@ -318,8 +319,8 @@ def _opening(pairs: Sequence[Pair], plan, paper_size: int | None) -> list[str]:
         ("Stripe study", [p.paper for p in pairs if p.paper is not None], STATUS_TEXT),
     ):
         sentence = excluded_sentence(rows, texts)
-        if sentence:
-            lines += [f"**{name}: {sentence}**", ""]
+        if sentence:  # it quotes the rows' reasons: stored text, escaped
+            lines += [f"**{name}: {markdown_text(sentence)}**", ""]
     missing = [p for p in pairs if p.paper is None]
     if missing:
         lines += [
@@ -818,7 +819,7 @@ def _fold_section(pairs: Sequence[Pair]) -> list[str]:
             f"{paper_cell(q, 'deflection_px', '{:.2f}')} | {share} | "
             f"{pmd_cell(r, 'pmd_shift_mm', '{:.4f}')} | {law_cell(p)} "
             f"| {law_ratio} | {pmd_cell(r, 'pmd_snr', '{:.0f}')} | "
-            f"{pmd_cell(r, 'pmd_depth_um', '{:.3f}')} | {status_of(r)} |"
+            f"{pmd_cell(r, 'pmd_depth_um', '{:.3f}')} | {markdown_text(status_of(r))} |"
         )
     return lines + [""]
 
@@ -1029,9 +1030,9 @@ def _cases_section(pairs: Sequence[Pair]) -> list[str]:
             f"| {surface_label(r['surface'])} | {r['theta_deg']:g} | {r['sigma2_mm2']:g} | "
             f"{1000 * r['dmax_mm']:g} | {paper_cell(q, 'visibility_px')} | "
             f"{paper_cell(q, 'visibility_continuous_px', '{:.2f}')} | {ratio} | "
-            f"{status_of(q) if q is not None else 'not run'} | "
+            f"{markdown_text(status_of(q)) if q is not None else 'not run'} | "
             f"{pmd_cell(r, 'pmd_shift_mm', '{:.4f}')} | {law_cell(p)} "
             f"| {pmd_cell(r, 'pmd_snr', '{:.0f}')} | {pmd_cell(r, 'pmd_depth_um', '{:.3f}')} | "
-            f"{r['unwrap_failures']} | {status_of(r)} |"
+            f"{r['unwrap_failures']} | {markdown_text(status_of(r))} |"
         )
     return lines + [""]

@@ -141,8 +141,9 @@ def results_markdown() -> str:
 def load_case(path: Path, rejected: Rejected | None = None, row_class: Any = None) -> Any:
     """A finished case's record (of ``row_class``, default :class:`CaseResult`), or None:
     missing, or not to be trusted (:func:`~glshade.measure.case_files.read_case_file`: a
-    failed checksum, another case's id, an older or interrupted writer, values that are
-    not numbers), which ``rejected`` collects with the reason: measure it again."""
+    failed checksum, another case's id, an older or interrupted writer, a value outside
+    its column's type, range or words: :meth:`~glshade.measure.record.Record.json_problem`),
+    which ``rejected`` collects with the reason: measure it again."""
     kind = row_class or CaseResult
     found = read_case_file(Path(path), Path(path).stem)
     row, problem = found.record, found.problem
@@ -194,10 +195,35 @@ def write_results_csv(path: Path, rows: Sequence[PlanRow], row_class: Any = None
 
 def read_results_csv(path: Path, row_class: Any = None) -> list[Any]:
     """A study's table back as typed rows of ``row_class`` (default :class:`CaseResult`,
-    ``results.csv``)."""
+    ``results.csv``), each value checked as a case file's is (its column's type, range
+    and words: :func:`~glshade.measure.record.value_problem`); one line naming the first
+    row that is not one glshade writes."""
     kind = row_class or CaseResult
     text = read_regular_text(path, "results table", RESULTS_TABLE_BYTES)
-    return [kind.from_row(raw) for raw in csv.DictReader(io.StringIO(text, newline=""))]
+    rows: list[Any] = []
+    try:
+        for raw in csv.DictReader(io.StringIO(text, newline="")):
+            rows.append(_table_row(kind, raw, path, len(rows) + 1))
+    except csv.Error as exc:
+        raise GlshadeError(f"results table {path}: not a table glshade writes ({exc})") from None
+    return rows
+
+
+def _table_row(kind: Any, raw: dict, path: Path, number: int) -> Any:
+    """Row ``number`` of the table ``path`` as a typed row, or one line saying why not."""
+    try:
+        row = kind.from_row(raw)
+        problem = row.problem()
+    except KeyError as exc:
+        problem = f"lacks the column {exc}"
+    except (TypeError, ValueError, OverflowError):
+        problem = "holds a value that is not its column's type"
+    if problem is None:
+        return row
+    raise GlshadeError(
+        f"results table {path}: row {number} {problem}; rerun the study that wrote it, with "
+        "this --out, to rebuild it from its case files"
+    )
 
 
 # --------------------------------------------------------------------------- output dir

@@ -94,7 +94,8 @@ def load_case(
 ) -> CaseRecord | None:
     """A finished case's record (the ``method``'s record type, its timings included), or
     None: missing, or not to be trusted (a failed checksum, another case's id, an older
-    or interrupted writer, another instrument's outputs, values that are not numbers),
+    or interrupted writer, another instrument's outputs, a value outside its column's type,
+    range or words: :meth:`~glshade.measure.record.Record.json_problem`),
     which ``rejected`` collects with the reason: measure it again."""
     path = case_path(out_dir, case_id)
     found = read_case_file(path, case_id)
