@@ -38,13 +38,19 @@ def _sources(monkeypatch, cache_dir: str) -> list[tuple[str, str]]:
         composer._environment.cache_clear()
 
 
+def _entries(folder) -> dict[str, int]:
+    """The compiled templates in ``folder``, by name: each one's inode (a new one when
+    the entry was written again)."""
+    return {p.name: p.stat().st_ino for p in folder.iterdir() if p.name.endswith(".cache")}
+
+
 def test_cached_composition_equals_uncached(monkeypatch, tmp_path):
     plain = _sources(monkeypatch, "")
     cold = _sources(monkeypatch, str(tmp_path))
-    entries = sorted((tmp_path / "templates").iterdir())
+    entries = _entries(tmp_path / "templates")
     warm = _sources(monkeypatch, str(tmp_path))
     assert entries, "the cold run must have written compiled templates"
-    assert sorted((tmp_path / "templates").iterdir()) == entries
+    assert _entries(tmp_path / "templates") == entries  # read, not written again
     assert cold == plain
     assert warm == plain
 
@@ -52,15 +58,15 @@ def test_cached_composition_equals_uncached(monkeypatch, tmp_path):
 def test_damaged_entries_are_compiled_again(monkeypatch, tmp_path):
     plain = _sources(monkeypatch, "")
     _sources(monkeypatch, str(tmp_path))
-    for entry in (tmp_path / "templates").iterdir():
-        entry.write_bytes(b"not a compiled template")
+    for name in _entries(tmp_path / "templates"):
+        (tmp_path / "templates" / name).write_bytes(b"not a compiled template")
     assert _sources(monkeypatch, str(tmp_path)) == plain
 
 
 def _render(folder, cache_dir, name="t.txt", **options) -> str:
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(folder)),
-        bytecode_cache=TemplateCache(cache_dir, options),
+        bytecode_cache=TemplateCache(cache.open_private_folder(cache_dir), options),
         **options,
     )
     return env.get_template(name).render(x=1)
@@ -83,14 +89,14 @@ def test_environments_with_other_delimiters_never_share_entries(tmp_path):
     assert _render(tmp_path, tmp_path / "c", **angled) == "1 {{ x }}"
     assert _render(tmp_path, tmp_path / "c") == "<< x >> 1"
     assert _render(tmp_path, tmp_path / "c", **angled) == "1 {{ x }}"
-    assert len(list((tmp_path / "c").iterdir())) == 2
+    assert len(_entries(tmp_path / "c")) == 2
 
 
 def test_an_unwritable_cache_never_fails_composition(tmp_path):
     (tmp_path / "t.txt").write_text("kept {{ x }}")
     gone = tmp_path / "gone"
     gone.mkdir()
-    bytecode = TemplateCache(gone, {})
+    bytecode = TemplateCache(cache.open_private_folder(gone), {})
     gone.rmdir()  # writing the entry now fails
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(tmp_path)), bytecode_cache=bytecode)
     assert env.get_template("t.txt").render(x=1) == "kept 1"
@@ -101,11 +107,11 @@ def test_cache_folder(monkeypatch, tmp_path):
     assert cache.cache_dir("templates") is None
     monkeypatch.setenv(cache.CACHE_ENV, str(tmp_path / "root"))
     folder = cache.cache_dir("templates")
-    assert folder == tmp_path / "root" / "templates" and folder.is_dir()
-    if os.name == "posix":
-        assert folder.stat().st_mode & 0o077 == 0
-        folder.chmod(0o777)  # others may write there: its entries are code, not used
-        assert cache.cache_dir("templates") is None
+    assert folder.path == tmp_path / "root" / "templates" and folder.path.is_dir()
+    assert os.path.samestat(os.fstat(folder.fd), os.stat(folder.path))
+    assert folder.path.stat().st_mode & 0o077 == 0
+    folder.path.chmod(0o777)  # others may write there: its entries are code, not used
+    assert cache.cache_dir("templates") is None
     (tmp_path / "file").write_text("")
     monkeypatch.setenv(cache.CACHE_ENV, str(tmp_path / "file"))
     assert cache.cache_dir("templates") is None  # a folder cannot be made under a file

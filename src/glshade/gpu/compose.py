@@ -170,8 +170,8 @@ def _environment(folders: tuple[tuple[str, str], ...]) -> jinja2.Environment:
 
 
 def _template_cache() -> jinja2.BytecodeCache | None:
-    """The on-disk cache of compiled templates, or None where it is off (``GLSHADE_CACHE_DIR=``)
-    or its folder cannot be used."""
+    """The on-disk cache of compiled templates (its folder held open), or None where it
+    is off (``GLSHADE_CACHE_DIR=`` or a relative path) or its folder cannot be used."""
     folder = cache_dir("templates")
     if folder is None:
         return None
