@@ -5,6 +5,8 @@ any later moment, never a traceback.
 
 A Ctrl-C inside a C extension's import arrives as that import's failure: the
 :class:`~glshade.app.interrupts.InterruptWatch` tells it apart from a broken installation.
+``glshade --version`` is answered before anything else is loaded, so no plug-in, however
+broken, can stand in its way.
 """
 
 from __future__ import annotations
@@ -21,6 +23,11 @@ EXIT_DEFECT = 1
 
 def main() -> int:
     """Run the command line of this process (``sys.argv``); returns its exit code."""
+    if asks_version(sys.argv[1:]):  # before anything is loaded: no plug-in can stop it
+        from glshade.version import __version__
+
+        print(f"glshade {__version__}")
+        return 0
     watch = InterruptWatch(release_to=signal.SIG_DFL)  # then: Ctrl-C during the exit is
     try:  # the default action (the process ends, silently, as interrupted)
         with watch:
@@ -33,6 +40,15 @@ def main() -> int:
         code = _interrupted() if watch.seen else _cannot_start(exc)
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     return code
+
+
+def asks_version(argv: list[str]) -> bool:
+    """Whether ``argv`` asks for ``--version`` before any command, as the parser reads it
+    (``glshade --verbose --version``)."""
+    for arg in argv:
+        if arg != "--verbose":
+            return arg == "--version"
+    return False
 
 
 def _cannot_start(exc: Exception) -> int:

@@ -7,8 +7,16 @@ built-in or installed, is found through one entry-point group, ``glshade.compone
 several); :meth:`Registry.register` adds one by hand (a test's toy). Everything else
 (scene tables, validation, TOML, CLI flags, viewer controls, shader composition,
 uniforms, the NumPy tracer, ``docs/scene-format.md``) asks the registry. The default
-registry, :func:`registry`, is built on first use (nothing happens at import); a broken
-plug-in names itself in the error.
+registry, :func:`registry`, is built on first use (nothing happens at import).
+
+A broken plug-in never takes glshade down: its import and everything glshade reads of
+its components run under a guard (:mod:`glshade.components.plugin_guard`), and what
+every component declares is checked (:func:`declaration_problem`). A plug-in that fails
+either way is left out whole, with one warning that names it (its entry point and
+module) and what went wrong (:class:`PluginFailure`, :attr:`Registry.failures`); the
+rest of glshade works, and a scene that asks for one of its components is refused as
+naming an unknown one. glshade's own components are not guarded: their failure is a
+defect of glshade.
 """
 
 from __future__ import annotations
@@ -17,11 +25,13 @@ import contextlib
 import dataclasses
 import functools
 import importlib
+import math
 import os
 import pkgutil
 import re
 import sys
-from collections.abc import Iterable, Iterator
+import warnings
+from collections.abc import Iterable, Iterator, Mapping
 from importlib.machinery import PathFinder
 from types import ModuleType
 from typing import Any
@@ -29,9 +39,10 @@ from typing import Any
 from glshade.components.base import Active, Component, SceneView, Slot
 from glshade.components.emitter.table import EmitterTable
 from glshade.components.fresnel.table import FresnelChoice
+from glshade.components.plugin_guard import PluginRefused, described, run_plugin_code
 from glshade.components.reflection.table import ReflectionChoice
 from glshade.components.surface.table import SurfaceTable
-from glshade.errors import GlshadeError, SceneError
+from glshade.errors import GlshadeError, GlshadeWarning, SceneError, printable, shown_value
 from glshade.params import Param, Table, TableCheck
 
 #: The entry-point group of components (built-in and third-party).
@@ -68,27 +79,30 @@ class Registry:
         self._components: dict[str, dict[str, Component]] = {slot.name: {} for slot in slots}
         #: params() (key None) and per table, until the next change
         self._schema: dict[str | None, tuple[Param, ...]] = {}
+        #: The plug-ins left out when the registry was built (:func:`registry`).
+        self.failures: tuple[PluginFailure, ...] = ()
 
     # ------------------------------------------------------------------ changes
     def register(self, component: Component) -> Component:
         """Add a component; its parameters join the schema. A parameter path that another
-        component already declares must be the very same declaration (a shared table)."""
-        slot = self._slots.get(getattr(component, "slot", ""))
-        if slot is None:
-            raise ValueError(f"{component!r}: unknown slot; slots are {', '.join(self._slots)}")
+        component already declares must be the very same declaration (a shared table). A
+        malformed declaration (:func:`declaration_problem`) raises ValueError too."""
+        problem = declaration_problem(component, self._slots)
+        if problem is not None:
+            raise ValueError(problem)
+        slot = self._slots[component.slot]
+        called = f"{slot.name} component {component.name!r}"
         if component.name in self._components[slot.name]:
-            raise ValueError(f"{slot.name} component {component.name!r} is already registered")
+            raise ValueError(f"{called} is already registered")
         if slot.selector is None and self._components[slot.name]:
             raise ValueError(f"slot {slot.name!r} has no selector: it takes one component")
         known = {param.path: param for param in self.params()}
         for param in component.params:
             if param.table != slot.table:
-                raise ValueError(
-                    f"{component!r} declares {param.path} outside its table {slot.table!r}"
-                )
+                raise ValueError(f"{called} declares {param.path} outside its table {slot.table!r}")
             if param.path in known and known[param.path] is not param:
                 raise ValueError(
-                    f"{param.path} is declared twice ({component!r}); share one declaration"
+                    f"{param.path} is declared twice ({called}); share one declaration"
                 )
         self._components[slot.name][component.name] = component
         self._schema = {}
@@ -279,32 +293,117 @@ def _joined(
 BUILTIN_ENTRY_POINT = ("glshade", "glshade.components.registry:builtin_components")
 
 
+@dataclasses.dataclass(frozen=True)
+class Plugin:
+    """The components one entry point named: its name and value (``module:attribute``)."""
+
+    entry: str
+    value: str
+    components: tuple[Component, ...]
+
+
+@dataclasses.dataclass(frozen=True)
+class PluginFailure:
+    """A plug-in glshade runs without: its entry point's name and value (``module`` or
+    ``module:attribute``) and what went wrong (one line: ``does not load: ...``)."""
+
+    entry: str
+    value: str
+    problem: str
+
+    def line(self) -> str:
+        return printable(
+            f"plug-in {self.entry!r} ({self.value}) {self.problem}; glshade runs without it"
+        )
+
+
 def discovered() -> list[Component]:
     """One instance of every component the ``glshade.components`` entry points name:
-    glshade's own first, then each plug-in's; by slot, and within a slot by ``rank``
-    (then name). A plug-in that does not load names itself."""
-    found: list[Component] = []
-    if only_builtin_declared():  # what importlib.metadata would find, without its ~20 ms
-        found.extend(_instances(builtin_components, BUILTIN_ENTRY_POINT[0]))
-    else:
-        points = _entry_points()
-        if not any(point.value == BUILTIN_ENTRY_POINT[1] for point in points):
-            # glshade run from a checkout (PYTHONPATH=src) without being installed: no
-            # distribution declares its own components, which are there all the same
-            found.extend(_instances(builtin_components, BUILTIN_ENTRY_POINT[0]))
-        for point in points:
-            try:
-                loaded = point.load()
-                found.extend(_instances(loaded, point.name))
-            except GlshadeError:
-                raise
-            except Exception as exc:  # a broken plug-in: say which
-                raise GlshadeError(
-                    f"glshade plug-in {point.name!r} ({point.value}) does not load: "
-                    f"{type(exc).__name__}: {exc}"
-                ) from None
+    glshade's own first, then each plug-in's that loads; by slot, and within a slot by
+    ``rank`` (then name)."""
+    plugins, _ = discover()
+    return _ordered(c for plugin in plugins for c in plugin.components)
+
+
+def _register(built: Registry, component: Component) -> None:
+    """A plug-in's ``component`` registered in ``built``; PluginRefused naming why not."""
+    try:
+        built.register(component)
+    except ValueError as exc:
+        raise PluginRefused(str(exc)) from None
+
+
+def _ordered(components: Iterable[Component]) -> list[Component]:
     order = {slot.name: index for index, slot in enumerate(SLOTS)}
-    return sorted(found, key=lambda c: (order.get(getattr(c, "slot", ""), len(order)), c.rank))
+    return sorted(components, key=lambda c: (order.get(c.slot, len(order)), c.rank))
+
+
+def discover() -> tuple[list[Plugin], list[PluginFailure]]:
+    """The components of every ``glshade.components`` entry point, glshade's own first,
+    each plug-in loaded under the guard and its declarations checked; the plug-ins that
+    failed, each named with what went wrong."""
+    if only_builtin_declared():  # what importlib.metadata would find, without its ~20 ms
+        return [_builtin_plugin(*BUILTIN_ENTRY_POINT, builtin_components)], []
+    plugins: list[Plugin] = []
+    failures: list[PluginFailure] = []
+    try:
+        points = _entry_points()
+    except Exception as exc:  # an installed package's metadata that cannot be read
+        points = []
+        failures.append(PluginFailure("*", ENTRY_POINT_GROUP, f"cannot be listed: {exc}"))
+    if not any(point.value == BUILTIN_ENTRY_POINT[1] for point in points):
+        # glshade run from a checkout (PYTHONPATH=src) without being installed: no
+        # distribution declares its own components, which are there all the same
+        plugins.append(_builtin_plugin(*BUILTIN_ENTRY_POINT, builtin_components))
+    for point in points:
+        if point.value == BUILTIN_ENTRY_POINT[1]:  # glshade's own: its failure is a defect
+            plugins.append(_builtin_plugin(point.name, point.value, point.load()))
+            continue
+        try:
+            components = run_plugin_code(functools.partial(_checked, point))
+        except PluginRefused as exc:
+            failures.append(PluginFailure(point.name, point.value, str(exc)))
+        else:
+            plugins.append(Plugin(point.name, point.value, components))
+    return plugins, failures
+
+
+def _builtin_plugin(entry: str, value: str, loaded: Any) -> Plugin:
+    return Plugin(entry, value, tuple(_instances(loaded, entry)))
+
+
+def _checked(point: Any) -> tuple[Component, ...]:
+    """The components entry point ``point`` names (the plug-in imported), each one's
+    declaration checked (run under the guard: all of it is the plug-in's code)."""
+    try:
+        loaded = point.load()
+    except BaseException as exc:
+        raise PluginRefused(f"does not load: {described(exc)}") from None
+    try:
+        components = tuple(_instances(loaded, point.name))
+    except GlshadeError as exc:
+        raise PluginRefused(f"does not fit: {exc}") from None
+    except BaseException as exc:
+        raise PluginRefused(f"does not fit: {described(exc)}") from None
+    for component in components:
+        try:
+            problem = declaration_problem(component)
+        except BaseException as exc:  # reading a declaration raised
+            problem = f"{_called(component)}: {described(exc)}"
+        if problem is not None:
+            raise PluginRefused(f"does not fit: {problem}")
+    return components
+
+
+def _called(component: Component) -> str:
+    """``surface component 'x'`` where its slot and name can be read, else its class."""
+    try:
+        slot, name = component.slot, component.name
+        if isinstance(slot, str) and isinstance(name, str):
+            return f"{slot} component {name!r}"
+    except BaseException:  # the guard around the caller handles a real Ctrl-C
+        pass
+    return f"component {type(component).__qualname__}"
 
 
 def _entry_points() -> list[Any]:
@@ -391,6 +490,69 @@ def _entry_order(point: Any) -> tuple[bool, str, str]:
     return distribution != "glshade", distribution, point.name
 
 
+#: What a component's name may be: it is a scene file's value, a flag's choice and a
+#: folder of the GLSL namespaces (``surface.flat``).
+COMPONENT_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}")
+
+
+def declaration_problem(component: Any, slots: Mapping[str, Slot] | None = None) -> str | None:
+    """What is malformed in ``component``'s declaration, in one line naming it; None when
+    nothing is. Its slot must be one of ``slots`` (default: glshade's), its name a
+    :data:`COMPONENT_NAME`, its rank a finite number, its doc a string, its table None or
+    a :class:`~glshade.params.Table` dataclass of its slot's table, its params a tuple of
+    :class:`~glshade.params.Param` with distinct paths, its shorthands (Param, field
+    name) pairs. Reading them may run a plug-in's code: call it under the guard."""
+    slots = {slot.name: slot for slot in SLOTS} if slots is None else slots
+    if not isinstance(component, Component):
+        return f"{shown_value(component)} is not a component"
+    slot = component.slot
+    if not isinstance(slot, str) or slot not in slots:
+        return f"its slot must be one of {', '.join(slots)}, got {shown_value(slot)}"
+    name = component.name
+    if not isinstance(name, str) or not COMPONENT_NAME.fullmatch(name):
+        return (
+            f"a {slot} component's name must be a letter, then letters, digits, '_' or '-' "
+            f"(at most 64), got {shown_value(name)}"
+        )
+    problem = _fields_problem(component, slots[slot])
+    return None if problem is None else f"{slot} component {name!r}: {problem}"
+
+
+def _fields_problem(component: Component, slot: Slot) -> str | None:
+    """What is malformed in the declaration of ``component`` besides its slot and name."""
+    rank, table, params = component.rank, component.table, component.params
+    if isinstance(rank, bool) or not isinstance(rank, (int, float)) or not math.isfinite(rank):
+        return f"its rank must be a finite number, got {shown_value(rank)}"
+    if not isinstance(component.doc, str):
+        return f"its doc must be a string, got {shown_value(component.doc)}"
+    if table is not None and not (
+        isinstance(table, type)
+        and issubclass(table, Table)
+        and dataclasses.is_dataclass(table)
+        and getattr(table, "table", None) == slot.table
+    ):
+        return (
+            f"its table must be None or a glshade.params.Table dataclass of the {slot.table!r} "
+            f"table, got {shown_value(table)}"
+        )
+    if not isinstance(params, tuple) or not all(isinstance(p, Param) for p in params):
+        return f"its params must be a tuple of glshade.params.Param, got {shown_value(params)}"
+    paths = [p.path for p in params]
+    if len(set(paths)) != len(paths):
+        twice = sorted({path for path in paths if paths.count(path) > 1})
+        return f"its params declare {', '.join(twice)} twice"
+    shorthands = component.shorthands
+    if not isinstance(shorthands, tuple) or not all(
+        isinstance(pair, tuple)
+        and len(pair) == 2
+        and isinstance(pair[0], Param)
+        and isinstance(pair[1], str)
+        for pair in shorthands
+    ):
+        return f"its shorthands must be (Param, field name) pairs, got {shown_value(shorthands)}"
+    return None
+
+
 def _instances(loaded: Any, name: str) -> list[Component]:
     """The components an entry point names: a component class, a module's
     ``COMPONENTS``, or a function returning components."""
@@ -404,7 +566,7 @@ def _instances(loaded: Any, name: str) -> list[Component]:
         if isinstance(item, type) and issubclass(item, Component):
             item = item()
         if not isinstance(item, Component):
-            raise GlshadeError(f"glshade plug-in {name!r} names {item!r}, not a component")
+            raise GlshadeError(f"entry point {name!r} names {shown_value(item)}, not a component")
         out.append(item)
     return out
 
@@ -426,11 +588,30 @@ def builtin_components() -> list[Component]:
 @functools.cache
 def registry() -> Registry:
     """The default registry with every component the entry points name (built on first
-    use)."""
+    use); a plug-in that does not load or fit is left out whole, with one warning
+    naming it (:attr:`Registry.failures`)."""
     built = Registry()
-    for component in discovered():
+    plugins, failures = discover()
+    owner = {id(c): index for index, plugin in enumerate(plugins) for c in plugin.components}
+    refused: dict[int, str] = {}
+    for component in _ordered(c for plugin in plugins for c in plugin.components):
+        index = owner[id(component)]
+        if index in refused:
+            continue
+        if plugins[index].value == BUILTIN_ENTRY_POINT[1]:
+            built.register(component)  # glshade's own: a failure is a defect
+            continue
         try:
-            built.register(component)
-        except ValueError as exc:
-            raise GlshadeError(f"glshade plug-in {component!r} does not fit: {exc}") from None
+            run_plugin_code(functools.partial(_register, built, component))
+        except PluginRefused as exc:
+            refused[index] = f"does not fit: {exc}"
+    for index, problem in refused.items():
+        plugin = plugins[index]
+        for component in plugin.components:
+            if built._components[component.slot].get(component.name) is component:
+                built.unregister(component.slot, component.name)
+        failures.append(PluginFailure(plugin.entry, plugin.value, problem))
+    built.failures = tuple(failures)
+    for failure in failures:
+        warnings.warn(failure.line(), GlshadeWarning, stacklevel=2)
     return built

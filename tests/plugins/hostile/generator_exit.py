@@ -1,0 +1,3 @@
+"""A plug-in that raises GeneratorExit at its import."""
+
+raise GeneratorExit("closed")
