@@ -179,7 +179,7 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     ),
     (
         ["render", "--size", "8"],
-        "GLSHADE_MEMORY_BUDGET_MB: must be a number of MiB > 0",
+        "GLSHADE_MEMORY_BUDGET_MB: must be a number of MiB in [1, 1073741824]",
         {"GLSHADE_MEMORY_BUDGET_MB": "x"},
     ),
 ]

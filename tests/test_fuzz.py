@@ -5,10 +5,12 @@ half-written output.
 The seeds are the scene files of ``examples/`` and a scene that sets every optional table
 (lens, distortion, sensor, a microfacet lobe). Each mutant applies one to three mutations:
 a value replaced by an extreme number (0, -1, 5e-324, 1e308, 10**30, inf, nan), by a
-value of the wrong type, by another registered name; a key or table removed or invented;
-the file's bytes truncated, flipped or repeated. Scene mutants are rendered at 8² (and a
-share measured at 16²) by the real command line, in this process; sweep-file mutants are
-planned (their cases counted, the first built).
+value of the wrong type, by another registered name, by a quantity's text (random digits,
+letters, µ, blanks and units in any case, some of them tens of thousands of characters
+long); a key or table removed or invented; the file's bytes truncated, flipped or
+repeated. Scene mutants are rendered at 8² (and a share measured at 16²) by the real
+command line, in this process; sweep-file mutants are planned (their cases counted, the
+first built). The unit parser is also fed such texts directly: a number, or one line.
 
 ``python tests/test_fuzz.py --count 3000 --seed 7`` runs a longer campaign and prints a
 tally (docs/robustness.md records one).
@@ -20,6 +22,7 @@ import argparse
 import io
 import random
 import shutil
+import subprocess
 import sys
 import tomllib
 from collections import Counter
@@ -84,6 +87,30 @@ WRONG_TYPES: tuple[Any, ...] = (
 )
 
 
+#: What a quantity's text is made of, for :func:`random_quantity`.
+QUANTITY_CHARACTERS = "0123456789" * 3 + ".+-eE µμ°²^\t_,xMmNnUuCcDdGgRrAaPp"
+QUANTITY_UNITS = ("mm", "um", "µm", "μm", "nm", "cm", "m", "deg", "rad", "mrad", "°", "px")
+QUANTITY_UNITS += ("mm2", "um^2", "cm²", "Mm", "MM", "Um", "DEG", "Rad", "mRAD", "M", "furlong")
+#: Lengths of the long texts: at the parser's limit, just past it, and far beyond.
+QUANTITY_LONG = (64, 65, 1000, 60_000)
+
+
+def random_quantity(rng: random.Random) -> str:
+    """A quantity's text as a careless or hostile user types it: a number with a unit in
+    any case, random characters, or a very long run of either."""
+    shape = rng.random()
+    if shape < 0.4:
+        number = rng.choice(("5", "-0.5", ".5", "5.", "1e3", "1e-300", "4e6", "nan", "inf", "1_0"))
+        blank = rng.choice(("", " ", "  ", "\t"))
+        return f"{number}{blank}{rng.choice(QUANTITY_UNITS)}"
+    length = rng.randint(0, 20) if shape < 0.8 else rng.choice(QUANTITY_LONG)
+    if rng.random() < 0.5:  # a run of one pattern, then junk: what made a regex backtrack
+        run = rng.choice(("1", "12", "1 ", "1.", "e1", "µ"))
+        tail = rng.choice(("", " x y", "x", "mm", " Mm"))
+        return (run * (length // len(run) + 1))[:length] + tail
+    return "".join(rng.choice(QUANTITY_CHARACTERS) for _ in range(length))
+
+
 def registered_names() -> list[str]:
     from glshade.components.registry import registry
 
@@ -126,7 +153,7 @@ def _delete(document: dict, path: tuple) -> None:
 
 #: The structured mutations, each as often as it appears.
 OPERATIONS = ("extreme", "extreme", "scale", "scale", "scale", "type", "name", "delete")
-OPERATIONS += ("invent", "nest")
+OPERATIONS += ("invent", "nest", "quantity")
 
 
 def mutate_document(document: dict, rng: random.Random, names: list[str]) -> str:
@@ -148,6 +175,8 @@ def mutate_document(document: dict, rng: random.Random, names: list[str]) -> str
         _set(document, path, rng.choice(WRONG_TYPES))
     elif operation == "name":
         _set(document, path, rng.choice(names))
+    elif operation == "quantity":
+        _set(document, path, random_quantity(rng))
     elif operation == "delete":
         _delete(document, path)
     else:
@@ -340,6 +369,56 @@ def test_sweep_file_mutants_plan_or_say_one_line(tmp_path):
     assert failures == []
 
 
+UNIT_TEXTS = 3000
+
+
+def parse_unit_text(text: str, unit: str) -> str | None:
+    """``text`` parsed as a quantity in ``unit`` and set as a scene value: a number (a
+    Scene), or one glshade error line; anything else is the problem returned."""
+    from glshade.errors import GlshadeError
+    from glshade.scene import Scene
+    from glshade.units import parse_quantity
+
+    key = {"mm": "defect.dmax", "mm²": "defect.sigma2", "deg": "camera.theta_deg"}.get(unit)
+    try:
+        number = parse_quantity(text, unit, "field")
+        if not isinstance(number, float):
+            return f"not a float: {number!r}"
+        if key is not None:
+            Scene().with_value(key, text)
+    except GlshadeError as exc:
+        line = str(exc)
+        return None if line.strip() and "\n" not in line and len(line) < 500 else repr(line)
+    except Exception as exc:  # noqa: BLE001 - the fuzzer's whole point
+        return f"{type(exc).__name__}: {exc}"
+    return None
+
+
+def unit_failures(count: int, seed: int) -> list[str]:
+    """``count`` random quantities (:func:`random_quantity`) in random units, each a
+    number or one short line: the ones that are neither."""
+    rng = random.Random(seed)
+    failures = []
+    for _ in range(count):
+        text, unit = random_quantity(rng), rng.choice(("mm", "µm", "mm²", "deg", "px", ""))
+        if (problem := parse_unit_text(text, unit)) is not None:
+            failures.append(f"{text[:40]!r} ({len(text)} characters) in {unit!r}: {problem}")
+    return failures
+
+
+def test_unit_texts_parse_or_say_one_line():
+    """Random quantities, some of 60 000 characters: a number or one short line. Run in a
+    child process with a generous timeout: a backtracking regex, stuck in C, would hang
+    this one (the parser is linear: about 3 s for all; the old regex took minutes for one)."""
+    code = (
+        f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); import test_fuzz; "
+        f"print(*test_fuzz.unit_failures({UNIT_TEXTS}, 20261127), sep='\\n')"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == ""
+
+
 def campaign(count: int, seed: int) -> int:
     """A longer run: every mutant rendered, one in eight measured; prints the tally."""
     import os
@@ -364,7 +443,11 @@ def campaign(count: int, seed: int) -> int:
             tally[("sweep file", "ok" if problem is None else "FAIL")] += 1
             if problem is not None:
                 failures.append(f"sweep {mutant.seed} {mutant.done}: {problem}")
-    print(f"{count} scene mutants, {count // 4} sweep-file mutants, seed {seed}, "
+        for problem in unit_failures(count, seed):
+            tally[("unit text", "FAIL")] += 1
+            failures.append(f"unit text {problem}")
+    print(f"{count} scene mutants, {count // 4} sweep-file mutants, {count} unit texts, "
+          f"seed {seed}, "
           f"{time.perf_counter() - start:.0f} s")  # fmt: skip
     for key, value in sorted(tally.items(), key=str):
         print(f"  {key}: {value}")

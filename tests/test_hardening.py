@@ -365,7 +365,6 @@ def test_other_settings_refused_then_replaced_wholesale(tmp_path):
         ("0.005mm", "mm", 0.005),
         ("2cm", "mm", 20.0),
         ("1e3nm", "mm", 1e-3),
-        ("5UM", "mm", 0.005),
         ("-3um", "mm", -0.003),
         ("4mm2", "mm²", 4.0),
         ("4e6um2", "mm²", 4.0),

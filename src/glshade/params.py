@@ -25,7 +25,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from glshade.errors import SceneError
-from glshade.units import examples, parse_quantity
+from glshade.units import QuantityError, examples, parse_quantity
 
 #: How a value is typed: a real number, an integer, one of some names, a pair of numbers,
 #: a fixed-length list of numbers (``size`` of them; 0: any non-empty list), a list of distinct
@@ -228,6 +228,8 @@ class Param:
         field = self.path if entry is None else f"{self.path}.{entry}"
         try:
             return parse_quantity(text, self.unit, field)
+        except QuantityError:
+            raise
         except SceneError:
             allowed = "a finite number" if entry is not None else self.allowed()
             how = examples(self.unit) + ("" if self.unit else ", without a unit")

@@ -50,17 +50,28 @@ WAITING_BYTES_PER_PIXEL = 12
 #: :func:`glshade.measure.pmd.measure_pmd_scene` above a process that has imported glshade
 #: and opened its GL context (sampled every 10 ms through the whole case: 256² to 1024²,
 #: 24 to 252 frames, 3 and 5 periods a direction, one and two directions, with and
-#: without a sensor; docs/coding.md), rounded up: the estimate lies 5-25 % above every one
-#: measured.
+#: without a sensor; docs/coding.md), rounded up, and the per-period terms to the memory
+#: the decoding holds (3000 periods at 72² and 85² took 25 % more than the fitted
+#: estimate): the estimate lies 14-45 % above every run measured.
 #: Per pixel: the nominal geometry, both exact maps, the decoded points, slopes, heights.
 PMD_BYTES_PER_PIXEL = 160
-#: … per pixel and decoded map (direction x period): the float32 modulation, offset and
-#: wrapped phase the baseline's decodes and the case's hold, and the decoder's float64
-#: work on a direction's periods.
-PMD_BYTES_PER_MAP = 30
+#: … per pixel, map (screen coordinate x period: the maps are held for both coordinates,
+#: (u, v), whichever the sequence codes) and decoding held: the float32 modulation,
+#: offset and wrapped phase. At the peak, while the case's sequence is decoded, the
+#: baseline's decoding and the case's are held, and with a sensor the baseline's twin.
+PMD_BYTES_PER_MAP = 12
+#: … per pixel and period: the decoder's float64 work on one direction's periods (the sine
+#: and cosine sums, the offset, the wrapped phase, the modulation, a temporary and the
+#: validity masks: 48 and more; measured 42-48).
+PMD_DECODE_BYTES_PER_PERIOD = 56
 #: … per pixel and frame: the case's rendered sequence (float32), and with a sensor its
 #: recorded copy (measured together: 7.1 a frame; the sensor's copy alone: 4.0). The
 #: layers a draw renders and reads back are the renderer's (:func:`render_bytes`).
+#: Measured per period (tracemalloc peaks of :func:`~glshade.measure.pmd.measure_pmd_scene`
+#: at 48², 10 to 160 periods, two directions, four shifts: eight frames a period): 122
+#: bytes a pixel without a sensor, 175 with one, where these coefficients give 136 and
+#: 192; one direction, three shifts: 108 and 144, given 116 and 152
+#: (``tests/test_hostile_input_bounds.py`` holds the estimate's growth above the peak's).
 PMD_BYTES_PER_FRAME = 4
 #: … per pixel and shift: the finest period's frames of a direction in float64, and their
 #: sums' copy, while the result's modulation share is taken (measured: 16-17).
@@ -172,9 +183,12 @@ def pmd_estimate(scene: Scene, results: int = 0) -> MemoryEstimate:
     em, cam = fringes_of(scene), scene.camera
     maps = 2 * len(em.periods)  # the per-direction maps hold both coordinates, (u, v)
     frames = len(em.directions) * len(em.periods) * em.shifts
-    per_pixel = PMD_BYTES_PER_PIXEL + PMD_BYTES_PER_MAP * maps + PMD_BYTES_PER_FRAME * (frames + 1)
-    per_pixel += PMD_BYTES_PER_SHIFT * em.shifts
-    if scene.active.records(scene):  # the recorded copy of the sequence
+    records = scene.active.records(scene)
+    decodings = 3 if records else 2  # the baseline's (and its twin's) and the case's
+    per_pixel = PMD_BYTES_PER_PIXEL + PMD_BYTES_PER_MAP * maps * decodings
+    per_pixel += PMD_DECODE_BYTES_PER_PERIOD * len(em.periods)
+    per_pixel += PMD_BYTES_PER_FRAME * (frames + 1) + PMD_BYTES_PER_SHIFT * em.shifts
+    if records:  # the recorded copy of the sequence
         per_pixel += PMD_BYTES_PER_FRAME * frames
     per_pixel += results * (PMD_RESULT_BYTES_PER_PIXEL + 8 * maps + 4 * (frames + 1))
     analysis = PMD_FIXED_BYTES + per_pixel * cam.width * cam.height

@@ -53,6 +53,15 @@ A unitless row (a formula's parameters, an f-number) takes bare numbers only. A 
 an unknown unit is refused with one line naming the key as it was typed, what the key
 allows and how to write it with a unit.
 
+Units are case-sensitive, as SI writes them: `0.005 Mm` would be 0.005 megametres, so it
+is refused with one line (`did you mean mm? units are case-sensitive (Mm would be
+megametres)`), and so are `MM`, `UM`, `DEG` or `Rad`; nothing is guessed. A number typed
+as text, with or without its unit, is at most 64 characters long, blanks around it not
+counted (room for a float's 17 digits, its exponent, a unit and blanks, several times
+over); a longer one is refused with one line naming the limit, its length and its first
+characters. The text is read in one pass, in time proportional to its length, whatever it
+holds.
+
 A formula surface's parameters (`parameters = { a = 0.002, b = 5.0 }`) can be set one by
 one by their dotted path, the others kept: `--set surface.parameters.a=0.003`,
 `Scene.with_value("surface.parameters.a", 0.003)`, a sweep axis

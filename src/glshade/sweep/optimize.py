@@ -50,7 +50,7 @@ from glshade.metrics.visibility import MetricSettings
 from glshade.scene import Scene
 from glshade.sweep.goals import GOALS, METRICS, Goal
 from glshade.sweep.spec import Settings, canonical_key, case_id, check_count, count_text
-from glshade.units import examples, parse_quantity
+from glshade.units import QuantityError, examples, parse_quantity
 
 #: Tie-break weight of the continuous visibility in the paper metric's score.
 TIE = 1e-3
@@ -277,6 +277,8 @@ def _span(text: str, where: str, allow_equal: bool = False, unit: str = "") -> t
 def _float(text: str, where: str, unit: str = "") -> float:
     try:
         value = parse_quantity(text, unit, where)
+    except QuantityError:
+        raise
     except SceneError:
         shown = examples(unit) if unit else "a number"
         raise GlshadeError(f"{where}: expected {shown}, got {text.strip()!r}") from None

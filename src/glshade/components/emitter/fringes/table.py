@@ -28,6 +28,10 @@ DIRECTIONS = ("v", "u")
 MAX_LEVELS = 65536
 #: The most phase steps per period.
 MAX_SHIFTS = 1024
+#: The coarsest period allowed, in screens: this many times the screen's larger extent
+#: (2 ``half_size``). A coarser one codes the screen in a millionth of a turn, far below
+#: any phase a camera resolves, and past about 1e154 mm its squares overflow.
+MAX_PERIOD_SCREENS = 1e6
 
 
 def _shared(name: str) -> Any:
@@ -87,6 +91,7 @@ def _check(values: dict[str, Any]) -> None:
             f"periods above {MIN_PERIOD_MM:g} mm increasing from the finest",
             list(periods),
         )
+    _check_coarsest(periods, half)
     if values["levels"] == 1:
         raise SceneError("emitter.levels", "0 (continuous) or at least 2 grey levels", 1)
     _check_screen(values)
@@ -117,6 +122,20 @@ def _check(values: dict[str, Any]) -> None:
             "emitter.frame_shift_index",
             f"a phase step 0 to shifts - 1 = {values['shifts'] - 1}",
             values["frame_shift_index"],
+        )
+
+
+def _check_coarsest(periods: tuple[float, ...], half: tuple[float, float]) -> None:
+    """The coarsest period at most :data:`MAX_PERIOD_SCREENS` times the screen's larger
+    extent (the periods are finite and increasing: checked before)."""
+    extent = 2.0 * max(half)
+    limit = MAX_PERIOD_SCREENS * extent
+    if periods[-1] > limit:
+        raise SceneError(
+            "emitter.periods",
+            f"periods in ({MIN_PERIOD_MM:g}, {limit:g}] mm (the coarsest at most "
+            f"{MAX_PERIOD_SCREENS:g} times the screen's extent 2 half_size = {extent:g} mm)",
+            periods[-1],
         )
 
 
@@ -156,7 +175,8 @@ class FringesTable(Table):
     periods: tuple[float, ...] = param(
         "emitter.periods", "mm", (2.0, 16.0, 128.0, 1024.0),
         "fringe periods, finest first; the coarsest at least the screen's extent "
-        "2 half_size along each direction", value_type="vector",
+        "2 half_size along each direction, and at most 1e6 times its larger extent",
+        value_type="vector",
     )  # fmt: skip
     shifts: int = param(
         "emitter.shifts", "", 4, "phase steps per period, N >= 3 (step 2π n / N)",
