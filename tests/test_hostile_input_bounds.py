@@ -10,6 +10,7 @@ of hanging the suite. No test asserts a time."""
 
 from __future__ import annotations
 
+import re
 import struct
 import subprocess
 import tracemalloc
@@ -171,6 +172,21 @@ def test_a_period_of_1e300_is_one_line_and_no_warning(tmp_path):
     result = glshade("measure", "far.toml", "--method", "pmd", "--size", "16", cwd=tmp_path)
     one_line(result, "emitter.periods: ", "(1e-06, 3e+08] mm", "got 1e+300")
     assert "RuntimeWarning" not in result.stderr and result.stdout == ""
+
+
+@pytest.mark.parametrize(
+    "key, typed, said",
+    [
+        ("emitter.period", "1e+300", 'must be in (1e-06, 1e+09) mm or "auto"'),
+        ("sensor.full_well_e", "5e-324", "must be in [1, 1e+09] e-"),
+        ("sensor.read_noise_e", "1e+300", "must be in [0, 1e+09] e-"),
+    ],
+)
+def test_a_stripe_period_and_a_sensor_beyond_their_range_are_one_line(key, typed, said):
+    """A stripe period of 1e300 mm (which printed a 300-digit phase count), a full well
+    of 5e-324 e- (an infinite black level: OverflowError) are refused by their range."""
+    with pytest.raises(SceneError, match=re.escape(f"{key}: {said}, got {typed}")):
+        Scene().with_value(key, float(typed))
 
 
 def test_the_memory_budget_has_a_range(monkeypatch):

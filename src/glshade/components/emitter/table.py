@@ -12,6 +12,9 @@ from glshade.params import Table, param
 #: stripes' half period underflows (5e-324 mm halves to 0) long before any camera could
 #: see them.
 MIN_PERIOD_MM = 1e-6
+#: The coarsest stripe period, mm (exclusive): a thousand kilometres, a million times any
+#: screen; beyond it the metric's phase count and the stripes' arithmetic overflow.
+MAX_STRIPE_PERIOD_MM = 1e9
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from glshade.components.emitter.table import MIN_PERIOD_MM
+from glshade.components.emitter.table import MAX_STRIPE_PERIOD_MM, MIN_PERIOD_MM
 from glshade.params import Control, Table, param
 
 #: FWHM of one stripe = half a period  =>  sigma = period / (4 sqrt(2 ln 2)).
@@ -78,7 +78,7 @@ class Emitter(Table):
         'stripe spacing along v; "auto": the shortest multiple of 0.25 mm that spans 6 image '
         "rows at the gaze point (the magnification closed form, docs/physics.md), worked "
         "out again whenever the scene changes",
-        lo=MIN_PERIOD_MM, flag="--period", keywords=("auto",),
+        lo=MIN_PERIOD_MM, hi=MAX_STRIPE_PERIOD_MM, flag="--period", keywords=("auto",),
         control=Control("period", 0.2, 20.0, log=True, fmt="%.2f mm"),
     )  # fmt: skip
     stripe_sigma: float | None = param(

@@ -48,7 +48,7 @@ def max_black_dn(bit_depth: int) -> int:
     return int(MAX_BLACK_SHARE * (2**bit_depth - 1))
 
 
-#: The most electrons a pixel may hold at radiance 1 (exclusive): real sensors hold 1e3 to
+#: The most electrons a pixel may hold at radiance 1 (inclusive): real sensors hold 1e3 to
 #: 1e6; beyond 1e9 the shot noise is negligible, and a Poisson draw of 1e300 electrons
 #: cannot be made.
 MAX_FULL_WELL_E = 1e9
@@ -66,11 +66,11 @@ class Sensor(Table):
         "electrons at radiance 1 (the emitter's peak in a perfect mirror), which fill the "
         "range from the black level to full scale; unset: no sensor (a [sensor] table sets "
         f"{DEFAULT_FULL_WELL_E:g})",
-        lo=0.0, hi=MAX_FULL_WELL_E, flag="--full-well",
+        lo=1.0, hi=MAX_FULL_WELL_E, closed=True, flag="--full-well",
     )  # fmt: skip
     read_noise_e: float = param(
-        "sensor.read_noise_e", "e-", 5.0, "read noise, electrons rms", lo=0.0, closed=True,
-        flag="--read-noise",
+        "sensor.read_noise_e", "e-", 5.0, "read noise, electrons rms", lo=0.0,
+        hi=MAX_FULL_WELL_E, closed=True, flag="--read-noise",
     )  # fmt: skip
     bit_depth: int = param(
         "sensor.bit_depth", "bit", 12, "bits of the stored image", value_type="integer", lo=1,
@@ -111,7 +111,7 @@ class Sensor(Table):
         assert self.full_well_e is not None
         read_dn = self.read_noise_e * self.full_scale_dn / self.full_well_e
         wanted = max(2**self.bit_depth / AUTO_BLACK_SHARE, AUTO_BLACK_SIGMAS * read_dn)
-        return min(math.ceil(wanted), max_black_dn(self.bit_depth))
+        return math.ceil(min(wanted, max_black_dn(self.bit_depth)))  # capped before ceil
 
     @property
     def black_level(self) -> float:
