@@ -144,20 +144,22 @@ class Record:
         string or a list; a missing field), or None. Only the fields of ``cls`` that
         ``row`` must hold are checked (a missing timing reads 0)."""
         for item in fields(cls):  # type: ignore[arg-type]
-            kind = item.type if isinstance(item.type, str) else item.type.__name__
             if item.name not in row:
                 if item.metadata.get("role") == "timing":
                     continue
                 return f"lacks {item.name} (written by an older glshade)"
-            value = row[item.name]
-            if not isinstance(value, _JSON_TYPES[kind]) or (
-                isinstance(value, bool) and kind != "bool"
-            ):
-                return f"holds {type(value).__name__} as {item.name}, not {kind}"
-            problem = value_problem(item, value)
+            problem = _json_value_problem(item, row[item.name])
             if problem is not None:
                 return problem
         return None
+
+    @classmethod
+    def field_problem(cls, name: str, value: Any) -> str | None:
+        """Why ``value``, read from JSON, is not one this record's field ``name`` holds
+        (its JSON type, then :func:`value_problem`), or None; a name that is no field of
+        the record has no problem here."""
+        item = next((f for f in fields(cls) if f.name == name), None)  # type: ignore[arg-type]
+        return None if item is None else _json_value_problem(item, value)
 
     def problem(self) -> str | None:
         """Why this record's values (read from a table's text) are not ones glshade
@@ -180,6 +182,13 @@ class Record:
         return self.row(("timing",))
 
 
+def _json_value_problem(item: Field, value: Any) -> str | None:
+    kind = item.type if isinstance(item.type, str) else item.type.__name__
+    if not isinstance(value, _JSON_TYPES[kind]) or (isinstance(value, bool) and kind != "bool"):
+        return f"holds {type(value).__name__} as {item.name}, not {kind}"
+    return value_problem(item, value)
+
+
 #: Characters no stored text may hold: controls (line breaks, escapes), format characters
 #: (bidirectional overrides), lone surrogates, line and paragraph separators.
 _CONTROL_CATEGORIES = frozenset({"Cc", "Cf", "Cs", "Zl", "Zp"})
@@ -191,7 +200,7 @@ def value_problem(item: Field, value: Any) -> str | None:
     (:data:`UNIT_RANGES`, from the column's own ``low``); a text that is not one of the
     column's ``choices``, is longer than :data:`MAX_TEXT` or holds a control character."""
     if isinstance(value, str):
-        return _text_problem(item.name, item.metadata.get("choices") or (), value)
+        return text_problem(item.name, value, item.metadata.get("choices") or ())
     if value is None or isinstance(value, bool):
         return None
     low, high = UNIT_RANGES.get(item.metadata.get("unit", ""), UNIT_RANGES[""])
@@ -204,7 +213,10 @@ def value_problem(item: Field, value: Any) -> str | None:
     return None
 
 
-def _text_problem(name: str, choices: tuple[str, ...], text: str) -> str | None:
+def text_problem(name: str, text: str, choices: tuple[str, ...] = ()) -> str | None:
+    """Why ``text``, stored as ``name``, is not one line glshade writes (not one of
+    ``choices`` where there are any; longer than :data:`MAX_TEXT`; a control
+    character), or None."""
     if choices and text not in choices:
         return f"holds {_shown(text)} as {name}, not one of {', '.join(choices)}"
     if len(text) > MAX_TEXT:

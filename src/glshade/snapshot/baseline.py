@@ -10,6 +10,14 @@
 
 Both are written atomically, as regular files inside the folder; the sidecar has no date,
 so rewriting an unchanged baseline leaves both files byte for byte as they were.
+
+A baseline is read as a file someone else may have written: the sidecar at most
+:data:`MAX_SIDECAR_BYTES`, its tables nested at most :data:`MAX_SIDECAR_DEPTH` deep
+(counted before it is parsed), every field of its type (the numbers each a column of its
+instrument's record, within that column's range: :mod:`glshade.measure.record`; every
+text one line); the PNG's header read before a sample is decoded, its size the
+sidecar's and at most :data:`MAX_BASELINE_PIXELS`. Anything else is one line naming the
+file.
 """
 
 from __future__ import annotations
@@ -32,8 +40,19 @@ FORMAT = "glshade-snapshot"
 FORMAT_VERSION = 1
 #: A 16-bit PNG's largest value.
 _TOP = 65535
-#: A baseline's files are at most this large (a 4096² 16-bit PNG is about 32 MiB).
+#: A baseline's image file is at most this large (a 4096² 16-bit PNG is about 32 MiB).
 MAX_BASELINE_BYTES = 256 << 20
+#: The most pixels a baseline holds: the largest image a snapshot can be compared on every
+#: renderer (the oracle, which stands in where OpenGL cannot run, renders no more). A
+#: 16384² 16-bit PNG of 0.5 MB would decode to 512 MiB, and 2.7 GB as the float image;
+#: its header is refused before that.
+MAX_BASELINE_PIXELS = 4096 * 4096
+#: A sidecar is at most this large (a scene's tables and two records: a few KiB).
+MAX_SIDECAR_BYTES = 1 << 20
+#: How deep a sidecar's tables and lists may nest (glshade writes four levels).
+MAX_SIDECAR_DEPTH = 16
+#: The instruments whose numbers a sidecar may hold.
+INSTRUMENTS = ("paper", "pmd")
 #: What a snapshot may be called: a file name without a folder.
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,127}")
 
@@ -112,6 +131,13 @@ class Baseline:
         """Write (or rewrite) the baseline's two files in ``directory`` (made if missing)."""
         from glshade.files import atomic_write_bytes
 
+        height, width = self.image.shape
+        if width * height > MAX_BASELINE_PIXELS:
+            raise GlshadeError(
+                f"snapshot {self.name!r}: the image is {width}x{height} pixels, more than a "
+                f"baseline holds ({MAX_BASELINE_PIXELS} pixels, 4096x4096: the most the "
+                "oracle renders); snapshot the scene at a smaller size (scene.with_size)"
+            )
         try:
             directory.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -137,18 +163,13 @@ def read(directory: Path, name: str) -> Baseline:
     from glshade.files import read_regular, read_regular_text
 
     png, side = paths(directory, name)
-    text = read_regular_text(side, "snapshot sidecar", MAX_BASELINE_BYTES)
-    try:
-        data = json.loads(text)
-    except ValueError as exc:
-        raise GlshadeError(f"snapshot sidecar {side}: not JSON ({exc})") from None
+    data = parse_sidecar(read_regular_text(side, "snapshot sidecar", MAX_SIDECAR_BYTES), side)
     meta = _sidecar_fields(data, side)
-    pixels = _decode_png(read_regular(png, "snapshot image", MAX_BASELINE_BYTES), png)
+    raw = read_regular(png, "snapshot image", MAX_BASELINE_BYTES)
+    _check_header(raw, png, meta)
+    pixels = _decode_png(raw, png)
     if pixels.shape != (meta["height"], meta["width"]):
-        raise GlshadeError(
-            f"snapshot image {png}: is {pixels.shape[1]}x{pixels.shape[0]}, its sidecar says "
-            f"{meta['width']}x{meta['height']}"
-        )
+        raise GlshadeError(f"snapshot image {png}: not a 16-bit greyscale PNG")
     return Baseline(
         name=name,
         image=pixels.astype(np.float64) / _TOP * meta["scale"],
@@ -160,8 +181,39 @@ def read(directory: Path, name: str) -> Baseline:
     )
 
 
+_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+_BRACKET = re.compile(r"[\[\]{}]")
+
+
+def nesting(text: str, limit: int = MAX_SIDECAR_DEPTH) -> int:
+    """How deep the JSON ``text``'s arrays and objects nest (counted without parsing it,
+    strings left out), at most ``limit + 1``: a reader stops there."""
+    depth = deepest = 0
+    for bracket in _BRACKET.finditer(_STRING.sub('""', text)):
+        depth += 1 if bracket.group() in "[{" else -1
+        deepest = max(deepest, depth)
+        if deepest > limit:
+            break
+    return deepest
+
+
+def parse_sidecar(text: str, side: Path) -> Any:
+    """A sidecar's JSON, its nesting bounded before it is parsed (a file 100 000 levels
+    deep would exhaust the parser's recursion)."""
+    if nesting(text) > MAX_SIDECAR_DEPTH:
+        raise GlshadeError(
+            f"snapshot sidecar {side}: nested more than {MAX_SIDECAR_DEPTH} levels deep; not "
+            "a sidecar glshade writes"
+        )
+    try:
+        return json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise GlshadeError(f"snapshot sidecar {side}: not JSON ({exc})") from None
+
+
 def _sidecar_fields(data: Any, side: Path) -> dict[str, Any]:
-    """The image's size and scale from a sidecar, checked field by field."""
+    """The image's size and scale from a sidecar, checked field by field (and the rest of
+    it: :func:`_check_numbers`, :func:`_check_scene`, :func:`_check_texts`)."""
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise GlshadeError(f"snapshot sidecar {side}: not a glshade snapshot sidecar")
     if data.get("format_version") != FORMAT_VERSION:
@@ -169,19 +221,112 @@ def _sidecar_fields(data: Any, side: Path) -> dict[str, Any]:
             f"snapshot sidecar {side}: format version {data.get('format_version')!r}, this "
             f"glshade reads {FORMAT_VERSION}; rewrite it with pytest --glshade-update"
         )
-    image = data.get("image")
     expected = {"renderer": str, "precision": str, "glshade": str, "numbers": dict, "scene": dict}
     for key, kind in expected.items():
         if not isinstance(data.get(key), kind):
             raise GlshadeError(f"snapshot sidecar {side}: {key} missing or not a {kind.__name__}")
+    meta = _image_fields(data.get("image"), side)
+    _check_texts(data, side, "")
+    _check_numbers(data["numbers"], side)
+    _check_scene(data["scene"], side)
+    return meta
+
+
+def _image_fields(image: Any, side: Path) -> dict[str, Any]:
+    """The sidecar's ``image``: whole sides of at most :data:`MAX_BASELINE_PIXELS`
+    pixels in all, a positive finite scale."""
     if not isinstance(image, dict):
         raise GlshadeError(f"snapshot sidecar {side}: image missing or not a table")
     width, height, scale = image.get("width"), image.get("height"), image.get("scale")
-    if not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in (width, height)):
+    if not (_whole(width) and _whole(height)):
         raise GlshadeError(f"snapshot sidecar {side}: image width/height must be whole numbers")
-    if not isinstance(scale, (int, float)) or not (math.isfinite(scale) and scale > 0):
+    assert isinstance(width, int) and isinstance(height, int)
+    if width * height > MAX_BASELINE_PIXELS:
+        raise GlshadeError(
+            f"snapshot sidecar {side}: image of {width}x{height} pixels, more than a baseline "
+            f"holds ({MAX_BASELINE_PIXELS}: 4096x4096)"
+        )
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)):
+        raise GlshadeError(f"snapshot sidecar {side}: image scale must be a positive number")
+    if not (0 < scale <= 1e12):  # an int of any size compares exactly
         raise GlshadeError(f"snapshot sidecar {side}: image scale must be a positive number")
     return {"width": width, "height": height, "scale": float(scale)}
+
+
+def _whole(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value > 0
+
+
+def _check_texts(value: Any, side: Path, where: str) -> None:
+    """Every text of the sidecar (keys too) one line glshade could have written: at most
+    4096 characters, no control character (a stored text reaches a test's message)."""
+    from glshade.measure.record import text_problem
+
+    texts = (
+        value.items()
+        if isinstance(value, dict)
+        else enumerate(value)
+        if isinstance(value, list)
+        else ()
+    )
+    for key, item in texts:
+        name = f"{where}.{key}" if where else str(key)
+        problem = text_problem(name, key) if isinstance(key, str) else None
+        if isinstance(item, str):
+            problem = problem or text_problem(name, item)
+        if problem is not None:
+            raise GlshadeError(f"snapshot sidecar {side}: {problem}")
+        _check_texts(item, side, name)
+
+
+def _check_numbers(numbers: dict, side: Path) -> None:
+    """``numbers``: per instrument (:data:`INSTRUMENTS`) a table of its record's columns,
+    each of the column's type and within its range; another key of a table any one
+    value (shown beside the compared numbers, never compared)."""
+    from glshade.measure.record import Measurement, PmdMeasurement, Record
+
+    records: dict[str, type[Record]] = {"paper": Measurement, "pmd": PmdMeasurement}
+    for instrument, table in numbers.items():
+        if instrument not in records or not isinstance(table, dict):
+            raise GlshadeError(
+                f"snapshot sidecar {side}: numbers.{instrument} must be the table of an "
+                f"instrument's numbers ({', '.join(INSTRUMENTS)})"
+            )
+        for key, value in table.items():
+            if isinstance(value, (dict, list)):
+                problem: str | None = f"holds a {type(value).__name__} as {key}, not a number"
+            else:
+                problem = records[instrument].field_problem(key, value)
+            if problem is not None:
+                raise GlshadeError(f"snapshot sidecar {side}: numbers.{instrument} {problem}")
+
+
+def _check_scene(scene: dict, side: Path) -> None:
+    """``scene``: the scene file's tables, each a table of keys."""
+    for table, values in scene.items():
+        if not isinstance(values, dict):
+            raise GlshadeError(f"snapshot sidecar {side}: scene.{table} must be a table of keys")
+
+
+def _check_header(raw: bytes, png: Path, meta: dict[str, Any]) -> None:
+    """The PNG's header (its first 33 bytes), before a sample is decoded: 16-bit grey, at
+    most :data:`MAX_BASELINE_PIXELS` pixels, the size its sidecar says."""
+    from glshade.image_header import ImageHeaderError, check_pixels, png_header
+
+    name = f"snapshot image {png}"
+    try:
+        header = png_header(raw[:33], name)
+    except ImageHeaderError as exc:
+        why = str(exc).removeprefix(f"{name}: ")
+        raise GlshadeError(f"{name}: not a 16-bit greyscale PNG ({why})") from None
+    check_pixels(header, MAX_BASELINE_PIXELS, name, "a baseline holds at most 4096x4096")
+    if (header.bit_depth, header.channels) != (16, 1):
+        raise GlshadeError(f"{name}: not a 16-bit greyscale PNG ({header.describe()})")
+    if (header.width, header.height) != (meta["width"], meta["height"]):
+        raise GlshadeError(
+            f"{name}: is {header.width}x{header.height}, its sidecar says "
+            f"{meta['width']}x{meta['height']}"
+        )
 
 
 def _decode_png(data: bytes, png: Path) -> np.ndarray:

@@ -18,6 +18,12 @@ pytest.mark.glshade_tolerance(visibility_px=0.05)``); ``docs/snapshot-testing.md
 
 Loading the plugin imports neither OpenGL, OpenCV nor NumPy: a session that never asks
 for the fixture pays nothing.
+
+Every error is one line, never a traceback: a test's failure (a baseline that cannot be
+read, :mod:`.baseline`; a name two tests check, across pytest-xdist's workers too,
+:mod:`.claims`), a usage error at the start (a results folder whose ``index.html`` or
+``images/`` is a link, a FIFO or leads out of it; a baseline folder that leads out of the
+project under ``--glshade-update``), or a line of the summary at the end.
 """
 
 from __future__ import annotations
@@ -91,29 +97,106 @@ class SnapshotSession:
     deselected: int = 0
     station: Station | None = None
     unused: list[str] = field(default_factory=list)
+    #: Under pytest-xdist: the run's claims folder (:mod:`glshade.snapshot.claims`).
+    claims: Path | None = None
+    #: What the session's end could not do, one line each (said in its summary).
+    problems: list[str] = field(default_factory=list)
 
     @classmethod
     def from_config(cls, config: pytest.Config) -> SnapshotSession:
         base = config.inipath.parent if config.inipath is not None else config.rootpath
         results = config.getoption("glshade_results")
+        update = bool(config.getoption("glshade_update"))
+        setting = str(config.getini("glshade_snapshot_dir"))
+        directory = (base / setting).resolve()
+        if update:
+            _inside_project(directory, config.rootpath, setting)
         return cls(
-            directory=(base / str(config.getini("glshade_snapshot_dir"))).resolve(),
-            update=bool(config.getoption("glshade_update")),
+            directory=directory,
+            update=update,
             results=_results_folder(results) if results else None,
             fail_unused=bool(config.getoption("glshade_fail_unused")),
             renderer=str(config.getoption("glshade_renderer")),
+            claims=_claims_folder(config),
+        )
+
+
+def _inside_project(directory: Path, root: Path, setting: str) -> None:
+    """A usage error where the baseline folder, every link followed, leaves the project:
+    ``--glshade-update`` writes baselines only inside it."""
+    project = root.resolve()
+    if directory != project and project not in directory.parents:
+        raise pytest.UsageError(
+            f"glshade_snapshot_dir {setting}: resolves to {directory}, outside the project "
+            f"{project}; --glshade-update writes baselines only inside it (a folder linked "
+            "elsewhere is refused): make it a folder of the project"
         )
 
 
 def _results_folder(text: str) -> Path:
-    """``--glshade-results``'s folder, or a usage error where something else is there."""
+    """``--glshade-results``'s folder, or a usage error where something else is there, or
+    where what the plugin writes there (``index.html``, ``images/``) is a link out of it,
+    a link, a FIFO or another file that is not a regular one."""
+    from glshade.errors import GlshadeError
+
     folder = Path(text).resolve()
     if folder.exists() and not folder.is_dir():
         raise pytest.UsageError(f"--glshade-results {text}: is not a directory")
+    try:
+        if folder.is_dir():
+            _check_results(folder)
+    except GlshadeError as exc:
+        raise pytest.UsageError(str(exc)) from None
     return folder
 
 
+def _check_results(folder: Path) -> None:
+    from glshade.errors import GlshadeError
+    from glshade.files import check_entries, check_inside, refuse_link, special_kind
+
+    what, page, images = "--glshade-results", folder / "index.html", folder / "images"
+    if os.path.lexists(page):
+        check_inside(folder, page, what)
+        refuse_link(folder, page, what)
+        kind = special_kind(os.lstat(page).st_mode)
+        if kind is not None:
+            raise GlshadeError(
+                f"{what} {folder}: {page} is {kind}; glshade writes only regular files there: "
+                "remove it or choose another folder"
+            )
+    if os.path.lexists(images):
+        check_inside(folder, images, what)
+        if images.is_dir():
+            check_entries(images, (), what)
+
+
+def _claims_folder(config: pytest.Config) -> Path | None:
+    """The run's claims folder under pytest-xdist: the controller makes it, each worker
+    is given it (:func:`pytest_configure_node`); None in a single process."""
+    from glshade.snapshot.claims import CLAIMS_KEY
+
+    workerinput = getattr(config, "workerinput", None)
+    if isinstance(workerinput, dict):
+        given = workerinput.get(CLAIMS_KEY)
+        return Path(given) if given else None
+    if _distributed(config):
+        import tempfile
+
+        return Path(tempfile.mkdtemp(prefix="glshade-snapshot-claims-"))
+    return None
+
+
 SESSION = pytest.StashKey[SnapshotSession]()
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_configure_node(node: Any) -> None:
+    """pytest-xdist, on the controller: give each worker the run's claims folder."""
+    from glshade.snapshot.claims import CLAIMS_KEY
+
+    state = node.config.stash.get(SESSION, None)
+    if state is not None and state.claims is not None:
+        node.workerinput[CLAIMS_KEY] = str(state.claims)
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -151,7 +234,10 @@ def glshade_station(request: pytest.FixtureRequest):
     try:
         station = open_station(state.renderer)
     except GlshadeError as exc:
-        pytest.fail(f"glshade snapshots: {exc}", pytrace=False)
+        message = f"glshade snapshots: {exc}"
+        station = None
+    if station is None:
+        pytest.fail(message, pytrace=False)  # outside the except: one line
     state.station = station
     if station.fallback:
         warnings.warn(
@@ -203,7 +289,8 @@ class Snapshots:
         try:
             return self._check(scene, name, tolerances)
         except GlshadeError as exc:
-            pytest.fail(f"glshade snapshot: {exc}", pytrace=False)
+            message = f"glshade snapshot: {exc}"
+        pytest.fail(message, pytrace=False)  # outside the except: no chained exception shown
 
     # ------------------------------------------------------------------ steps
     def _check(self, scene: Any, name: str | None, overrides: dict[str, Any]) -> Comparison | None:
@@ -219,6 +306,7 @@ class Snapshots:
         scene_file = _plain(scene.to_file_dict(directory, climb=True))
         if self._state.update:
             self._write(name, scene, scene_file, shot)
+            self._collided(name)
             return None
         if not stored.exists(directory, name):
             self._missing(name, scene_file, shot)
@@ -270,6 +358,7 @@ class Snapshots:
 
     def _claim(self, name: str) -> None:
         from glshade.errors import GlshadeError
+        from glshade.snapshot import claims
 
         test = self._request.node.nodeid
         other = self._state.checked.setdefault(name, test)
@@ -278,6 +367,20 @@ class Snapshots:
                 f"snapshot name {name!r} is checked by {other} already; give each check its "
                 "own name"
             )
+        if self._state.claims is not None:  # the other workers' tests (pytest-xdist)
+            holder = claims.claim(self._state.claims, name, test)
+            if holder is not None:
+                raise GlshadeError(claims.collision_line(name, [holder, test]))
+
+    def _collided(self, name: str) -> None:
+        """Fail where another worker's test checked ``name`` meanwhile (pytest-xdist)."""
+        from glshade.errors import GlshadeError
+        from glshade.snapshot import claims
+
+        if self._state.claims is not None:
+            tests = claims.collided(self._state.claims, name)
+            if tests:
+                raise GlshadeError(claims.collision_line(name, tests))
 
     def _write(self, name: str, scene: Scene, scene_file: dict, shot: Shot) -> None:
         import glshade
@@ -333,7 +436,7 @@ class Snapshots:
         if folder is not None and outcome in ("moved", "missing", "broken"):
             tolerance = result.tolerances.image if result is not None else 0.0
             expected = baseline.image if baseline is not None else None
-            folder.mkdir(parents=True, exist_ok=True)
+            _make_results(folder)
             images = write_images(folder, name, shot.image, expected, tolerance)
         self._state.entries.append(
             Entry(
@@ -352,6 +455,20 @@ class Snapshots:
         )
 
 
+def _make_results(folder: Path) -> None:
+    """The results folder, made where missing (one line where it cannot be)."""
+    from glshade.errors import GlshadeError
+
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise GlshadeError(
+            f"--glshade-results {folder}: cannot create it ({exc.strerror or exc})"
+        ) from None
+    if not folder.is_dir():
+        raise GlshadeError(f"--glshade-results {folder}: is not a directory")
+
+
 def _plain(data: dict) -> dict:
     """``data`` as it reads back from JSON (tuples become lists)."""
     return json.loads(json.dumps(data))
@@ -360,14 +477,35 @@ def _plain(data: dict) -> dict:
 # --------------------------------------------------------------------- the session's end
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     state = session.config.stash.get(SESSION, None)
-    if state is None or _distributed(session.config):
+    if state is None or hasattr(session.config, "workerinput"):
+        return
+    quiet = (pytest.ExitCode.OK, pytest.ExitCode.NO_TESTS_COLLECTED)
+    if _distributed(session.config):  # the controller: the workers' collisions
+        state.problems += _collisions(state)
+        if state.problems and session.exitstatus in quiet:
+            session.exitstatus = pytest.ExitCode.TESTS_FAILED
         return
     state.unused = _unused(state)
-    quiet = (pytest.ExitCode.OK, pytest.ExitCode.NO_TESTS_COLLECTED)
     if state.unused and state.fail_unused and session.exitstatus in quiet:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
     if state.results is not None and state.entries:
         _write_summary(state)
+        if state.problems and session.exitstatus in quiet:
+            session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def _collisions(state: SnapshotSession) -> list[str]:
+    """The controller's lines for every name two workers' tests checked; the claims
+    folder removed."""
+    import shutil
+
+    from glshade.snapshot import claims
+
+    if state.claims is None or not state.claims.is_dir():
+        return []
+    found = claims.collisions(state.claims)
+    shutil.rmtree(state.claims, ignore_errors=True)
+    return [claims.collision_line(name, tests) for name, tests in found.items()]
 
 
 def _distributed(config: pytest.Config) -> bool:
@@ -403,16 +541,28 @@ def _write_summary(state: SnapshotSession) -> None:
     }
     if state.station is not None and state.station.fallback:
         header["note"] = f"the NumPy float64 oracle stood in: {state.station.fallback}"
-    state.results.mkdir(parents=True, exist_ok=True)
-    write_summary(state.results, state.entries, header)
+    from glshade.errors import GlshadeError
+
+    try:
+        _make_results(state.results)
+        write_summary(state.results, state.entries, header)
+    except GlshadeError as exc:  # said in the summary, in one line: never a traceback
+        state.problems.append(f"no HTML summary: {exc}")
 
 
 def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pytest.Config) -> None:
     state = config.stash.get(SESSION, None)
-    if state is None or not (state.entries or state.unused):
+    if state is None or not (state.entries or state.unused or state.problems):
         return
     write = terminalreporter.write_line
     terminalreporter.section("glshade snapshots")
+    for problem in state.problems:
+        write(f"failed: {problem}", red=True)
+    if state.entries or state.unused:
+        _say_checks(write, state)
+
+
+def _say_checks(write: Any, state: SnapshotSession) -> None:
     counts: dict[str, int] = {}
     for entry in state.entries:
         counts[entry.outcome] = counts.get(entry.outcome, 0) + 1
@@ -430,5 +580,5 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
             + ", ".join(state.unused)
             + "; remove their .png and .json, or run the tests that check them"
         )
-    if state.results is not None and state.entries:
+    if state.results is not None and state.entries and not state.problems:
         write(f"summary: {state.results / 'index.html'}")
