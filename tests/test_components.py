@@ -221,7 +221,7 @@ def _other_value(param):
     if param.value_type == "table":
         return (*param.default, ("spare", 0.5))
     if param.default is None or param.default in param.keywords:
-        return 0.625
+        return 0.625 if param.lo is None or param.lo < 0.625 else 1.5 * param.lo
     if param.nonzero:
         return -0.5 * param.default
     if param.lo is not None and param.hi is not None:
