@@ -313,3 +313,31 @@ def test_a_forged_pmd_study_case_never_reaches_the_report(tmp_path, capsys, _ses
     assert measured_table(tmp_path / "study" / "pmd_results.csv") == table
     for name in ("pmd_results.csv", "pmd_report.md", "report.md", "results.csv"):
         assert "<script>" not in (tmp_path / "study" / name).read_text()
+
+
+@pytest.mark.parametrize(
+    "column, forged, said",
+    [
+        ("status", "bogus", "unknown status 'bogus'"),
+        ("variant", "<b>x</b>", "unknown variant"),
+        ("status_reason", "two\nlines <script>", "not one line of text"),
+        ("visibility_px", "Infinity", "is not a finite number"),
+        ("theta_deg", "forty", "is not a number"),
+    ],
+)
+def test_a_forged_finding3_row_is_one_line_before_the_report(tmp_path, column, forged, said):
+    """``finding3.csv`` enters the study's report: the shipped table reads back whole, a
+    row with a forged field is refused naming the row, never copied into Markdown."""
+    from glshade.study.finding3 import read_rows, report_section
+
+    shipped = ROOT / "docs" / "paper_study" / "finding3.csv"
+    rows = list(csv.DictReader(io.StringIO(shipped.read_text())))
+    assert len(read_rows(shipped)) == len(rows) > 0
+    rows[3][column] = forged
+    text = io.StringIO()
+    writer = csv.DictWriter(text, list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    (tmp_path / "finding3.csv").write_text(text.getvalue())
+    with pytest.raises(GlshadeError, match=rf"finding3.csv: row 5: .*{said}"):
+        report_section(tmp_path)

@@ -22,11 +22,12 @@ from typing import Any
 
 import numpy as np
 
+from glshade.errors import GlshadeError
 from glshade.files import RESULTS_TABLE_BYTES, atomic_write_bytes, read_regular_text
 from glshade.measure.engine import Case
 from glshade.measure.executors import LocalExecutor
 from glshade.measure.locks import run_lock
-from glshade.metrics.status import concerns
+from glshade.metrics.status import STATUSES, concerns
 from glshade.metrics.visibility import MetricSettings
 from glshade.scene import Scene, paper_scene
 from glshade.study.stats import spearman
@@ -173,11 +174,38 @@ def _write_csv(rows, path: Path) -> None:
 
 
 def read_rows(path: Path) -> list[dict]:
+    """The rows of ``finding3.csv``, each checked as it enters a report: a known variant
+    and status, one line of reason, finite numbers; else one line naming the row."""
     text = read_regular_text(path, "finding3 table", RESULTS_TABLE_BYTES)
-    return [
-        {k: (v if k in TEXT_FIELDS else float(v) if v != "" else None) for k, v in row.items()}
-        for row in csv.DictReader(io.StringIO(text))
-    ]
+    rows = []
+    for number, row in enumerate(csv.DictReader(io.StringIO(text)), 2):
+        problem = _row_problem(row)
+        if problem is not None:
+            raise GlshadeError(f"finding3 table {path}: row {number}: {problem}")
+        rows.append(
+            {k: (v if k in TEXT_FIELDS else float(v) if v != "" else None) for k, v in row.items()}
+        )
+    return rows
+
+
+def _row_problem(row: dict) -> str | None:
+    """What makes a ``finding3.csv`` row unfit for the report, or None."""
+    if set(row) != set(FIELDS) or None in row.values():
+        return f"expected the columns {', '.join(FIELDS)}"
+    if row["variant"] not in {v.key for v in VARIANTS}:
+        return f"unknown variant {row['variant'][:40]!r}"
+    if row["status"] not in STATUSES:
+        return f"unknown status {row['status'][:40]!r}"
+    if len(row["status_reason"]) > 4096 or not row["status_reason"].isprintable():
+        return "a status_reason that is not one line of text"
+    for key in set(FIELDS) - set(TEXT_FIELDS):
+        try:
+            value = float(row[key]) if row[key] != "" else 0.0
+        except ValueError:
+            return f"{key} {row[key][:40]!r} is not a number"
+        if not math.isfinite(value):
+            return f"{key} {row[key]!r} is not a finite number"
+    return None
 
 
 def readable(row, key: str = "visibility_px") -> bool:
