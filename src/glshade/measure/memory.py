@@ -103,10 +103,6 @@ class MemoryEstimate:
         """What the budget must hold: the renderer and the analysis."""
         return self.frame_bytes + self.analysis_bytes
 
-    @property
-    def total_bytes(self) -> int:
-        return self.required_bytes + self.cache_bytes
-
 
 def render_bytes(scene: Scene, output_sets: tuple[tuple[str, ...], ...], frame_count=0) -> int:
     """The renderer's buffers for every output set a case renders (the renderer keeps the

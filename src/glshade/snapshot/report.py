@@ -109,15 +109,6 @@ def number_rows(entry: Entry) -> list[dict[str, str]]:
     return rows
 
 
-def _tolerance_text(change: Any) -> str:
-    if change is None:
-        return ""
-    if change.tolerance is None:
-        return "same"
-    trust = f" (not readable: status {change.unreadable})" if change.unreadable else ""
-    return f"{change.tolerance:g} {change.unit}{trust}"
-
-
 def _numeric(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 

@@ -331,15 +331,6 @@ def _opening(pairs: Sequence[Pair], plan, paper_size: int | None) -> list[str]:
     return lines
 
 
-def _counts(thetas: Sequence[float]) -> str:
-    """ "85° in 10 series, 5° in 3" (most often first)."""
-    counts: dict[float, int] = {}
-    for t in thetas:
-        counts[t] = counts.get(t, 0) + 1
-    order = sorted(counts.items(), key=lambda tc: (-tc[1], -tc[0]))
-    return ", ".join(f"{t:g}° in {c}" for t, c in order) or "none"
-
-
 def _where_text(found: Sequence[Series], pick: Callable[[Series], Best], plan) -> str:
     """Per surface: in how many series the θ near the best are all the measurable θ, and
     the others' θ (``flat: every θ in 8 of 8 series; sphere: 85–55° (σ² 1, 3 µm), …``)."""
