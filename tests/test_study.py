@@ -483,3 +483,41 @@ def test_the_study_on_worker_processes_writes_the_same_rows(tmp_path, renderer):
         assert (tmp_path / "here" / "cases" / name).read_bytes() == (
             tmp_path / "there" / "cases" / name
         ).read_bytes()
+
+
+def test_a_theta_verdict_shows_its_rho_and_the_advice_s_reference():
+    """Finding 4's headline carries the numbers it is decided on: a large loss (-60 %)
+    with a ranked trend of ρ +0.30 does not hold, and says so with its ρ; its θ near the
+    best are those the camera advice names (90 % of the best over θ, one reference); a
+    series whose lowest θ could not be read names its last θ as the lowest readable."""
+    thetas = (85.0, 65.0, 45.0, 25.0, 5.0)
+    steep = {85.0: 10.0, 65.0: 3.0, 45.0: 9.8, 25.0: 9.9, 5.0: 4.0}  # up and down: ρ +0.30
+    rows = [
+        dict(
+            surface=surface,
+            theta_deg=t,
+            sigma2_mm2=1.0,
+            dmax_mm=0.005,
+            visibility_px=steep[t],
+            visibility_continuous_px=steep[t],
+            folded=False,
+            status="edge" if surface == "sphere" and t == 5.0 else "ok",
+        )
+        for surface in ("flat", "sphere")
+        for t in thetas
+    ]
+    verdict = next(
+        v
+        for v in findings.evaluate(rows)
+        if (v.finding, v.scope, v.metric) == (4, "flat, dmax 5 µm", "continuous limit")
+    )
+    assert verdict.verdict == findings.NOT
+    assert verdict.text == (
+        "does not hold: σ² 1 -60% (ρ +0.30) (θ 85° → 5°); at least 90% of its best: "
+        "σ² 1 at θ 85°, 45–25°"
+    )
+    assert findings.best_thetas(rows, "flat", [1.0], 0.005) == [85.0, 45.0, 25.0]
+    sphere = next(
+        v for v in findings.evaluate(rows) if v.finding == 4 and v.scope.startswith("sphere")
+    )
+    assert "(θ 85° → 25°, the lowest readable)" in sphere.text
