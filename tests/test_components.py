@@ -30,7 +30,7 @@ from glshade.app import args, cli
 from glshade.components.base import UniformContext
 from glshade.components.registry import registry
 from glshade.frame import OUTPUTS
-from glshade.gpu.compose import ShaderFeatures, compose, glsl_sources, stages
+from glshade.gpu.compose import ShaderFeatures, compose, environment_for, stages
 from glshade.gpu.renderer import RootSolver, scene_uniforms
 from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
@@ -253,7 +253,11 @@ def check_round_trip(component, tmp_path) -> None:
 def _unique_lines() -> dict[str, set[str]]:
     """Per GLSL file the composer can use (the template's, the library's, the slot
     headers' and every registered component's): its code lines no other file has."""
-    files = {name: path.read_text() for name, path in glsl_sources().items()}
+    env = environment_for(registry().components())
+    files = {
+        name: env.loader.get_source(env, name)[0]
+        for name in env.list_templates(filter_func=lambda name: name.endswith(".glsl"))
+    }
     lines = {
         name: {
             ln.strip()

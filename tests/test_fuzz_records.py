@@ -39,6 +39,7 @@ from glshade.metrics.status import STATUSES
 from glshade.study import pmd_store, store
 from glshade.study.escape import markdown_text
 from glshade.sweep import store as sweep_store
+from glshade.sweep.table import TableWriter
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = ROOT / "docs" / "paper_study"
@@ -273,7 +274,9 @@ def written_on(folder: Path, mutant: Mutant, record: Any, spec: Any) -> None:
         assert store.read_results_csv(folder / "table.csv", row_class)[0].case == record.case
     else:
         rows = [{"case_id": mutant.seed.name, **record.outputs()}]
-        sweep_store.write_tables(folder, spec[mutant.seed.instrument], rows)
+        with TableWriter(folder, spec[mutant.seed.instrument]) as table:
+            table.add(rows)
+            table.finish()
     assert "\n" not in markdown_text(record.status_reason)
 
 

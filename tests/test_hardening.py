@@ -28,7 +28,7 @@ from glshade.app.args import scene_from_args
 from glshade.app.cli import build_parser, main
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
-from glshade.files import atomic_write_bytes, check_output, write_image
+from glshade.files import atomic_write_bytes, check_image_output, check_output, encode_image
 from glshade.gpu import renderer as renderer_module
 from glshade.oracle.advice import scene_warnings
 from glshade.oracle.footprint import footprint_mm
@@ -214,6 +214,12 @@ def test_a_symlink_is_written_through(tmp_path):
     (tmp_path / "to_pipe.png").symlink_to(tmp_path / "pipe")
     with pytest.raises(GlshadeError, match="is a FIFO"):
         check_output(tmp_path / "to_pipe.png", "-o")
+
+
+def write_image(path: Path, image: np.ndarray, bits: int = 8) -> None:
+    """``image`` written as ``glshade render -o PATH --bits BITS`` writes it."""
+    target = check_image_output(path, "-o", bits)
+    atomic_write_bytes(path, encode_image(image, target.suffix, bits), "-o")
 
 
 def test_image_format_follows_the_extension(tmp_path, renderer):

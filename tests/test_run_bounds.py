@@ -5,15 +5,19 @@ any case is made; a sweep's grid is made a chunk at a time and its table written
 the chunks.
 
 Oracles: the refusals' lines against the counts worked out by hand; the lazy grid against
-the grid listed whole (the old way); the streamed tables against
-:func:`glshade.sweep.store.write_tables` given every row at once. No case is rendered: an
+the grid listed whole (the old way); the streamed tables against the tables written in
+one piece from every row at once (:func:`write_tables`). No case is rendered: an
 executor that makes records by rule stands in for the engine.
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import itertools
+import json
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -239,11 +243,43 @@ def streamed_spec() -> SweepSpec:
     )
 
 
+def write_tables(out_dir: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> None:
+    """``results.parquet`` (the manifest in its metadata) and ``results.csv`` of ``rows``,
+    written in one piece: each column's type inferred from all of its values at once (an
+    integer column with a fractional value a float column, a column of only empty cells a
+    float column)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    columns = ["case_id", *spec.columns, *store.output_names(spec.method)]
+    types = []
+    for name in columns:
+        values = [store._cell(row.get(name)) for row in rows if row.get(name) is not None]
+        kind = pa.array(values).type if values else pa.float64()
+        if pa.types.is_integer(kind) and any(isinstance(v, float) for v in values):
+            kind = pa.float64()
+        types.append(pa.field(name, kind))
+    table = pa.Table.from_pylist(
+        [{name: store._cell(row.get(name)) for name in columns} for row in rows],
+        schema=pa.schema(types),
+    )
+    table = table.replace_schema_metadata({b"glshade": json.dumps(spec.manifest()).encode()})
+    buffer = io.BytesIO()
+    pq.write_table(table, buffer)
+    (out_dir / store.PARQUET).write_bytes(buffer.getvalue())
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=columns, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({name: store._csv_cell(row.get(name)) for name in columns})
+    (out_dir / store.CSV).write_text(text.getvalue())
+
+
 def written_whole(spec: SweepSpec, out: Path, where: Path) -> Path:
-    """The tables :func:`store.write_tables` writes from every row of ``out``'s cases."""
+    """The tables :func:`write_tables` writes from every row of ``out``'s cases."""
     where.mkdir()
     records = {c.case_id: store.load_case(out, c.case_id) for c in spec.cases()}
-    store.write_tables(where, spec, store.table_rows(spec, list(spec.cases()), records))
+    write_tables(where, spec, store.table_rows(spec, list(spec.cases()), records))
     return where
 
 

@@ -471,14 +471,6 @@ def encode_image(image: np.ndarray, suffix: str, bits: int = 8) -> bytes:
     return buf.tobytes()
 
 
-def write_image(
-    path: str | os.PathLike[str], image: np.ndarray, bits: int = 8, what: str = "-o"
-) -> None:
-    """Write a radiance image in the format its extension names (PNG or TIFF), atomically."""
-    target = check_image_output(path, what, bits)
-    atomic_write_bytes(Path(path), encode_image(image, target.suffix, bits), what)
-
-
 def read_png(path: str | os.PathLike[str]) -> np.ndarray:
     """Read a PNG written by :func:`write_png` as stored integers (uint8 or uint16)."""
     import cv2  # loaded by the commands that encode or decode images

@@ -341,20 +341,6 @@ def component_uniforms(
     return values
 
 
-def glsl_sources(features: ShaderFeatures | None = None) -> dict[str, Path]:
-    """Every GLSL file the composer can use: template name -> path (the shaders
-    directory's, and each registered component's folder under its namespace)."""
-    found = {
-        path.relative_to(shader_dir()).as_posix(): path for path in shader_dir().rglob("*.glsl")
-    }
-    components = features.components if features is not None else registry().components()
-    for component in components:
-        folder = component.glsl_folder()
-        for path in sorted(folder.glob("*.glsl")):
-            found[f"{namespace(component)}/{path.name}"] = path
-    return found
-
-
 # --------------------------------------------------------------------------- errors
 # Driver log formats: Mesa "0:12(5): error: …", NVIDIA "0(12) : error C0000: …",
 # ANGLE/others "ERROR: 0:12: …".

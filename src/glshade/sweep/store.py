@@ -13,8 +13,6 @@ The tables are rebuilt from the case files at the end of every run. No GL here.
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import os
 from collections.abc import Mapping
@@ -223,28 +221,6 @@ def table_rows(
     return rows
 
 
-def write_tables(out_dir: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> None:
-    """``results.parquet`` (the manifest in its metadata) and ``results.csv``, atomically."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    columns = ["case_id", *spec.columns, *output_names(spec.method)]
-    table = pa.Table.from_pylist(
-        [{name: _cell(row.get(name)) for name in columns} for row in rows],
-        schema=_schema(columns, rows),
-    )
-    table = table.replace_schema_metadata({b"glshade": json.dumps(spec.manifest()).encode()})
-    buffer = io.BytesIO()
-    pq.write_table(table, buffer)
-    atomic_write_bytes(Path(out_dir) / PARQUET, buffer.getvalue(), "--out", within=out_dir)
-    text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=columns, lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({name: _csv_cell(row.get(name)) for name in columns})
-    atomic_write_bytes(Path(out_dir) / CSV, text.getvalue().encode(), "--out", within=out_dir)
-
-
 def _cell(value: Any) -> Any:
     return list(value) if isinstance(value, tuple) else value
 
@@ -253,20 +229,6 @@ def _csv_cell(value: Any) -> Any:
     if isinstance(value, (list, tuple, dict)):
         return json.dumps(list(value) if isinstance(value, tuple) else value)
     return "" if value is None else value
-
-
-def _schema(columns: list[str], rows: list[dict[str, Any]]):
-    """Column types from the values (a column of only empty cells is a float column)."""
-    import pyarrow as pa
-
-    types = []
-    for name in columns:
-        values = [_cell(row.get(name)) for row in rows if row.get(name) is not None]
-        kind = pa.array(values).type if values else pa.float64()
-        if pa.types.is_integer(kind) and any(isinstance(v, float) for v in values):
-            kind = pa.float64()
-        types.append(pa.field(name, kind))
-    return pa.schema(types)
 
 
 def read_table(out_dir: Path) -> list[dict[str, Any]]:

@@ -2,12 +2,12 @@
 row, ``results.parquet`` from chunks of rows kept on disk until the last, so a grid of a
 million cases is written in the memory of one chunk.
 
-The files are exactly those :func:`glshade.sweep.store.write_tables` writes from the whole
-list of rows: the same columns, cells and column types (a column's type is inferred from
-all of its values: each chunk's types are inferred alike and widened together at the end,
-an integer column with a fractional value anywhere a float column, a column without any
-value a float column), and for a table of at most :data:`ROWS_PER_GROUP` rows the same
-bytes (a longer one is written in row groups of that many rows). Both files land under
+The files are exactly those written in one piece from the whole list of rows would be:
+the same columns, cells and column types (a column's type is inferred from all of its
+values: each chunk's types are inferred alike and widened together at the end, an integer
+column with a fractional value anywhere a float column, a column without any value a float
+column), and for a table of at most :data:`ROWS_PER_GROUP` rows the same bytes (a longer
+one is written in row groups of that many rows). Both files land under
 their names only when :meth:`TableWriter.finish` is called (temporary files renamed over
 them); an interrupted run leaves the tables of the run before.
 """
@@ -135,8 +135,8 @@ class TableWriter:
 
 
 def _inferred(name: str, rows: list[dict[str, Any]]):
-    """A column's type from its values, as :func:`glshade.sweep.store.write_tables`
-    infers it, but null where it has none (another chunk may have some)."""
+    """A column's type from its values (pyarrow's, an integer column with a fractional
+    value a float column), but null where it has none (another chunk may have some)."""
     import pyarrow as pa
 
     values = [store._cell(row.get(name)) for row in rows if row.get(name) is not None]
