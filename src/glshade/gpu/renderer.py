@@ -1,23 +1,34 @@
 """The renderer: scene -> shader features -> program -> frame.
 
-One fragment per camera pixel computes the ray, its first hit on the analytic surface,
-the mirror reflection and the stripe emitter's radiance (``shaders/``). Only the render
-targets a call asks for are attached, drawn and read back, straight into NumPy arrays.
+The program is composed from the scene's active components (:mod:`glshade.gpu.compose`:
+the template, slot headers and library in ``shaders/``, each component's GLSL in its
+folder). One fragment per camera pixel traces the pixel's rays (``render.supersample``²
+times a lens's aperture samples), each ray's first hit on the surface (a plane or quadric
+in closed form, a formula or a height map marched) carrying the defect, and shades what the
+reflection model sees of the emitter's pattern there (the image), or of each emitter frame
+of a draw (the ``frames`` output: an image array, at most :data:`MAX_FRAMES_PER_DRAW`
+frames a draw). Only the render targets a call asks for are attached, drawn and read back,
+straight into NumPy arrays. A pixel's rays whose loops would pass the driver's limit are
+traced over several draws (:data:`PASS_LOOP_BUDGET`) and summed in float64; a large frame
+is drawn in bands of rows, so that Ctrl-C is honoured and progress can be shown; with a
+sensor, the image is what it records.
 
-Numerics (the error budget, fp32):
+Numerics (the error budget in fp32; ``render.precision = "fp64"`` runs the same code in
+double precision):
 - Everything is computed in a frame centred on the dent, ``O = (x0, 0, z0)``: uniforms
   are formed in float64 on the CPU (``C - O`` and friends) and only then rounded.
-- Each ray is re-originated at its closest approach to the dent centre, so the solves
-  below work on millimetre-sized numbers instead of the camera's 175 mm: rounding the
-  origin shifts the ray sideways by ~1e-5 mm, about 3e-4 of a pixel's footprint.
-- Base surfaces: sag form ``f = -s r²/(|R| + sqrt(R² - r²))`` and the quadratic with
-  ``R²`` cancelled analytically and its roots in the stable ``q, c/q`` pair.
+- Each chief ray is re-originated at its closest approach to the gazing point (a lens ray
+  at its own closest approach to the dent), so the solves below work on millimetre-sized
+  numbers instead of the camera's 175 mm: rounding the origin shifts the ray sideways by
+  ~1e-5 mm, about 3e-4 of a pixel's footprint.
+- Quadric base surfaces: sag form ``f = -s r²/(|R| + sqrt(R² - r²))`` and the quadratic
+  with ``R²`` cancelled analytically and its roots in the stable ``q, c/q`` pair.
 - The dent: bracket between the base surface shifted by ``max(0, -dmax)`` and
-  ``min(0, -dmax)``; inside it a march whose steps are bounded by the surface's
-  curvature along the ray (it cannot pass the first root), then Newton safeguarded by
+  ``min(0, -dmax)``; inside it, from the upper bracket, a march whose steps are bounded by
+  the curvature along the ray (it cannot pass the first root), then Newton safeguarded by
   bisection where a step crossed (:class:`RootSolver`).
-- The emitter: ``(E - P)·n_E = -De - P·n_E`` and ``(P - E)·e_v = P·e_v``, so no 256 mm
-  quantity is ever subtracted from another.
+- The emitter: ``(E - P)·n_E = -De - P·n_E`` and ``(P - E)·e_u = P·e_u``, ``(P - E)·e_v =
+  P·e_v``, so no 256 mm quantity is ever subtracted from another.
 """
 
 from __future__ import annotations
@@ -96,7 +107,7 @@ PASS_LOOP_BUDGET = 16384
 
 @dataclass(frozen=True)
 class RootSolver:
-    """The dent's root finder (``shaders/surface_hit_dent.glsl``): at most
+    """The dent's root finder (``components/defect/gaussian/hit_dent.glsl``): at most
     ``march_steps`` steps of a march that cannot pass a root (each step is bounded by
     the curvature of the surface along the ray), then, where a step crossed, at most
     ``newton_iterations`` safeguarded Newton steps; both stop when a step is below

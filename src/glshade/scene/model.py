@@ -5,8 +5,8 @@ incidence ``yz``, the camera on ``+z`` and the emitter on ``-z``; every length i
 millimetres, every angle that crosses the user boundary in degrees.
 
 Each table is a frozen dataclass declared by the component that owns it (the camera's,
-the emitter's, the defect's, the sensor's) or, for the surface and render tables that
-several components share, the slot's own fields joined with those of every registered
+the defect's, the sensor's) or, for the surface, emitter and render tables that several
+components share, the slot's own fields joined with those of every registered
 component (:meth:`glshade.components.registry.Registry.table_class`): ``Surface(kind=
 "sphere", radius=70)`` is such a table. A table validates itself on construction: a value
 out of range raises :class:`~glshade.errors.SceneError` naming the field as a scene file
