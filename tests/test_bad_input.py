@@ -61,7 +61,8 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     ),
     (["render", "--surface", "torus"], "invalid choice: 'torus'", {}),
     (["render", "--set", "camera.zoom=2"], "camera.zoom: must be one of the keys", {}),
-    (["render", "--set", "theta=5"], "expected PATH=VALUE", {}),
+    (["render", "--set", "theta"], "expected NAME=VALUE", {}),
+    (["render", "--set", "black_level=3"], "--set black_level: ambiguous short name", {}),
     (["render", "--set", "emitter.half_size=1"], "emitter.half_size: must be two numbers", {}),
     (
         ["render", "--size", "4096", "--supersample", "16", "--f-number", "8", "--focus", "431.6"],

@@ -125,7 +125,8 @@ def test_info_reports_renderer_and_fp64():
             "camera.theta_deg: must be a number in degrees",
         ),
         (["render", "--set", "camera.theta_deg=90"], "camera.theta_deg: must be in (0.001, 90)"),
-        (["render", "--set", "theta=5"], "expected PATH=VALUE"),
+        (["render", "--set", "theta"], "expected NAME=VALUE"),
+        (["render", "--set", "thta=5"], "--set thta: unknown setting; close matches: theta"),
         (
             ["render", "--set", "surface.kind=torus"],
             "surface.kind: must be one of flat, cylinder, sphere",

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import difflib
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -40,14 +41,24 @@ def add_scene_flags(p: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         metavar="PATH=VALUE",
-        help="set any scene parameter by its dotted path, e.g. --set camera.theta_deg=15 "
-        "(see docs/scene-format.md); applied after the short flags",
+        help="set any scene parameter by its dotted path, e.g. --set camera.theta_deg=15, or "
+        "by its short name, --set theta=15 (see docs/scene-format.md); applied after the "
+        "short flags",
     )
-    p.add_argument("--size", type=int, metavar="N", help="N pixels across, same field of view")
+    p.add_argument("--size", type=int, metavar="N", help=SIZE_HELP)
     add_save_scene(p)
     p.add_argument(
         "--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)"
     )
+
+
+#: ``--size``'s help, for every command that has it.
+SIZE_HELP = (
+    "N pixels across: the scene file's field of view is kept (its pixel pitch rescaled), "
+    "but a camera value typed on the command line (--set camera.pixel_pitch=..., "
+    "camera.height) is kept as typed and the field of view follows; --set camera.width "
+    "other than N is refused as a conflict"
+)
 
 
 def path_arg(text: str) -> Path:
@@ -269,33 +280,88 @@ def metric_settings(args: argparse.Namespace):
 
 
 def scene_from_args(args: argparse.Namespace) -> Scene:
-    """The scene a ``render``/``measure``/``view`` call describes: the file (or the
-    default scene), then the short flags, then ``--set PATH=VALUE`` in order, then
-    ``--size``. A bad value is named as the user typed it (``--sigma2``, or the dotted
-    path of ``--set``), not by the fields it sets, also where a check over several values
-    of a table refuses it (``--bit-depth``)."""
+    """The scene a ``render``/``measure``/``optimize`` call describes: the file (or the
+    default scene), resized by ``--size`` (:func:`sized`), then the short flags, then
+    ``--set NAME=VALUE`` in order. A bad value is named as the user typed it (``--sigma2``,
+    ``--set theta``, or the dotted path of ``--set``), not by the fields it sets, also
+    where a check over several values of a table refuses it (``--bit-depth``)."""
     # the file, or the scene every default makes (the paper's flat plate): a surface given
     # by a flag takes its parameters' defaults exactly as a file naming only its kind does
     scene = Scene.load(args.scene) if args.scene is not None else Scene()
     tables: dict[str, dict[str, object]] = {}
-    typed: dict[str, str] = {}  # parameter path -> the flag that set it
+    typed: dict[str, str] = {}  # parameter path -> how the user typed it
     for param in registry().params():
         value = getattr(args, flag_dest(param), None) if param.flag is not None else None
         if value is not None:
             tables.setdefault(param.table, {})[param.key] = checked(param, value, param.flag)
             typed[param.path] = param.flag or param.path
-    for item in args.settings:  # later settings win; all are applied at once, so values that
-        # only make sense together (a kind and its file) can be given together
-        path, value = parse_setting(item, scene, tables)
+    # later settings win; all are applied at once, so values that only make sense together
+    # (a kind and its file) can be given together
+    read_settings(args.settings, scene, tables, typed)
+    scene = sized(scene, args.size, tables, typed)
+    with named_as_typed(typed):
+        return scene.updated(**tables) if tables else scene
+
+
+def sized(
+    scene: Scene, size: int | None, tables: dict[str, dict[str, object]], typed: dict[str, str]
+) -> Scene:
+    """``--size N`` applied to the scene the file (or the defaults) describes, before the
+    values typed on the command line (``tables``, typed as ``typed`` says): N pixels
+    across with the file's field of view (:meth:`Scene.with_size` rescales the pixel
+    pitch), and what the command line then sets is kept as typed, so a typed
+    ``camera.pixel_pitch`` or ``camera.height`` wins and the field of view follows. A
+    typed ``camera.width`` other than N contradicts ``--size``: one line naming both."""
+    if size is None:
+        return scene
+    width = tables.get("camera", {}).get("width")
+    if width is not None and width != size:
+        how = typed.get("camera.width", "camera.width")
+        how = how if how.startswith("-") else f"--set {how}"
+        raise GlshadeError(
+            f"--size {size} and {how}={width} conflict: both set camera.width (the image's "
+            "pixels across); give one of them"
+        )
+    with named_as_typed({"camera.width": "--size", "camera.height": "--size"}):
+        return scene.with_size(size)
+
+
+def read_settings(
+    items: Sequence[str],
+    scene: Scene,
+    tables: dict[str, dict[str, object]],
+    typed: dict[str, str],
+    others: Sequence[str] = (),
+) -> None:
+    """``--set NAME=VALUE`` items parsed into ``tables`` (table -> key -> value; a later
+    item wins), each path's spelling recorded in ``typed`` (``--set theta`` for a short
+    name, the path itself for a dotted one) to name a bad value as it was typed."""
+    for item in items:
+        name, path, value = _parse_setting(item, scene, tables, others)
         table, _, key = path.partition(".")
         tables.setdefault(table, {})[key] = value
-        typed.pop(path, None)
+        typed[path] = path if name == path else f"--set {name}"
+
+
+def with_settings(
+    scene: Scene,
+    items: Sequence[str],
+    others: Sequence[str] = (),
+    size: int | None = None,
+    default_size: int | None = None,
+) -> Scene:
+    """``scene`` with ``--set NAME=VALUE`` items and ``--size`` applied as ``render``
+    applies them (the viewer's scripted ``--set`` uses it; ``others``: its own names,
+    offered where a name is unknown). ``default_size``: the size without ``--size``,
+    unless ``camera.width`` is typed."""
+    tables: dict[str, dict[str, object]] = {}
+    typed: dict[str, str] = {}
+    read_settings(items, scene, tables, typed, others)
+    if size is None and "width" not in tables.get("camera", {}):
+        size = default_size
+    scene = sized(scene, size, tables, typed)
     with named_as_typed(typed):
-        scene = scene.updated(**tables)
-    if args.size is not None:
-        with named_as_typed({"camera.width": "--size", "camera.height": "--size"}):
-            scene = scene.with_size(args.size)
-    return scene
+        return scene.updated(**tables) if tables else scene
 
 
 @contextlib.contextmanager
@@ -325,24 +391,105 @@ def checked(param: Param, value: object, typed: str | None = None) -> object:
     return value
 
 
+def _spelling(name: str) -> str:
+    """A short name with ``-``, ``_`` and spaces alike, in lower case."""
+    return "_".join(name.strip().lower().replace("-", " ").replace("_", " ").split())
+
+
+def short_names() -> dict[str, tuple[Param, ...]]:
+    """Every short name a parameter declares, and the parameters declaring it: its short
+    flag without the dashes (``theta`` for ``--theta``), its viewer control's name
+    (``stripe_sigma``), and a choice's key where it has no flag (``outside``). Every
+    command's ``--set`` and the viewer's controls take these names."""
+    names: dict[str, dict[str, Param]] = {}
+    for param in registry().params():
+        spellings = []
+        if param.flag is not None:
+            spellings.append(param.flag.lstrip("-"))
+        if param.control is not None:
+            spellings.append(param.control.name)
+        if param.value_type == "choice" and param.flag is None:
+            spellings.append(param.key)
+        for spelling in spellings:
+            names.setdefault(spelling, {})[param.path] = param
+    return {name: tuple(params.values()) for name, params in names.items()}
+
+
+def setting_param(name: str, others: Sequence[str] = ()) -> Param:
+    """The parameter a command line's ``--set NAME=...`` sets: ``NAME`` a dotted path
+    (``camera.theta_deg``) or a short name (:func:`short_names`: ``theta``), spelled as
+    declared or with ``-``, ``_`` and spaces alike (``f_number``). An unknown name, or one
+    that two parameters declare, is one line (a GlshadeError) listing the close matches;
+    ``others``: the caller's own names (the viewer's ``view``), offered among them."""
+    name = name.strip()
+    if "." in name:
+        return registry().param(name)  # an unknown table or key: a SceneError naming it
+    names = short_names()
+    found = names.get(name)
+    if found is None:
+        wanted = _spelling(name)
+        matches = {
+            param.path: (spelling, param)
+            for spelling, params in names.items()
+            if _spelling(spelling) == wanted
+            for param in params
+        }
+        found = tuple(param for _, param in matches.values())
+        if len(found) > 1:
+            which = " or ".join(f"{spelling!r} ({path})" for path, (spelling, _) in matches.items())
+            raise GlshadeError(
+                f"--set {name}: ambiguous short name: it may be {which}; type one of those"
+            )
+    if len(found) == 1:
+        return found[0]
+    if found:  # two parameters declare this very spelling
+        paths = " or ".join(param.path for param in found)
+        raise GlshadeError(
+            f"--set {name}: ambiguous short name: it may be {paths}; type the dotted path"
+        )
+    known = sorted({*names, *others})
+    close = difflib.get_close_matches(name, known, n=5, cutoff=0.6) or difflib.get_close_matches(
+        _spelling(name), [_spelling(n) for n in known], n=5, cutoff=0.6
+    )
+    hint = f"close matches: {', '.join(close)}" if close else f"short names: {', '.join(known)}"
+    raise GlshadeError(
+        f"--set {name}: unknown setting; {hint}; or a dotted path such as camera.theta_deg "
+        "(docs/scene-format.md)"
+    )
+
+
 def parse_setting(
     item: str, scene: Scene | None = None, pending: dict[str, dict[str, object]] | None = None
 ) -> tuple[str, object]:
-    """``PATH=VALUE`` -> the parameter's path and its value parsed by its declaration (a
-    SceneError names an unknown path, and the value is checked as typed). A named entry
-    of a table parameter, ``surface.parameters.a=0.2``, sets that entry and keeps the
-    table's others (those already ``pending``, else those of ``scene``)."""
-    path, sep, text = item.partition("=")
-    path = path.strip()
-    if not sep or "." not in path:
+    """``NAME=VALUE`` -> the parameter's path and its value parsed by its declaration
+    (:func:`setting_param`: ``NAME`` a dotted path or a short name; a SceneError names an
+    unknown path, and the value is checked as typed). A named entry of a table
+    parameter, ``surface.parameters.a=0.2``, sets that entry and keeps the table's others
+    (those already ``pending``, else those of ``scene``)."""
+    _, path, value = _parse_setting(item, scene, pending)
+    return path, value
+
+
+def _parse_setting(
+    item: str,
+    scene: Scene | None = None,
+    pending: dict[str, dict[str, object]] | None = None,
+    others: Sequence[str] = (),
+) -> tuple[str, str, object]:
+    """:func:`parse_setting`, with the name as typed first."""
+    name, sep, text = item.partition("=")
+    name = name.strip()
+    if not sep or not name:
         raise GlshadeError(
-            f"--set {item!r}: expected PATH=VALUE with a dotted path such as camera.theta_deg=15"
+            f"--set {item!r}: expected NAME=VALUE, a dotted path or a short name such as "
+            "camera.theta_deg=15 or theta=15"
         )
-    entry = registry().entry(path)
+    entry = registry().entry(name)
     if entry is not None:
-        return _table_entry(entry[0], entry[1], text, scene, pending or {})
-    param = registry().param(path)
-    return path, checked(param, param.parse(text))
+        return (name, *_table_entry(entry[0], entry[1], text, scene, pending or {}))
+    param = setting_param(name, others)
+    with named_as_typed({param.path: f"--set {name}"} if name != param.path else {}):
+        return name, param.path, checked(param, param.parse(text))
 
 
 def _table_entry(

@@ -22,6 +22,7 @@ from pathlib import Path
 from glshade import __version__
 from glshade.app.args import (
     EXIT_USAGE,
+    SIZE_HELP,
     Parser,
     add_metric_flags,
     add_pmd_settings_flags,
@@ -32,7 +33,6 @@ from glshade.app.args import (
     check_save_scene,
     metric_flags_given,
     metric_settings,
-    named_as_typed,
     one_line,
     path_arg,
     pmd_flags_given,
@@ -580,6 +580,10 @@ def _run_paper(args: argparse.Namespace, plan) -> int:
     return 0
 
 
+#: The viewer's pixels across without ``--size``.
+VIEW_SIZE = 512
+
+
 def _add_view(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "view",
@@ -599,17 +603,18 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--size",
         type=int,
-        default=512,
         metavar="N",
-        help="pixels across, same field of view (default 512)",
+        help=f"{SIZE_HELP} (default {VIEW_SIZE}, unless --set camera.width is given)",
     )
     p.add_argument(
         "--set",
         action="append",
         default=[],
         metavar="NAME=VALUE",
-        help="a setting, e.g. theta=5, sigma2=9, surface=sphere, view=overlay, animate=1, "
-        "view=pmd-phase, pmd_size=256 (the PMD views' pixels across) (repeatable)",
+        help="a setting by its short name or dotted path, as render's --set: theta=5, "
+        "sigma2=9, surface=sphere, camera.distance=200; and the viewer's own: view=overlay, "
+        "animate=1, view=pmd-phase, pmd_size=256 (the PMD views' pixels across), concave=1 "
+        "(repeatable)",
     )
     p.add_argument("--frames", type=int, metavar="N", help="draw N frames, then exit")
     p.add_argument(
@@ -631,9 +636,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
     from glshade.app import viewer
 
     scene = Scene.load(args.scene) if args.scene is not None else paper_scene()
-    with named_as_typed({"camera.width": "--size", "camera.height": "--size"}):
-        scene = scene.with_size(args.size)
-    scene, extra = viewer.parse_sets(args.set, scene)
+    scene, extra = viewer.parse_sets(args.set, scene, args.size, default_size=VIEW_SIZE)
     if args.frames is not None and args.frames < 1:
         raise GlshadeError(f"--frames: must be an integer >= 1, got {args.frames}")
     if (args.screenshot is not None or args.benchmark) and args.frames is None:

@@ -32,9 +32,21 @@ sigma2 = 4.0    # mm²
 Every parameter can also be set on the command line of `glshade render`, `glshade
 measure`, `glshade optimize` and `glshade view` by its dotted path, `--set
 camera.theta_deg=15` (repeatable, applied after the file and the short flags), and the
-ones with a short flag by that flag (`--theta 15`; not in `view`). Sweeps name their axes
-by the same paths. `--save-scene SCENE.toml` on those commands writes the scene they
-used, every value resolved; loading it back gives the same scene.
+ones with a short flag by that flag (`--theta 15`; not in `view`). `--set` also takes a
+short name, the same in every command: a short flag without its dashes (`--set theta=15`,
+`--set f-number=8`), a viewer slider's name (`--set stripe_sigma=0.1`) or a choice's key
+(`--set outside=flat`); `-`, `_` and spaces are alike (`f_number`), and a name two
+parameters declare (`black_level`: `black level`, the emitter's, or `black-level`, the
+sensor's) is refused with both. Sweeps name their axes by the same paths. `--save-scene
+SCENE.toml` on those commands writes the scene they used, every value resolved; loading it
+back gives the same scene.
+
+`--size N` resizes the scene the file (or the defaults) describes to N pixels across with
+its field of view, by rescaling the pixel pitch; a camera value typed on the same command
+line (`--set camera.pixel_pitch=0.01`, `--set camera.height=300`) is then kept as typed
+and the field of view follows it, so `--set camera.pixel_pitch=0.01 --size 512` is the
+scene of a file with `width = 512`, `height = 512` and `pixel_pitch = 0.01`. A typed
+`camera.width` other than N is refused: the two conflict.
 
 ## Units
 

@@ -3,7 +3,8 @@
 Every parameter that declares a viewer slider (``Param.control``) is a slider; every
 choice (a slot's selector, the cylinder's axis, the precision) is a combo box. A control
 is named by its short name (``theta``, ``radius``, the choice's flag without dashes) or
-by its dotted path (``camera.theta_deg``); ``--set`` takes either.
+by its dotted path (``camera.theta_deg``); ``--set`` takes either, the same names every
+command's ``--set`` takes (:func:`glshade.app.args.setting_param`).
 """
 
 from __future__ import annotations
@@ -74,11 +75,27 @@ def choices() -> dict[str, Choice]:
     return out
 
 
+#: The viewer's own settings, besides the scene's: what it shows, and the surface's
+#: concave checkbox.
+VIEWER_SETTINGS = ("view", "animate", "pmd_size", "concave")
+
+
 def by_name(name: str) -> Control | Choice | None:
-    """The control called ``name`` (short name or dotted path)."""
+    """The control of the parameter called ``name`` (a short name or a dotted path, as
+    every command's ``--set`` resolves it); None where it names no control."""
+    from glshade.app.args import setting_param
+
+    try:
+        param = setting_param(name)
+    except GlshadeError:
+        return None
+    return _control_of(param)
+
+
+def _control_of(param: Param) -> Control | Choice | None:
     for table in (controls(), choices()):
         for control in table.values():
-            if name in (control.name, control.param.path):
+            if control.param.path == param.path:
                 return control
     return None
 
@@ -119,12 +136,12 @@ def apply_setting(scene: Scene, name: str, value, slider: bool = False) -> Scene
     if name == "concave":
         radius = abs(scene.value("surface.radius"))
         return scene.with_value("surface.radius", -radius if bool(value) else radius)
-    control = by_name(name)
-    if control is None:
-        allowed = [*controls(), *choices(), "concave"]
-        raise GlshadeError(
-            f"--set {name}: unknown setting; allowed: {', '.join(allowed)} or a dotted path"
-        )
+    from glshade.app.args import setting_param
+
+    param = setting_param(name, VIEWER_SETTINGS)  # one line for an unknown or ambiguous name
+    control = _control_of(param)
+    if control is None:  # a parameter without a control: taken as typed
+        return scene.with_value(param.path, value)
     path = control.param.path
     if isinstance(control, Choice):
         if value not in control.allowed:
@@ -137,40 +154,42 @@ def apply_setting(scene: Scene, name: str, value, slider: bool = False) -> Scene
     return scene.with_value(path, value)
 
 
-def parse_sets(items: list[str], scene: Scene) -> tuple[Scene, dict[str, str]]:
-    """``--set name=value`` items: scene settings are applied and validated as ``render``
-    validates them (lengths may carry a unit: ``dmax=5um``); the viewer's own (``view``,
-    ``animate``, ``pmd_size``) are returned. A bad value is named as typed: ``--set sigma2
+def parse_sets(
+    items: list[str], scene: Scene, size: int | None = None, default_size: int | None = None
+) -> tuple[Scene, dict[str, str]]:
+    """``--set name=value`` items: scene settings are parsed and applied exactly as
+    ``render``'s ``--set`` applies them, with ``--size`` (``size``, else ``default_size``
+    unless ``camera.width`` is typed; :func:`glshade.app.args.with_settings`: a short
+    name or a dotted path, lengths with a unit, ``dmax=5um``, all at once); the viewer's
+    own (``view``, ``animate``, ``pmd_size``) are returned, and ``concave`` turns the
+    final radius inwards. A bad value is named as typed: ``--set sigma2
     (defect.sigma2): ...``."""
-    from glshade.app.args import named_as_typed, parse_setting
+    from glshade.app.args import named_as_typed, with_settings
 
     extra: dict[str, str] = {}
+    settings: list[str] = []
+    concave: str | None = None
     for item in items:
         name, sep, raw = item.partition("=")
         name = name.strip()
         if not sep or not name:
             raise GlshadeError(f"--set {item!r}: expected name=value")
-        control = by_name(name)
         if name == "view":
             if raw not in VIEWS:
                 raise GlshadeError(f"--set view: must be one of {', '.join(VIEWS)}, got {raw!r}")
             extra[name] = raw
-        elif name == "animate":
+        elif name in ("animate", "pmd_size"):
             extra[name] = raw
-        elif name == "pmd_size":
-            extra[name] = str(_pmd_size(raw, scene))
         elif name == "concave":
-            with named_as_typed({"surface.radius": "--set concave"}):
-                scene = apply_setting(scene, name, raw.lower() in ("1", "true", "yes"))
-        elif isinstance(control, (Choice, Control)):
-            path = control.param.path
-            with named_as_typed({path: f"--set {name}"} if name != path else {}):
-                value = raw if isinstance(control, Choice) else control.param.parse(raw)
-                scene = apply_setting(scene, name, value)
-        elif "." in name:  # any parameter by its dotted path, as render's --set
-            scene = scene.with_value(*parse_setting(f"{name}={raw}", scene))
+            concave = raw
         else:
-            apply_setting(scene, name, raw)  # names the unknown setting and lists the known ones
+            settings.append(item)
+    scene = with_settings(scene, settings, VIEWER_SETTINGS, size, default_size)
+    if concave is not None:
+        with named_as_typed({"surface.radius": "--set concave"}):
+            scene = apply_setting(scene, "concave", concave.lower() in ("1", "true", "yes"))
+    if "pmd_size" in extra:
+        extra["pmd_size"] = str(_pmd_size(extra["pmd_size"], scene))
     return scene, extra
 
 
