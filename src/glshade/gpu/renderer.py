@@ -781,16 +781,11 @@ def _finish(
 
 
 def _progress_bar(total_rows: int, done_rows: int):
-    from tqdm import tqdm
+    """A slow frame's bar: on a terminal only, and gone when the frame is done
+    (:mod:`glshade.progress`)."""
+    from glshade.progress import progress_bar
 
-    return tqdm(
-        total=total_rows,
-        initial=done_rows,
-        unit="row",
-        desc="glshade render",
-        dynamic_ncols=True,
-        leave=False,
-    )
+    return progress_bar(total_rows, "glshade render", "row", initial=done_rows, leave=False)
 
 
 def render(scene: Scene, outputs=("image",)) -> Frame:

@@ -107,11 +107,8 @@ def run_pmd_study(
 
 
 def _progress_bar(total: int, initial: int, enabled: bool):
-    if not enabled:
-        return None
-    from tqdm import tqdm
+    from glshade.progress import progress_bar
 
-    return tqdm(
-        total=total, initial=initial, unit="case", desc="glshade paper --method pmd",
-        dynamic_ncols=True,
-    )  # fmt: skip
+    return progress_bar(
+        total, "glshade paper --method pmd", "case", initial=initial, enabled=enabled
+    )

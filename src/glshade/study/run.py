@@ -196,11 +196,9 @@ def _run_locked(plan, out_dir, distribution, progress, renderer, callbacks, noti
 
 
 def _progress_bar(total: int, initial: int, enabled: bool):
-    if not enabled:
-        return None
-    from tqdm import tqdm
+    from glshade.progress import progress_bar
 
-    return tqdm(total=total, initial=initial, unit="case", desc="glshade paper", dynamic_ncols=True)
+    return progress_bar(total, "glshade paper", "case", initial=initial, enabled=enabled)
 
 
 def _run_cases(

@@ -163,8 +163,6 @@ def _rows(spec: SweepSpec, pending: list[GridPoint], executor) -> Iterator[Row]:
 
 
 def _progress_bar(total: int, enabled: bool):
-    if not enabled:
-        return None
-    from tqdm import tqdm
+    from glshade.progress import progress_bar
 
-    return tqdm(total=total, unit="case", desc="glshade sweep", dynamic_ncols=True)
+    return progress_bar(total, "glshade sweep", "case", enabled=enabled)
