@@ -530,7 +530,7 @@ def test_ctrl_c_stops_a_long_render_within_seconds(tmp_path):
     took = time.monotonic() - sent
     assert process.returncode == 130, err
     assert err.strip().splitlines()[-1] == "glshade: interrupted"
-    assert "glshade render" in err and "row/s" in err  # the progress bar of a frame longer than 2 s
+    assert "row/s" not in err and "\r" not in err  # stderr is a pipe here: no progress bar
     assert took < 5.0, f"took {took:.1f} s to stop"  # loose: the bands aim at 0.25 s each
     assert not out.exists()
 
