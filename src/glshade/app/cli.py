@@ -359,20 +359,36 @@ def _add_info(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=_cmd_info)
 
 
+#: ``glshade paper --help``'s description.
+_PAPER_DESCRIPTION = (
+    "Run Table 1 of the paper (9 theta x 4 sigma2 x 2 dmax on flat, cylinder and sphere) and "
+    "write results.csv, image grids, visibility plots, the Fig. 9 contour overlay and "
+    "report.md. Rerunning with the same --out resumes: finished cases are skipped. The "
+    "directory is locked while a run uses it; one that holds a study with another plan is "
+    "refused unless --overwrite. --method pmd measures the same cases with a phase-measuring "
+    "station and writes pmd_results.csv, pmd_report.md and pmd_*.png beside the stripe study "
+    "(docs/study.md)."
+)
+
+
 def _add_paper(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "paper",
         help="run the paper's whole study (the main job)",
-        description="Run Table 1 of the paper (9 theta x 4 sigma2 x 2 dmax on flat, cylinder and "
-        "sphere) "
-        "and write results.csv, image grids, visibility plots, the Fig. 9 contour overlay and "
-        "report.md. "
-        "Rerunning with the same --out resumes: finished cases are skipped. The directory is "
-        "locked while a run "
-        "uses it; one that holds a study with another plan is refused unless --overwrite. "
-        "--method pmd measures the same cases with a phase-measuring station and writes "
-        "pmd_results.csv, pmd_report.md and pmd_*.png beside the stripe study (docs/study.md).",
+        description=_PAPER_DESCRIPTION,
     )
+    _add_paper_output_flags(p)
+    _add_paper_plan_flags(p)
+    add_metric_flags(p)
+    _add_paper_run_flags(p)
+    from glshade.app.cli_paper_pmd import add_pmd_paper_flags
+
+    add_pmd_paper_flags(p)
+    p.set_defaults(run=_cmd_paper)
+
+
+def _add_paper_output_flags(p: argparse.ArgumentParser) -> None:
+    """``glshade paper``'s output directory: ``--overwrite`` and ``--out``."""
     p.add_argument(
         "--overwrite",
         action="store_true",
@@ -386,6 +402,10 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
         metavar="DIR",
         help="output directory (default paper_study)",
     )
+
+
+def _add_paper_plan_flags(p: argparse.ArgumentParser) -> None:
+    """``glshade paper``'s plan: the surfaces, the axes of Table 1 and the image size."""
     p.add_argument(
         "--surfaces",
         default="flat,cylinder,sphere",
@@ -417,7 +437,11 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
         metavar="N",
         help="pixels across, the paper's field of view (default 1024)",
     )
-    add_metric_flags(p)
+
+
+def _add_paper_run_flags(p: argparse.ArgumentParser) -> None:
+    """How ``glshade paper`` runs: workers, threads, the size confirmation, the progress
+    bar and the EGL device."""
     p.add_argument(
         "--workers",
         default="auto",
@@ -445,10 +469,6 @@ def _add_paper(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--device", type=int, metavar="N", help="EGL device index (in this process only)"
     )
-    from glshade.app.cli_paper_pmd import add_pmd_paper_flags
-
-    add_pmd_paper_flags(p)
-    p.set_defaults(run=_cmd_paper)
 
 
 def _cmd_paper(args: argparse.Namespace) -> int:

@@ -5,6 +5,7 @@ matplotlib helpers the study's figures share (headless: the Agg canvas)."""
 from __future__ import annotations
 
 import io
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -80,6 +81,101 @@ def _paint(masks: tuple[np.ndarray, np.ndarray, np.ndarray], thickness: int) -> 
     return image
 
 
+@dataclass(frozen=True)
+class _Window:
+    """The magnified window around the largest distance: its column, the two contour rows
+    it joins and its bounds (image columns ``x0``-``x1``, rows ``y0``-``y1``)."""
+
+    column: float
+    rows: tuple[float, float]
+    x0: float
+    x1: float
+    y0: float
+    y1: float
+
+    @classmethod
+    def around(cls, shift, zoom_px: int) -> _Window:
+        """The square window centred on ``shift``'s two rows, at least ``zoom_px`` pixels
+        from its centre to each side and wide enough to show both rows."""
+        rows = (shift.normal_row, shift.defect_row)
+        centre_row = 0.5 * (rows[0] + rows[1])
+        half = max(zoom_px, abs(rows[0] - rows[1]) * 0.75 + 8)
+        return cls(
+            column=shift.column,
+            rows=rows,
+            x0=shift.column - half,
+            x1=shift.column + half,
+            y0=centre_row - half,
+            y1=centre_row + half,
+        )
+
+
+def _label_axes(ax) -> None:
+    """Name an image axis's columns and rows in pixels."""
+    ax.set_xlabel("image column (px)", fontsize=10)
+    ax.set_ylabel("image row (px)", fontsize=10)
+
+
+def _draw_kept_columns(full, masks, extent, height: int) -> None:
+    """The left panel: every kept column, its contours thickened to stay visible in print,
+    titled and with its axes labelled."""
+    full.imshow(
+        _paint(masks, max(1, round(height / 300))), interpolation="antialiased", extent=extent
+    )
+    full.set_title("kept columns (cut at both sides)", fontsize=10)
+    _label_axes(full)
+
+
+def _mark_window(full, window: _Window, width: int, height: int) -> None:
+    """The magnified window outlined on the left panel, with a ``magnified`` label."""
+    from matplotlib.patches import Rectangle
+
+    x0, x1, y0, y1 = window.x0, window.x1, window.y0, window.y1
+    full.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor=SHIFT, lw=2))
+    full.annotate(
+        "magnified",
+        xy=(x1, y0),
+        xytext=(x1 + 0.08 * width, y0 - 0.06 * height),
+        color=SHIFT,
+        fontsize=9,
+        bbox={"boxstyle": "round", "fc": "white", "ec": SHIFT, "alpha": 0.9},
+        arrowprops={"arrowstyle": "-", "color": SHIFT, "lw": 1},
+    )
+
+
+def _draw_magnified(near, masks, extent, window: _Window, shift) -> None:
+    """The right panel: the window at one pixel per contour, the two contour points
+    circled and joined by a double arrow, titled with the shift."""
+    near.imshow(_paint(masks, 1), interpolation="nearest", extent=extent)
+    near.set_xlim(window.x0, window.x1)
+    near.set_ylim(window.y1, window.y0)
+    rows = window.rows
+    for row in rows:
+        near.plot([window.column], [row], "o", ms=6, mfc="none", mec=SHIFT, mew=1.5)
+    near.annotate(
+        "",
+        xy=(window.column, rows[1]),
+        xytext=(window.column, rows[0]),
+        arrowprops={"arrowstyle": "<|-|>", "color": SHIFT, "lw": 2, "shrinkA": 0, "shrinkB": 0},
+    )
+    near.set_title(
+        "magnified: the largest distance between corresponding contours\n"
+        f"shift {shift.distance_px:g} px ({shift.side} contour, column {shift.column:g})",
+        fontsize=10,
+        color=SHIFT,
+    )
+
+
+def _overlay_title(result, title: str, width: int, height: int) -> str:
+    """The overlay's title: the case, its best phase, its visibility and its image."""
+    return (
+        f"Fig. 9 overlay: {title}; phase {result.best_phase_mm:g} mm\n"
+        f"visibility {result.visibility_px:g} px (limit {result.visibility_continuous_px:.2f} px, "
+        f"deflection {result.deflection_px:.2f} px, {result.islands} islands); "
+        f"image {width} kept columns × {height} rows"
+    )
+
+
 def overlay_figure(
     rgb: np.ndarray,
     result,
@@ -98,7 +194,6 @@ def overlay_figure(
     case's :class:`glshade.metrics.visibility.Visibility`; ``column_start``: the first kept column.
     """
     from matplotlib.lines import Line2D
-    from matplotlib.patches import Rectangle
 
     shift = result.shift
     masks = _contour_masks(rgb)
@@ -106,63 +201,22 @@ def overlay_figure(
     extent = (column_start - 0.5, column_start + width - 0.5, height - 0.5, -0.5)
     fig = new_figure(11, 6.4)
     full, near = fig.subplots(1, 2, gridspec_kw={"width_ratios": (0.8, 1.2)})
-    full.imshow(
-        _paint(masks, max(1, round(height / 300))), interpolation="antialiased", extent=extent
-    )
-    full.set_title("kept columns (cut at both sides)", fontsize=10)
-    full.set_xlabel("image column (px)", fontsize=10)
-    full.set_ylabel("image row (px)", fontsize=10)
+    _draw_kept_columns(full, masks, extent, height)
     handles = [Line2D([], [], color=colour, lw=3, label=text) for colour, text in OVERLAY_LEGEND]
     if shift.column >= 0:
-        rows = (shift.normal_row, shift.defect_row)
-        centre_row = 0.5 * (rows[0] + rows[1])
-        half = max(zoom_px, abs(rows[0] - rows[1]) * 0.75 + 8)
-        x0, x1 = shift.column - half, shift.column + half
-        y0, y1 = centre_row - half, centre_row + half
-        full.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor=SHIFT, lw=2))
-        full.annotate(
-            "magnified",
-            xy=(x1, y0),
-            xytext=(x1 + 0.08 * width, y0 - 0.06 * height),
-            color=SHIFT,
-            fontsize=9,
-            bbox={"boxstyle": "round", "fc": "white", "ec": SHIFT, "alpha": 0.9},
-            arrowprops={"arrowstyle": "-", "color": SHIFT, "lw": 1},
-        )
-        near.imshow(_paint(masks, 1), interpolation="nearest", extent=extent)
-        near.set_xlim(x0, x1)
-        near.set_ylim(y1, y0)
-        for row in rows:
-            near.plot([shift.column], [row], "o", ms=6, mfc="none", mec=SHIFT, mew=1.5)
-        near.annotate(
-            "",
-            xy=(shift.column, rows[1]),
-            xytext=(shift.column, rows[0]),
-            arrowprops={"arrowstyle": "<|-|>", "color": SHIFT, "lw": 2, "shrinkA": 0, "shrinkB": 0},
-        )
-        near.set_title(
-            "magnified: the largest distance between corresponding contours\n"
-            f"shift {shift.distance_px:g} px ({shift.side} contour, column {shift.column:g})",
-            fontsize=10,
-            color=SHIFT,
-        )
+        window = _Window.around(shift, zoom_px)
+        _mark_window(full, window, width, height)
+        _draw_magnified(near, masks, extent, window, shift)
         handles.append(
             Line2D([], [], color=SHIFT, lw=2, marker="o", mfc="none", label="measured shift")
         )
     else:
         near.set_title("no corresponding contours to compare", fontsize=10)
-    near.set_xlabel("image column (px)", fontsize=10)
-    near.set_ylabel("image row (px)", fontsize=10)
+    _label_axes(near)
     fig.legend(
         handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.02), ncol=3, fontsize=10,
         frameon=False,
     )  # fmt: skip
-    fig.suptitle(
-        f"Fig. 9 overlay: {title}; phase {result.best_phase_mm:g} mm\n"
-        f"visibility {result.visibility_px:g} px (limit {result.visibility_continuous_px:.2f} px, "
-        f"deflection {result.deflection_px:.2f} px, {result.islands} islands); "
-        f"image {width} kept columns × {height} rows",
-        fontsize=11,
-    )
+    fig.suptitle(_overlay_title(result, title, width, height), fontsize=11)
     fig.tight_layout()
     save_figure(fig, path, dpi=150, within=within)

@@ -49,32 +49,57 @@ def _with(scene: Scene, **tables) -> Scene:
     return replace(scene, **tables)
 
 
-def cases() -> list[Extreme]:
-    flat = paper_scene("flat", 45.0, 4.0, 0.005)
-    sphere = paper_scene("sphere", 45.0, 4.0, 0.005)
-    cylinder = paper_scene("cylinder", 45.0, 4.0, 0.005)
-    out = []
-    for theta in (0.5, 1.0, 2.0, 89.0, 89.9):
-        out.append(
-            Extreme(f"flat theta {theta:g}", "view", flat.updated(camera={"theta_deg": theta}))
+@dataclass(frozen=True)
+class _Bases:
+    """The paper's scene (45°, σ² 4 mm², dmax 5 µm) on each base surface the cases vary."""
+
+    flat: Scene
+    sphere: Scene
+    cylinder: Scene
+
+
+def _bases() -> _Bases:
+    """The flat, spherical and cylindrical paper scenes every case starts from."""
+    return _Bases(
+        flat=paper_scene("flat", 45.0, 4.0, 0.005),
+        sphere=paper_scene("sphere", 45.0, 4.0, 0.005),
+        cylinder=paper_scene("cylinder", 45.0, 4.0, 0.005),
+    )
+
+
+def _view_cases(bases: _Bases) -> list[Extreme]:
+    """Near-grazing and near-normal views of the flat base, and a grazing sphere."""
+    out = [
+        Extreme(f"flat theta {theta:g}", "view", bases.flat.updated(camera={"theta_deg": theta}))
+        for theta in (0.5, 1.0, 2.0, 89.0, 89.9)
+    ]
+    out.append(Extreme("sphere theta 1", "view", bases.sphere.updated(camera={"theta_deg": 1.0})))
+    return out
+
+
+#: ``(sigma2, dmax)`` of the dents from narrow to wide and from shallow to deep.
+_DENT_SHAPES = (
+    (0.01, 0.005),
+    (0.01, 0.5),
+    (400.0, 0.005),
+    (400.0, 0.5),
+    (4.0, 1e-6),
+    (4.0, 0.5),
+    (1.0, 0.02),
+)
+
+
+def _dent_cases(flat: Scene) -> list[Extreme]:
+    """Dents and bumps of extreme width and depth on the flat base, a bump a grazing ray
+    can skim over and a steep dent that folds the stripe map."""
+    out = [
+        Extreme(
+            f"flat sigma2 {sigma2:g} dmax {dmax:g}",
+            "dent",
+            flat.updated(defect={"sigma2": sigma2, "dmax": dmax}),
         )
-    out.append(Extreme("sphere theta 1", "view", sphere.updated(camera={"theta_deg": 1.0})))
-    for sigma2, dmax in (
-        (0.01, 0.005),
-        (0.01, 0.5),
-        (400.0, 0.005),
-        (400.0, 0.5),
-        (4.0, 1e-6),
-        (4.0, 0.5),
-        (1.0, 0.02),
-    ):
-        out.append(
-            Extreme(
-                f"flat sigma2 {sigma2:g} dmax {dmax:g}",
-                "dent",
-                flat.updated(defect={"sigma2": sigma2, "dmax": dmax}),
-            )
-        )
+        for sigma2, dmax in _DENT_SHAPES
+    ]
     out.append(
         Extreme(
             "flat bump dmax -0.5 sigma2 1",
@@ -100,77 +125,109 @@ def cases() -> list[Extreme]:
             flat.updated(camera={"theta_deg": 5.0}, defect={"sigma2": 0.05, "dmax": 0.02}),
         )
     )
+    return out
+
+
+def _covariance_cases(bases: _Bases) -> list[Extreme]:
+    """A near-singular covariance and defects far off the axis."""
     near_singular = Defect(dmax=0.005, sigma_x2=1.0, sigma_z2=1.0, sigma_xz=1.0 - 1e-6)
-    out.append(
+    return [
         Extreme(
             "covariance condition 1e6",
             "covariance",
-            _with(flat, defect=near_singular),
+            _with(bases.flat, defect=near_singular),
             "a ridge 1.4 µm wide with slope 3.5: 1e-7 mm of fp32 position error tilts the normal "
             "by "
             "2.5e-4 rad; use fp64",
             uv_tolerance_fp32=2e-2,
-        )
-    )
-    out.append(
+        ),
         Extreme(
             "defect far off axis",
             "covariance",
-            flat.updated(defect={"x0": 12.0, "z0": -9.0}),
+            bases.flat.updated(defect={"x0": 12.0, "z0": -9.0}),
             "the centre view shows only the defect's far tail",
-        )
-    )
-    out.append(
+        ),
         Extreme(
             "sphere, defect far off axis",
             "covariance",
-            sphere.updated(defect={"x0": 10.0, "z0": 8.0}),
-        )
-    )
+            bases.sphere.updated(defect={"x0": 10.0, "z0": 8.0}),
+        ),
+    ]
+
+
+def _radius_cases(bases: _Bases) -> list[Extreme]:
+    """Convex and concave spheres and cylinders from 5 mm to 100 m, and a cylinder whose
+    axis lies in the plane of incidence."""
+    out = []
     for radius in (5.0, -5.0, 1e5, -1e5):
         out.append(
-            Extreme(f"sphere R {radius:g}", "radius", sphere.updated(surface={"radius": radius}))
+            Extreme(
+                f"sphere R {radius:g}", "radius", bases.sphere.updated(surface={"radius": radius})
+            )
         )
         out.append(
             Extreme(
-                f"cylinder R {radius:g}", "radius", cylinder.updated(surface={"radius": radius})
+                f"cylinder R {radius:g}",
+                "radius",
+                bases.cylinder.updated(surface={"radius": radius}),
             )
         )
     out.append(
         Extreme(
             "cylinder x-axis R 5 at 15 deg",
             "radius",
-            cylinder.updated(surface={"radius": 5.0, "axis": "x"}, camera={"theta_deg": 15.0}),
+            bases.cylinder.updated(
+                surface={"radius": 5.0, "axis": "x"}, camera={"theta_deg": 15.0}
+            ),
         )
     )
-    out.append(
+    return out
+
+
+def _silhouette_cases(sphere: Scene) -> list[Extreme]:
+    """Rays that graze a sphere's silhouette, and a concave bowl."""
+    return [
         Extreme(
             "sphere R 20 at 5 deg (silhouette)",
             "silhouette",
             sphere.updated(surface={"radius": 20.0}, camera={"theta_deg": 5.0}),
             "rays graze the silhouette: the hit moves ~1/cos(incidence) per unit of ray error",
             uv_tolerance_fp32=2e-3,
-        )
-    )
-    out.append(
+        ),
         Extreme(
             "concave bowl R -20 at 30 deg",
             "silhouette",
             sphere.updated(surface={"radius": -20.0}, camera={"theta_deg": 30.0}),
-        )
-    )
-    out.append(
-        Extreme("tiny emitter 0.5 mm", "emitter", flat.updated(emitter={"half_size": [0.5, 0.5]}))
-    )
-    out.append(
+        ),
+    ]
+
+
+def _emitter_cases(bases: _Bases) -> list[Extreme]:
+    """A tiny emitter, and one the reflected rays see edge-on."""
+    return [
+        Extreme(
+            "tiny emitter 0.5 mm", "emitter", bases.flat.updated(emitter={"half_size": [0.5, 0.5]})
+        ),
         Extreme(
             "emitter edge-on (sphere R 5 at 85 deg)",
             "emitter",
-            sphere.updated(surface={"radius": 5.0}, camera={"theta_deg": 85.0}),
+            bases.sphere.updated(surface={"radius": 5.0}, camera={"theta_deg": 85.0}),
             "reflected rays sweep past the emitter's plane",
-        )
-    )
-    return out
+        ),
+    ]
+
+
+def cases() -> list[Extreme]:
+    """The stability matrix: every stiff or extreme case, grouped by what it stresses."""
+    bases = _bases()
+    return [
+        *_view_cases(bases),
+        *_dent_cases(bases.flat),
+        *_covariance_cases(bases),
+        *_radius_cases(bases),
+        *_silhouette_cases(bases.sphere),
+        *_emitter_cases(bases),
+    ]
 
 
 def views(scene: Scene) -> dict[str, Scene]:
