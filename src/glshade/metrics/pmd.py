@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -300,17 +301,8 @@ def integrate_slopes(
     ``method="frankot-chellappa"`` integrates in Fourier space instead (the slopes
     mirrored to an even height of twice the size, so the grid's edges do not wrap): only
     where every pixel is valid, a rectangle."""
-    from scipy.ndimage import label
-    from scipy.sparse import coo_matrix, diags
-    from scipy.sparse.linalg import spsolve
-
-    steps = np.broadcast_to(np.asarray(spacing_mm, np.float64), (2,))
-    dx, dz = float(steps[0]), float(steps[1])
-    gx, gz = np.asarray(slope_x, np.float64), np.asarray(slope_z, np.float64)
-    if gx.ndim != 2 or gx.shape != gz.shape:
-        raise GlshadeError(
-            f"integrate_slopes: slope maps must be 2-D of one shape, got {gx.shape}, {gz.shape}"
-        )
+    dx, dz = _spacings(spacing_mm)
+    gx, gz = _slope_maps(slope_x, slope_z)
     ok = np.isfinite(gx) & np.isfinite(gz)
     if valid is not None:
         ok &= np.asarray(valid, bool)
@@ -326,35 +318,47 @@ def integrate_slopes(
             f"integrate_slopes: method must be 'least-squares' or 'frankot-chellappa', "
             f"got {method!r}"
         )
+    return _least_squares_heights(gx, gz, dx, dz, ok, outside)
+
+
+def _spacings(spacing_mm: float | tuple[float, float]) -> tuple[float, float]:
+    """The grid's spacings ``(dx, dz)`` from one number for both or a pair."""
+    steps = np.broadcast_to(np.asarray(spacing_mm, np.float64), (2,))
+    return float(steps[0]), float(steps[1])
+
+
+def _slope_maps(slope_x: np.ndarray, slope_z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The two slope maps as float64, one line unless they are 2-D of one shape."""
+    gx, gz = np.asarray(slope_x, np.float64), np.asarray(slope_z, np.float64)
+    if gx.ndim != 2 or gx.shape != gz.shape:
+        raise GlshadeError(
+            f"integrate_slopes: slope maps must be 2-D of one shape, got {gx.shape}, {gz.shape}"
+        )
+    return gx, gz
+
+
+def _least_squares_heights(
+    gx: np.ndarray,
+    gz: np.ndarray,
+    dx: float,
+    dz: float,
+    ok: np.ndarray,
+    outside: np.ndarray | None,
+) -> np.ndarray:
+    """:func:`integrate_slopes`' least-squares heights over the valid pixels ``ok`` (the
+    normal equations solved directly, one height per connected region held at 0), the
+    plane fitted where ``outside`` removed; NaN elsewhere."""
+    from scipy.ndimage import label
+    from scipy.sparse import diags
+    from scipy.sparse.linalg import spsolve
+
     unknowns = int(ok.sum())
     heights = np.full(gx.shape, np.nan)
     if unknowns == 0:
         return heights
     index = np.full(gx.shape, -1)
     index[ok] = np.arange(unknowns)
-
-    rows: list[np.ndarray] = []
-    cols: list[np.ndarray] = []
-    values: list[np.ndarray] = []
-    rhs: list[np.ndarray] = []
-
-    def differences(a: np.ndarray, b: np.ndarray, slope: np.ndarray, step: float) -> None:
-        pair = (a >= 0) & (b >= 0)
-        count = int(pair.sum())
-        first = sum(len(r) for r in rhs)  # the equations so far
-        equation = np.arange(first, first + count)
-        rows.extend([equation, equation])
-        cols.extend([b[pair], a[pair]])
-        values.extend([np.full(count, 1.0), np.full(count, -1.0)])
-        rhs.append(slope[pair] * step)
-
-    differences(index[:, :-1], index[:, 1:], 0.5 * (gx[:, :-1] + gx[:, 1:]), dx)
-    differences(index[:-1, :], index[1:, :], 0.5 * (gz[:-1, :] + gz[1:, :]), dz)
-    b = np.concatenate(rhs)
-    matrix = coo_matrix(
-        (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
-        shape=(len(b), unknowns),
-    ).tocsr()
+    matrix, b = _difference_equations(index, gx, gz, dx, dz, unknowns)
     # each connected region's heights are known up to an offset: hold its first at 0
     regions, count = label(ok)
     _, first = np.unique(regions[ok], return_index=True)
@@ -363,6 +367,53 @@ def integrate_slopes(
     normal = (matrix.T @ matrix + diags(pin)).tocsc()
     heights[ok] = spsolve(normal, matrix.T @ b)
     return remove_plane(heights, outside, regions if count > 1 else None)
+
+
+def _difference_equations(
+    index: np.ndarray, gx: np.ndarray, gz: np.ndarray, dx: float, dz: float, unknowns: int
+):
+    """The equations of every pair of valid 4-neighbours (``index``: each pixel's
+    unknown, -1 where not valid), along the rows first and then the columns: the sparse
+    matrix (CSR, a row per pair) and its right-hand side."""
+    from scipy.sparse import coo_matrix
+
+    along_x = _pair_equations(index[:, :-1], index[:, 1:], 0.5 * (gx[:, :-1] + gx[:, 1:]), dx, 0)
+    along_z = _pair_equations(
+        index[:-1, :], index[1:, :], 0.5 * (gz[:-1, :] + gz[1:, :]), dz, len(along_x.rhs[0])
+    )
+    b = np.concatenate(along_x.rhs + along_z.rhs)
+    rows = np.concatenate(along_x.rows + along_z.rows)
+    cols = np.concatenate(along_x.cols + along_z.cols)
+    values = np.concatenate(along_x.values + along_z.values)
+    matrix = coo_matrix((values, (rows, cols)), shape=(len(b), unknowns)).tocsr()
+    return matrix, b
+
+
+class _Equations(NamedTuple):
+    """Sparse linear equations as lists of arrays: each entry's equation (row) and
+    unknown (column), its coefficient, and each equation's right-hand side."""
+
+    rows: list[np.ndarray]
+    cols: list[np.ndarray]
+    values: list[np.ndarray]
+    rhs: list[np.ndarray]
+
+
+def _pair_equations(
+    a: np.ndarray, b: np.ndarray, slope: np.ndarray, step: float, first: int
+) -> _Equations:
+    """One direction's equations, numbered from ``first``: for each pair of valid
+    neighbours (unknowns ``a`` then ``b``), ``h_b - h_a = slope · step`` (the ``b``
+    entries first, then the ``a`` ones)."""
+    pair = (a >= 0) & (b >= 0)
+    count = int(pair.sum())
+    equation = np.arange(first, first + count)
+    return _Equations(
+        rows=[equation, equation],
+        cols=[b[pair], a[pair]],
+        values=[np.full(count, 1.0), np.full(count, -1.0)],
+        rhs=[slope[pair] * step],
+    )
 
 
 def _frankot_chellappa(gx: np.ndarray, gz: np.ndarray, dx: float, dz: float) -> np.ndarray:

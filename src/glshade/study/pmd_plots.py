@@ -91,54 +91,101 @@ def visibility_plot(
     """PMD SNR, PMD shift (dashed: its closed form) and the paper's visibility against
     θ, one colour per σ²; rings mark the cases whose stripe map folds, hollow grey
     markers the cases that are not measurable (left out of the lines)."""
-    from matplotlib.lines import Line2D
-
     sel = [p for p in pairs if p.pmd["surface"] == surface and float(p.pmd["dmax_mm"]) == dmax]
     sigma2s = sorted({float(p.pmd["sigma2_mm2"]) for p in sel})
     fig = new_figure(15, 4.4)
     axes = fig.subplots(1, 3, sharex=True)
     excluded = folded_any = False
-    for ax, (side, key, law, title, unit) in zip(axes, PANELS, strict=True):
-        rows = [(p, r) for p in sel if (r := p.pmd if side == "pmd" else p.paper) is not None]
-        ok_values = [_value(r, key) for _, r in rows if is_measurable(r)]
-        limits = _limits(ok_values)
-        for s2 in sigma2s:
-            series = sorted(
-                (pr for pr in rows if float(pr[0].pmd["sigma2_mm2"]) == s2),
-                key=lambda pr: float(pr[0].pmd["theta_deg"]),
-            )
-            good = [pr for pr in series if is_measurable(pr[1])]
-            theta = np.array([float(p.pmd["theta_deg"]) for p, _ in good])
-            value = np.array([_value(r, key) for _, r in good])
-            (handle,) = ax.plot(theta, value, marker="o", label=f"σ² = {s2:g} mm²")
-            if law is not None:  # where the law holds (not at grazing views)
-                ax.plot(
-                    [float(p.pmd["theta_deg"]) for p, _ in series],
-                    [_value(p.pmd, law) if p.law_holds else math.nan for p, _ in series],
-                    ls="--", lw=1, color=handle.get_color(),
-                )  # fmt: skip
-            folds = np.array([p.folds for p, _ in good], bool)
-            if folds.any():
-                folded_any = True
-                ax.scatter(
-                    theta[folds], value[folds], s=130, facecolors="none",
-                    edgecolors=handle.get_color(),
-                )  # fmt: skip
-            bad = [pr for pr in series if not is_measurable(pr[1])]
-            if bad:
-                excluded |= _hollow(
-                    ax,
-                    [float(p.pmd["theta_deg"]) for p, _ in bad],
-                    [_value(r, key) for _, r in bad],
-                    limits,
-                )
-        if limits is not None:
-            ax.set_ylim(*limits)
-        ax.set_title(title, fontsize=10)
-        ax.set_xlabel("θ (deg)")
-        ax.set_ylabel(pixels_label(paper_image) if unit == "px" else (unit or "ratio"))
-        ax.grid(alpha=0.3)
+    for ax, panel in zip(axes, PANELS, strict=True):
+        folded, hollow = _visibility_panel(ax, panel, sel, sigma2s, paper_image)
+        folded_any |= folded
+        excluded |= hollow
     axes[0].invert_xaxis()
+    legend_outside(fig, axes[0], _visibility_legend(folded_any, excluded))
+    fig.suptitle(
+        f"{surface_name(surface)}, dmax = {dmax * 1000:g} µm: a PMD station against the "
+        "camera's elevation, beside the paper's metric",
+        fontsize=11,
+    )
+    fig.tight_layout()
+    save_figure(fig, path, within=path.parent)
+
+
+def _visibility_panel(
+    ax,
+    panel: tuple,
+    sel: Sequence[Pair],
+    sigma2s: Sequence[float],
+    paper_image: tuple[int, int] | None,
+) -> tuple[bool, bool]:
+    """One of :data:`PANELS` on ``ax``: a series per σ², the axis scaled to the
+    measurable cases; whether any case folds, and whether any not measurable was drawn."""
+    side, key, law, title, unit = panel
+    rows = [(p, r) for p in sel if (r := p.pmd if side == "pmd" else p.paper) is not None]
+    ok_values = [_value(r, key) for _, r in rows if is_measurable(r)]
+    limits = _limits(ok_values)
+    folded_any = excluded = False
+    for s2 in sigma2s:
+        series = sorted(
+            (pr for pr in rows if float(pr[0].pmd["sigma2_mm2"]) == s2),
+            key=lambda pr: float(pr[0].pmd["theta_deg"]),
+        )
+        folded, hollow = _visibility_series(ax, series, s2, key, law, limits)
+        folded_any |= folded
+        excluded |= hollow
+    if limits is not None:
+        ax.set_ylim(*limits)
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel("θ (deg)")
+    ax.set_ylabel(pixels_label(paper_image) if unit == "px" else (unit or "ratio"))
+    ax.grid(alpha=0.3)
+    return folded_any, excluded
+
+
+def _visibility_series(
+    ax,
+    series: Sequence[tuple[Pair, Mapping]],
+    s2: float,
+    key: str,
+    law: str | None,
+    limits: tuple[float, float] | None,
+) -> tuple[bool, bool]:
+    """One σ²'s cases (``series``, in θ order) on a panel: the measurable ones joined
+    (rings where the stripe map folds), the closed form ``law`` dashed, the others hollow;
+    whether any measurable case folds, and whether any not measurable was drawn."""
+    good = [pr for pr in series if is_measurable(pr[1])]
+    theta = np.array([float(p.pmd["theta_deg"]) for p, _ in good])
+    value = np.array([_value(r, key) for _, r in good])
+    (handle,) = ax.plot(theta, value, marker="o", label=f"σ² = {s2:g} mm²")
+    if law is not None:  # where the law holds (not at grazing views)
+        ax.plot(
+            [float(p.pmd["theta_deg"]) for p, _ in series],
+            [_value(p.pmd, law) if p.law_holds else math.nan for p, _ in series],
+            ls="--", lw=1, color=handle.get_color(),
+        )  # fmt: skip
+    folds = np.array([p.folds for p, _ in good], bool)
+    if folds.any():
+        ax.scatter(
+            theta[folds], value[folds], s=130, facecolors="none",
+            edgecolors=handle.get_color(),
+        )  # fmt: skip
+    bad = [pr for pr in series if not is_measurable(pr[1])]
+    hollow = False
+    if bad:
+        hollow = _hollow(
+            ax,
+            [float(p.pmd["theta_deg"]) for p, _ in bad],
+            [_value(r, key) for _, r in bad],
+            limits,
+        )
+    return bool(folds.any()), hollow
+
+
+def _visibility_legend(folded_any: bool, excluded: bool) -> list:
+    """The visibility figure's legend entries beyond the σ² lines: the closed form, the
+    rings of folded cases and the hollow markers, where drawn."""
+    from matplotlib.lines import Line2D
+
     extra = [
         Line2D([], [], color="k", ls="--", lw=1,
                label="closed form 2 α (De + σ cos θ) · G (none where it is marked grazing)")
@@ -158,14 +205,7 @@ def visibility_plot(
         )
     if excluded:
         extra.append(_hollow_handle())
-    legend_outside(fig, axes[0], extra)
-    fig.suptitle(
-        f"{surface_name(surface)}, dmax = {dmax * 1000:g} µm: a PMD station against the "
-        "camera's elevation, beside the paper's metric",
-        fontsize=11,
-    )
-    fig.tight_layout()
-    save_figure(fig, path, within=path.parent)
+    return extra
 
 
 def depth_plot(pairs: Sequence[Pair], path: Path, surfaces, dmaxs) -> None:

@@ -331,12 +331,75 @@ def search(
     axes = grid_axes(dimensions, grid_points)
     grid = np.array(list(itertools.product(*axes)), dtype=np.float64)
     scores, values, member_values = objective(grid)
-    points, all_scores = [grid], [scores]
-    all_values, all_members = [values], [member_values]
+    evaluated = _Evaluated([grid], [scores], [values], [member_values])
     best = grid[int(np.argmax(scores))]
     steps = np.array([a[1] - a[0] for a in axes])
+    if refine_evaluations > 0 and np.isfinite(np.max(scores)):  # nothing to refine from
+        cell = _grid_cell(best, steps, dimensions)
+        start = _Start(best, float(np.max(scores)), steps)
+        _refine(objective, evaluated, start, cell, refine_evaluations, minimize)
+    return _search_result(
+        evaluated,
+        dimensions,
+        grid_shape=tuple(len(a) for a in axes),
+        grid_count=len(grid),
+        metric=metric,
+        tolerance_px=tolerance_px,
+        members=members,
+    )
+
+
+@dataclass
+class _Evaluated:
+    """Every batch of points the search has evaluated, in order (the grid first), with
+    the objective's scores, values and members' values of each batch."""
+
+    points: list[np.ndarray]
+    scores: list[np.ndarray]
+    values: list[np.ndarray]
+    members: list[np.ndarray]
+
+    def add(
+        self, points: np.ndarray, scores: np.ndarray, values: np.ndarray, members: np.ndarray
+    ) -> None:
+        """Record one more batch."""
+        self.points.append(points)
+        self.scores.append(scores)
+        self.values.append(values)
+        self.members.append(members)
+
+
+@dataclass(frozen=True)
+class _Start:
+    """Where the refinement starts: the best grid point, its score, and the grid's step
+    per key."""
+
+    point: np.ndarray
+    score: float
+    steps: np.ndarray
+
+
+def _grid_cell(
+    best: np.ndarray, steps: np.ndarray, dimensions: Sequence[Dimension]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The box the refinement stays in: one grid step either side of ``best`` per key,
+    clipped to the bounds of ``dimensions`` (its low and high corners)."""
     lows, highs = np.array([d.lo for d in dimensions]), np.array([d.hi for d in dimensions])
-    cell_lo, cell_hi = np.maximum(best - steps, lows), np.minimum(best + steps, highs)
+    return np.maximum(best - steps, lows), np.minimum(best + steps, highs)
+
+
+def _refine(
+    objective: Objective,
+    evaluated: _Evaluated,
+    start: _Start,
+    cell: tuple[np.ndarray, np.ndarray],
+    budget: int,
+    minimize: Callable,
+) -> None:
+    """Bounded Nelder–Mead from ``start`` inside ``cell``, at most ``budget`` evaluations,
+    the initial simplex half a grid step wide; every new point (rounded to 1e-9) is
+    evaluated once and recorded in ``evaluated``."""
+    cell_lo, cell_hi = cell
     seen: dict[tuple, float] = {}
 
     def negative(x: np.ndarray) -> float:
@@ -344,44 +407,68 @@ def search(
         key = tuple(np.round(x, 9))
         if key not in seen:
             s, v, m = objective(x[None, :])
-            points.append(x[None, :])
-            all_scores.append(s)
-            all_values.append(v)
-            all_members.append(m)
+            evaluated.add(x[None, :], s, v, m)
             seen[key] = float(s[0])
         return -seen[key]
 
-    if refine_evaluations > 0 and np.isfinite(np.max(scores)):  # nothing to refine from
-        simplex = np.vstack(
-            [best]
-            + [np.clip(best + 0.5 * steps * e, cell_lo, cell_hi) for e in np.eye(len(dimensions))]
-        )
-        seen[tuple(np.round(best, 9))] = float(np.max(scores))
-        minimize(
-            negative,
-            best,
-            method="Nelder-Mead",
-            bounds=list(zip(cell_lo, cell_hi, strict=True)),
-            options={
-                "initial_simplex": simplex,
-                "maxfev": refine_evaluations,
-                "xatol": 1e-3 * steps.min(),
-                "fatol": 1e-4,
-            },
-        )
-    points_all = np.vstack(points)
-    scores_all, values_all = np.concatenate(all_scores), np.concatenate(all_values)
+    best, steps = start.point, start.steps
+    simplex = np.vstack(
+        [best] + [np.clip(best + 0.5 * steps * e, cell_lo, cell_hi) for e in np.eye(len(best))]
+    )
+    seen[tuple(np.round(best, 9))] = start.score
+    minimize(
+        negative,
+        best,
+        method="Nelder-Mead",
+        bounds=list(zip(cell_lo, cell_hi, strict=True)),
+        options={
+            "initial_simplex": simplex,
+            "maxfev": budget,
+            "xatol": 1e-3 * steps.min(),
+            "fatol": 1e-4,
+        },
+    )
+
+
+def _near_tolerance(tolerance_px: float | None, metric: str, optimum_value: float) -> float:
+    """How far from the optimum's value a point is near-optimal: ``tolerance_px`` when
+    given, else 0 for the paper metric's whole pixels and 5 % of the optimum's value for
+    the others."""
+    if tolerance_px is not None:
+        return tolerance_px
+    return 0.0 if metric == "paper" else 0.05 * max(abs(optimum_value), 1e-9)
+
+
+def _near_points(
+    points: np.ndarray, values: np.ndarray, winner: int, sense: int, tolerance: float, keys: int
+) -> np.ndarray:
+    """The evaluated points within ``tolerance`` of the winner's value (in the sense of
+    the metric); one row of NaN when none (no point could be read)."""
+    near = points[sense * values >= sense * values[winner] - tolerance]
+    if not len(near):  # no point could be read: the caller says so
+        near = points[:0].reshape(0, keys)
+        near = np.vstack([near, np.full((1, keys), np.nan)])
+    return near
+
+
+def _search_result(
+    evaluated: _Evaluated,
+    dimensions: Sequence[Dimension],
+    *,
+    grid_shape: tuple[int, ...],
+    grid_count: int,
+    metric: str,
+    tolerance_px: float | None,
+    members: list[dict[str, float]] | None,
+) -> OptimizeResult:
+    """The search's result from every evaluated point: the optimum is the best score, the
+    near-optimal ranges span the points within the tolerance of its value."""
+    points_all = np.vstack(evaluated.points)
+    scores_all, values_all = np.concatenate(evaluated.scores), np.concatenate(evaluated.values)
     winner = int(np.argmax(scores_all))
     sense = GOALS[metric].sense
-    tolerance = (
-        tolerance_px
-        if tolerance_px is not None
-        else (0.0 if metric == "paper" else 0.05 * max(abs(values_all[winner]), 1e-9))
-    )
-    near = points_all[sense * values_all >= sense * values_all[winner] - tolerance]
-    if not len(near):  # no point could be read: the caller says so
-        near = points_all[:0].reshape(0, len(dimensions))
-        near = np.vstack([near, np.full((1, len(dimensions)), np.nan)])
+    tolerance = _near_tolerance(tolerance_px, metric, values_all[winner])
+    near = _near_points(points_all, values_all, winner, sense, tolerance, len(dimensions))
     return OptimizeResult(
         dimensions=tuple(dimensions),
         optimum={d.name: round(float(points_all[winner, i]), 4) for i, d in enumerate(dimensions)},
@@ -394,10 +481,10 @@ def search(
         },
         points=points_all,
         values=values_all,
-        grid_shape=tuple(len(a) for a in axes),
-        grid_count=len(grid),
+        grid_shape=grid_shape,
+        grid_count=grid_count,
         members=members or [],
-        member_values=np.vstack(all_members),
+        member_values=np.vstack(evaluated.members),
     )
 
 
@@ -594,79 +681,21 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
 
     from glshade.files import atomic_write_bytes
 
-    dims, n = result.dimensions, result.grid_count
-    grid, values = result.points[:n], result.values[:n]
-    label = "worst-case " if result.members else ""
-    ylabel = f"{label}{result.goal.words()}"
+    dims = result.dimensions
+    worst = "worst-case " if result.members else ""
+    ylabel = f"{worst}{result.goal.words()}"
     if len(dims) == 2:
         fig, ax = plt.subplots(figsize=(6.4, 5.0))
-        shape = result.grid_shape
-        mesh = ax.pcolormesh(
-            grid[:, 1].reshape(shape),
-            grid[:, 0].reshape(shape),
-            values.reshape(shape),
-            shading="nearest",
-            cmap="viridis",
-        )
-        fig.colorbar(mesh, ax=ax, label=ylabel)
-        ax.plot(
-            result.points[n:, 1], result.points[n:, 0], ".", color="white", ms=3, label="refinement"
-        )
-        ax.plot(
-            result.optimum[dims[1].name],
-            result.optimum[dims[0].name],
-            "*",
-            color="red",
-            ms=14,
-            label="optimum",
-        )
-        lost = ~np.isfinite(values)
-        if lost.any():
-            ax.plot(grid[lost, 1], grid[lost, 0], "x", color="0.4", ms=6, label="not measurable")
-        ax.set_xlabel(dims[1].name)
-        ax.set_ylabel(dims[0].name)
-        ax.legend(loc="upper left", bbox_to_anchor=(1.25, 1.0), fontsize=8)
+        _draw_objective_map(fig, ax, result, ylabel)
     else:
         fig, axes = plt.subplots(
             1, len(dims), figsize=(6.4 * min(len(dims), 3), 4.4), squeeze=False
         )
-        best = grid[int(np.nanargmax(values))]
-        for i, (ax, dim) in enumerate(zip(axes[0], dims, strict=True)):
-            on_line = np.all(np.isclose(np.delete(grid, i, axis=1), np.delete(best, i)), axis=1)
-            order = np.argsort(grid[on_line, i])
-            x = grid[on_line, i][order]
-            if result.member_values is not None and len(result.members) > 1:
-                for j, _member in enumerate(result.members):
-                    ax.plot(
-                        x,
-                        result.member_values[:n][on_line][order, j],
-                        color="0.75",
-                        lw=0.8,
-                        label="family members" if j == 0 else None,
-                    )
-            shown = values[on_line][order]
-            ax.plot(x, shown, "o-", color="C0", label=f"{label}{result.goal.column}")
-            lost = ~np.isfinite(shown)
-            if lost.any():  # unreadable viewpoints: marked on the axis, never a number
-                ax.plot(
-                    x[lost], np.zeros(lost.sum()), "x", color="0.4", ms=7, clip_on=False,
-                    label="not measurable",
-                )  # fmt: skip
-            if len(dims) == 1:
-                ax.plot(
-                    result.points[n:, 0], result.values[n:], "x", color="C1", label="refinement"
-                )
-            ax.axvspan(
-                *result.near_optimal[dim.name], color="C2", alpha=0.15, label=result.near_text()
-            )
-            ax.axvline(result.optimum[dim.name], color="C3", lw=1.0, label="optimum")
-            ax.set_xlabel(dim.name)
-            ax.set_ylabel(ylabel)
-            ax.grid(alpha=0.3)
+        _draw_objective_curves(axes[0], result, worst, ylabel)
         axes[0][0].legend(loc="best", fontsize=8)
     where = ", ".join(f"{key} = {value:g}" for key, value in result.optimum.items())
     fig.suptitle(
-        title or f"optimum {where}\n{label}{result.goal.words()}: {result.value:.4g}",
+        title or f"optimum {where}\n{worst}{result.goal.words()}: {result.value:.4g}",
         fontsize=10,
     )
     fig.tight_layout()
@@ -676,3 +705,89 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
     fig.savefig(buffer, format="png", dpi=110)
     plt.close(fig)
     atomic_write_bytes(Path(path), buffer.getvalue(), "--plot")
+
+
+def _draw_objective_map(fig, ax, result: OptimizeResult, ylabel: str) -> None:
+    """Two keys: the grid's values as a colour map (the second key across, the first up),
+    the refinement's points, the optimum, and the grid points not measurable."""
+    dims, n = result.dimensions, result.grid_count
+    grid, values = result.points[:n], result.values[:n]
+    shape = result.grid_shape
+    mesh = ax.pcolormesh(
+        grid[:, 1].reshape(shape),
+        grid[:, 0].reshape(shape),
+        values.reshape(shape),
+        shading="nearest",
+        cmap="viridis",
+    )
+    fig.colorbar(mesh, ax=ax, label=ylabel)
+    ax.plot(
+        result.points[n:, 1], result.points[n:, 0], ".", color="white", ms=3, label="refinement"
+    )
+    ax.plot(
+        result.optimum[dims[1].name],
+        result.optimum[dims[0].name],
+        "*",
+        color="red",
+        ms=14,
+        label="optimum",
+    )
+    lost = ~np.isfinite(values)
+    if lost.any():
+        ax.plot(grid[lost, 1], grid[lost, 0], "x", color="0.4", ms=6, label="not measurable")
+    ax.set_xlabel(dims[1].name)
+    ax.set_ylabel(dims[0].name)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.25, 1.0), fontsize=8)
+
+
+def _draw_objective_curves(axes, result: OptimizeResult, worst: str, ylabel: str) -> None:
+    """One key or more than two: on each of ``axes`` (one per key) the grid's values along
+    that key through the best grid point."""
+    n = result.grid_count
+    grid, values = result.points[:n], result.values[:n]
+    best = grid[int(np.nanargmax(values))]
+    for i, ax in enumerate(axes):
+        on_line, order = _grid_line(grid, best, i)
+        _draw_objective_curve(ax, result, i, on_line, order, worst, ylabel)
+
+
+def _grid_line(grid: np.ndarray, best: np.ndarray, i: int) -> tuple[np.ndarray, np.ndarray]:
+    """The grid points on the line through ``best`` along key ``i`` (a mask of ``grid``'s
+    rows) and their order along that key."""
+    on_line = np.all(np.isclose(np.delete(grid, i, axis=1), np.delete(best, i)), axis=1)
+    return on_line, np.argsort(grid[on_line, i])
+
+
+def _draw_objective_curve(
+    ax, result: OptimizeResult, i: int, on_line, order, worst: str, ylabel: str
+) -> None:
+    """Key ``i``'s curve of the grid points ``on_line`` (in ``order``): each family
+    member faint, the worst case, the points not measurable on the axis, the refinement
+    (one key), the near-optimal span and the optimum."""
+    n, dim = result.grid_count, result.dimensions[i]
+    grid, values = result.points[:n], result.values[:n]
+    x = grid[on_line, i][order]
+    if result.member_values is not None and len(result.members) > 1:
+        for j, _member in enumerate(result.members):
+            ax.plot(
+                x,
+                result.member_values[:n][on_line][order, j],
+                color="0.75",
+                lw=0.8,
+                label="family members" if j == 0 else None,
+            )
+    shown = values[on_line][order]
+    ax.plot(x, shown, "o-", color="C0", label=f"{worst}{result.goal.column}")
+    lost = ~np.isfinite(shown)
+    if lost.any():  # unreadable viewpoints: marked on the axis, never a number
+        ax.plot(
+            x[lost], np.zeros(lost.sum()), "x", color="0.4", ms=7, clip_on=False,
+            label="not measurable",
+        )  # fmt: skip
+    if len(result.dimensions) == 1:
+        ax.plot(result.points[n:, 0], result.values[n:], "x", color="C1", label="refinement")
+    ax.axvspan(*result.near_optimal[dim.name], color="C2", alpha=0.15, label=result.near_text())
+    ax.axvline(result.optimum[dim.name], color="C3", lw=1.0, label="optimum")
+    ax.set_xlabel(dim.name)
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
