@@ -1,8 +1,14 @@
 """Shared fixtures: one GL context and renderer per test session, GL error checks. The
 snapshot tests' options (``--glshade-update``, ``--glshade-results``) are glshade's
-pytest plugin's (glshade.snapshot.plugin)."""
+pytest plugin's (glshade.snapshot.plugin).
+
+The markers ``gl`` and ``subprocess`` are set here from what a test uses (the GL context
+fixture; a module that starts processes), ``slow`` by hand on the slowest tests, so that
+``-m "not slow"``, ``-m "not gl"`` or ``-m "not subprocess"`` select a quicker part."""
 
 from __future__ import annotations
+
+import subprocess
 
 import pytest
 
@@ -28,3 +34,17 @@ def renderer(_session_renderer, gl_context):
     gl_context.check_error("the previous test")
     yield _session_renderer
     gl_context.check_error("this test")
+
+
+def pytest_collection_modifyitems(config, items):
+    """``gl`` on every test that needs the GL context (directly or through ``renderer``);
+    ``subprocess`` on the tests of a module that starts processes (it imports
+    :mod:`subprocess` or the suite's :func:`glshade_process.run_glshade`)."""
+    for item in items:
+        if "gl_context" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.gl)
+        module = getattr(item, "module", None)
+        if module is not None and (
+            getattr(module, "subprocess", None) is subprocess or hasattr(module, "run_glshade")
+        ):
+            item.add_marker(pytest.mark.subprocess)

@@ -41,6 +41,7 @@ def test_monte_carlo_converges_to_the_quadrature(renderer, tmp_path):
     assert errors[1] < errors[0] and errors[1] < 0.05
 
 
+@pytest.mark.slow
 def test_accuracy_command_reduced(tmp_path):
     out = tmp_path / "acc"
     result = subprocess.run(

@@ -228,6 +228,7 @@ def test_there_are_forty_kinds_of_bad_input():
     assert len({" ".join(args) + str(env) for args, _, env in BAD_INPUTS}) == len(BAD_INPUTS)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "index", range(len(BAD_INPUTS)), ids=[" ".join(c[0])[:60] for c in BAD_INPUTS]
 )

@@ -341,6 +341,7 @@ def small_budget(monkeypatch):
     monkeypatch.setenv("GLSHADE_MAX_RAYS", str(1 << 16))
 
 
+@pytest.mark.slow
 def test_scene_mutants_end_in_a_result_or_one_line(tmp_path, small_budget):
     """Every mutant: an image (or a measurement), or one line and exit 2. And the fuzzer
     reaches the renderer: a tenth of the mutants at least are valid scenes, rendered."""

@@ -258,6 +258,7 @@ def _paper(out: Path, *extra: str) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow
 def test_a_second_study_on_the_same_directory_is_refused(tmp_path):
     out = tmp_path / "study"
     first = _paper(out, "--surfaces", "flat,cylinder", "--thetas", "85,45,5", "--size", "192")
@@ -287,6 +288,7 @@ def test_a_second_study_on_the_same_directory_is_refused(tmp_path):
     assert third.returncode == 0 and "0 cases computed, 48 resumed" in out3
 
 
+@pytest.mark.slow
 def test_a_subset_rerun_is_refused_and_overwrite_removes_the_stale_files(tmp_path, capsys):
     out = tmp_path / "study"
     full = [

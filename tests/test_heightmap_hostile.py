@@ -519,6 +519,7 @@ def test_the_table_covers_every_format_and_the_big_maps():
         assert f"big{suffix}" in names
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("index", range(len(CASES)), ids=[case.name for case in CASES])
 def test_a_hostile_map_is_one_line_exit_2_and_nothing_written(hostile_results, index):
     case = CASES[index]

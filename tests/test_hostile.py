@@ -226,12 +226,14 @@ def trapped(tmp_path_factory):
     return root, results, before
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("trap", list(TRAP_MESSAGES))
 def test_a_trap_is_one_line_before_any_work(trapped, trap):
     _, results, _ = trapped
     one_error(results[trap], *TRAP_MESSAGES[trap])
 
 
+@pytest.mark.slow
 def test_the_traps_leave_every_file_as_it_was(trapped):
     """Nothing outside the output directory, no input, no special file is touched, and
     the refused runs create nothing: the tree is the same, file for file, size for size
@@ -314,6 +316,7 @@ def measured(study: Path) -> dict[str, str]:
     return {name: value for name, value in rows[0].items() if name not in timings}
 
 
+@pytest.mark.slow
 def test_a_tampered_study_case_is_measured_again_and_said(tmp_path):
     first = glshade(*ONE_CASE, "--out", "study", cwd=tmp_path)
     assert first.returncode == 0, first.stderr

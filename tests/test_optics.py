@@ -402,6 +402,7 @@ def test_each_feature_brings_its_code_and_nothing_else(renderer, name):
 
 
 # ------------------------------------------------------------------ the finding-3 study
+@pytest.mark.slow
 def test_finding3_study_writes_its_report_and_the_study_quotes_it(tmp_path):
     from glshade.study import finding3 as optics
 

@@ -284,6 +284,7 @@ def test_report_numbers_carry_their_status(tmp_path):
 
 
 # --------------------------------------------------------------------------- the CLI
+@pytest.mark.slow
 def test_end_to_end_runs_the_stripe_study_first(tmp_path, capsys):
     out = tmp_path / "study"
     args = ["paper", "--method", "pmd", "--out", str(out), "--size", str(SIZE),

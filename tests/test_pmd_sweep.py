@@ -223,6 +223,7 @@ def test_the_docs_hold_the_generated_pmd_columns():
 
 
 # ------------------------------------------------------------------ the CLI and Dask
+@pytest.mark.slow
 def test_two_workers_give_the_same_pmd_table_and_unreadable_cases_are_counted(
     tmp_path, renderer, capsys
 ):

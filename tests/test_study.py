@@ -27,6 +27,7 @@ def _stable(rows):
     return [{k: v for k, v in r.items() if k not in TIMING} for r in rows]
 
 
+@pytest.mark.slow
 def test_reduced_study_end_to_end_through_the_cli(tmp_path, capsys):
     out = tmp_path / "study"
     assert (

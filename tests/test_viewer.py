@@ -736,6 +736,7 @@ print("shots: " + json.dumps([first, second, third, fourth, fifth, sixth]))
 
 
 @needs_display
+@pytest.mark.slow
 @pytest.mark.skipif(
     ctypes.util.find_library("Xtst") is None or shutil.which("xwininfo") is None,
     reason="needs libXtst and xwininfo (Debian: libxtst6, x11-utils) to press keys",
