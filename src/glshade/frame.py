@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeAlias
 
 import numpy as np
 
@@ -117,8 +117,12 @@ class Frame:
         return array
 
 
+#: What names a render's outputs: one name, or several.
+Outputs: TypeAlias = "str | tuple[str, ...] | list[str] | frozenset[str]"
+
+
 def normalize_outputs(
-    outputs: str | tuple[str, ...] | list[str] | frozenset[str],
+    outputs: Outputs,
 ) -> frozenset[str]:
     """Check and canonicalise a request such as ``("image", "uv")``."""
     from glshade.errors import GlshadeError

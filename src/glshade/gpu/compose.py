@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import functools
 import re
-from collections.abc import Hashable, Mapping
+from collections.abc import Hashable, Iterable, Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -33,7 +33,7 @@ from glshade.cache import cache_dir
 from glshade.components.base import Component, Slot, UniformContext
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, ShaderCompileError
-from glshade.frame import OUTPUTS, normalize_outputs
+from glshade.frame import OUTPUTS, Outputs, normalize_outputs
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
@@ -61,7 +61,9 @@ class ShaderFeatures:
     outputs: tuple[str, ...]
 
     @classmethod
-    def from_scene(cls, scene: Scene, outputs=("image",), frame_count: int = 0) -> ShaderFeatures:
+    def from_scene(
+        cls, scene: Scene, outputs: Outputs = ("image",), frame_count: int = 0
+    ) -> ShaderFeatures:
         """The features of ``scene``'s program for ``outputs``; with the ``frames`` output,
         ``frame_count`` emitter frames per draw (the template variable ``frame_count``)."""
         wanted = normalize_outputs(outputs)
@@ -180,12 +182,12 @@ def _template_cache() -> jinja2.BytecodeCache | None:
     return TemplateCache(folder, {**ENVIRONMENT_OPTIONS, "undefined": "StrictUndefined"})
 
 
-def environment_for(components) -> jinja2.Environment:
+def environment_for(components: Iterable[Component]) -> jinja2.Environment:
     folders = tuple(sorted({(namespace(c), str(c.glsl_folder())) for c in components}))
     return _environment(folders)
 
 
-def render_template(name: str, components=(), **variables: object) -> str:
+def render_template(name: str, components: Iterable[Component] = (), **variables: object) -> str:
     """Compose one template (looked up in ``shaders/`` or a component's namespace); a
     variable the template uses but was not given raises."""
     return environment_for(components).get_template(name).render(**variables)

@@ -36,8 +36,9 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import cast
+from typing import TYPE_CHECKING, Any, cast
 
 import moderngl
 import numpy as np
@@ -46,10 +47,13 @@ from glshade.budget import memory_budget_from_env
 from glshade.budget import number_from_env as _number_from_env
 from glshade.components.base import UniformContext
 from glshade.errors import ContextError, GlshadeError, SceneError
-from glshade.frame import Frame, auto_exposure_gain, normalize_outputs
+from glshade.frame import Frame, Outputs, auto_exposure_gain, normalize_outputs
 from glshade.gpu.compose import ShaderFeatures, compile_error, component_uniforms, compose
 from glshade.gpu.context import GLContext, interrupts_deferred, set_uniform
 from glshade.scene import Scene
+
+if TYPE_CHECKING:
+    from glshade.progress import Bar
 
 #: Bytes per pixel of each output: GPU render target + host array (fp64 uv: an RGBA32F
 #: target of float hi/lo pairs, a float64 host array).
@@ -179,7 +183,7 @@ def sampled(features: ShaderFeatures) -> bool:
     return bool(variables.get("supersample") or variables.get("aperture"))
 
 
-def drawn_features(scene: Scene, outputs, frame_count: int = 0) -> ShaderFeatures:
+def drawn_features(scene: Scene, outputs: Outputs, frame_count: int = 0) -> ShaderFeatures:
     """The features a draw of ``outputs`` uses: a program that loops over a pixel's
     samples also counts them (``rays``), which every draw checks."""
     features = ShaderFeatures.from_scene(scene, outputs, frame_count)
@@ -207,7 +211,7 @@ def check_work_budget(scene: Scene, max_rays: int) -> None:
 def frame_bytes(
     width: int,
     height: int,
-    outputs,
+    outputs: Outputs,
     precision: str = "fp32",
     summed: bool = False,
     frame_count: int = 0,
@@ -226,7 +230,7 @@ def frame_bytes(
 
 
 def check_frame_budget(
-    scene: Scene, outputs, budget_bytes: int, summed: bool = False, frame_count: int = 0
+    scene: Scene, outputs: Outputs, budget_bytes: int, summed: bool = False, frame_count: int = 0
 ) -> None:
     """Reject a frame whose buffers would exceed ``budget_bytes``, naming the fields."""
     cam = scene.camera
@@ -442,11 +446,11 @@ class Renderer:
     def render(
         self,
         scene: Scene,
-        outputs=("image",),
+        outputs: Outputs = ("image",),
         *,
         out: Frame | None = None,
         exposure: int = 0,
-        frames=None,
+        frames: Sequence[Any] | None = None,
         develop: bool = True,
     ) -> Frame:
         """Render ``scene``; ``outputs`` is a subset of :data:`glshade.frame.OUTPUTS`.
@@ -751,7 +755,10 @@ def _accumulate(sums: dict[str, np.ndarray], arrays: dict[str, np.ndarray]) -> N
 
 
 def _finish(
-    sums: dict[str, np.ndarray], features: ShaderFeatures, out: Frame | None, output_array
+    sums: dict[str, np.ndarray],
+    features: ShaderFeatures,
+    out: Frame | None,
+    output_array: Callable[[str, int, int, str, Frame | None], np.ndarray],
 ) -> dict[str, np.ndarray]:
     """The frame's arrays from the sums of its draws (``out``'s filled where given)."""
     counts = sums["rays"]
@@ -780,7 +787,7 @@ def _finish(
     return arrays
 
 
-def _progress_bar(total_rows: int, done_rows: int):
+def _progress_bar(total_rows: int, done_rows: int) -> Bar | None:
     """A slow frame's bar: on a terminal only, and gone when the frame is done
     (:mod:`glshade.progress`)."""
     from glshade.progress import progress_bar
@@ -788,7 +795,7 @@ def _progress_bar(total_rows: int, done_rows: int):
     return progress_bar(total_rows, "glshade render", "row", initial=done_rows, leave=False)
 
 
-def render(scene: Scene, outputs=("image",)) -> Frame:
+def render(scene: Scene, outputs: Outputs = ("image",)) -> Frame:
     """One-shot convenience: create a context, render, release."""
     with Renderer() as renderer:
         return renderer.render(scene, outputs)

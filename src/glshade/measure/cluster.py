@@ -26,8 +26,8 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
-from typing import Self, cast
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING, Any, Self, cast
 
 from distributed import Client, LocalCluster, as_completed, get_worker
 from distributed.client import FutureCancelledError
@@ -44,6 +44,11 @@ from glshade.measure.executors import Distribution, Row, measure_rows
 from glshade.measure.pmd import PmdSettings
 from glshade.measure.scheduler import join_scheduler
 
+if TYPE_CHECKING:
+    from distributed import Worker
+
+    from glshade.metrics.visibility import MetricSettings
+
 PLUGIN_NAME = "glshade-renderer"
 
 
@@ -59,7 +64,7 @@ class RendererPlugin(WorkerPlugin):
         self.device: int | None = None
         self.quiet = quiet  # quieten Dask's loggers in the worker process (glshade's own)
 
-    def setup(self, worker) -> None:
+    def setup(self, worker: Worker) -> None:
         from glshade.gpu.egl_cuda import worker_egl_device
         from glshade.process import reuse_freed_memory
 
@@ -75,7 +80,7 @@ class RendererPlugin(WorkerPlugin):
             self.renderer = Renderer(self.context)
         return self.renderer
 
-    def teardown(self, worker) -> None:
+    def teardown(self, worker: Worker) -> None:
         if self.renderer is not None:
             self.renderer.release()
         if self.context is not None:
@@ -83,12 +88,16 @@ class RendererPlugin(WorkerPlugin):
         self.context = self.renderer = None
 
 
-def measure_batch(cases: list[Case], settings, images: bool) -> list[Row]:
+def measure_batch(
+    cases: list[Case], settings: MetricSettings | PmdSettings, images: bool
+) -> list[Row]:
     """A Dask task: measure one batch with the worker's renderer; returns its rows."""
     return list(measure_rows(_worker_renderer(), cases, settings, images))
 
 
-def measure_whole(cases: list[Case], settings, extra: Extra | None) -> list[Measured]:
+def measure_whole(
+    cases: list[Case], settings: MetricSettings | PmdSettings, extra: Extra | None
+) -> list[Measured]:
     """A Dask task: measure one batch with the worker's renderer; returns its results
     whole, with what ``extra`` made of each (the worker traces and analyses in turn)."""
     return list(measure_many(_worker_renderer(), cases, settings, extra=extra))
@@ -99,7 +108,9 @@ def _worker_renderer() -> Renderer:
     return plugin.get()
 
 
-def batches(cases: list[Case], size: int, settings=None) -> list[list[Case]]:
+def batches(
+    cases: list[Case], size: int, settings: MetricSettings | PmdSettings | None = None
+) -> list[list[Case]]:
     """The tasks: the engine's geometry groups (for ``settings``), each cut into pieces of
     at most ``size``."""
     out = []
@@ -174,7 +185,7 @@ class DaskExecutor:
             assert distribution.workers is not None
             self.client, self.cluster = start_local(distribution.workers, distribution.verbose)
 
-    def _check_memory(self, cases: list[Case], settings) -> None:
+    def _check_memory(self, cases: list[Case], settings: MetricSettings | PmdSettings) -> None:
         """Local workers fit the memory budget at the size of these cases' frames
         (:func:`glshade.measure.capacity.check_worker_count`); an existing cluster's
         machines are its own business."""
@@ -182,18 +193,28 @@ class DaskExecutor:
             method = "pmd" if isinstance(settings, PmdSettings) else "paper"
             check_worker_count(self.distribution.workers, frame_pixels(cases), method)
 
-    def rows(self, cases: list[Case], settings, images: bool) -> Iterator[Row]:
+    def rows(
+        self, cases: list[Case], settings: MetricSettings | PmdSettings, images: bool
+    ) -> Iterator[Row]:
         """Rows of ``cases``, as their batches finish (any order)."""
         for rows in self._run(measure_batch, cases, settings, images):
             yield from rows
 
-    def measured(self, cases: list[Case], settings, extra: Extra | None) -> Iterator[Measured]:
+    def measured(
+        self, cases: list[Case], settings: MetricSettings | PmdSettings, extra: Extra | None
+    ) -> Iterator[Measured]:
         """Whole results of ``cases`` (``extra`` run on the workers), as their batches
         finish (any order)."""
         for results in self._run(measure_whole, cases, settings, extra):
             yield from results
 
-    def _run(self, task, cases: list[Case], settings, option) -> Iterator[list]:
+    def _run(
+        self,
+        task: Callable[[list[Case], MetricSettings | PmdSettings, Any], list[Any]],
+        cases: list[Case],
+        settings: MetricSettings | PmdSettings,
+        option: Any,
+    ) -> Iterator[list]:
         """``task(batch, settings, option)`` on the cluster for every batch, results as they
         finish."""
         if not cases:
@@ -234,5 +255,5 @@ class DaskExecutor:
     def __enter__(self) -> Self:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()

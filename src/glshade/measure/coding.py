@@ -340,7 +340,9 @@ def best_finest(probe: Probe, resolved: Resolved, level: float, floor_mm: float 
     return round_up(float(probe.periods_mm[int(np.argmin(merit))]))
 
 
-def error_budget(probe: Probe, em: FringesTable, periods: tuple[float, ...], shifts: int):
+def error_budget(
+    probe: Probe, em: FringesTable, periods: tuple[float, ...], shifts: int
+) -> ErrorBudget:
     """The :class:`ErrorBudget` of ``periods`` at ``shifts`` steps."""
     harmonics = screen_harmonics(em)
     gamma = gamma_error_rad(harmonics, shifts)

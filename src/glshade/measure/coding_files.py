@@ -5,6 +5,7 @@ plot of modulation against period (:func:`write_plot`, atomically)."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -119,7 +120,7 @@ def coded_scene(report: CodingReport) -> Scene:
 DIRECTION_COLOURS = {"v": (0.0, 0.35, 0.75), "u": (0.85, 0.2, 0.0)}
 
 
-def write_plot(report: CodingReport, path) -> None:
+def write_plot(report: CodingReport, path: Path) -> None:
     """Modulation share against period (log axis, mm; pixels on the top axis): rendered
     per direction (markers; the title says so where they are not read in the dent's
     window), the chain's closed form (lines), a real pixel's box (dashed), the resolved
@@ -153,7 +154,8 @@ def write_plot(report: CodingReport, path) -> None:
     ax.set_xlabel("fringe period on the screen (mm)")
     ax.set_ylabel("modulation (share of a sharp mirror's)")
     if math.isfinite(w) and w > 0:
-        top = ax.secondary_xaxis("top", functions=(lambda p: p / w, lambda n: n * w))
+        # matplotlib types the functions' argument as any array-like; it passes arrays
+        top = ax.secondary_xaxis("top", functions=(lambda p: p / w, lambda n: n * w))  # type: ignore[operator]
         top.set_xlabel("pixels per period (along the first coded direction)")
     title = report.scene.title()
     if not probe.in_window:

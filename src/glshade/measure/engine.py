@@ -19,7 +19,7 @@ from collections import deque
 from collections.abc import Callable, Hashable, Iterator, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -39,6 +39,9 @@ from glshade.measure.single import (
 )
 from glshade.metrics import visibility as vis
 from glshade.scene import Scene
+
+if TYPE_CHECKING:
+    from glshade.gpu.renderer import Renderer
 
 #: Cases traced ahead of the analysis: at most this many emitter maps wait in memory
 #: (4 MiB each at 1024²; fewer where the memory budget cannot hold them, :func:`ahead_within`).
@@ -126,7 +129,7 @@ def grouped(
 
 
 def measure_many(
-    renderer,
+    renderer: Renderer,
     cases: Sequence[Case],
     settings: vis.MetricSettings | PmdSettings,
     *,
@@ -226,14 +229,21 @@ def analysis_threads(pool: Executor | None) -> int:
     return int(getattr(pool, "_max_workers", AHEAD + 1))
 
 
-def _traced(renderer, case: Case) -> tuple[np.ndarray, float]:
+def _traced(renderer: Renderer, case: Case) -> tuple[np.ndarray, float]:
     """A case's emitter map and the seconds its trace took."""
     start = time.perf_counter()
     v1 = emitter_map(renderer, case.scene)
     return v1, time.perf_counter() - start
 
 
-def _mapped(renderer, group, settings, pool, extra, plan: BudgetPlan) -> Iterator[Measured]:
+def _mapped(
+    renderer: Renderer,
+    group: list[Case],
+    settings: vis.MetricSettings,
+    pool: Executor | None,
+    extra: Extra | None,
+    plan: BudgetPlan,
+) -> Iterator[Measured]:
     """One geometry shaded from its emitter maps: trace here, analyse in ``pool``, at most
     ``plan.ahead`` cases traced ahead of the analysis."""
     normal = group[0].scene.without_defect()
@@ -252,13 +262,21 @@ def _mapped(renderer, group, settings, pool, extra, plan: BudgetPlan) -> Iterato
         yield waiting.popleft().result()
 
 
-def _analyse(case, baseline, v1, trace_s, extra) -> Measured:
+def _analyse(
+    case: Case, baseline: vis.Baseline, v1: np.ndarray, trace_s: float, extra: Extra | None
+) -> Measured:
     result = judged(case.scene, baseline, v1, baseline.measure(v1))
     made = extra(case, result, CaseView(baseline, v1, None)) if extra is not None else None
     return Measured(case, result, trace_s, made)
 
 
-def _rendered(renderer, group, settings, extra, cache_bytes: int) -> Iterator[Measured]:
+def _rendered(
+    renderer: Renderer,
+    group: list[Case],
+    settings: vis.MetricSettings,
+    extra: Extra | None,
+    cache_bytes: int,
+) -> Iterator[Measured]:
     """One geometry whose pictures are rendered phase by phase, all on this thread."""
     baseline = baseline_for(renderer, group[0].scene, settings, cache_bytes)
     for case in group:
@@ -279,7 +297,13 @@ class PmdView:
     baseline: PmdBaseline
 
 
-def _phase_measured(renderer, group, settings: PmdSettings, extra) -> Iterator[Measured]:
+def _phase_measured(
+    renderer: Renderer,
+    group: list[Case],
+    settings: PmdSettings,
+    # an Extra that takes a PmdResult and a PmdView (see measure_many)
+    extra: Callable[..., Any] | None,
+) -> Iterator[Measured]:
     """One geometry measured as a PMD station measures it, its defect-free analysis once."""
     baseline = pmd_baseline(renderer, group[0].scene, settings)
     for case in group:

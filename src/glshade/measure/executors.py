@@ -12,9 +12,9 @@ where each case is measured: the study's thumbnails and overlays).
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Any, Self
+from typing import TYPE_CHECKING, Any, Self
 
 from glshade.errors import GlshadeError
 from glshade.measure.capacity import check_threads, check_worker_count
@@ -22,6 +22,9 @@ from glshade.measure.engine import Case, CaseView, Extra, Measured, PmdView, mea
 from glshade.measure.pmd import PmdResult, PmdSettings
 from glshade.measure.record import Measurement, PmdMeasurement
 from glshade.metrics.visibility import MetricSettings, Visibility
+
+if TYPE_CHECKING:
+    from glshade.gpu.renderer import Renderer
 
 #: What every executor yields per case: its key, its record, its image as PNG bytes (when
 #: images were asked for: the paper metric's best phase, phase measuring's first recorded
@@ -75,7 +78,7 @@ class LocalExecutor:
     """Measures cases in this process: one renderer (made on first use unless given),
     ``threads`` analysis threads."""
 
-    def __init__(self, threads: int = 2, renderer=None) -> None:
+    def __init__(self, threads: int = 2, renderer: Renderer | None = None) -> None:
         self.threads, self.renderer, self._owns = threads, renderer, renderer is None
 
     def rows(
@@ -91,7 +94,7 @@ class LocalExecutor:
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
             yield from measure_many(self._renderer(), cases, settings, pool=pool, extra=extra)
 
-    def _renderer(self):
+    def _renderer(self) -> Renderer:
         if self.renderer is None:
             from glshade.gpu.renderer import Renderer
 
@@ -111,11 +114,11 @@ class LocalExecutor:
 
 
 def measure_rows(
-    renderer,
+    renderer: Renderer,
     cases: Sequence[Case],
     settings: MetricSettings | PmdSettings,
     images: bool,
-    pool=None,
+    pool: Executor | None = None,
 ) -> Iterator[Row]:
     """The engine's results as rows: what a worker returns, what the caller writes."""
     extra = _best_image_png if images else None

@@ -5,13 +5,27 @@ matplotlib helpers the study's figures share (headless: the Agg canvas)."""
 from __future__ import annotations
 
 import io
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from glshade.files import atomic_write_bytes
 from glshade.metrics.contours import overlay_rgb
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from glshade.metrics.contours import ContourShift
+    from glshade.metrics.visibility import Baseline, Visibility
+
+#: The contour masks :func:`_contour_masks` makes: defect-free, with the dent, islands.
+_Masks = tuple[np.ndarray, np.ndarray, np.ndarray]
+#: An image's extent on its axes (left, right, bottom, top).
+_Extent = tuple[float, float, float, float]
 
 #: The Fig. 9 overlay's colours (RGB 0-1, distinct in print and for colour-blind readers)
 #: and what they mean; drawn on white.
@@ -28,14 +42,14 @@ OVERLAY_LEGEND = (
 )
 
 
-def new_figure(width_in: float, height_in: float):
+def new_figure(width_in: float, height_in: float) -> Figure:
     """A matplotlib figure (no pyplot, no display)."""
     from matplotlib.figure import Figure
 
     return Figure(figsize=(width_in, height_in))
 
 
-def save_figure(fig, path: Path, dpi: int = 110, within: Path | None = None) -> None:
+def save_figure(fig: Figure, path: Path, dpi: int = 110, within: Path | None = None) -> None:
     """Write ``fig`` as a PNG, atomically; ``within``: the output directory it belongs to
     (:func:`glshade.files.atomic_write_bytes`)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -46,7 +60,14 @@ def save_figure(fig, path: Path, dpi: int = 110, within: Path | None = None) -> 
     atomic_write_bytes(Path(path), buffer.getvalue(), within=within)
 
 
-def write_overlay(baseline, v1, result, images, title: str, path: Path) -> None:
+def write_overlay(
+    baseline: Baseline,
+    v1: np.ndarray,
+    result: Visibility,
+    images: Callable[[float], np.ndarray] | None,
+    title: str,
+    path: Path,
+) -> None:
     """The Fig. 9 overlay of a measured case (its baseline, emitter map, result and, for
     rendered shading, its phase images) at its best phase."""
     normal, defect = baseline.stripes_at(v1, result.best_phase_mm, result.offset_px, images)
@@ -94,7 +115,7 @@ class _Window:
     y1: float
 
     @classmethod
-    def around(cls, shift, zoom_px: int) -> _Window:
+    def around(cls, shift: ContourShift, zoom_px: int) -> _Window:
         """The square window centred on ``shift``'s two rows, at least ``zoom_px`` pixels
         from its centre to each side and wide enough to show both rows."""
         rows = (shift.normal_row, shift.defect_row)
@@ -110,13 +131,13 @@ class _Window:
         )
 
 
-def _label_axes(ax) -> None:
+def _label_axes(ax: Axes) -> None:
     """Name an image axis's columns and rows in pixels."""
     ax.set_xlabel("image column (px)", fontsize=10)
     ax.set_ylabel("image row (px)", fontsize=10)
 
 
-def _draw_kept_columns(full, masks, extent, height: int) -> None:
+def _draw_kept_columns(full: Axes, masks: _Masks, extent: _Extent, height: int) -> None:
     """The left panel: every kept column, its contours thickened to stay visible in print,
     titled and with its axes labelled."""
     full.imshow(
@@ -126,7 +147,7 @@ def _draw_kept_columns(full, masks, extent, height: int) -> None:
     _label_axes(full)
 
 
-def _mark_window(full, window: _Window, width: int, height: int) -> None:
+def _mark_window(full: Axes, window: _Window, width: int, height: int) -> None:
     """The magnified window outlined on the left panel, with a ``magnified`` label."""
     from matplotlib.patches import Rectangle
 
@@ -143,7 +164,9 @@ def _mark_window(full, window: _Window, width: int, height: int) -> None:
     )
 
 
-def _draw_magnified(near, masks, extent, window: _Window, shift) -> None:
+def _draw_magnified(
+    near: Axes, masks: _Masks, extent: _Extent, window: _Window, shift: ContourShift
+) -> None:
     """The right panel: the window at one pixel per contour, the two contour points
     circled and joined by a double arrow, titled with the shift."""
     near.imshow(_paint(masks, 1), interpolation="nearest", extent=extent)
@@ -166,7 +189,7 @@ def _draw_magnified(near, masks, extent, window: _Window, shift) -> None:
     )
 
 
-def _overlay_title(result, title: str, width: int, height: int) -> str:
+def _overlay_title(result: Visibility, title: str, width: int, height: int) -> str:
     """The overlay's title: the case, its best phase, its visibility and its image."""
     return (
         f"Fig. 9 overlay: {title}; phase {result.best_phase_mm:g} mm\n"
@@ -178,7 +201,7 @@ def _overlay_title(result, title: str, width: int, height: int) -> str:
 
 def overlay_figure(
     rgb: np.ndarray,
-    result,
+    result: Visibility,
     column_start: int,
     title: str,
     path: Path,

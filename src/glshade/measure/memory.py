@@ -104,7 +104,9 @@ class MemoryEstimate:
         return self.frame_bytes + self.analysis_bytes
 
 
-def render_bytes(scene: Scene, output_sets: tuple[tuple[str, ...], ...], frame_count=0) -> int:
+def render_bytes(
+    scene: Scene, output_sets: tuple[tuple[str, ...], ...], frame_count: int = 0
+) -> int:
     """The renderer's buffers for every output set a case renders (the renderer keeps the
     targets of each): :func:`glshade.gpu.renderer.frame_bytes`, with the sums of a frame
     traced over several draws where a default renderer's loop budget splits its samples."""

@@ -24,9 +24,13 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from glshade.errors import GlshadeError, printable
+
+if TYPE_CHECKING:
+    from distributed import Client
+    from distributed.diagnostics.plugin import WorkerPlugin
 
 #: Schemes whose location is HOST:PORT (checked here, and reached over TCP first).
 HOST_PORT_SCHEMES = ("tcp", "tls", "ws", "wss")
@@ -195,12 +199,12 @@ def check_scheduler(text: str, timeout_s: float, verbose: bool = False) -> Sched
     return address
 
 
-def join_scheduler(text: str, timeout_s: float, plugin, plugin_name: str):
+def join_scheduler(text: str, timeout_s: float, plugin: WorkerPlugin, plugin_name: str) -> Client:
     """A :class:`distributed.Client` of the scheduler at ``text`` with ``plugin``
     registered on its workers, all within ``timeout_s`` (plus :data:`GRACE_S`)."""
     address = parse_address(text)
 
-    def work(deadline: float):
+    def work(deadline: float) -> Client:
         probe(address, deadline, timeout_s)
         return _client(address, deadline, timeout_s, plugin, plugin_name)
 
@@ -215,7 +219,9 @@ def join_scheduler(text: str, timeout_s: float, plugin, plugin_name: str):
     )
 
 
-def _client(address: SchedulerAddress, deadline: float, timeout_s: float, plugin, name: str):
+def _client(
+    address: SchedulerAddress, deadline: float, timeout_s: float, plugin: WorkerPlugin, name: str
+) -> Client:
     from distributed import Client
 
     left = max(deadline - time.monotonic(), 0.1)

@@ -36,6 +36,7 @@ from glshade.scene import Scene
 
 if TYPE_CHECKING:  # the GPU is loaded only by measure() when it must make a renderer
     from glshade.gpu.renderer import Renderer
+    from glshade.measure.pmd import PmdResult, PmdSettings
 
 
 def emitter_map(renderer: Renderer, scene: Scene) -> np.ndarray:
@@ -253,8 +254,8 @@ def measure(
     settings: MetricSettings | None = None,
     overlay: str | os.PathLike[str] | None = None,
     method: str | None = None,
-    pmd_settings=None,
-):
+    pmd_settings: PmdSettings | None = None,
+) -> Visibility | PmdResult:
     """How visible is this scene's defect? ``glshade.measure(paper_scene("flat", 5, 1.0, 0.005))``.
 
     Returns a :class:`glshade.metrics.visibility.Visibility`: ``visibility_px`` (the paper's

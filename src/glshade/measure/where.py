@@ -3,10 +3,18 @@ process, or Dask (loaded only then)."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from glshade.measure.executors import Distribution, LocalExecutor
 
+if TYPE_CHECKING:
+    from glshade.gpu.renderer import Renderer
+    from glshade.measure.cluster import DaskExecutor
 
-def open_executor(distribution: Distribution, renderer=None):
+
+def open_executor(
+    distribution: Distribution, renderer: Renderer | None = None
+) -> LocalExecutor | DaskExecutor:
     """Where cases are measured: a :class:`LocalExecutor` or a Dask one; a context
     manager either way."""
     if distribution.on_dask:

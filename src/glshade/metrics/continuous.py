@@ -418,7 +418,7 @@ WINDOW_TOLERANCE_PX = 1e-3
 
 
 def _fold_window(
-    v0, v1, columns: slice, folds: np.ndarray, period_mm: float
+    v0: np.ndarray, v1: np.ndarray, columns: slice, folds: np.ndarray, period_mm: float
 ) -> tuple[int, int, int, int]:
     """Rows and columns around the fold: the folded columns plus 3 on each side (kept
     columns only); the rows where the dent moves the map in them by more than
@@ -450,7 +450,12 @@ _ZOOM_SEEDS = (2, 1)
 
 
 def _window_limit(
-    v0, v1, valid, stripes: StripeLevels, upsample: int, phase_samples: int
+    v0: np.ndarray,
+    v1: np.ndarray,
+    valid: np.ndarray,
+    stripes: StripeLevels,
+    upsample: int,
+    phase_samples: int,
 ) -> tuple[float, float]:
     """The largest contour shift inside the fold window over a zooming phase search."""
     height, width = v0.shape
@@ -526,7 +531,15 @@ def _border_of(ok: np.ndarray) -> np.ndarray:
 
 
 def _crossings(
-    v, ok, index, kept, phase, stripes: StripeLevels, k0: int, count: int, direction: int
+    v: np.ndarray,
+    ok: np.ndarray,
+    index: np.ndarray,
+    kept: np.ndarray,
+    phase: float,
+    stripes: StripeLevels,
+    k0: int,
+    count: int,
+    direction: int,
 ) -> np.ndarray:
     """Outermost sub-pixel crossing per (stripe, column): ``direction`` +1 for the upper
     contour (first kept pixel of the stripe from the top), -1 for the lower one."""

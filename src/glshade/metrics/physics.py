@@ -133,7 +133,16 @@ def laws(scene: Scene) -> Laws:
     )
 
 
-def _saddle_rows(x_s2, sagittal, m, dc, de, sin_t, cos_t, delta) -> float:
+def _saddle_rows(
+    x_s2: float,
+    sagittal: float,
+    m: float,
+    dc: float,
+    de: float,
+    sin_t: float,
+    cos_t: float,
+    delta: float,
+) -> float:
     """How far (in rows of the emitter map) a sagittally curved base lifts the stripes
     against the dent's image at lateral offset ``x_s`` (docs/physics.md): the dent's centre
     moves ``-cos θ x² κ_s / (2 Dc δ)`` rows, the stripes

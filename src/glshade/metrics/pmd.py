@@ -24,12 +24,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from glshade.components.emitter.fringes.table import DIRECTIONS, displayed
 from glshade.errors import GlshadeError
+
+if TYPE_CHECKING:
+    from scipy.sparse import csr_matrix
 
 
 @dataclass(frozen=True)
@@ -81,7 +84,7 @@ class FringeCoding:
             )
 
     @classmethod
-    def of(cls, emitter, direction: str) -> FringeCoding:
+    def of(cls, emitter: Any, direction: str) -> FringeCoding:
         """The coding a fringe emitter's table (``emitter``: periods, shifts, offset,
         amplitude, levels, gamma, half_size) shows along ``direction`` (``"v"`` or
         ``"u"``); an error names the emitter's key where the table cannot be decoded."""
@@ -371,7 +374,7 @@ def _least_squares_heights(
 
 def _difference_equations(
     index: np.ndarray, gx: np.ndarray, gz: np.ndarray, dx: float, dz: float, unknowns: int
-):
+) -> tuple[csr_matrix, np.ndarray]:
     """The equations of every pair of valid 4-neighbours (``index``: each pixel's
     unknown, -1 where not valid), along the rows first and then the columns: the sparse
     matrix (CSR, a row per pair) and its right-hand side."""
@@ -485,7 +488,14 @@ def dent_from_height(height: np.ndarray, x_mm: np.ndarray, z_mm: np.ndarray) -> 
         raise GlshadeError("dent_from_height: fewer than 5 valid heights")
     h, x, z = height[ok], x_mm[ok], z_mm[ok]
 
-    def model(xz, depth, sigma, x0, z0, level):
+    def model(
+        xz: tuple[np.ndarray, np.ndarray],
+        depth: float,
+        sigma: float,
+        x0: float,
+        z0: float,
+        level: float,
+    ) -> np.ndarray:
         px, pz = xz
         return level - depth * np.exp(-((px - x0) ** 2 + (pz - z0) ** 2) / (2.0 * sigma**2))
 

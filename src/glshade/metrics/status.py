@@ -32,9 +32,15 @@ Pure functions of the maps, images and closed forms: :func:`assess` is called by
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from glshade.metrics.visibility import Baseline, Pattern, Visibility
+    from glshade.scene import Scene
 
 STATUSES = ("ok", "outside", "edge", "unresolved", "saturated", "underexposed", "noise")
 #: Statuses that concern the paper's metric only (``visibility_px``: the stripes as a
@@ -97,7 +103,7 @@ class Region:
 WINDOW_SIGMAS = 3.0
 
 
-def dent_window(scene, shape: tuple[int, int]) -> np.ndarray:
+def dent_window(scene: Scene, shape: tuple[int, int]) -> np.ndarray:
     """Pixels near the dent: the bounding box of its ``WINDOW_SIGMAS`` ellipse on the
     surface, projected through the pinhole (lens distortion neglected, so the box is
     padded by 3 px and a tenth of its size), as a boolean mask of ``shape``."""
@@ -260,7 +266,7 @@ def michelson(values: np.ndarray) -> float:
     return float((hi - lo) / (hi + lo)) if hi + lo > 0 else 0.0
 
 
-def stripe_contrast(image: np.ndarray, seen: np.ndarray, pattern) -> float:
+def stripe_contrast(image: np.ndarray, seen: np.ndarray, pattern: Pattern) -> float:
     """The stripes' Michelson contrast over the seen pixels of ``image``, relative to the
     emitter's own (``pattern``'s radiance over one period): 1 for a sharp mirror, less
     where defocus, a lobe or noise wash the stripes out (NaN where nothing is seen)."""
@@ -288,7 +294,7 @@ def combined(found: list[Status]) -> Status:
 
 
 # --------------------------------------------------------------------------- one case
-def no_dent(scene) -> Status | None:
+def no_dent(scene: Scene) -> Status | None:
     """``outside`` for a scene without a dent (``defect.dmax = 0``), None for one with a
     dent: nothing moves, so no number of a dent can be read. Every instrument answers a
     scene without a dent with this one status and reason, before any other check."""
@@ -301,7 +307,7 @@ def no_dent(scene) -> Status | None:
     )
 
 
-def assess(scene, baseline, v1: np.ndarray, result) -> Status:
+def assess(scene: Scene, baseline: Baseline, v1: np.ndarray, result: Visibility) -> Status:
     """The status of ``result``, the metric's measurement of ``scene``'s defect (emitter
     map ``v1``) against ``baseline`` (:class:`glshade.metrics.visibility.Baseline`)."""
     absent = no_dent(scene)
@@ -333,12 +339,14 @@ def assess(scene, baseline, v1: np.ndarray, result) -> Status:
     return combined(found)
 
 
-def _exposure(scene, baseline, seen: np.ndarray) -> Status:
+def _exposure(scene: Scene, baseline: Baseline, seen: np.ndarray) -> Status:
     """``saturated``/``underexposed`` of the defect-free recorded image (once per
     baseline: every dent on it was exposed alike), an underexposure's causes named."""
     found = baseline.derived.get("exposure")
     if found is None:
-        image = baseline.normal_images(float(baseline.phases[0]))
+        # assess() calls this only where the baseline has rendered images
+        normal_images = cast("Callable[[float], np.ndarray]", baseline.normal_images)
+        image = normal_images(float(baseline.phases[0]))
         found = exposure_problem(image, seen, scene.sensor.black_level) or Status()
         if found.status == "underexposed":
             causes = scene.active.dimming(scene)
@@ -347,7 +355,7 @@ def _exposure(scene, baseline, seen: np.ndarray) -> Status:
     return found
 
 
-def coverage_edge(scene) -> Status | None:
+def coverage_edge(scene: Scene) -> Status | None:
     """``edge`` where the surface's measured data do not cover the dent (a height map's
     unmeasured samples in the dent's region, or the dent at the map's edge): the most
     specific reason, checked first by every instrument; None where they cover it."""
@@ -363,7 +371,9 @@ def coverage_edge(scene) -> Status | None:
     return None
 
 
-def _edge(scene, baseline, region: Region, result, noisy: bool) -> Status:
+def _edge(
+    scene: Scene, baseline: Baseline, region: Region, result: Visibility, noisy: bool
+) -> Status:
     covered = coverage_edge(scene)
     if covered is not None:
         return covered
@@ -395,7 +405,7 @@ def _edge(scene, baseline, region: Region, result, noisy: bool) -> Status:
     return Status()
 
 
-def _unresolved(scene, baseline, region: Region) -> Status:
+def _unresolved(scene: Scene, baseline: Baseline, region: Region) -> Status:
     from glshade.components import image_scale
 
     share = unresolved_share(region.mask, baseline.resolved, np.isfinite(baseline.v0))
