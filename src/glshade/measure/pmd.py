@@ -32,7 +32,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from glshade.components.base import no_sequence
-from glshade.components.emitter.fringes.table import DIRECTIONS, FringeFrame, fringes_of
+from glshade.components.emitter.fringes.table import (
+    DIRECTIONS,
+    FringeFrame,
+    FringesTable,
+    fringes_of,
+)
 from glshade.errors import GlshadeError
 from glshade.metrics import pmd
 from glshade.metrics.coding_laws import white_fundamental
@@ -624,7 +629,7 @@ def modulation_share(scene: Scene, shot: Capture) -> np.ndarray:
     return share
 
 
-def displayed_fundamental(em) -> float:
+def displayed_fundamental(em: FringesTable) -> float:
     """``b_1`` of the fringe the screen displays, ``displayed(offset + amplitude cos θ)``
     (its grey levels, response, black level and ambient light included), over the white
     it displays, ``displayed(1)``: a sharp mirror's modulation per unit of its response to
@@ -791,7 +796,15 @@ def measure_pmd_scene(
 
 
 def _result(
-    scene, baseline, shot, recorded, recording, decoding, slopes, heights, seconds
+    scene: Scene,
+    baseline: PmdBaseline,
+    shot: Capture,
+    recorded: np.ndarray,
+    recording: Recording,
+    decoding: Decoding,
+    slopes: np.ndarray,
+    heights: Heights,
+    seconds: dict[str, float],
 ) -> PmdResult:
     axes = coded_axes(scene)
     base, exact0 = baseline.decoding, baseline.capture.uv

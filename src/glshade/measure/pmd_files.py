@@ -14,11 +14,11 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from glshade.components.emitter.fringes.table import fringes_of
+from glshade.components.emitter.fringes.table import FringeFrame, FringesTable, fringes_of
 from glshade.errors import GlshadeError
 from glshade.files import (
     atomic_write_bytes,
@@ -31,6 +31,17 @@ from glshade.files import (
 )
 from glshade.measure.figures import new_figure, save_figure
 from glshade.scene import Scene
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.colors import Colormap
+    from matplotlib.figure import Figure
+    from matplotlib.image import AxesImage
+
+    from glshade.measure.pmd import Heights, PmdResult
+
+#: A window of an image: first row, last row, first column, last column.
+Box = tuple[int, int, int, int]
 
 #: Frame file formats: 16-bit PNG (the recorded values times 65535) or 32-bit float TIFF.
 FRAME_FORMATS = {"png": (".png", 16), "tif": (".tif", 32)}
@@ -125,12 +136,12 @@ def _written_name(name: str) -> bool:
     )
 
 
-def frame_name(index: int, frame, suffix: str) -> str:
+def frame_name(index: int, frame: FringeFrame, suffix: str) -> str:
     """``frame_007_v_p1_n3.png``: number, direction, period index, shift index."""
     return f"frame_{index:03d}_{frame.direction}_p{frame.period_index}_n{frame.shift_index}{suffix}"
 
 
-def write_frames(directory: Path, scene: Scene, result, fmt: str = "png") -> Path:
+def write_frames(directory: Path, scene: Scene, result: PmdResult, fmt: str = "png") -> Path:
     """The recorded sequence of a :class:`~glshade.measure.pmd.PmdResult`, one image per
     frame in the order shown, the screen's white recorded alike (``frame_white``), and
     ``manifest.json``: all a decoder needs (:func:`frames_manifest`). The frames of an
@@ -179,7 +190,7 @@ def _remove_stale_frames(directory: Path, keep: set[str]) -> None:
 
 
 def frames_manifest(
-    scene: Scene, result, fmt: str, entries: list[dict[str, Any]], white: str
+    scene: Scene, result: PmdResult, fmt: str, entries: list[dict[str, Any]], white: str
 ) -> dict[str, Any]:
     """What decoding the written frames takes, with nothing else known: the files'
     encoding and units, the sensor and its black level, the exposure applied, the white
@@ -238,7 +249,7 @@ def _sensor_entry(scene: Scene) -> dict[str, Any] | None:
     }
 
 
-def _coding_entry(em) -> dict[str, Any]:
+def _coding_entry(em: FringesTable) -> dict[str, Any]:
     """The fringe coding: every value a frame's radiance and its decoding take."""
     return {
         "periods_mm": list(em.periods),
@@ -268,7 +279,7 @@ def _coding_entry(em) -> dict[str, Any]:
     }
 
 
-def write_maps(directory: Path, scene: Scene, result) -> list[Path]:
+def write_maps(directory: Path, scene: Scene, result: PmdResult) -> list[Path]:
     """Each map of a :class:`~glshade.measure.pmd.PmdResult` as ``.npy`` (:data:`MAP_FILES`
     with a ``.png`` figure, :data:`DATA_FILES` without); returns the paths written."""
     directory.mkdir(parents=False, exist_ok=True)
@@ -330,7 +341,7 @@ class MapView:
     zoom: str = "window"
 
 
-def map_images(scene: Scene, result) -> dict[str, MapView]:
+def map_images(scene: Scene, result: PmdResult) -> dict[str, MapView]:
     """What each figure shows (:class:`MapView`, by file name): the first coded
     direction's finest period for the phase and the modulation, every coded coordinate
     for the error."""
@@ -391,7 +402,7 @@ def decoded_only(values: np.ndarray, decoded: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(decoded).any(axis=-1), values, np.nan)
 
 
-def dent_box(scene: Scene, shape: tuple[int, int]) -> tuple[int, int, int, int] | None:
+def dent_box(scene: Scene, shape: tuple[int, int]) -> Box | None:
     """The dent's window in the image (first row, last row, first column, last column),
     None where the dent is not in the frame or its window fills most of it (a zoom
     would show nothing new)."""
@@ -407,7 +418,7 @@ def dent_box(scene: Scene, shape: tuple[int, int]) -> tuple[int, int, int, int] 
     return box
 
 
-def map_scale(shown: MapView, values: np.ndarray, box) -> tuple[float, float]:
+def map_scale(shown: MapView, values: np.ndarray, box: Box | None) -> tuple[float, float]:
     """The colour scale ``(lo, hi)`` of a figure over all its ``values`` (the finite
     ones), per :data:`SCALES`; ``box``: the dent's window (its peak stays on a magnitude
     scale however an outlier elsewhere clips the rest)."""
@@ -430,7 +441,7 @@ def map_scale(shown: MapView, values: np.ndarray, box) -> tuple[float, float]:
     return (lo, hi) if hi > lo else (lo, lo + 1.0)
 
 
-def map_figure(shown: MapView, scene: Scene, result, path: Path) -> tuple[float, float]:
+def map_figure(shown: MapView, scene: Scene, result: PmdResult, path: Path) -> tuple[float, float]:
     """One figure: the map's panels (and the dent's window or the height grid beside
     them) on one colour scale with a colour bar in its unit, grey where there is no
     value (said under the figure), the case and the map in the title, which carries the
@@ -461,13 +472,13 @@ def map_figure(shown: MapView, scene: Scene, result, path: Path) -> tuple[float,
     return lo, hi
 
 
-def _colours(cmap: str):
+def _colours(cmap: str) -> Colormap:
     from matplotlib import colormaps
 
     return colormaps[cmap].with_extremes(bad=NO_VALUE)
 
 
-def _pixels(ax, image: np.ndarray, title: str, style: dict):
+def _pixels(ax: Axes, image: np.ndarray, title: str, style: dict[str, Any]) -> AxesImage:
     """A map over the whole frame, in pixel coordinates."""
     shown = ax.imshow(image, **style)
     ax.set_xlabel("column (px)")
@@ -476,7 +487,7 @@ def _pixels(ax, image: np.ndarray, title: str, style: dict):
     return shown
 
 
-def _window(full, ax, image: np.ndarray, box, style: dict) -> None:
+def _window(full: Axes, ax: Axes, image: np.ndarray, box: Box, style: dict[str, Any]) -> None:
     """The dent's window of ``image`` in ``ax`` (its pixel coordinates kept), outlined in
     the full frame."""
     from matplotlib.patches import Rectangle
@@ -492,7 +503,7 @@ def _window(full, ax, image: np.ndarray, box, style: dict) -> None:
     ax.set_title(f"the dent's window (dashed), rows {r0}-{r1}, columns {c0}-{c1}", fontsize=9)
 
 
-def _grid(ax, heights, style: dict) -> None:
+def _grid(ax: Axes, heights: Heights, style: dict[str, Any]) -> None:
     """The heights on their regular ``(x, z)`` grid on the surface (mm), with the
     fitted dent."""
     x, z = heights.grid.x, heights.grid.z
@@ -508,7 +519,9 @@ def _grid(ax, heights, style: dict) -> None:
     ax.set_title(f"on the surface grid ({len(x)}x{len(z)}); {fit}", fontsize=9)
 
 
-def _colour_bar(fig, axes, picture, shown: MapView, values: np.ndarray) -> None:
+def _colour_bar(
+    fig: Figure, axes: list[Axes], picture: AxesImage, shown: MapView, values: np.ndarray
+) -> None:
     """The colour bar of the figure's scale, with arrows where values lie beyond it."""
     finite = values[np.isfinite(values)]
     lo, hi = picture.get_clim()
