@@ -205,7 +205,7 @@ TRAP_MESSAGES = {
     "uv over the height map": ("--uv heights.npy: is one of this run's inputs",),
     "save-scene over the scene": ("--save-scene scene.toml: is one of this run's inputs",),
     "save-scene under /proc": ("--save-scene /proc/scene.toml: ",),
-    "maps over an input": ("--maps maps: would replace maps/decoded.npy",),
+    "maps over an input": ("--maps maps/decoded.npy: is one of this run's inputs",),
     "same file twice": ("is also --coded-scene's output",),
 }
 

@@ -12,7 +12,6 @@ dimensions and the limit. Nothing here decodes image data; every problem is an
 
 from __future__ import annotations
 
-import contextlib
 import os
 import struct
 import zlib
@@ -20,6 +19,7 @@ from dataclasses import dataclass
 from typing import BinaryIO
 
 from glshade.errors import GlshadeError, printable
+from glshade.logs import silenced
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: TIFF's first bytes: little-endian ("II") or big-endian ("MM"), classic (42) or BigTIFF
@@ -119,7 +119,7 @@ def tiff_header(stream: BinaryIO, name: str) -> ImageHeader:
     import tifffile
 
     try:
-        with _quiet("tifffile"), tifffile.TiffFile(stream, name="image.tif") as tif:
+        with silenced("tifffile"), tifffile.TiffFile(stream, name="image.tif") as tif:
             page = tif.pages.first
             width, height = int(page.imagewidth), int(page.imagelength)
             bits, channels = int(page.bitspersample), int(page.samplesperpixel)
@@ -145,20 +145,3 @@ def check_pixels(header: ImageHeader, max_pixels: int, name: str, why: str = "")
             f"{name}: declares {header.describe()} = {header.pixels} pixels, more than the "
             f"{max_pixels} allowed{because}; nothing was decoded"
         )
-
-
-@contextlib.contextmanager
-def _quiet(logger_name: str):
-    """Neither the named library's log records nor Python warnings reach stderr meanwhile
-    (tifffile logs what it makes of a damaged file; the error says it in one line)."""
-    import logging
-    import warnings
-
-    logger = logging.getLogger(logger_name)
-    disabled, logger.disabled = logger.disabled, True
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            yield
-    finally:
-        logger.disabled = disabled

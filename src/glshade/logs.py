@@ -11,7 +11,10 @@ them. Importing this module changes nothing.
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import warnings
+from collections.abc import Iterator
 
 #: The level each library's logger is set to unless verbose, by logger name (its
 #: descendants that set their own level get it too).
@@ -59,3 +62,17 @@ def quiet_libraries(verbose: bool = False) -> None:
 def _raise_level(logger: logging.Logger, level: int) -> None:
     if logger.level < level:
         logger.setLevel(level)
+
+
+@contextlib.contextmanager
+def silenced(logger_name: str) -> Iterator[None]:
+    """Neither the named library's log records nor Python warnings reach stderr meanwhile
+    (tifffile logs what it makes of a damaged file; glshade's error says it in one line)."""
+    logger = logging.getLogger(logger_name)
+    disabled, logger.disabled = logger.disabled, True
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        logger.disabled = disabled

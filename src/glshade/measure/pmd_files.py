@@ -85,12 +85,6 @@ def check_output_dir(
     there (a height map called ``decoded.npy``), and a file of such a name (which the run
     replaces or removes) must be a regular file inside it, not a link."""
     target = Path(path)
-    for source in inputs:
-        if _written_here(source, target):
-            raise GlshadeError(
-                f"{what} {path}: would replace {source}, one of this run's inputs; choose "
-                "another directory"
-            )
     if target.exists() and not target.is_dir():
         raise GlshadeError(f"{what} {path}: is not a directory")
     if not target.exists():
@@ -117,13 +111,6 @@ def check_output_dir(
         check_output(entry.path, what, probe=False, inputs=inputs)
         check_inside(target, Path(entry.path), what)
     return target
-
-
-def _written_here(source: Path, directory: Path) -> bool:
-    """Whether ``source`` lies in ``directory`` under a name a PMD run writes there."""
-    if not directory.is_dir() or os.path.realpath(source.parent) != os.path.realpath(directory):
-        return False
-    return _written_name(source.name)
 
 
 def _written_name(name: str) -> bool:

@@ -306,8 +306,7 @@ def _trend(g: _Grid, s: str, v: float, d: float, sign: float) -> _Trend | None:
         verdict = PARTLY
     else:
         verdict = NOT
-    best = max(vals)
-    near_best = tuple(t for t, value in zip(ts, vals, strict=True) if value >= NEAR_BEST * best)
+    near_best = tuple(sorted(near_best_thetas(dict(zip(ts, vals, strict=True)))))
     folded = [t for t in ts if g.table[(s, t, v, d)].get("folded")]
     fmt, unit = g.scale.value, g.scale.unit
     return _Trend(
@@ -412,6 +411,14 @@ def theta_ranges(chosen, plan_thetas) -> str:
     return ", ".join(f"{r[0]:g}–{r[-1]:g}°" if len(r) > 1 else f"{r[0]:g}°" for r in runs)
 
 
+def near_best_thetas(values: Mapping[float, float]) -> set[float]:
+    """The θ (keys of ``values``, θ -> visibility) at which the visibility reaches at
+    least :data:`NEAR_BEST` of its largest: the one reference of the verdicts and the
+    camera advice."""
+    top = max(values.values())
+    return {t for t, v in values.items() if v >= NEAR_BEST * top}
+
+
 def best_thetas(
     rows: Sequence[Mapping],
     surface: str,
@@ -430,8 +437,7 @@ def best_thetas(
         }
         if not values:
             continue
-        top = max(values.values())
-        keep &= {t for t, v in values.items() if v >= NEAR_BEST * top}
+        keep &= near_best_thetas(values)
     return sorted(keep, reverse=True)
 
 

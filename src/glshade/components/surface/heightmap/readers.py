@@ -46,7 +46,6 @@ are shared.
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import math
 import os
@@ -62,6 +61,7 @@ import numpy as np
 
 from glshade.components.surface.heightmap import HEIGHT_LIMIT_MM, SPACING_RANGE_MM
 from glshade.errors import SceneError
+from glshade.logs import silenced
 
 FIELD = "surface.file"
 SUFFIXES = (".npy", ".x3p", ".tif", ".tiff", ".png")
@@ -463,7 +463,7 @@ _TIFF_DEFLATE = (8, 32946)
 def _tiff(stream: BinaryIO, name: str, size: int):
     import tifffile
 
-    with _quiet("tifffile"), tifffile.TiffFile(stream) as tif:  # the first page's tags first
+    with silenced("tifffile"), tifffile.TiffFile(stream) as tif:  # the first page's tags first
         pages = len(tif.pages)
         if pages != 1:
             raise SceneError(FIELD, f"a TIFF of one page ({name} has {pages or 'none'})")
@@ -486,23 +486,6 @@ def _tiff(stream: BinaryIO, name: str, size: int):
             )
         _check_tiff_segments(page, stream, name, size, dtype.itemsize)
         return page.asarray(maxworkers=1), None
-
-
-@contextlib.contextmanager
-def _quiet(logger_name: str):
-    """Neither the named library's log records nor Python warnings reach stderr meanwhile
-    (tifffile logs what it makes of a damaged file; the refusal says it in one line)."""
-    import logging
-    import warnings
-
-    logger = logging.getLogger(logger_name)
-    disabled, logger.disabled = logger.disabled, True
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            yield
-    finally:
-        logger.disabled = disabled
 
 
 def _tiff_segment_sizes(page, itemsize: int) -> list[tuple[int, int]]:
