@@ -14,7 +14,7 @@ import statistics
 import time
 
 from glshade.gpu.renderer import Renderer
-from glshade.measure.single import emitter_map, judged, map_baseline
+from glshade.instruments.stripes.single import emitter_map, judged, map_baseline
 from glshade.metrics import visibility as vis
 from glshade.study.plan import StudyPlan
 

@@ -45,7 +45,7 @@ import moderngl
 import numpy as np
 
 from glshade.gpu.renderer import Renderer, drawn_features
-from glshade.measure.single import emitter_map, map_baseline
+from glshade.instruments.stripes.single import emitter_map, map_baseline
 from glshade.metrics import contours as ct
 from glshade.metrics.visibility import Baseline, MetricSettings, binarize_v
 from glshade.scene import Scene, paper_scene

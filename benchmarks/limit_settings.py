@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from glshade.gpu.renderer import Renderer
-from glshade.measure.single import emitter_map
+from glshade.instruments.stripes.single import emitter_map
 from glshade.metrics.continuous import StripeLevels, visibility_limit
 from glshade.metrics.visibility import Baseline
 from glshade.scene import paper_scene

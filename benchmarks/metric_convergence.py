@@ -18,7 +18,7 @@ from pathlib import Path
 
 from glshade.files import atomic_write_bytes
 from glshade.gpu.renderer import Renderer
-from glshade.measure.single import emitter_map
+from glshade.instruments.stripes.single import emitter_map
 from glshade.metrics import physics
 from glshade.metrics.visibility import Baseline, MetricSettings
 from glshade.scene import paper_scene

@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from glshade.gpu.renderer import Renderer
-from glshade.measure.single import emitter_map, judged
+from glshade.instruments.stripes.single import emitter_map, judged
 from glshade.metrics import visibility as vis
 from glshade.study.plan import StudyPlan
 

@@ -41,8 +41,8 @@ def scenes():
 
 def save(path: Path) -> None:
     from glshade.gpu.renderer import Renderer
-    from glshade.measure.record import Measurement
-    from glshade.measure.single import measure_scene
+    from glshade.instruments.record import Measurement
+    from glshade.instruments.stripes.single import measure_scene
     from glshade.scene import paper_scene
 
     arrays: dict[str, np.ndarray] = {}

@@ -105,12 +105,12 @@ def measured(renderer, scene) -> tuple[dict[str, Any], Any]:
     """The scene's record (paper or PMD: its measured and law columns) and the result it
     was made of (its numbers unrounded)."""
     import glshade
-    from glshade.measure.record import Measurement, PmdMeasurement
+    from glshade.instruments.record import Measurement, PmdMeasurement
 
     if scene.active.emitter.measured_by == "pmd":
         result = glshade.measure(scene, renderer=renderer)
         return PmdMeasurement.of(scene, result).outputs(), result
-    from glshade.measure.single import measure_scene
+    from glshade.instruments.stripes.single import measure_scene
 
     result = measure_scene(renderer, scene)
     return Measurement.of(scene, result).outputs(), result
@@ -127,7 +127,7 @@ def number_row(scene, first, second) -> dict[str, Any]:
     """Per column of the record in the units compared: the largest difference of the
     record's (rounded) values and, where the result has the column, of its unrounded
     ones; the two statuses."""
-    from glshade.measure.record import Measurement, PmdMeasurement
+    from glshade.instruments.record import Measurement, PmdMeasurement
 
     pmd = scene.active.emitter.measured_by == "pmd"
     columns = (PmdMeasurement if pmd else Measurement).columns()

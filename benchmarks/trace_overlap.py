@@ -183,7 +183,7 @@ def dask_task(batch, settings, repeats: int, template):
 
 def warm(renderer, cases) -> None:
     """Compile the programs of ``cases`` (with and without the dent) on ``renderer``."""
-    from glshade.measure.single import emitter_map
+    from glshade.instruments.stripes.single import emitter_map
 
     for case in cases:
         emitter_map(renderer, case.scene)
@@ -207,7 +207,7 @@ def engine_run(kind: str, size: int, work: int) -> None:
     from glshade.gpu.renderer import Renderer
     from glshade.measure.cluster import DaskExecutor, batches
     from glshade.measure.executors import Distribution, LocalExecutor
-    from glshade.measure.single import measure_scene
+    from glshade.instruments.stripes.single import measure_scene
     from glshade.process import reuse_freed_memory
     from glshade.sweep.spec import load_spec
 
@@ -257,7 +257,7 @@ def synthetic_repeats(size: int, milliseconds: float) -> int:
     """Repeats of :func:`synthetic_work` that take ``milliseconds`` here, alone, on the
     study's first map."""
     from glshade.gpu.renderer import Renderer
-    from glshade.measure.single import emitter_map
+    from glshade.instruments.stripes.single import emitter_map
     from glshade.sweep.spec import load_spec
 
     scene = load_spec(EXAMPLE, size=size).cases()[0].case.scene

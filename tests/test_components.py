@@ -420,7 +420,8 @@ def test_sweeps_group_cases_by_program():
     paper's metric shades from the map, which the absent dent's width does not reach:
     every σ² shares one analysis; phase measuring's keeps σ² (its nominal geometry's grid
     is cut around the dent)."""
-    from glshade.measure.engine import Case, geometry_key, grouped, program_key
+    from glshade.instruments.base import Case
+    from glshade.measure.engine import geometry_key, grouped, program_key
     from glshade.measure.pmd import PmdSettings
 
     scenes = [
@@ -447,7 +448,7 @@ def test_the_trace_without_a_dent_reads_only_its_centre():
     (``map_baseline_key``): the scene without its dent has the same program, the same
     uniforms and the same emitter pattern whatever the absent dent's covariance; its
     centre (the local frame's origin) still counts."""
-    from glshade.measure.single import map_baseline_key
+    from glshade.instruments.stripes.single import map_baseline_key
 
     for surface in ("flat", "cylinder", "sphere"):
         normals = [

@@ -14,8 +14,8 @@ import glshade
 from glshade.app.viewer import ViewerModel
 from glshade.files import read_png
 from glshade.gpu.renderer import Renderer
-from glshade.measure.record import Measurement
-from glshade.measure.single import measure_scene
+from glshade.instruments.record import Measurement
+from glshade.instruments.stripes.single import measure_scene
 from glshade.scene import paper_scene
 
 KEYS = (

@@ -23,8 +23,8 @@ from tests.test_components import check_absent_code
 from glshade.components.camera.perspective.optics import distort, undistort
 from glshade.components.registry import registry
 from glshade.errors import SceneError
-from glshade.measure.record import Measurement
-from glshade.measure.single import measure_scene, shades_from_map
+from glshade.instruments.record import Measurement
+from glshade.instruments.stripes.single import measure_scene, shades_from_map
 from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
 

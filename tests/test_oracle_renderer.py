@@ -18,8 +18,8 @@ import pytest
 import glshade
 from glshade.errors import GlshadeError
 from glshade.frame import Frame
-from glshade.measure.record import Measurement, PmdMeasurement
-from glshade.measure.single import measure_scene
+from glshade.instruments.record import Measurement, PmdMeasurement
+from glshade.instruments.stripes.single import measure_scene
 from glshade.oracle import tracer
 from glshade.oracle.renderer import DEFAULT_MAX_PIXELS, OracleRenderer, geometry_key
 from glshade.scene import Scene, paper_scene

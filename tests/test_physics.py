@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from glshade.measure.single import emitter_map, measure_scene
+from glshade.instruments.stripes.single import emitter_map, measure_scene
 from glshade.metrics import physics
 from glshade.metrics.continuous import deflection, fold_columns
 from glshade.metrics.visibility import kept_columns

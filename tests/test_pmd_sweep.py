@@ -21,10 +21,10 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
-from glshade.measure.engine import Case
+from glshade.instruments.base import Case
 from glshade.measure.executors import Distribution
 from glshade.measure.pmd import PMD_VERSION, PmdSettings, measure_pmd_scene
-from glshade.measure.record import (
+from glshade.instruments.record import (
     PMD_OUTPUT_NAMES,
     Measurement,
     PmdMeasurement,

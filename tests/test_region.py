@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as hs
 
-from glshade.measure.single import (
+from glshade.instruments.stripes.single import (
     emitter_map,
     judged,
     levels_from_image,

@@ -112,7 +112,7 @@ def test_update_writes_a_baseline_that_then_passes(pytester, renderer):
     assert data["image"]["width"] == 64 and data["image"]["bits"] == 16
 
     # the stored image and numbers are what glshade renders and measures of the scene
-    from glshade.measure.single import measure_scene
+    from glshade.instruments.stripes.single import measure_scene
     from glshade.scene import paper_scene
 
     scene = eval(SCENE, {"paper_scene": paper_scene})

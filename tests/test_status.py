@@ -19,7 +19,7 @@ import pytest
 from glshade.components import image_scale
 from glshade.errors import SceneError
 from glshade.files import read_png
-from glshade.measure.single import measure_scene
+from glshade.instruments.stripes.single import measure_scene
 from glshade.metrics import status as st
 from glshade.scene import Scene, paper_scene
 

@@ -11,8 +11,8 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
-from glshade.measure.record import Measurement
-from glshade.measure.single import measure_scene
+from glshade.instruments.record import Measurement
+from glshade.instruments.stripes.single import measure_scene
 from glshade.metrics import physics
 from glshade.study import findings, plots
 from glshade.study.plan import StudyPlan

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from glshade.errors import SceneError
-from glshade.measure.single import measure_scene
+from glshade.instruments.stripes.single import measure_scene
 from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
 

@@ -21,7 +21,7 @@ from glshade.components.surface.heightmap import (
     split_texture,
 )
 from glshade.errors import SceneError
-from glshade.measure.single import measure_scene
+from glshade.instruments.stripes.single import measure_scene
 from glshade.oracle import tracer
 from glshade.scene import Scene, paper_scene
 

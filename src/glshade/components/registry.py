@@ -417,9 +417,13 @@ def _entry_points() -> list[Any]:
     return points
 
 
-def only_builtin_declared(path: list[str] | None = None) -> bool:
-    """True when ``importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)`` would return
-    glshade's own entry point and nothing else, read from the distributions'
+def only_builtin_declared(
+    path: list[str] | None = None,
+    group: str = ENTRY_POINT_GROUP,
+    builtin_point: tuple[str, str] = BUILTIN_ENTRY_POINT,
+) -> bool:
+    """True when ``importlib.metadata.entry_points(group=group)`` would return
+    glshade's own entry point (``builtin_point``) and nothing else, read from the distributions'
     ``entry_points.txt`` in the folders of ``path`` (default ``sys.path``) the way
     ``importlib.metadata`` finds them: the first ``glshade`` distribution counts, and
     any other distribution that declares the group is a plug-in. False whenever the
@@ -445,13 +449,13 @@ def only_builtin_declared(path: list[str] | None = None) -> bool:
             low = child.lower()
             if not low.endswith((".dist-info", ".egg-info")):
                 continue
-            declared = _declared(os.path.join(folder, child))
+            declared = _declared(os.path.join(folder, child), group)
             name = re.sub(r"[-_.]+", "_", low.rpartition(".")[0].partition("-")[0])
             if name != "glshade":
                 if declared:
                     return False
             elif not glshade_seen:
-                glshade_seen, builtin = True, declared == [BUILTIN_ENTRY_POINT]
+                glshade_seen, builtin = True, declared == [builtin_point]
     return builtin
 
 
@@ -465,7 +469,7 @@ def _reads_sys_path(finder: Any) -> bool:
     )
 
 
-def _declared(info: str) -> list[tuple[str, str]]:
+def _declared(info: str, group: str = ENTRY_POINT_GROUP) -> list[tuple[str, str]]:
     """The ``(name, value)`` pairs of the group in a distribution's ``entry_points.txt``
     (none when it has none), parsed as ``importlib.metadata`` parses it."""
     try:
@@ -479,7 +483,7 @@ def _declared(info: str) -> list[tuple[str, str]]:
             continue
         if line.startswith("[") and line.endswith("]"):
             section = line.strip("[]")
-        elif section == ENTRY_POINT_GROUP:
+        elif section == group:
             name, _, value = line.partition("=")
             pairs.append((name.strip(), value.strip()))
     return pairs

@@ -7,7 +7,8 @@ memory_budget_from_env`).
   llvmpipe spreads one draw over every core, then analyses on one core: two per core let
   one worker's analysis overlap another's trace; more only add processes and memory.
 - Memory: the worker processes together stay within the budget, at the peak resident
-  memory measured for one worker process (:data:`WORKER_MEMORY`).
+  memory measured for one worker process of its instrument
+  (:attr:`glshade.instruments.base.Instrument.worker_memory`).
 """
 
 from __future__ import annotations
@@ -16,37 +17,10 @@ import os
 from dataclasses import dataclass
 
 from glshade.errors import GlshadeError
+from glshade.instruments.registry import instrument
 
 #: Worker processes (or analysis threads) allowed per CPU core.
 PER_CORE = 2
-
-
-@dataclass(frozen=True)
-class WorkerMemory:
-    """Peak resident memory of one worker process measuring frames of ``pixels`` pixels:
-    ``base_mib`` (Python, NumPy, Dask, the GL driver and a first small frame) plus
-    ``bytes_per_pixel`` for the frames and their analysis."""
-
-    base_mib: float
-    bytes_per_pixel: float
-
-    def mib(self, pixels: int) -> float:
-        return self.base_mib + self.bytes_per_pixel * pixels / (1 << 20)
-
-
-#: Per measuring method, fitted above the peak RSS (``ru_maxrss``) of one LocalCluster
-#: worker process measuring four cases (flat and sphere, two elevations) on llvmpipe:
-#: idle 114 MiB; the paper metric 230, 372 and 889 MiB at 256², 1024² and 2048²;
-#: phase measuring (the station's 4 periods x 4 shifts x 2 directions) 356, 1390 and
-#: 4424 MiB.
-WORKER_MEMORY = {
-    "paper": WorkerMemory(base_mib=224, bytes_per_pixel=176),
-    "pmd": WorkerMemory(base_mib=384, bytes_per_pixel=1024),
-}
-
-
-#: The measuring methods in words.
-METHOD_WORDS = {"paper": "the paper's stripe metric", "pmd": "phase measuring"}
 
 
 def usable_cores() -> int:
@@ -82,7 +56,7 @@ class WorkerLimit:
 
     def reason(self) -> str:
         """Why, in words: both bounds."""
-        by = METHOD_WORDS.get(self.method, self.method)
+        by = instrument(self.method).title
         frames = f" measuring {_frames(self.pixels)} by {by}" if self.pixels else ""
         return (
             f"{self.cores} CPU cores x {PER_CORE} = {self.by_cores}; the memory budget of "
@@ -95,7 +69,7 @@ def worker_limit(pixels: int = 0, method: str = "paper") -> WorkerLimit:
     """This machine's :class:`WorkerLimit` (the budget read from the environment)."""
     from glshade.budget import memory_budget_from_env
 
-    memory = WORKER_MEMORY.get(method, WORKER_MEMORY["pmd"])
+    memory = instrument(method).worker_memory
     return WorkerLimit(
         cores=usable_cores(),
         budget_mib=memory_budget_from_env() / (1 << 20),

@@ -37,17 +37,17 @@ from distributed.scheduler import KilledWorker
 from glshade.errors import GlshadeError
 from glshade.gpu.context import GLContext
 from glshade.gpu.renderer import Renderer
+from glshade.instruments.base import Case, Extra, Measured
+from glshade.instruments.registry import instrument_for
 from glshade.logs import quiet_libraries
 from glshade.measure.capacity import check_worker_count
-from glshade.measure.engine import Case, Extra, Measured, grouped, measure_many
+from glshade.measure.engine import grouped, measure_many
 from glshade.measure.executors import Distribution, Row, measure_rows
-from glshade.measure.pmd import PmdSettings
 from glshade.measure.scheduler import join_scheduler
 
 if TYPE_CHECKING:
     from distributed import Worker
 
-    from glshade.metrics.visibility import MetricSettings
 
 PLUGIN_NAME = "glshade-renderer"
 
@@ -89,14 +89,14 @@ class RendererPlugin(WorkerPlugin):
 
 
 def measure_batch(
-    cases: list[Case], settings: MetricSettings | PmdSettings, images: bool
+    cases: list[Case], settings: Any, images: bool
 ) -> list[Row]:
     """A Dask task: measure one batch with the worker's renderer; returns its rows."""
     return list(measure_rows(_worker_renderer(), cases, settings, images))
 
 
 def measure_whole(
-    cases: list[Case], settings: MetricSettings | PmdSettings, extra: Extra | None
+    cases: list[Case], settings: Any, extra: Extra | None
 ) -> list[Measured]:
     """A Dask task: measure one batch with the worker's renderer; returns its results
     whole, with what ``extra`` made of each (the worker traces and analyses in turn)."""
@@ -109,7 +109,7 @@ def _worker_renderer() -> Renderer:
 
 
 def batches(
-    cases: list[Case], size: int, settings: MetricSettings | PmdSettings | None = None
+    cases: list[Case], size: int, settings: Any = None
 ) -> list[list[Case]]:
     """The tasks: the engine's geometry groups (for ``settings``), each cut into pieces of
     at most ``size``."""
@@ -185,23 +185,23 @@ class DaskExecutor:
             assert distribution.workers is not None
             self.client, self.cluster = start_local(distribution.workers, distribution.verbose)
 
-    def _check_memory(self, cases: list[Case], settings: MetricSettings | PmdSettings) -> None:
+    def _check_memory(self, cases: list[Case], settings: Any) -> None:
         """Local workers fit the memory budget at the size of these cases' frames
         (:func:`glshade.measure.capacity.check_worker_count`); an existing cluster's
         machines are its own business."""
         if self.cluster is not None and self.distribution.workers is not None:
-            method = "pmd" if isinstance(settings, PmdSettings) else "paper"
+            method = instrument_for(settings).name
             check_worker_count(self.distribution.workers, frame_pixels(cases), method)
 
     def rows(
-        self, cases: list[Case], settings: MetricSettings | PmdSettings, images: bool
+        self, cases: list[Case], settings: Any, images: bool
     ) -> Iterator[Row]:
         """Rows of ``cases``, as their batches finish (any order)."""
         for rows in self._run(measure_batch, cases, settings, images):
             yield from rows
 
     def measured(
-        self, cases: list[Case], settings: MetricSettings | PmdSettings, extra: Extra | None
+        self, cases: list[Case], settings: Any, extra: Extra | None
     ) -> Iterator[Measured]:
         """Whole results of ``cases`` (``extra`` run on the workers), as their batches
         finish (any order)."""
@@ -210,9 +210,9 @@ class DaskExecutor:
 
     def _run(
         self,
-        task: Callable[[list[Case], MetricSettings | PmdSettings, Any], list[Any]],
+        task: Callable[[list[Case], Any, Any], list[Any]],
         cases: list[Case],
-        settings: MetricSettings | PmdSettings,
+        settings: Any,
         option: Any,
     ) -> Iterator[list]:
         """``task(batch, settings, option)`` on the cluster for every batch, results as they

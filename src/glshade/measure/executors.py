@@ -11,17 +11,18 @@ where each case is measured: the study's thumbnails and overlays).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Self
 
 from glshade.errors import GlshadeError
+from glshade.instruments.base import Case, Extra, Instrument, Measured
+from glshade.instruments.record import Record
+from glshade.instruments.registry import instrument_for
 from glshade.measure.capacity import check_threads, check_worker_count
-from glshade.measure.engine import Case, CaseView, Extra, Measured, PmdView, measure_many
-from glshade.measure.pmd import PmdResult, PmdSettings
-from glshade.measure.record import Measurement, PmdMeasurement
-from glshade.metrics.visibility import MetricSettings, Visibility
+from glshade.measure.engine import measure_many
 
 if TYPE_CHECKING:
     from glshade.gpu.renderer import Renderer
@@ -29,7 +30,7 @@ if TYPE_CHECKING:
 #: What every executor yields per case: its key, its record, its image as PNG bytes (when
 #: images were asked for: the paper metric's best phase, phase measuring's first recorded
 #: frame) or None.
-Row = tuple[Any, Measurement | PmdMeasurement, bytes | None]
+Row = tuple[Any, Record, bytes | None]
 
 
 @dataclass(frozen=True)
@@ -82,13 +83,13 @@ class LocalExecutor:
         self.threads, self.renderer, self._owns = threads, renderer, renderer is None
 
     def rows(
-        self, cases: Sequence[Case], settings: MetricSettings | PmdSettings, images: bool
+        self, cases: Sequence[Case], settings: Any, images: bool
     ) -> Iterator[Row]:
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
             yield from measure_rows(self._renderer(), cases, settings, images, pool)
 
     def measured(
-        self, cases: Sequence[Case], settings: MetricSettings | PmdSettings, extra: Extra | None
+        self, cases: Sequence[Case], settings: Any, extra: Extra | None
     ) -> Iterator[Measured]:
         """Every case measured, in the engine's order (the GL work on this thread)."""
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
@@ -116,22 +117,19 @@ class LocalExecutor:
 def measure_rows(
     renderer: Renderer,
     cases: Sequence[Case],
-    settings: MetricSettings | PmdSettings,
+    settings: Any,
     images: bool,
     pool: Executor | None = None,
 ) -> Iterator[Row]:
     """The engine's results as rows: what a worker returns, what the caller writes."""
-    extra = _best_image_png if images else None
+    extra = functools.partial(_best_image_png, instrument_for(settings)) if images else None
     for measured in measure_many(renderer, cases, settings, pool=pool, extra=extra):
         yield measured.case.key, measured.record, measured.extra
 
 
-def _best_image_png(case: Case, result: Visibility | PmdResult, view: CaseView | PmdView) -> bytes:
-    """The paper metric's image at its best phase; phase measuring's first recorded frame
-    (the finest fringes of the first direction, shift 0), as the camera records it."""
+def _best_image_png(chosen: Instrument, case: Case, result: Any, view: Any) -> bytes | None:
+    """The case's picture as its instrument's camera records it (the paper metric's image
+    at its best phase; phase measuring's first recorded frame), as PNG."""
     from glshade.files import encode_png
-
-    if isinstance(result, PmdResult):
-        return encode_png(result.maps.recorded[0], bits=8)
-    assert isinstance(view, CaseView)
-    return encode_png(view.best_image(case.scene, result), bits=8)
+    image = chosen.image(case, result, view)
+    return None if image is None else encode_png(image, bits=8)

@@ -1,280 +1,108 @@
-"""Measuring one scene: render its emitter maps and run the visibility pipeline on them.
+"""Measuring one scene with any registered instrument: ``glshade.measure(scene)``.
 
-A case is a pure function of its scene and the metric settings: :func:`measure_scene`
-renders the defect-free twin (``dmax = 0``) and the scene itself and measures one against
-the other with :class:`glshade.metrics.visibility.Baseline`. A caller that measures many
-defects on one geometry (the engine, the viewer) passes the same baseline to each; that
-saves the defect-free trace and analysis and changes no number.
-
-Where the picture is a function of the emitter map (the mirror and one ray per pixel
-through a pinhole) the images are shaded from the maps; for other shading (Blinn-Phong,
-supersampling, a lens, a sensor) the images of every phase are rendered and binarised,
-while the continuous numbers keep following the rays (the emitter maps).
+The instrument is chosen by name (``method``) or, when none is named, by the scene's
+emitter (the one that measures it: stripes are binarised, fringes decoded); it is taken
+from the registry (:mod:`glshade.instruments.registry`), so a plug-in's instrument is
+measured exactly as glshade's own.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import json
 import os
-from collections.abc import Callable
-from pathlib import Path
-from typing import TYPE_CHECKING
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from glshade.errors import GlshadeError
-from glshade.metrics.status import assess, stripe_contrast
-from glshade.metrics.visibility import (
-    STRIPE_CACHE_BYTES,
-    Baseline,
-    MetricSettings,
-    Visibility,
-    stripe_radiance,
-)
+from glshade.instruments.registry import instrument, method_names
 from glshade.scene import Scene
 
-if TYPE_CHECKING:  # the GPU is loaded only by measure() when it must make a renderer
-    from glshade.gpu.renderer import Renderer
-    from glshade.measure.pmd import PmdResult, PmdSettings
-
-
-def emitter_map(renderer: Renderer, scene: Scene) -> np.ndarray:
-    """The scene's emitter coordinate ``v`` per pixel (mm, NaN = no hit)."""
-    return np.ascontiguousarray(renderer.render(scene, ("uv",)).output("uv")[..., 1])
-
-
-def shades_from_map(scene: Scene) -> bool:
-    """True when the picture is a function of the emitter map: every active component
-    says so (a mirror, one ray per pixel through a pinhole, no Fresnel, no sensor)."""
-    return scene.active.shades_from_emitter_map(scene)
-
-
-def phase_images(
-    renderer: Renderer, scene: Scene, exposure: int = 0
-) -> Callable[[float], np.ndarray]:
-    """``phase -> rendered radiance image`` of a scene, for shading that needs images
-    (with a sensor: what it records in exposure number ``exposure``)."""
-
-    def image(phase: float) -> np.ndarray:
-        frame = renderer.render(scene.with_phase(phase), ("image",), exposure=exposure)
-        return frame.output("image")
-
-    return image
-
-
-def levels_from_image(scene: Scene, settings: MetricSettings) -> bool:
-    """True when the binarisation level is taken from the defect-free image's range
-    (``settings.level_from``; ``auto``: when a component scales the radiance)."""
-    if settings.level_from != "auto":
-        return settings.level_from == "image"
-    return not scene.active.keeps_emitter_scale(scene)
-
-
-def baseline_for(
-    renderer: Renderer,
-    scene: Scene,
-    settings: MetricSettings = MetricSettings(),
-    stripe_cache_bytes: int = STRIPE_CACHE_BYTES,
-) -> Baseline:
-    """The defect-free analysis of a scene's geometry (its defect is ignored), keeping up
-    to ``stripe_cache_bytes`` of its stripe maps (:class:`~glshade.metrics.visibility.
-    StripeCache`)."""
-    check_metric_size(scene)
-    normal = scene.without_defect()
-    images = None if shades_from_map(scene) else phase_images(renderer, normal)
-    pattern = scene.active.emitter.pattern(scene)
-    return Baseline(
-        emitter_map(renderer, normal),
-        pattern,
-        settings,
-        images,
-        image_levels=levels_from_image(scene, settings),
-        stripe_cache_bytes=stripe_cache_bytes,
-    )
-
-
-def map_baseline(
-    scene: Scene,
-    v0: np.ndarray,
-    settings: MetricSettings,
-    stripe_cache_bytes: int = STRIPE_CACHE_BYTES,
-) -> Baseline:
-    """The defect-free analysis of ``scene``'s geometry from its traced emitter map ``v0``,
-    shaded from the map (the engine's fast path, the viewer's live readout)."""
-    check_metric_size(scene)
-    pattern = scene.active.emitter.pattern(scene)
-    return Baseline(v0, pattern, settings, stripe_cache_bytes=stripe_cache_bytes)
-
-
-def reuses_stripes(scene: Scene) -> bool:
-    """Does one measurement of ``scene`` ask for each defect-free stripe map twice? Only
-    where the images are rendered and a sensor's noise floor sweeps them again: the maps
-    are worth keeping then (each is a render), otherwise :func:`measure_scene` keeps
-    none."""
-    return not shades_from_map(scene) and scene.sensor.on
-
-
-#: The fewest pixels across and down the paper's metric reads (the map's gradients and a
-#: contour need two pixels each way).
-MIN_METRIC_PIXELS = 2
-
-
-def check_metric_size(scene: Scene) -> None:
-    """One line when the scene's image is too small for the paper's metric."""
-    camera = scene.camera
-    if min(camera.width, camera.height) < MIN_METRIC_PIXELS:
-        raise GlshadeError(
-            f"--size / camera.width, camera.height: the paper's metric needs at least "
-            f"{MIN_METRIC_PIXELS} pixels each way, got {camera.width}x{camera.height}"
-        )
-
-
-def map_baseline_key(scene: Scene) -> str:
-    """Scenes shaded from their emitter maps whose keys are equal have the same
-    :func:`map_baseline`: the defect-free scene's values, its absent defect (dmax = 0)
-    reduced to what the trace reads of it, its features and its centre (the origin of the
-    frame every shader computes in). The analysis reads only the map and the emitter's
-    pattern, so dents of every width on one geometry share one defect-free analysis."""
-    normal = scene.without_defect()
-    values = normal.to_dict()
-    defect = normal.active.defect
-    if not defect.present(normal):
-        values["defect"] = {
-            "features": defect.features(normal),
-            "centre_mm": normal.local_origin().tolist(),
-        }
-    return json.dumps(values, sort_keys=True, default=str)
-
-
-def judged(scene: Scene, baseline: Baseline, v1: np.ndarray, result: Visibility) -> Visibility:
-    """``result`` with its status: whether its numbers can be read, and why not
-    (:func:`glshade.metrics.status.assess`)."""
-    found = assess(scene, baseline, v1, result)
-    return dataclasses.replace(
-        result,
-        status=found.status,
-        status_reason=found.reason,
-        stripe_contrast=baseline_contrast(baseline),
-    )
-
-
-def baseline_contrast(baseline: Baseline) -> float:
-    """The defect-free stripes' contrast (:func:`glshade.metrics.status.stripe_contrast`)
-    where the metric reads them, once per baseline: every dent on it shares it."""
-    contrast = baseline.derived.get("stripe_contrast")
-    if contrast is None:
-        phase = float(baseline.phases[0])
-        if baseline.normal_images is not None:
-            image = baseline.normal_images(phase)[:, baseline.columns]
-            valid = baseline.valid
-        else:  # shaded from the map: every third row and column tells its percentiles
-            cut = baseline.v0[::3, baseline.columns][:, ::3]
-            image, valid = stripe_radiance(cut, baseline.pattern, phase), baseline.valid[::3, ::3]
-        contrast = stripe_contrast(image, valid, baseline.pattern)
-        baseline.derived["stripe_contrast"] = contrast
-    return contrast
-
-
-def measure_scene(
-    renderer: Renderer,
-    scene: Scene,
-    settings: MetricSettings = MetricSettings(),
-    baseline: Baseline | None = None,
-    overlay: str | os.PathLike[str] | None = None,
-    v1: np.ndarray | None = None,
-) -> Visibility:
-    """The three numbers of a scene's defect on an existing renderer.
-
-    ``baseline``: the defect-free analysis of the same geometry and settings, when the
-    caller already has it (:func:`baseline_for`). ``overlay``: also write the Fig. 9
-    contour overlay at the best phase to this PNG path. ``v1``: the scene's emitter map,
-    when the caller has traced it already (:func:`emitter_map`).
-
-    Without a ``baseline``, a case whose renderer's buffers and analysis would exceed the
-    renderer's memory budget is refused first, in one line
-    (:func:`glshade.measure.memory.check_paper`).
-    """
-    if baseline is None:
-        from glshade.measure.memory import check_paper
-
-        estimate = check_paper(scene, settings, renderer.memory_budget_bytes)
-        cache = estimate.cache_bytes if reuses_stripes(scene) else 0
-        baseline = baseline_for(renderer, scene, settings, cache)
-    images = None if shades_from_map(scene) else phase_images(renderer, scene)
-    if v1 is None:
-        v1 = emitter_map(renderer, scene)
-    result = baseline.measure(v1, images)
-    if scene.sensor.on:
-        again = phase_images(renderer, scene.without_defect(), exposure=1)
-        floor = baseline.paper(baseline.v0, again)[0].visibility_px
-        result = dataclasses.replace(result, noise_floor_px=floor)
-    result = judged(scene, baseline, v1, result)
-    if overlay is not None:
-        from glshade.measure.figures import write_overlay
-
-        write_overlay(baseline, v1, result, images, scene.title(), Path(overlay))
-    return result
-
-
-#: The instruments a scene can be measured with: the paper's binarised stripe edges, or
-#: phase-measuring deflectometry (the fringe sequence decoded, docs/pmd.md).
-METHODS = ("paper", "pmd")
+if TYPE_CHECKING:
+    from glshade.rendering import Renderer
 
 
 def method_for(scene: Scene, method: str | None) -> str:
-    """The instrument to measure ``scene`` with: ``method`` itself, or the one its emitter
-    is measured by (the fringes are decoded, the stripes binarised) when None."""
+    """The instrument to measure ``scene`` with: ``method`` itself (a registered name), or
+    the one its emitter is measured by when None."""
     if method is None:
         return scene.active.emitter.measured_by
-    if method not in METHODS:
-        raise GlshadeError(f"method: must be one of {', '.join(METHODS)}, got {method!r}")
-    return method
+    return instrument(method).name
 
 
 def as_method(scene: Scene, method: str) -> Scene:
-    """The scene as ``method`` measures it: where its emitter is measured by another
-    instrument, the first registered emitter measured by ``method`` takes the screen's
-    place (distance and size kept): phase measuring shows the fringe sequence where the
-    scene had stripes."""
-    if scene.active.emitter.measured_by == method:
-        return scene
-    from glshade.components.registry import registry
+    """The scene as instrument ``method`` measures it
+    (:meth:`~glshade.instruments.base.Instrument.prepared`)."""
+    return instrument(method).prepared(scene)
 
-    for emitter in registry().components("emitter"):
-        if getattr(emitter, "measured_by", None) == method:
-            return scene.updated(emitter={"kind": emitter.name})
-    raise GlshadeError(f"method {method!r}: no registered emitter is measured by it")
+
+def methods() -> tuple[str, ...]:
+    """The registered instruments' names (``--method`` choices)."""
+    return method_names()
 
 
 def measure(
     scene: Scene | str | os.PathLike[str],
     *,
     renderer: Renderer | None = None,
-    settings: MetricSettings | None = None,
+    settings: Any = None,
     overlay: str | os.PathLike[str] | None = None,
     method: str | None = None,
-    pmd_settings: PmdSettings | None = None,
-) -> Visibility | PmdResult:
+    pmd_settings: Any = None,
+) -> Any:
     """How visible is this scene's defect? ``glshade.measure(paper_scene("flat", 5, 1.0, 0.005))``.
 
-    Returns a :class:`glshade.metrics.visibility.Visibility`: ``visibility_px`` (the paper's
-    metric), ``visibility_continuous_px`` (its limit), ``deflection_px`` (how far the
-    rays move), ``folded``, ``islands``, ``best_phase_mm``; its table row is
-    :meth:`glshade.measure.record.Measurement.of`. ``overlay``: also write the Fig. 9
-    overlay there (PNG). Creates (and releases) a renderer unless one is given. ``scene``
-    may also be the path of a scene file. Bad input (a malformed file, a value out of
-    range, an overlay path that is not a writable regular ``.png``) raises a
-    :class:`~glshade.errors.GlshadeError` with one line, before any rendering.
-
-    ``method="pmd"`` (the default for a scene whose emitter shows fringes) measures what
-    a phase-measuring deflectometry station measures instead: a
-    :class:`glshade.measure.pmd.PmdResult` (``pmd_settings``: a
-    :class:`~glshade.measure.pmd.PmdSettings`); a scene of stripes shows the fringe
-    sequence on the same screen.
+    ``method``: the instrument (``paper``, ``pmd`` or a plug-in's; default: the one the
+    scene's emitter is measured by); ``settings``: that instrument's settings (default:
+    its defaults; ``pmd_settings`` is another name for them). The paper's stripe metric
+    returns a :class:`glshade.metrics.visibility.Visibility` (``visibility_px``, its
+    continuous limit, ``deflection_px``, ...; ``overlay``: also write the Fig. 9 overlay
+    there, a PNG); phase measuring a :class:`glshade.instruments.pmd.measure.PmdResult`.
+    Each result's table row is its instrument's ``record(scene, result)``. Creates (and
+    releases) a renderer unless one is given; ``scene`` may be the path of a scene file.
+    Bad input raises a :class:`~glshade.errors.GlshadeError` with one line, before any
+    rendering.
     """
+    scene = _scene(scene)
+    chosen = instrument(method_for(scene, method))
+    if pmd_settings is not None:
+        if settings is not None:
+            raise GlshadeError("settings and pmd_settings: give one of them")
+        settings = pmd_settings
+    settings = chosen.settings() if settings is None else settings
+    if type(settings) is not chosen.settings_type:
+        raise GlshadeError(
+            f"settings: method {chosen.name!r} is measured with "
+            f"{chosen.settings_type.__name__}, got {type(settings).__name__}"
+        )
+    scene = chosen.prepared(scene)
+    chosen.check_case(scene, settings)
+    if overlay is not None:
+        return _with_overlay(chosen, scene, settings, overlay, renderer)
+    if renderer is not None:
+        return chosen.measure(renderer, scene, settings)
+    from glshade.gpu.renderer import Renderer as GlRenderer
+
+    with GlRenderer() as own:
+        return chosen.measure(own, scene, settings)
+
+
+def _with_overlay(
+    chosen: Any, scene: Scene, settings: Any, overlay: Any, renderer: Renderer | None
+) -> Any:
+    """The stripe metric's measurement with its Fig. 9 overlay written to ``overlay``."""
+    draw = getattr(chosen, "measure_with_overlay", None)
+    if draw is None:
+        raise GlshadeError(f"overlay: method {chosen.name!r} draws no contour overlay")
     from glshade.files import check_output
 
+    check_output(overlay, "overlay", (".png",))
+    if renderer is not None:
+        return draw(renderer, scene, settings, overlay)
+    from glshade.gpu.renderer import Renderer as GlRenderer
+
+    with GlRenderer() as own:
+        return draw(own, scene, settings, overlay)
+
+
+def _scene(scene: Any) -> Scene:
     if isinstance(scene, (str, os.PathLike)):
         scene = Scene.load(scene)
     if not isinstance(scene, Scene):
@@ -282,27 +110,4 @@ def measure(
             "scene: must be a glshade Scene or the path of a scene file, got "
             f"{type(scene).__name__}"
         )
-    if method_for(scene, method) == "pmd":
-        if overlay is not None or settings is not None:
-            raise GlshadeError(
-                "overlay and settings belong to the paper's stripe metric, not to method='pmd' "
-                "(its settings: pmd_settings)"
-            )
-        from glshade.measure.pmd import measure_pmd
-
-        return measure_pmd(as_method(scene, "pmd"), renderer=renderer, settings=pmd_settings)
-    if pmd_settings is not None:
-        raise GlshadeError("pmd_settings: only with method='pmd'")
-    settings = settings or MetricSettings()
-    if not isinstance(settings, MetricSettings):
-        raise GlshadeError(f"settings: must be a MetricSettings, got {type(settings).__name__}")
-    # a step longer than the period is refused before rendering
-    settings.phases(scene.active.emitter.pattern(scene).period_mm)
-    if overlay is not None:
-        check_output(overlay, "overlay", (".png",))
-    if renderer is not None:
-        return measure_scene(renderer, scene, settings, overlay=overlay)
-    from glshade.gpu.renderer import Renderer
-
-    with Renderer() as own:
-        return measure_scene(own, scene, settings, overlay=overlay)
+    return scene

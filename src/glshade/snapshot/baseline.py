@@ -14,7 +14,7 @@ so rewriting an unchanged baseline leaves both files byte for byte as they were.
 A baseline is read as a file someone else may have written: the sidecar at most
 :data:`MAX_SIDECAR_BYTES`, its tables nested at most :data:`MAX_SIDECAR_DEPTH` deep
 (counted before it is parsed), every field of its type (the numbers each a column of its
-instrument's record, within that column's range: :mod:`glshade.measure.record`; every
+instrument's record, within that column's range: :mod:`glshade.instruments.record`; every
 text one line); the PNG's header read before a sample is decoded, its size the
 sidecar's and at most :data:`MAX_BASELINE_PIXELS`. Anything else is one line naming the
 file.
@@ -51,8 +51,6 @@ MAX_BASELINE_PIXELS = 4096 * 4096
 MAX_SIDECAR_BYTES = 1 << 20
 #: How deep a sidecar's tables and lists may nest (glshade writes four levels).
 MAX_SIDECAR_DEPTH = 16
-#: The instruments whose numbers a sidecar may hold.
-INSTRUMENTS = ("paper", "pmd")
 #: What a snapshot may be called: a file name without a folder.
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,127}")
 
@@ -260,7 +258,7 @@ def _whole(value: Any) -> bool:
 def _check_texts(value: Any, side: Path, where: str) -> None:
     """Every text of the sidecar (keys too) one line glshade could have written: at most
     4096 characters, no control character (a stored text reaches a test's message)."""
-    from glshade.measure.record import text_problem
+    from glshade.instruments.record import text_problem
 
     texts = (
         value.items()
@@ -280,17 +278,17 @@ def _check_texts(value: Any, side: Path, where: str) -> None:
 
 
 def _check_numbers(numbers: dict, side: Path) -> None:
-    """``numbers``: per instrument (:data:`INSTRUMENTS`) a table of its record's columns,
-    each of the column's type and within its range; another key of a table any one
-    value (shown beside the compared numbers, never compared)."""
-    from glshade.measure.record import Measurement, PmdMeasurement, Record
+    """``numbers``: per registered instrument a table of its record's columns, each of
+    the column's type and within its range; another key of a table any one value (shown
+    beside the compared numbers, never compared)."""
+    from glshade.instruments.registry import instruments
 
-    records: dict[str, type[Record]] = {"paper": Measurement, "pmd": PmdMeasurement}
+    records = {name: item.record_type for name, item in instruments().by_name.items()}
     for instrument, table in numbers.items():
         if instrument not in records or not isinstance(table, dict):
             raise GlshadeError(
                 f"snapshot sidecar {side}: numbers.{instrument} must be the table of an "
-                f"instrument's numbers ({', '.join(INSTRUMENTS)})"
+                f"instrument's numbers ({', '.join(records)})"
             )
         for key, value in table.items():
             if isinstance(value, (dict, list)):

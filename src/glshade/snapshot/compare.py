@@ -114,31 +114,14 @@ def _shown(value: Any) -> str:
     return "none" if value is None else f"{value:.6g}" if isinstance(value, float) else str(value)
 
 
-#: The tolerance of a record's column, by its unit: the field of Tolerances.
-_UNIT_TOLERANCE = {"px": "visibility_px", "mm": "pmd_mm", "µm": "pmd_um"}
-#: Which units each instrument's numbers are compared in.
-_COMPARED_UNITS = {"paper": ("px",), "pmd": ("mm", "µm")}
-
-
-def _records() -> dict[str, Any]:
-    from glshade.measure.record import Measurement, PmdMeasurement
-
-    return {"paper": Measurement, "pmd": PmdMeasurement}
-
-
 def unreadable_by(instrument: str, column: str, *statuses: Any) -> str:
     """The first of ``statuses`` (now's, the baseline's) that makes ``column`` of
     ``instrument``'s record unreadable, as the tables mark it; "" where none does."""
-    from glshade.measure.pmd import pmd_concerns
-    from glshade.metrics.status import concerns
+    from glshade.instruments.registry import instrument as named
 
-    paper_columns = ("visibility_px", "visibility_continuous_px", "deflection_px")
+    chosen = named(instrument)
     for status in statuses:
-        if not isinstance(status, str):
-            continue
-        if instrument == "pmd" and pmd_concerns(status, column):
-            return status
-        if instrument == "paper" and column in paper_columns and concerns(status, column):
+        if isinstance(status, str) and chosen.concerns(status, column):
             return status
     return ""
 
@@ -147,18 +130,20 @@ def number_changes(
     expected: dict[str, dict[str, Any]], actual: dict[str, dict[str, Any]], tolerances: Tolerances
 ) -> list[NumberChange]:
     """Every compared number of every instrument either side measured."""
+    from glshade.instruments.registry import instruments
+
     changes = []
-    for instrument, record in _records().items():
+    for instrument, chosen in instruments().by_name.items():
         if instrument not in expected and instrument not in actual:
             continue
         before, now = expected.get(instrument, {}), actual.get(instrument, {})
-        for column in record.columns():
+        for column in chosen.record_type.columns():
             if column.role != "measured":
                 continue
             if column.name == "status":
                 tolerance = None
-            elif column.unit in _COMPARED_UNITS[instrument]:
-                tolerance = getattr(tolerances, _UNIT_TOLERANCE[column.unit])
+            elif column.unit in chosen.compared_units:
+                tolerance = getattr(tolerances, chosen.compared_units[column.unit])
             else:
                 continue
             changes.append(

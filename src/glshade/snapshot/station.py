@@ -2,8 +2,8 @@
 OpenGL context can be made) that renders a scene's image and measures its numbers.
 
 A :class:`Shot` holds the image (the emitter's peak at 1) and, per instrument, the
-measured columns of its record: the paper's (:class:`glshade.measure.record.Measurement`)
-always, a phase-measuring station's (:class:`~glshade.measure.record.PmdMeasurement`)
+measured columns of its record: the paper's (:class:`glshade.instruments.record.Measurement`)
+always, a phase-measuring station's (:class:`~glshade.instruments.record.PmdMeasurement`)
 too where the scene's emitter shows fringes.
 """
 
@@ -88,15 +88,17 @@ def _oracle_station(fallback: str) -> Station:
 
 
 def measured_numbers(renderer: Any, scene: Scene) -> dict[str, dict[str, Any]]:
-    """Per instrument, the measured columns of ``scene``'s record on ``renderer``."""
-    from glshade.measure.record import Measurement, PmdMeasurement
-    from glshade.measure.single import as_method, measure_scene
+    """Per instrument, the measured columns of ``scene``'s record on ``renderer``: every
+    registered instrument that measures any scene (the paper's stripe metric, on the
+    scene's screen), and the one the scene's emitter is measured by."""
+    from glshade.instruments.registry import instruments
 
-    paper = as_method(scene, "paper")
-    numbers = {"paper": Measurement.of(paper, measure_scene(renderer, paper)).row(("measured",))}
-    if scene.active.emitter.measured_by == "pmd":
-        from glshade.measure.pmd import measure_pmd
-
-        result = measure_pmd(scene, renderer=renderer)
-        numbers["pmd"] = PmdMeasurement.of(scene, result).row(("measured",))
+    numbers = {}
+    for name, chosen in instruments().by_name.items():
+        if not (chosen.always_snapshot or scene.active.emitter.measured_by == name):
+            continue
+        shown, settings = chosen.prepared(scene), chosen.settings()
+        chosen.check_case(shown, settings)
+        result = chosen.measure(renderer, shown, settings)
+        numbers[name] = chosen.record(shown, result).row(("measured",))
     return numbers

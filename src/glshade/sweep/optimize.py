@@ -10,8 +10,8 @@ worst-case visibility over a family of dents (``glshade optimize``, docs/sweeps.
    half a step wide, at most ``refine_evaluations`` points.
 
 The objective at a point is the worst case over the family (the minimum of the members'
-visibilities). ``--metric`` chooses it (:data:`GOALS`): the paper's metric or its
-continuous limit, or a number a phase-measuring station reads (``pmd_snr``,
+visibilities). ``--metric`` chooses it (:func:`glshade.sweep.goals.goals`): the paper's
+metric or its continuous limit, or a number a phase-measuring station reads (``pmd_snr``,
 ``pmd_shift_mm``, ``pmd_depth_um``, ``pmd_slope_urad`` maximised; ``pmd_noise_mm``
 minimised, its worst case the largest); a pmd metric measures every scene as the station
 does (the fringe sequence on the scene's screen). A case whose number cannot be read (its
@@ -42,13 +42,12 @@ import numpy as np
 
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
-from glshade.measure.engine import Case
-from glshade.measure.pmd import PmdSettings, check_scene
-from glshade.measure.record import Measurement, PmdMeasurement
+from glshade.instruments.base import Case, Goal
+from glshade.instruments.record import Record
+from glshade.instruments.registry import instrument
 from glshade.measure.single import as_method
-from glshade.metrics.visibility import MetricSettings
 from glshade.scene import Scene
-from glshade.sweep.goals import GOALS, METRICS, Goal
+from glshade.sweep.goals import goal_of, unit, unreadable, words
 from glshade.sweep.spec import Settings, canonical_key, case_id, check_count, count_text
 from glshade.units import QuantityError, examples, parse_quantity
 
@@ -101,11 +100,11 @@ class OptimizeResult:
 
     @property
     def goal(self) -> Goal:
-        return GOALS[self.metric]
+        return goal_of(self.metric)
 
     @property
     def unit(self) -> str:
-        return self.goal.unit
+        return unit(self.goal)
 
     @property
     def visibility_px(self) -> float:
@@ -127,16 +126,14 @@ class OptimizeResult:
         (tolerance ``tolerance_px``), a phase-measuring one under its column's name; every
         metric's also as ``value`` (in ``unit``)."""
         goal = self.goal
-        if goal.method == "paper":
-            named = {"visibility_px": round(self.value, 4)}
-            tolerance = {"tolerance_px": self.tolerance}
-        else:
-            named = {goal.column: self.value}
-            tolerance = {"tolerance": self.tolerance}
+        key = goal.value_key or goal.column
+        value = self.value if goal.digits is None else round(self.value, goal.digits)
+        named = {key: value}
+        tolerance = {goal.tolerance_key: self.tolerance}
         return {
             "optimum": self.optimum,
             **named,
-            "value": named[goal.column if goal.method == "pmd" else "visibility_px"],
+            "value": value,
             "unit": self.unit,
             "metric": self.metric,
             "maximised": goal.sense > 0,
@@ -323,7 +320,8 @@ def search(
     """Maximise ``objective``'s score over the box of ``dimensions``: coarse grid, then
     bounded Nelder–Mead in the best grid cell (module doc). ``objective`` is called with a
     batch of points (the whole grid at once, so it may distribute it). ``metric`` names the
-    values (:data:`GOALS`): whether less of them is better, and the near-optimal set's
+    values (:func:`glshade.sweep.goals.goals`): whether less of them is better, and the
+    near-optimal set's
     tolerance (``tolerance_px``, in their unit; default: 0 for the paper metric's whole
     pixels, 5 % of the optimum's value for the others)."""
     from scipy.optimize import minimize
@@ -436,7 +434,7 @@ def _near_tolerance(tolerance_px: float | None, metric: str, optimum_value: floa
     the others."""
     if tolerance_px is not None:
         return tolerance_px
-    return 0.0 if metric == "paper" else 0.05 * max(abs(optimum_value), 1e-9)
+    return 0.0 if goal_of(metric).whole else 0.05 * max(abs(optimum_value), 1e-9)
 
 
 def _near_points(
@@ -466,7 +464,7 @@ def _search_result(
     points_all = np.vstack(evaluated.points)
     scores_all, values_all = np.concatenate(evaluated.scores), np.concatenate(evaluated.values)
     winner = int(np.argmax(scores_all))
-    sense = GOALS[metric].sense
+    sense = goal_of(metric).sense
     tolerance = _near_tolerance(tolerance_px, metric, values_all[winner])
     near = _near_points(points_all, values_all, winner, sense, tolerance, len(dimensions))
     return OptimizeResult(
@@ -489,18 +487,10 @@ def _search_result(
 
 
 # --------------------------------------------------------------------------- scenes
-def goal_of(metric: str) -> Goal:
-    """The objective ``--metric`` names (one line naming the allowed ones otherwise)."""
-    if metric not in GOALS:
-        raise GlshadeError(f"--metric: must be one of {', '.join(METRICS)}, got {metric!r}")
-    return GOALS[metric]
-
-
 def settings_for(metric: str, settings: Settings | None = None) -> Settings:
     """The instrument's settings of ``metric``: ``settings`` when they are that
     instrument's, its defaults when None."""
-    goal = goal_of(metric)
-    kind = PmdSettings if goal.method == "pmd" else MetricSettings
+    kind = instrument(goal_of(metric).method).settings_type
     if settings is None:
         return kind()
     if not isinstance(settings, kind):
@@ -547,10 +537,7 @@ class SceneObjective:
 
     def _check(self, scene: Scene) -> None:
         """A scene the objective's instrument can measure, one line otherwise."""
-        if isinstance(self.settings, MetricSettings):
-            self.settings.phases(scene.emitter.period)
-            return
-        check_scene(scene)
+        instrument(self.goal.method).check_case(scene, self.settings)
         if self.goal.needs_sensor and not scene.active.records(scene):
             raise GlshadeError(
                 f"--metric {self.metric}: needs a sensor (without one the decoded points carry "
@@ -575,7 +562,7 @@ class SceneObjective:
             for (i, j), key in zip(chunk, ids, strict=True):
                 chosen[i, j], tie[i, j], readable[i, j] = self.numbers[key]
         goal = self.goal
-        if self.metric == "paper":  # whole pixels, ties broken by the continuous limit
+        if goal.tie_column is not None:  # whole units, ties broken by the tie column
             score = chosen + TIE * tie
         else:
             score = goal.sense * chosen
@@ -597,14 +584,14 @@ class SceneObjective:
             self.numbers[key] = self._kept(key, record)
         return ids
 
-    def _kept(self, key: str, record: Measurement | PmdMeasurement) -> tuple[float, float, bool]:
+    def _kept(self, key: str, record: Record) -> tuple[float, float, bool]:
         """What the objective keeps of a case's record: its number, the tie-break's, and
         whether the number can be read (if not, why is kept in :attr:`unreadable`)."""
         number = _number(getattr(record, self.goal.column))
         tie = 0.0
-        if self.metric == "paper" and isinstance(record, Measurement):
-            tie = _number(record.visibility_continuous_px)
-        if self.goal.unreadable(record.status):
+        if self.goal.tie_column is not None:
+            tie = _number(getattr(record, self.goal.tie_column))
+        if unreadable(self.goal, record.status):
             self.unreadable[key] = f"{record.status}: {record.status_reason}"
             return number, tie, False
         if not math.isfinite(number):
@@ -683,7 +670,7 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
 
     dims = result.dimensions
     worst = "worst-case " if result.members else ""
-    ylabel = f"{worst}{result.goal.words()}"
+    ylabel = f"{worst}{words(result.goal)}"
     if len(dims) == 2:
         fig, ax = plt.subplots(figsize=(6.4, 5.0))
         _draw_objective_map(fig, ax, result, ylabel)
@@ -695,7 +682,7 @@ def objective_figure(result: OptimizeResult, path: Path, title: str = "") -> Non
         axes[0][0].legend(loc="best", fontsize=8)
     where = ", ".join(f"{key} = {value:g}" for key, value in result.optimum.items())
     fig.suptitle(
-        title or f"optimum {where}\n{worst}{result.goal.words()}: {result.value:.4g}",
+        title or f"optimum {where}\n{worst}{words(result.goal)}: {result.value:.4g}",
         fontsize=10,
     )
     fig.tight_layout()

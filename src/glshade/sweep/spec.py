@@ -38,10 +38,10 @@ from typing import Any, overload
 
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
-from glshade.measure.engine import Case
-from glshade.measure.pmd import PMD_VERSION, PmdSettings, check_scene
-from glshade.measure.single import METHODS, as_method
-from glshade.metrics.visibility import METRIC_VERSION, MetricSettings
+from glshade.instruments.base import Case
+from glshade.instruments.registry import instrument, instrument_for, method_names
+from glshade.measure.single import as_method
+from glshade.metrics.visibility import MetricSettings
 from glshade.scene import Scene, paper_scene
 from glshade.scene.model import read_toml
 from glshade.units import parse_quantity
@@ -65,8 +65,8 @@ _TOP_KEYS = ("base", "size", "grid", "metric", "output")
 _OUTPUT_KEYS = ("images",)
 #: The key of ``[metric]`` that chooses the instrument; the others are its settings.
 METHOD_KEY = "method"
-#: An instrument's settings: the paper's stripe metric, or phase measuring.
-Settings = MetricSettings | PmdSettings
+#: An instrument's settings (its :attr:`~glshade.instruments.base.Instrument.settings_type`).
+Settings = Any
 
 
 @dataclass(frozen=True)
@@ -170,11 +170,8 @@ class SweepSpec:
         grid may grow between runs)."""
         from glshade import __version__
 
-        version = (
-            {"pmd_version": PMD_VERSION}
-            if self.method == "pmd"
-            else {"metric_version": METRIC_VERSION}
-        )
+        chosen = instrument_for(self.settings)
+        version = {chosen.version_key: chosen.version}
         return json.loads(
             json.dumps(
                 {
@@ -250,8 +247,8 @@ def _column_value(scene: Scene, key: str) -> Any:
 
 
 def method_of(settings: Settings) -> str:
-    """The instrument ``settings`` belong to: ``pmd`` or ``paper``."""
-    return "pmd" if isinstance(settings, PmdSettings) else "paper"
+    """The name of the instrument ``settings`` belong to."""
+    return instrument_for(settings).name
 
 
 def case_id(scene: Scene, settings: Settings) -> str:
@@ -259,20 +256,7 @@ def case_id(scene: Scene, settings: Settings) -> str:
     instrument's settings and version (phase measuring: also its method); 16 hex digits.
     The paper metric's identity is exactly what it was before PMD existed, so its sweeps
     resume."""
-    identity: dict[str, Any]
-    if isinstance(settings, PmdSettings):
-        identity = {
-            "scene": scene.to_dict(),
-            "method": "pmd",
-            "pmd": asdict(settings),
-            "pmd_version": PMD_VERSION,
-        }
-    else:
-        identity = {
-            "scene": scene.to_dict(),
-            "metric": asdict(settings),
-            "metric_version": METRIC_VERSION,
-        }
+    identity = {"scene": scene.to_dict(), **instrument_for(settings).identity(settings)}
     text = json.dumps(identity, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -372,13 +356,10 @@ def _check_case(scene: Scene, settings: Settings, where: str) -> None:
             f"{where}: emitter.kind = {scene.emitter.kind!r} is measured by {measured_by}, not "
             f'by this sweep\'s method {method} (set [metric] method = "{measured_by}")'
         )
-    if isinstance(settings, PmdSettings):
-        try:
-            check_scene(scene)
-        except GlshadeError as exc:
-            raise GlshadeError(f"{where}: {exc}") from None
-    else:
-        settings.phases(scene.emitter.period)
+    try:
+        instrument_for(settings).check_case(scene, settings)
+    except GlshadeError as exc:
+        raise GlshadeError(f"{where}: {exc}") from None
 
 
 def _base_scene(base, directory: Path, source: str) -> Scene:
@@ -402,20 +383,19 @@ def _settings(table, source: str, base: Scene) -> Settings:
     measured by) and that instrument's settings."""
     if not isinstance(table, dict):
         raise GlshadeError(
-            f"{source}: [metric] must be a table: {METHOD_KEY} ({' or '.join(METHODS)}) and "
+            f"{source}: [metric] must be a table: {METHOD_KEY} ({' or '.join(method_names())}) and "
             "the instrument's settings"
         )
     table = dict(table)
     method = table.pop(METHOD_KEY, None)
     if method is None:
         method = base.active.emitter.measured_by
-    elif method not in METHODS:
+    elif method not in method_names():
         raise GlshadeError(
-            f"{source}: metric.{METHOD_KEY}: must be one of {', '.join(METHODS)}, got {method!r}"
+            f"{source}: metric.{METHOD_KEY}: must be one of {', '.join(method_names())}, got "
+            f"{method!r}"
         )
-    kind: type[MetricSettings] | type[PmdSettings] = (
-        PmdSettings if method == "pmd" else MetricSettings
-    )
+    kind = instrument(method).settings_type
     names = [METHOD_KEY, *(f.name for f in fields(kind))]
     unknown = sorted(set(table) - set(names))
     if unknown:
@@ -423,8 +403,8 @@ def _settings(table, source: str, base: Scene) -> Settings:
             f"{source}: metric.{unknown[0]}: unknown setting of method {method}; allowed: "
             f"{', '.join(names)}"
         )
-    if kind is PmdSettings:
-        _check_types(PmdSettings, table, source)
+    if kind is not MetricSettings:
+        _check_types(kind, table, source)
     try:
         return kind(**table)
     except GlshadeError as exc:

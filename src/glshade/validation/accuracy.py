@@ -42,7 +42,7 @@ from glshade.components.registry import registry
 from glshade.files import atomic_write_bytes, check_entries, make_inside
 from glshade.frame import Frame
 from glshade.gpu.renderer import Renderer, RootSolver
-from glshade.measure.single import measure_scene
+from glshade.instruments.stripes.single import measure_scene
 from glshade.metrics import visibility as vis
 from glshade.oracle import tracer as reference
 from glshade.scene import Scene, paper_scene

@@ -24,7 +24,7 @@ from glshade.app.viewer.pmd_view import (
     pmd_scene,
 )
 from glshade.errors import GlshadeError, SceneError
-from glshade.measure.single import judged, map_baseline
+from glshade.instruments.stripes.single import judged, map_baseline
 from glshade.metrics import contours
 from glshade.metrics import visibility as vis
 from glshade.metrics.status import concerns
@@ -181,7 +181,7 @@ class ViewerModel:
     @property
     def shades_from_uv(self) -> bool:
         """The picture is a function of the uv map (mirror, one ray per pixel)."""
-        from glshade.measure.single import shades_from_map
+        from glshade.instruments.stripes.single import shades_from_map
 
         return shades_from_map(self.scene)
 
