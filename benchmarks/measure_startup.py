@@ -78,12 +78,16 @@ def timed(stage, owner, name):
     setattr(owner, name, wrapper)
 
 from glshade.app import cli as c
+try:  # the command's own module (a tree from before the commands had modules: the CLI's)
+    from glshade.app.commands import measure as cm
+except ImportError:
+    cm = c
 from glshade.gpu import context as gc, renderer as gr, compose as gp
 from glshade.measure import single as ms
 from glshade.metrics import visibility as mv
 timed("parser", c, "build_parser")
-timed("scene", c, "scene_from_args")
-timed("scene", c, "scene_warnings")
+timed("scene", cm, "scene_from_args")
+timed("scene", cm, "scene_warnings")
 timed("context", gc.GLContext, "__init__")
 timed("compose", gr, "compose")
 timed("compile", gr.Renderer, "_program")

@@ -9,7 +9,8 @@ import sys
 import pytest
 
 from glshade.app.args import scene_from_args, setting_param, short_names
-from glshade.app.cli import VIEW_SIZE, build_parser, main
+from glshade.app.cli import build_parser, main
+from glshade.app.commands.view import VIEW_SIZE
 from glshade.app.viewer.controls import by_name, controls, parse_sets
 from glshade.errors import GlshadeError
 from glshade.scene import Scene, paper_scene

@@ -25,7 +25,8 @@ from pathlib import Path
 
 import pytest
 
-from glshade.app.cli import main, paper_workers
+from glshade.app.cli import main
+from glshade.app.commands.paper import paper_workers
 from glshade.errors import GlshadeError
 from glshade.logs import QUIET_LEVELS, quiet_libraries
 from glshade.measure import capacity

@@ -349,12 +349,12 @@ def test_a_tampered_study_case_is_measured_again_and_said(tmp_path):
 
 # --------------------------------------------------------------------------- one line, always
 def test_an_unforeseen_exception_is_one_line_and_exit_1(monkeypatch, capsys):
-    import glshade.app.cli as cli
+    from glshade.app.commands import info
 
     def broken(args):
         raise ValueError("an array of shape (0,)\nsecond line")
 
-    monkeypatch.setattr(cli, "_cmd_info", broken)
+    monkeypatch.setattr(info, "run", broken)
     assert main(["info"]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
@@ -365,12 +365,12 @@ def test_an_unforeseen_exception_is_one_line_and_exit_1(monkeypatch, capsys):
 
 
 def test_ctrl_c_in_a_command_is_one_line_and_130(monkeypatch, capsys):
-    import glshade.app.cli as cli
+    from glshade.app.commands import info
 
     def interrupted(args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "_cmd_info", interrupted)
+    monkeypatch.setattr(info, "run", interrupted)
     assert main(["info"]) == 130
     assert capsys.readouterr().err == "glshade: interrupted\n"
 
@@ -378,14 +378,14 @@ def test_ctrl_c_in_a_command_is_one_line_and_130(monkeypatch, capsys):
 def test_a_warning_is_one_line(monkeypatch, capsys):
     import warnings
 
-    import glshade.app.cli as cli
+    from glshade.app.commands import info
 
     def warns(args):
         warnings.warn("overflow encountered in multiply", RuntimeWarning, stacklevel=1)
         warnings.warn("overflow encountered in multiply", RuntimeWarning, stacklevel=1)
         return 0
 
-    monkeypatch.setattr(cli, "_cmd_info", warns)
+    monkeypatch.setattr(info, "run", warns)
     assert main(["info"]) == 0
     assert capsys.readouterr().err == (
         "glshade: warning: RuntimeWarning: overflow encountered in multiply\n"

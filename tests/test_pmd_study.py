@@ -335,7 +335,7 @@ def test_pmd_results_columns_are_documented():
 
 
 def test_the_flags_state_the_chains_defaults():
-    from glshade.app.cli_paper_pmd import CHAIN_FIELDS, CHAIN_FLAGS
+    from glshade.app.commands.paper_pmd import CHAIN_FIELDS, CHAIN_FLAGS
 
     chain = PmdChain()
     for flag, (_, default, _) in CHAIN_FLAGS.items():

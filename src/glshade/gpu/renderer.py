@@ -7,11 +7,15 @@ times a lens's aperture samples), each ray's first hit on the surface (a plane o
 in closed form, a formula or a height map marched) carrying the defect, and shades what the
 reflection model sees of the emitter's pattern there (the image), or of each emitter frame
 of a draw (the ``frames`` output: an image array, at most :data:`MAX_FRAMES_PER_DRAW`
-frames a draw). Only the render targets a call asks for are attached, drawn and read back,
-straight into NumPy arrays. A pixel's rays whose loops would pass the driver's limit are
-traced over several draws (:data:`PASS_LOOP_BUDGET`) and summed in float64; a large frame
-is drawn in bands of rows, so that Ctrl-C is honoured and progress can be shown; with a
-sensor, the image is what it records.
+frames a draw; a longer stack is traced again for each further chunk). Only the render
+targets a call asks for are attached, drawn and read back into NumPy arrays, and ``rays``
+beside them where the program loops over a pixel's samples (each draw's count checks the
+driver's loop limit; the frame returns it only where it was asked for). A pixel's rays
+whose loops would pass the driver's limit are traced over several draws
+(:data:`PASS_LOOP_BUDGET`; a draw the limit cut short again in halves) and added up, in
+float64 but for the ``frames`` stack (float32) and ``iterations`` (the most of any draw);
+a frame of much work is drawn in bands of rows, so that Ctrl-C is honoured and progress
+can be shown; with a sensor, the image is what it records, unless ``develop`` is False.
 
 Numerics (the error budget in fp32; ``render.precision = "fp64"`` runs the same code in
 double precision):
@@ -313,7 +317,8 @@ class _Targets:
 
 
 class Renderer:
-    """Turns scenes into frames on one GL context; a context manager.
+    """Turns scenes into frames on one GL context; a context manager. A
+    :class:`glshade.rendering.Renderer`, as the NumPy oracle's renderer is.
 
     ``context``: an existing :class:`GLContext` to share (not released by this renderer),
     else one is created and owned. ``memory_budget_bytes``: largest frame accepted

@@ -1,5 +1,6 @@
-"""A renderer without OpenGL: :class:`glshade.gpu.renderer.Renderer`'s interface on the
-NumPy float64 oracle (:func:`glshade.oracle.tracer.trace`).
+"""A renderer without OpenGL: the :class:`~glshade.rendering.Renderer` protocol, which the
+GL renderer (:class:`glshade.gpu.renderer.Renderer`) satisfies too, on the NumPy float64
+oracle (:func:`glshade.oracle.tracer.trace`).
 
 Where no OpenGL context can be made at all, :class:`OracleRenderer` takes the GL renderer's
 place: the measuring floor measures one scene, or a PMD station's, on it unchanged (that
@@ -22,7 +23,7 @@ oracle counterpart and is refused.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,7 +31,7 @@ import numpy as np
 
 from glshade.budget import memory_budget_from_env
 from glshade.errors import GlshadeError
-from glshade.frame import Frame, auto_exposure_gain, normalize_outputs
+from glshade.frame import Frame, Outputs, auto_exposure_gain, normalize_outputs
 from glshade.oracle.tracer import Rays, trace, trace_rays
 from glshade.scene import Scene
 from glshade.version import __version__
@@ -120,11 +121,11 @@ class OracleRenderer:
     def render(
         self,
         scene: Scene,
-        outputs=("image",),
+        outputs: Outputs = ("image",),
         *,
         out: Frame | None = None,
         exposure: int = 0,
-        frames=None,
+        frames: Sequence[Any] | None = None,
         develop: bool = True,
     ) -> Frame:
         """Render ``scene`` as :meth:`Renderer.render <glshade.gpu.renderer.Renderer.render>`

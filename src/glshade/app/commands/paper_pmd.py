@@ -1,7 +1,8 @@
 """``glshade paper --method pmd``: the paper's study measured by a phase-measuring
 deflectometry station (docs/study.md, "The study under phase measuring"). Its flags are
-added to ``glshade paper``'s parser here; a flag of one instrument given to the other is
-refused in one line (exit 2) before anything is written."""
+added to ``glshade paper``'s parser (:mod:`glshade.app.commands.paper`) here; a flag of
+one instrument given to the other is refused in one line (exit 2) before anything is
+written."""
 
 from __future__ import annotations
 
@@ -27,6 +28,8 @@ CHAIN_FLAGS = {
     "--seed": ("sensor.seed", 0, "the seed of the sensor's noise"),
     "--shifts": ("emitter.shifts", 4, "phase steps per fringe period, at least 3"),
 }
+
+
 #: The chain's fields, by flag.
 CHAIN_FIELDS = {
     "--supersample": "supersample",
@@ -36,6 +39,8 @@ CHAIN_FIELDS = {
     "--seed": "seed",
     "--shifts": "shifts",
 }
+
+
 #: The PMD-only flags that are not the chain's: flag -> destination.
 OTHER_FLAGS = {
     "--periods": "periods",

@@ -30,7 +30,7 @@ CODING_FLAGS = {
 }
 
 
-def add_coding(sub: argparse._SubParsersAction) -> None:
+def add(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "coding",
         help="choose a PMD station's fringe coding: finest period, shifts, period ladder",
@@ -81,7 +81,6 @@ def add_coding(sub: argparse._SubParsersAction) -> None:
         metavar="SCENE.toml",
         help="also write the scene with the recommended coding (emitter.periods, shifts)",
     )
-    p.set_defaults(run=_cmd_coding)
 
 
 def coding_settings(args: argparse.Namespace):
@@ -106,7 +105,7 @@ def field_dest(flag: str) -> str:
     return flag.lstrip("-").replace("-", "_")
 
 
-def _cmd_coding(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     from glshade.gpu.context import GLContext
     from glshade.gpu.renderer import Renderer
     from glshade.measure.coding import choose_coding
@@ -276,7 +275,7 @@ def _coding_lines(report) -> list[str]:
 def _memory_line(report, plan) -> str:
     """What measuring ``plan`` takes against the memory budget; beyond it, the status
     with the budget it needs."""
-    from glshade.measure.memory import size_text
+    from glshade.instruments.memory import size_text
 
     budget = report.budget_bytes / (1 << 20)
     if plan.status == "over_budget":
@@ -301,7 +300,7 @@ def _current_lines(report) -> list[str]:
         f"{_margin(cur.margin_sigmas)} σ; finest period's share {_mm(cur.share, '.2f')}",
     ]
     if cur.memory_bytes:
-        from glshade.measure.memory import size_text
+        from glshade.instruments.memory import size_text
 
         lines.append(
             f"  memory {size_text(cur.memory_bytes)} for {cur.frames} frames "

@@ -1,0 +1,261 @@
+"""``glshade paper``: the paper's whole study (Table 1), its figures and report.md; with
+``--method pmd`` the same cases measured by a phase-measuring station
+(:mod:`glshade.app.commands.paper_pmd`; :func:`run` chooses between the two)."""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import time
+from pathlib import Path
+
+from glshade.app.args import (
+    add_metric_flags,
+    check_memory,
+    metric_settings,
+    path_arg,
+    quantity_list,
+    warn,
+)
+from glshade.errors import GlshadeError
+from glshade.oracle.advice import scene_warnings
+from glshade.process import reuse_freed_memory
+
+#: ``glshade paper --help``'s description.
+_PAPER_DESCRIPTION = (
+    "Run Table 1 of the paper (9 theta x 4 sigma2 x 2 dmax on flat, cylinder and sphere) and "
+    "write results.csv, image grids, visibility plots, the Fig. 9 contour overlay and "
+    "report.md. Rerunning with the same --out resumes: finished cases are skipped. The "
+    "directory is locked while a run uses it; one that holds a study with another plan is "
+    "refused unless --overwrite. --method pmd measures the same cases with a phase-measuring "
+    "station and writes pmd_results.csv, pmd_report.md and pmd_*.png beside the stripe study "
+    "(docs/study.md)."
+)
+
+
+def add(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "paper",
+        help="run the paper's whole study (the main job)",
+        description=_PAPER_DESCRIPTION,
+    )
+    _add_output_flags(p)
+    _add_plan_flags(p)
+    add_metric_flags(p)
+    _add_run_flags(p)
+    from glshade.app.commands.paper_pmd import add_pmd_paper_flags
+
+    add_pmd_paper_flags(p)
+
+
+def _add_output_flags(p: argparse.ArgumentParser) -> None:
+    """``glshade paper``'s output directory: ``--overwrite`` and ``--out``."""
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace a study with another plan in --out (its results, figures and report are "
+        "removed)",
+    )
+    p.add_argument(
+        "--out",
+        type=path_arg,
+        default=Path("paper_study"),
+        metavar="DIR",
+        help="output directory (default paper_study)",
+    )
+
+
+def _add_plan_flags(p: argparse.ArgumentParser) -> None:
+    """``glshade paper``'s plan: the surfaces, the axes of Table 1 and the image size."""
+    p.add_argument(
+        "--surfaces",
+        default="flat,cylinder,sphere",
+        metavar="LIST",
+        help="comma-separated surface kinds, or scene files (.toml) of free-form surfaces",
+    )
+    p.add_argument(
+        "--thetas",
+        type=quantity_list("camera.theta_deg"),
+        metavar="LIST",
+        help="camera elevations, degrees, strictly decreasing (default 85,75,…,5)",
+    )
+    p.add_argument(
+        "--sigma2s",
+        type=quantity_list("defect.sigma2"),
+        metavar="LIST",
+        help="defect variances, mm² or with a unit (default 1,4,9,16)",
+    )
+    p.add_argument(
+        "--dmaxs",
+        type=quantity_list("defect.dmax"),
+        metavar="LIST",
+        help="defect depths, mm or with a unit: 0.003,0.005 or 3um,5um (the default)",
+    )
+    p.add_argument(
+        "--size",
+        type=int,
+        default=1024,
+        metavar="N",
+        help="pixels across, the paper's field of view (default 1024)",
+    )
+
+
+def _add_run_flags(p: argparse.ArgumentParser) -> None:
+    """How ``glshade paper`` runs: workers, threads, the size confirmation, the progress
+    bar and the EGL device."""
+    p.add_argument(
+        "--workers",
+        default="auto",
+        metavar="N",
+        help="worker processes, each tracing and measuring whole geometries with its own "
+        "renderer (a local Dask cluster); 0: in this process; auto (the default): 2 when "
+        "the study is large enough to repay their start (64 cases at 512² or the like), "
+        "else 0",
+    )
+    p.add_argument(
+        "--threads",
+        type=int,
+        default=2,
+        metavar="N",
+        help="in this process: threads for the metric's analysis while this thread traces "
+        "(default 2)",
+    )
+    p.add_argument(
+        "--yes",
+        action="store_true",
+        help="run a study of more cases (surfaces x thetas x sigma2s x dmaxs) than the "
+        "confirmation limit",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--device", type=int, metavar="N", help="EGL device index (in this process only)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    from glshade.app.commands.paper_pmd import check_method_flags, cmd_paper_pmd, pmd_plan
+    from glshade.measure.locks import run_lock
+    from glshade.study import plan as study
+    from glshade.study.run import check_workers
+
+    check_workers(args.threads)  # before --out is touched
+    check_method_flags(args)
+    metric = metric_settings(args)
+    surfaces = tuple(part.strip() for part in args.surfaces.split(",") if part.strip())
+    plan = study.StudyPlan(
+        surfaces=surfaces,
+        thetas=tuple(args.thetas) if args.thetas is not None else study.PAPER_THETAS,
+        sigma2s=tuple(args.sigma2s) if args.sigma2s is not None else study.PAPER_SIGMA2S,
+        dmaxs=tuple(args.dmaxs) if args.dmaxs is not None else study.PAPER_DMAXS,
+        size=args.size,
+        metric=metric,
+    )
+    study.check_size(plan, args.yes)  # before --out is touched, in both methods
+    args.workers = paper_workers(args.workers, plan, args.device)
+    if args.method == "pmd":
+        pmd = pmd_plan(args, plan)  # bad input is refused before --out is touched
+        with run_lock(args.out):
+            return cmd_paper_pmd(args, plan, pmd, _run_stripes)
+    from glshade.instruments.base import Case
+
+    firsts = [(surface, *plan.cases()[0][1:]) for surface in plan.surfaces]
+    check_memory(
+        [Case(point, plan.scene(*point)) for point in firsts],
+        plan.metric,
+        threads=args.threads,
+        pooled=not args.workers,
+    )
+    warn(
+        tuple(
+            line
+            for sigma2 in plan.sigma2s
+            for dmax in plan.dmaxs
+            for line in scene_warnings(plan.scene(plan.surfaces[0], plan.thetas[0], sigma2, dmax))
+        )
+    )
+    with run_lock(args.out):
+        return _run_stripes(args, plan)
+
+
+#: ``--workers auto`` starts worker processes for a study of at least this many pixels to
+#: trace and measure (64 cases at 512²): below it their start-up (about 2 s) is not repaid.
+AUTO_WORKERS_PIXELS = 64 * 512 * 512
+
+
+def paper_workers(given: str, plan, device: int | None) -> int:
+    """The worker processes of a study: ``--workers`` (an integer >= 0, or ``auto``), at
+    most as many as this machine's cores and memory budget hold at the plan's size
+    (:mod:`glshade.measure.capacity`; ``auto`` takes at most that many)."""
+    from glshade.measure.capacity import check_worker_count, worker_limit
+
+    pixels = plan.size * plan.size
+    if given == "auto":
+        large = len(plan.cases()) * pixels >= AUTO_WORKERS_PIXELS
+        fits = worker_limit(pixels, "paper").allowed
+        return min(2, fits) if large and device is None and fits > 1 else 0
+    try:
+        workers = int(given)
+    except ValueError:
+        workers = -1
+    if not 0 <= workers <= 256:
+        raise GlshadeError(f"--workers: must be auto or an integer in [0, 256], got {given}")
+    if workers:
+        check_worker_count(workers, pixels, "paper", in_process=True)
+    if workers and device is not None:
+        raise GlshadeError(
+            "--device: only with --workers 0 (worker processes take the EGL device of their "
+            "CUDA_VISIBLE_DEVICES)"
+        )
+    return workers
+
+
+def _run_stripes(args: argparse.Namespace, plan) -> int:
+    """The study, its figures and its report, with ``--out`` locked."""
+    from glshade.gpu.context import GLContext
+    from glshade.gpu.renderer import Renderer
+    from glshade.study import findings, plots
+    from glshade.study import plan as study
+    from glshade.study.run import run_study
+    from glshade.study.store import CaseResult
+
+    reuse_freed_memory()
+    start = time.perf_counter()
+    drawn: dict = {}
+    figure_seconds = 0.0
+
+    def draw(
+        surface: str, rows: list[CaseResult]
+    ) -> None:  # while the workers measure the next surface
+        nonlocal figure_seconds
+        begin = time.perf_counter()
+        drawn[surface] = plots.surface_figures(rows, args.out, plan, surface)
+        figure_seconds += time.perf_counter() - begin
+
+    run = functools.partial(
+        run_study,
+        plan,
+        args.out,
+        progress=not args.no_progress,
+        on_surface_done=draw,
+        overwrite=args.overwrite,
+    )
+    if args.workers:
+        from glshade.measure.executors import Distribution
+
+        result = run(distribution=Distribution(workers=args.workers, verbose=args.verbose))
+    else:
+        with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
+            result = run(workers=args.threads, renderer=renderer)
+    figure_start = time.perf_counter()
+    written = plots.write_figures(result.rows, args.out, plan, drawn)
+    result.timings.figures = figure_seconds + time.perf_counter() - figure_start
+    overlays = [
+        args.out / name for name in study.OVERLAY_CASES.values() if (args.out / name).exists()
+    ]
+    report = findings.write_report(result.rows, args.out, plan, overlays + written, result.timings)
+    print(
+        f"{result.computed} cases computed, {result.skipped} resumed; wrote "
+        f"{args.out / 'results.csv'}, "
+        f"{len(written)} figures and {report} in {time.perf_counter() - start:.1f} s"
+    )
+    return 0
