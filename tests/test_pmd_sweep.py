@@ -355,7 +355,7 @@ def test_optimize_pmd_snr_on_real_scenes_skips_a_dent_out_of_the_image(capsys):
         (["--metric", "pmd_snr"], "--metric pmd_snr: needs a sensor"),
         (["--metric", "pmd_noise_mm"], "--metric pmd_noise_mm: needs a sensor"),
         (["--metric", "pmd_nope"], "invalid choice: 'pmd_nope'"),
-        (["--metric", "paper", "--heights", "least-squares"], "--heights: belongs to the pmd"),
+        (["--metric", "paper", "--heights", "least-squares"], "--heights: belongs to phase measuring"),
         (
             ["--metric", "pmd_depth_um", "--modulation-share", "2"],
             "--modulation-share: must be in (0, 1), got 2.0",

@@ -30,7 +30,9 @@ from glshade.units import QuantityError, examples, parse_quantity
 #: How a value is typed: a real number, an integer, one of some names, a pair of numbers,
 #: a fixed-length list of numbers (``size`` of them; 0: any non-empty list), a list of distinct
 #: names (each one of ``choices``), a text (a formula), a table of named numbers.
-VALUE_TYPES = ("real", "integer", "choice", "names", "pair", "vector", "text", "table", "path")
+VALUE_TYPES = (
+    "real", "integer", "choice", "names", "pair", "vector", "text", "table", "path", "boolean"
+)  # fmt: skip
 #: The longest text value accepted.
 MAX_TEXT = 2000
 ROLES = ("feature", "uniform")
@@ -117,6 +119,8 @@ class Param:
             return self.allowed_text
         if self.value_type == "choice":
             return "one of " + ", ".join(choices if choices is not None else self.choices)
+        if self.value_type == "boolean":
+            return "true or false"
         if self.value_type == "pair":
             return f"two numbers [u, v] > 0 ({self.unit})"
         if self.value_type == "vector":
@@ -158,6 +162,10 @@ class Param:
             return value
         if self.value_type == "integer":
             return self._integer(value)
+        if self.value_type == "boolean":
+            if not isinstance(value, (bool, np.bool_)):
+                raise SceneError(self.path, self.allowed(), value)
+            return bool(value)
         if self.value_type == "names":
             if isinstance(value, str):
                 value = [value]
@@ -317,6 +325,9 @@ class Param:
         text = text.strip()
         if self.value_type in ("choice", "text", "path") or text in self.keywords:
             return text
+        if self.value_type == "boolean":
+            words = {"true": True, "false": False, "yes": True, "no": False, "1": True, "0": False}
+            return words.get(text.lower(), text)
         if self.value_type == "names":
             return tuple(
                 p
@@ -351,6 +362,8 @@ class Param:
         """The default as a scene file would spell it."""
         if self.default is None:
             return "unset"
+        if self.value_type == "boolean":
+            return "true" if self.default else "false"
         if self.value_type in ("choice", "text", "path") or self.default in self.keywords:
             return f'"{self.default}"'
         if self.value_type == "table":

@@ -14,9 +14,9 @@ from typing import Any
 
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError, printable
-from glshade.metrics.visibility import MetricSettings
 from glshade.params import Param
 from glshade.scene import Scene
+from glshade.units import QuantityError
 
 EXIT_USAGE = 2
 
@@ -190,93 +190,74 @@ def length_mm(text: str) -> float:
     return parse_quantity(text, "mm", "length")
 
 
-#: The paper metric's flags: flag -> (destination, the setting it fills).
-METRIC_FLAGS = {
-    "--step": ("step", "step_mm"),
-    "--threshold": ("threshold", "threshold"),
-    "--keep-fraction": ("keep_fraction", "keep_fraction"),
-}
+def _settings_params(method: str | None = None) -> list[tuple[Any, Param]]:
+    """``(instrument, parameter)`` of every registered instrument's declared settings
+    (only ``method``'s when given), glshade's own first."""
+    from glshade.instruments.registry import instruments
+    from glshade.params import declared_params
+
+    return [
+        (item, declared)
+        for name, item in instruments().by_name.items()
+        if method is None or name == method
+        for declared in declared_params(item.settings_type)
+    ]
 
 
-def add_metric_flags(p: argparse.ArgumentParser) -> None:
-    """How visibility is measured (paper and measure); unset flags take the defaults of
-    :class:`MetricSettings`."""
-    defaults = MetricSettings()
-    p.add_argument(
-        "--step",
-        type=argument_type("length", length_mm),
-        metavar="MM",
-        help=f"phase step of the metric, mm or with a unit (default {defaults.step_mm:g})",
-    )
-    p.add_argument(
-        "--threshold",
-        type=float,
-        help=f"binarisation threshold, fraction of the peak (default {defaults.threshold:g})",
-    )
-    p.add_argument(
-        "--keep-fraction",
-        type=float,
-        help=f"central fraction of the columns kept (default {defaults.keep_fraction:g})",
-    )
+def settings_dest(declared: Param) -> str:
+    """The argparse destination of an instrument setting's flag."""
+    return f"measure_{declared.key}"
 
 
-def metric_flags_given(args: argparse.Namespace) -> list[str]:
-    """The paper metric's flags the command line set."""
-    return [flag for flag, (dest, _) in METRIC_FLAGS.items() if getattr(args, dest) is not None]
+def add_settings_flags(p: argparse.ArgumentParser, method: str | None = None) -> None:
+    """The short flags the registered instruments' settings declare (only ``method``'s
+    when given); an unset flag takes its declared default."""
+    for item, declared in _settings_params(method):
+        if declared.flag is None:
+            continue
+        unit = f" {declared.unit}" if declared.unit else ""
+        p.add_argument(
+            declared.flag,
+            dest=settings_dest(declared),
+            metavar=declared.key.upper() if declared.value_type != "choice" else None,
+            choices=declared.choices or None,
+            help=f"{declared.doc} ({item.name}; default {declared.default_text()}{unit})",
+        )
 
 
-#: Phase measuring's settings flags: flag -> (destination, the PmdSettings field it fills).
-PMD_FLAGS = {
-    "--modulation-share": ("modulation_share", "modulation_share"),
-    "--heights": ("heights", "heights"),
-}
+def settings_flags_given(args: argparse.Namespace, method: str | None = None) -> list[str]:
+    """The instrument settings' flags the command line set (only ``method``'s when given)."""
+    return [
+        declared.flag
+        for _, declared in _settings_params(method)
+        if declared.flag is not None and getattr(args, settings_dest(declared), None) is not None
+    ]
 
 
-def add_pmd_settings_flags(p: argparse.ArgumentParser) -> None:
-    """How a phase-measuring station decodes and reconstructs (measure, optimize); unset
-    flags take the defaults of :class:`~glshade.measure.pmd.PmdSettings`."""
-    p.add_argument(
-        "--modulation-share",
-        type=float,
-        metavar="X",
-        help="pmd: a pixel is valid where every period's modulation is at least X times the "
-        "amplitude times the brightest pixel's response to white (default 0.1)",
-    )
-    p.add_argument(
-        "--heights",
-        choices=("least-squares", "frankot-chellappa"),
-        help="pmd: how slopes are integrated into heights (default least-squares)",
-    )
+def instrument_settings(args: argparse.Namespace, method: str, chosen_by: str = "") -> Any:
+    """The settings of instrument ``method`` from the command line's flags (the others
+    their defaults); a flag of another instrument, or a bad value named by its flag, is
+    one line. ``chosen_by``: how the command line chose the instrument (``--method pmd``)."""
+    from glshade.instruments.registry import instrument
 
-
-def pmd_flags_given(args: argparse.Namespace) -> list[str]:
-    """Phase measuring's settings flags the command line set."""
-    return [flag for flag, (dest, _) in PMD_FLAGS.items() if getattr(args, dest) is not None]
-
-
-def pmd_settings(args: argparse.Namespace):
-    """The :class:`~glshade.measure.pmd.PmdSettings` of the command line's pmd flags (a
-    bad value named by its flag)."""
-    from glshade.measure.pmd import PmdSettings
-
-    given = {
-        setting: getattr(args, dest)
-        for dest, setting in PMD_FLAGS.values()
-        if getattr(args, dest) is not None
-    }
-    try:
-        return PmdSettings(**given)
-    except GlshadeError as exc:
-        raise GlshadeError(f"--{str(exc).replace('_', '-')}") from None
-
-
-def metric_settings(args: argparse.Namespace):
-    given = {
-        setting: getattr(args, dest)
-        for dest, setting in METRIC_FLAGS.values()
-        if getattr(args, dest) is not None
-    }
-    return MetricSettings(**given)
+    chosen = instrument(method)
+    for item, declared in _settings_params():
+        if item is not chosen and declared.flag in settings_flags_given(args, item.name):
+            raise GlshadeError(
+                f"{declared.flag}: belongs to {item.title} (--method {item.name}), not to "
+                f"{chosen_by or f'--method {chosen.name}'}"
+            )
+    given = {}
+    for _, declared in _settings_params(chosen.name):
+        text = getattr(args, settings_dest(declared), None) if declared.flag else None
+        if text is None:
+            continue
+        try:
+            given[declared.key] = declared.check(declared.parse(text))
+        except (SceneError, QuantityError) as exc:
+            allowed = getattr(exc, "allowed", declared.allowed())
+            raise GlshadeError(f"{declared.flag}: must be {allowed}, got {text}") from None
+    return chosen.settings_type(**given)
 
 
 def scene_from_args(args: argparse.Namespace) -> Scene:

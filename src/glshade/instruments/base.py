@@ -120,6 +120,27 @@ class WorkerMemory:
         return self.base_mib + self.bytes_per_pixel * pixels / (1 << 20)
 
 
+@dataclass(frozen=True)
+class FileOption:
+    """An output an instrument writes beside its numbers: ``glshade measure``'s ``flag``
+    (``--maps DIR``). ``kind``: ``file`` (a regular file of one of ``suffixes``), ``dir``
+    (a folder of files the instrument names) or ``choice`` (how another option writes:
+    one of ``choices``, ``default`` when not given)."""
+
+    flag: str
+    metavar: str
+    help: str
+    kind: str = "dir"
+    suffixes: tuple[str, ...] = ()
+    choices: tuple[str, ...] = ()
+    default: str | None = None
+
+    @property
+    def dest(self) -> str:
+        """The argparse destination of its flag."""
+        return "file_" + self.flag.lstrip("-").replace("-", "_")
+
+
 class Instrument(ABC):
     """An instrument (module doc). Subclasses set the class attributes and implement
     :meth:`measure` and :meth:`record`; every other method has a default that a simple
@@ -149,6 +170,8 @@ class Instrument(ABC):
     #: Measured for a snapshot of any scene (True), or only where the scene's emitter is
     #: measured by it.
     always_snapshot: ClassVar[bool] = False
+    #: What it writes beside its numbers when asked (``glshade measure``'s flags).
+    file_options: ClassVar[tuple[FileOption, ...]] = ()
 
     # ------------------------------------------------------------------ settings
     def settings(self, **values: Any) -> Any:
@@ -182,9 +205,9 @@ class Instrument(ABC):
 
     def check_case(self, scene: Scene, settings: Any) -> None:
         """Refuse, in one line and before anything is rendered, a scene this instrument
-        cannot measure with these settings."""
+        cannot measure with these settings (default: one whose emitter another measures)."""
         measured_by = scene.active.emitter.measured_by
-        if measured_by != self.name:
+        if self.prepared(scene) is not scene:
             raise GlshadeError(
                 f"emitter.kind = {scene.emitter.kind!r} is measured by {measured_by}, not by "
                 f'{self.name} (set [measure] method = "{measured_by}")'
@@ -203,6 +226,33 @@ class Instrument(ABC):
     @abstractmethod
     def record(self, scene: Scene, result: Any, trace_s: float = 0.0) -> Record:
         """The row of ``result``: an instance of :attr:`record_type`."""
+
+    def check_files(self, files: dict[str, Any], scene: Scene, inputs: Sequence[Any]) -> None:
+        """Refuse, before any work, a folder option of :attr:`file_options` it cannot write
+        (``files``: flag -> value given; ``inputs``: the run's input files). A ``file``
+        option is checked by the caller (a regular file of its suffixes)."""
+        return None
+
+    def measure_files(
+        self, renderer: Renderer, scene: Scene, settings: Any, files: dict[str, Any]
+    ) -> Any:
+        """:meth:`measure`, writing what a ``file`` option asks for that only the
+        measurement holds (a figure of its intermediate images); default: :meth:`measure`."""
+        return self.measure(renderer, scene, settings)
+
+    def write_files(self, files: dict[str, Any], scene: Scene, result: Any) -> list[str]:
+        """Write what the options ask for after the measurement succeeded; what was
+        written, one line each (default: the ``file`` options given, which
+        :meth:`measure_files` wrote)."""
+        return [
+            str(files[option.flag])
+            for option in self.file_options
+            if option.kind == "file" and files.get(option.flag) is not None
+        ]
+
+    def warnings(self, scene: Scene, result: Any) -> list[str]:
+        """Lines to warn the user about a measured result (a washed-out picture)."""
+        return []
 
     def budget_plan(
         self,

@@ -50,10 +50,13 @@ from glshade.metrics.continuous import (
     visibility_limit,
 )
 from glshade.metrics.region import Influence, RegionBasis
+from glshade.params import Table, param
+
+LEVEL_SOURCES = ("auto", "emitter", "image")
 
 
 @dataclass(frozen=True)
-class MetricSettings:
+class MetricSettings(Table):
     """How visibility is measured.
 
     ``threshold``: binarisation level, a fraction of the emitter peak, in (0, 1);
@@ -70,45 +73,55 @@ class MetricSettings:
     (``image`` when a component scales the radiance: Fresnel, a microfacet lobe, eq. (1)).
     """
 
-    threshold: float = 0.5
-    otsu: bool = False
-    keep_fraction: float = 0.5
-    step_mm: float = 0.25
-    max_offset_px: int = 8
-    min_period_px: float = 4.0
-    limit_upsample: int = 2
-    limit_phases: int = 32
-    level_from: str = "auto"
+    table = "measure"
+    table_checks = ()
 
-    def __post_init__(self) -> None:
-        if self.level_from not in LEVEL_SOURCES:
-            raise GlshadeError(
-                f"level_from: must be one of {', '.join(LEVEL_SOURCES)}, got {self.level_from!r}"
-            )
-        if not (math.isfinite(self.threshold) and 0.0 < self.threshold < 1.0):
-            raise GlshadeError(
-                f"threshold: must be in (0, 1) of the emitter peak, got {self.threshold}"
-            )
-        if not (math.isfinite(self.keep_fraction) and 0.0 < self.keep_fraction <= 1.0):
-            raise GlshadeError(f"keep_fraction: must be in (0, 1], got {self.keep_fraction}")
-        if not (math.isfinite(self.step_mm) and self.step_mm > 0.0):
-            raise GlshadeError(f"step: must be a number of mm > 0, got {self.step_mm}")
-        if not (math.isfinite(self.min_period_px) and self.min_period_px >= 0.0):
-            raise GlshadeError(
-                f"min_period_px: must be a number of pixels >= 0, got {self.min_period_px}"
-            )
-        if not 0 <= self.max_offset_px <= 64:
-            raise GlshadeError(
-                f"max_offset_px: must be an integer in [0, 64], got {self.max_offset_px}"
-            )
-        if not 1 <= self.limit_upsample <= 32:
-            raise GlshadeError(
-                f"limit_upsample: must be an integer in [1, 32], got {self.limit_upsample}"
-            )
-        if not 4 <= self.limit_phases <= 1024:
-            raise GlshadeError(
-                f"limit_phases: must be an integer in [4, 1024], got {self.limit_phases}"
-            )
+    threshold: float = param(
+        "measure.threshold", "", 0.5,
+        "paper: binarisation level, a fraction of what level_from says (the emitter's peak)",
+        lo=0.0, hi=1.0, flag="--threshold",
+    )
+    otsu: bool = param(
+        "measure.otsu", "", False, "paper: Otsu's level per image instead (rendered images only)",
+        value_type="boolean",
+    )
+    keep_fraction: float = param(
+        "measure.keep_fraction", "", 0.5, "paper: the central fraction of the columns kept",
+        lo=0.0, hi=1.0, closed=True, nonzero=True, allowed_text="in (0, 1]",
+        flag="--keep-fraction",
+    )
+    step_mm: float = param(
+        "measure.step_mm", "mm", 0.25,
+        "paper: phase step of the stripe sweep (at most one period)",
+        lo=0.0, flag="--step",
+    )
+    max_offset_px: int = param(
+        "measure.max_offset_px", "px", 8, "paper: search radius of the registration",
+        value_type="integer", lo=0, hi=64,
+    )
+    min_period_px: float = param(
+        "measure.min_period_px", "px", 4.0,
+        "paper: pixels where the defect-free stripe period spans fewer pixels than this are "
+        "left out of the contours (0 keeps every pixel)",
+        lo=0.0, closed=True,
+    )
+    limit_upsample: int = param(
+        "measure.limit_upsample", "", 2,
+        "paper: rows per pixel row of the continuous limit's search inside a fold",
+        value_type="integer", lo=1, hi=32,
+    )
+    limit_phases: int = param(
+        "measure.limit_phases", "", 32,
+        "paper: phases per period of the continuous limit's search inside a fold",
+        value_type="integer", lo=4, hi=1024,
+    )
+    level_from: str = param(
+        "measure.level_from", "", "auto",
+        "paper: what threshold is a fraction of: emitter (its peak radiance), image (the "
+        "defect-free image's 1st to 99th percentile), auto (image where a component scales "
+        "the radiance)",
+        value_type="choice", choices=LEVEL_SOURCES,
+    )  # fmt: skip
 
     def phases(self, period_mm: float) -> np.ndarray:
         """Phase shifts of the sweep: 0, step, 2 step, … below one period (a shift of a
@@ -134,7 +147,6 @@ class MetricSettings:
 #: mixed into a study or a sweep.
 METRIC_VERSION = 3
 #: What a binarisation threshold may be a fraction of (:class:`MetricSettings`).
-LEVEL_SOURCES = ("auto", "emitter", "image")
 #: Percentiles of the defect-free image taken as its dark and bright levels.
 LEVEL_PERCENTILES = (1.0, 99.0)
 
@@ -396,7 +408,7 @@ class Visibility:
     ``status``, ``status_reason``: whether the numbers can be read, and why not;
     ``stripe_contrast``: the defect-free stripes' Michelson contrast where the metric
     reads them (:mod:`glshade.metrics.status`; all three set by :mod:`glshade.measure.single`).
-    Its row in every table is :meth:`glshade.measure.record.Measurement.of`.
+    Its row in every table is :meth:`glshade.instruments.record.Measurement.of`.
     """
 
     visibility_px: float

@@ -11,7 +11,7 @@ size = 256                     # optional: pixels across, the base camera's fiel
 surface = [ { label = "flat", "surface.kind" = "flat" },        # a linked axis: each entry
             { label = "sphere", "surface.kind" = "sphere", "emitter.period" = 10.0 } ]
                                                                 # sets several keys
-[metric]                       # optional: the instrument and its settings
+[measure]                      # optional: the instrument and its settings ([metric] too)
 method = "paper"               # paper (MetricSettings: step_mm, threshold, ...) or pmd
 step_mm = 0.25                 # (PmdSettings: modulation_share, grid_points, ...)
 [output]
@@ -61,7 +61,7 @@ def canonical_key(key: str) -> str:
     return KEY_ALIASES.get(key.strip(), key.strip())
 
 
-_TOP_KEYS = ("base", "size", "grid", "metric", "output")
+_TOP_KEYS = ("base", "size", "grid", "measure", "metric", "output")
 _OUTPUT_KEYS = ("images",)
 #: The key of ``[metric]`` that chooses the instrument; the others are its settings.
 METHOD_KEY = "method"
@@ -294,7 +294,7 @@ def spec_from_dict(
         )
     check_grid([_axis_length(name, value, source) for name, value in grid.items()], source, yes)
     base = _base_scene(data.get("base"), directory, source)
-    settings = _settings(data.get("metric", {}), source, base)
+    settings = _settings(data, source, base)
     base = as_method(base, method_of(settings))
     size = _size(size if size is not None else data.get("size"), f"{source}: size")
     axes = tuple(_axis(name, value, source) for name, value in grid.items())
@@ -349,15 +349,15 @@ def check_grid(lengths: Sequence[int], source: str, yes: bool) -> int:
 def _check_case(scene: Scene, settings: Settings, where: str) -> None:
     """A case its instrument can measure: its emitter measured by the sweep's method, the
     stripes' phase step at most a period, the fringes decodable."""
-    method = method_of(settings)
+    chosen = instrument_for(settings)
     measured_by = scene.active.emitter.measured_by
-    if measured_by != method:
+    if chosen.prepared(scene) is not scene:  # it would show its own emitter instead
         raise GlshadeError(
             f"{where}: emitter.kind = {scene.emitter.kind!r} is measured by {measured_by}, not "
-            f'by this sweep\'s method {method} (set [metric] method = "{measured_by}")'
+            f'by this sweep\'s method {chosen.name} (set [measure] method = "{measured_by}")'
         )
     try:
-        instrument_for(settings).check_case(scene, settings)
+        chosen.check_case(scene, settings)
     except GlshadeError as exc:
         raise GlshadeError(f"{where}: {exc}") from None
 
@@ -378,13 +378,18 @@ def _size(value, where: str) -> int | None:
     return registry().param("camera.width").check(value)
 
 
-def _settings(table, source: str, base: Scene) -> Settings:
-    """``[metric]``: ``method`` (default: the instrument the base scene's emitter is
-    measured by) and that instrument's settings."""
+def _settings(data: dict, source: str, base: Scene) -> Settings:
+    """``[measure]`` (or its older name ``[metric]``): ``method`` (default: the instrument
+    the base scene's emitter is measured by) and that instrument's settings, each checked
+    against its declaration."""
+    if "measure" in data and "metric" in data:
+        raise GlshadeError(f"{source}: [measure] and [metric] are one table: give one of them")
+    name = "measure" if "measure" in data else "metric"
+    table = data.get(name, {})
     if not isinstance(table, dict):
         raise GlshadeError(
-            f"{source}: [metric] must be a table: {METHOD_KEY} ({' or '.join(method_names())}) and "
-            "the instrument's settings"
+            f"{source}: [{name}] must be a table: {METHOD_KEY} ({' or '.join(method_names())}) "
+            "and the instrument's settings"
         )
     table = dict(table)
     method = table.pop(METHOD_KEY, None)
@@ -392,7 +397,7 @@ def _settings(table, source: str, base: Scene) -> Settings:
         method = base.active.emitter.measured_by
     elif method not in method_names():
         raise GlshadeError(
-            f"{source}: metric.{METHOD_KEY}: must be one of {', '.join(method_names())}, got "
+            f"{source}: {name}.{METHOD_KEY}: must be one of {', '.join(method_names())}, got "
             f"{method!r}"
         )
     kind = instrument(method).settings_type
@@ -400,36 +405,13 @@ def _settings(table, source: str, base: Scene) -> Settings:
     unknown = sorted(set(table) - set(names))
     if unknown:
         raise GlshadeError(
-            f"{source}: metric.{unknown[0]}: unknown setting of method {method}; allowed: "
+            f"{source}: {name}.{unknown[0]}: unknown setting of method {method}; allowed: "
             f"{', '.join(names)}"
         )
-    if kind is not MetricSettings:
-        _check_types(kind, table, source)
     try:
         return kind(**table)
     except GlshadeError as exc:
-        raise GlshadeError(f"{source}: metric.{exc}") from None
-    except TypeError as exc:
-        raise GlshadeError(f"{source}: [metric]: {exc}") from None
-
-
-#: What a settings field of each annotation accepts from a file, in words.
-_TYPES = {
-    "float": ((int, float), "a number"),
-    "float | None": ((int, float), "a number"),
-    "int": ((int,), "an integer"),
-    "str": ((str,), "text"),
-}
-
-
-def _check_types(kind: type, table: dict, source: str) -> None:
-    """Each value of ``table`` of the type its field of ``kind`` declares (booleans are
-    no numbers): one line naming the setting."""
-    declared = {f.name: str(f.type) for f in fields(kind)}
-    for name, value in table.items():
-        allowed, words = _TYPES[declared[name]]
-        if isinstance(value, bool) or not isinstance(value, allowed):
-            raise GlshadeError(f"{source}: metric.{name}: must be {words}, got {value!r}")
+        raise GlshadeError(f"{source}: {exc}") from None
 
 
 def _axis(name: str, value, source: str) -> Axis:

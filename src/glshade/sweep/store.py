@@ -3,8 +3,8 @@ its id; ``results.parquet`` (one row per case of the grid: every swept key, ever
 and ``results.csv`` beside it; ``images/<id>.png`` on request; ``sweep.json``, the
 manifest that ties the directory to one base scene, size, instrument (the paper's stripe
 metric or phase measuring), its settings and glshade version. The columns and the records
-are the instrument's: :class:`~glshade.measure.record.Measurement` for the paper's metric,
-:class:`~glshade.measure.record.PmdMeasurement` for phase measuring.
+are the instrument's: :class:`~glshade.instruments.record.Measurement` for the paper's metric,
+:class:`~glshade.instruments.record.PmdMeasurement` for phase measuring.
 
 A case file is written atomically once its case is done (the mark a rerun looks for), so
 a killed run loses only the cases in flight and a rerun computes each missing case once.
@@ -27,8 +27,7 @@ from glshade.files import (
     read_regular,
     remove_inside,
 )
-from glshade.measure.case_files import Rejected, case_file_bytes, read_case_file
-from glshade.measure.record import (
+from glshade.instruments.record import (
     COLUMNS,
     OUTPUT_NAMES,
     PMD_COLUMNS,
@@ -37,6 +36,7 @@ from glshade.measure.record import (
     Measurement,
     PmdMeasurement,
 )
+from glshade.measure.case_files import Rejected, case_file_bytes, read_case_file
 from glshade.sweep.spec import GridPoint, SweepSpec
 
 #: A case's record: the paper metric's or phase measuring's.
@@ -53,8 +53,11 @@ PMD_OUTPUTS = tuple(c for c in PMD_COLUMNS if c.name in PMD_OUTPUT_NAMES)
 
 
 def outputs(method: str) -> tuple[Column, ...]:
-    """The output columns of an instrument's sweep table."""
-    return PMD_OUTPUTS if method == "pmd" else OUTPUTS
+    """The output columns of an instrument's sweep table: its record's columns it keeps."""
+    from glshade.instruments.registry import instrument
+
+    chosen = instrument(method)
+    return tuple(c for c in chosen.record_type.columns() if c.name in chosen.outputs)
 
 
 def output_names(method: str) -> tuple[str, ...]:
@@ -93,7 +96,7 @@ def load_case(
     """A finished case's record (the ``method``'s record type, its timings included), or
     None: missing, or not to be trusted (a failed checksum, another case's id, an older
     or interrupted writer, another instrument's outputs, a value outside its column's type,
-    range or words: :meth:`~glshade.measure.record.Record.json_problem`),
+    range or words: :meth:`~glshade.instruments.record.Record.json_problem`),
     which ``rejected`` collects with the reason: measure it again."""
     path = case_path(out_dir, case_id)
     found = read_case_file(path, case_id)
@@ -112,7 +115,9 @@ def _record(data: dict, method: str) -> tuple[CaseRecord | None, str | None]:
         return None, f"does not hold the outputs of --method {method}"
     seconds = data.get("seconds")
     row = {**(seconds if isinstance(seconds, dict) else {}), **found}
-    kind = RECORDS[method]
+    from glshade.instruments.registry import instrument
+
+    kind = instrument(method).record_type
     problem = kind.json_problem(row)
     if problem is not None:
         return None, problem

@@ -10,15 +10,11 @@ import sys
 import time
 
 from glshade.app.args import (
-    add_metric_flags,
-    add_pmd_settings_flags,
     add_scene_flags,
+    add_settings_flags,
     check_outputs,
-    metric_flags_given,
-    metric_settings,
+    instrument_settings,
     path_arg,
-    pmd_flags_given,
-    pmd_settings,
     save_scene,
     scene_from_args,
     warn,
@@ -100,8 +96,7 @@ def add(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="run a search of more cases (viewpoints x family members) than the confirmation limit",
     )
-    add_metric_flags(p)
-    add_pmd_settings_flags(p)
+    add_settings_flags(p)
     add_distribution_flags(p)
 
 
@@ -120,14 +115,7 @@ def run(args: argparse.Namespace) -> int:
     )
 
     goal = goal_of(args.metric)
-    if goal.method != "paper":
-        for flag in metric_flags_given(args):
-            raise GlshadeError(
-                f"{flag}: belongs to the paper's stripe metric, not to --metric {args.metric}"
-            )
-    else:
-        for flag in pmd_flags_given(args):
-            raise GlshadeError(f"{flag}: belongs to the pmd metrics, not to --metric {args.metric}")
+    settings = instrument_settings(args, goal.method, f"--metric {args.metric}")
 
     if args.size is None:
         args.size = OPTIMIZE_SIZE
@@ -144,7 +132,6 @@ def run(args: argparse.Namespace) -> int:
     family = family_members(family_axes)
     plot = [("--plot", args.plot, (".png",))] if args.plot is not None else []
     check_outputs(args, scene, plot)
-    settings = metric_settings(args) if goal.method == "paper" else pmd_settings(args)
     distribution = distribution_of(args)
     warn(scene_warnings(as_method(scene, goal.method)))
     reuse_freed_memory()

@@ -10,9 +10,9 @@ import time
 from pathlib import Path
 
 from glshade.app.args import (
-    add_metric_flags,
+    add_settings_flags,
     check_memory,
-    metric_settings,
+    instrument_settings,
     path_arg,
     quantity_list,
     warn,
@@ -41,7 +41,7 @@ def add(sub: argparse._SubParsersAction) -> None:
     )
     _add_output_flags(p)
     _add_plan_flags(p)
-    add_metric_flags(p)
+    add_settings_flags(p, "paper")
     _add_run_flags(p)
     from glshade.app.commands.paper_pmd import add_pmd_paper_flags
 
@@ -140,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
 
     check_workers(args.threads)  # before --out is touched
     check_method_flags(args)
-    metric = metric_settings(args)
+    metric = instrument_settings(args, "paper")
     surfaces = tuple(part.strip() for part in args.surfaces.split(",") if part.strip())
     plan = study.StudyPlan(
         surfaces=surfaces,

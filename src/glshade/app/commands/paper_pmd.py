@@ -11,7 +11,7 @@ import json
 import time
 from pathlib import Path
 
-from glshade.app.args import metric_flags_given, param_type, warn
+from glshade.app.args import param_type, settings_flags_given, warn
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError
 from glshade.files import read_regular
@@ -111,7 +111,7 @@ def check_method_flags(args: argparse.Namespace) -> None:
         for flag in pmd_flags_given(args):
             raise GlshadeError(f"{flag}: belongs to --method pmd (the phase-measuring station)")
         return
-    for flag in metric_flags_given(args):
+    for flag in settings_flags_given(args, "paper"):
         raise GlshadeError(
             f"{flag}: belongs to the paper's stripe metric, not to --method pmd (run "
             "'glshade paper' with it first: --method pmd reads its results.csv)"

@@ -13,6 +13,7 @@ from glshade.instruments.base import (
     BudgetPlan,
     Case,
     Extra,
+    FileOption,
     Goal,
     Instrument,
     Measured,
@@ -67,6 +68,23 @@ class PhaseInstrument(Instrument):
     # station's 4 periods x 4 shifts x 2 directions): 356, 1390 and 4424 MiB at 256²,
     # 1024² and 2048²
     worker_memory: ClassVar[WorkerMemory] = WorkerMemory(base_mib=384, bytes_per_pixel=1024)
+    file_options: ClassVar[tuple[FileOption, ...]] = (
+        FileOption(
+            "--maps", "DIR",
+            "pmd: write the maps behind the numbers (decoded.npy, exact.npy, modulation.npy, "
+            "modulation_share.npy, wrapped_phase.npy, error_mm.npy, slopes.npy, height_um.npy, "
+            "the defect-free and noise-twin decodes, ...; docs/pmd.md) and figures",
+        ),
+        FileOption(
+            "--frames", "DIR",
+            "pmd: write the recorded sequence, the recorded white and manifest.json (all an "
+            "external decoder needs); an earlier run's frames there are replaced",
+        ),
+        FileOption(
+            "--frame-format", "FORMAT", "pmd --frames: 16-bit PNG (default) or 32-bit float TIFF",
+            kind="choice", choices=("png", "tif"), default="png",
+        ),
+    )  # fmt: skip
     goals: ClassVar[tuple[Goal, ...]] = (
         _goal("pmd_snr", needs_sensor=True),
         _goal("pmd_shift_mm"),
@@ -119,6 +137,30 @@ class PhaseInstrument(Instrument):
         """The first recorded frame (the finest fringes of the first direction, shift 0),
         as the camera records it."""
         return result.maps.recorded[0]
+
+    def check_files(self, files: dict[str, Any], scene: Scene, inputs: Sequence[Any]) -> None:
+        from glshade.measure.pmd_files import check_output_dir
+
+        for flag in ("--maps", "--frames"):
+            if files.get(flag) is not None:
+                check_output_dir(files[flag], flag, inputs)
+
+    def write_files(self, files: dict[str, Any], scene: Scene, result: Any) -> list[str]:
+        from glshade.measure.pmd_files import write_frames, write_maps
+
+        written = []
+        if files.get("--frames") is not None:
+            write_frames(files["--frames"], scene, result, files.get("--frame-format") or "png")
+            written.append(f"{files['--frames']}/ (--frames)")
+        if files.get("--maps") is not None:
+            write_maps(files["--maps"], scene, result)
+            written.append(f"{files['--maps']}/ (--maps)")
+        return written
+
+    def summary_lines(self, scene: Scene, record: Any) -> list[str]:
+        from glshade.instruments.pmd.summary import summary_lines
+
+        return summary_lines(scene, record)
 
     def concerns(self, status: str, column: str) -> bool:
         return pmd_concerns(status, column)

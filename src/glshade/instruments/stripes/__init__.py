@@ -18,6 +18,7 @@ from glshade.instruments.base import (
     BudgetPlan,
     Case,
     Extra,
+    FileOption,
     Goal,
     Instrument,
     Measured,
@@ -64,6 +65,12 @@ class StripeInstrument(Instrument):
         ),
     )  # fmt: skip
     always_snapshot: ClassVar[bool] = True
+    file_options: ClassVar[tuple[FileOption, ...]] = (
+        FileOption(
+            "--overlay", "PNG", "also write the Fig. 9 contour overlay at the best phase",
+            kind="file", suffixes=(".png",),
+        ),
+    )  # fmt: skip
 
     def identity(self, settings: Any) -> dict[str, Any]:
         # exactly what it was before there were other instruments, so old sweeps resume
@@ -97,6 +104,24 @@ class StripeInstrument(Instrument):
         from glshade.instruments.stripes.single import measure_scene
 
         return measure_scene(renderer, scene, settings, overlay=overlay)
+
+    def measure_files(
+        self, renderer: Renderer, scene: Scene, settings: Any, files: dict[str, Any]
+    ) -> Visibility:
+        from glshade.instruments.stripes.single import measure_scene
+
+        return measure_scene(renderer, scene, settings, overlay=files.get("--overlay"))
+
+    def warnings(self, scene: Scene, result: Any) -> list[str]:
+        from glshade.metrics.status import contrast_warning
+
+        low = contrast_warning(result.stripe_contrast, scene.active.dimming(scene))
+        return [low] if low else []
+
+    def summary_lines(self, scene: Scene, record: Any) -> list[str]:
+        from glshade.instruments.stripes.summary import summary_lines
+
+        return summary_lines(scene, record)
 
     def record(self, scene: Scene, result: Any, trace_s: float = 0.0) -> Measurement:
         if not isinstance(result, Visibility):

@@ -1,0 +1,129 @@
+"""A third-party instrument, installed as a package: ``tests/plugins/glshade_brightness``
+(the largest change in image brightness a dent makes, found through the
+``glshade.instruments`` entry point) is installed into a virtual environment that sees
+this one's packages, and is then used through every front end as glshade's own
+instruments are: ``measure --method``, a sweep (in one process and on a 2-worker Dask
+cluster: the same table), the optimiser's ``--metric`` and the snapshot plugin. The outer
+test process never installs it: it knows two instruments.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+import site
+import subprocess
+import venv
+from pathlib import Path
+
+import pytest
+
+from glshade.instruments.registry import method_names
+
+PACKAGE = Path(__file__).parent / "plugins" / "glshade_brightness"
+
+
+@pytest.fixture(scope="module")
+def plugin_python(tmp_path_factory) -> Path:
+    """The python of a fresh virtual environment that sees this environment's packages
+    and has the instrument package installed by pip."""
+    root = tmp_path_factory.mktemp("instrument-venv")
+    venv.EnvBuilder(with_pip=False).create(root)
+    python = root / "bin" / "python"
+    inner = subprocess.run(
+        [python, "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
+        capture_output=True, text=True, check=True,
+    ).stdout.strip()  # fmt: skip
+    outer = [*site.getsitepackages(), site.getusersitepackages()]
+    lines = [f"import site; site.addsitedir({path!r})" for path in outer if Path(path).is_dir()]
+    (Path(inner) / "outer_environment.pth").write_text("\n".join(lines) + "\n")
+    source = shutil.copytree(PACKAGE, root / "source")
+    install = [python, "-m", "pip", "install", "--no-deps", "--no-build-isolation", "--no-index"]
+    done = subprocess.run(
+        [*install, "--quiet", str(source)], capture_output=True, text=True, cwd=root
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    return python
+
+
+def glshade_in(python: Path, *args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [python, "-m", "glshade", *args], capture_output=True, text=True, cwd=cwd, timeout=300
+    )
+
+
+def test_measure_names_and_measures_the_third_instrument(plugin_python):
+    done = glshade_in(plugin_python, "measure", "--method", "brightness", "--size", "64", "--json")
+    assert done.returncode == 0, done.stderr
+    numbers = json.loads(done.stdout)
+    # the paper's dent changes the stripes' brightness by a large share of the peak
+    assert numbers["status"] == "ok" and 0.05 < numbers["brightness_change"] <= 1.0
+    assert numbers["changed_pixels"] > 0
+    flat = glshade_in(plugin_python, "measure", "--method", "brightness", "--size", "64",
+                      "--set", "defect.dmax=0", "--json")  # fmt: skip
+    assert json.loads(flat.stdout)["status"] == "outside"
+    help_text = glshade_in(plugin_python, "measure", "--help").stdout
+    assert "brightness" in help_text
+
+
+def test_a_sweep_in_one_process_and_on_two_dask_workers(plugin_python, tmp_path):
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(
+        'size = 48\n[metric]\nmethod = "brightness"\n[grid]\n'
+        '"camera.theta_deg" = [60.0, 30.0]\n"defect.dmax" = [0.002, 0.01]\n'
+    )
+    tables = {}
+    for name, extra in (("dask", ["--workers", "2"]), ("local", [])):
+        out = tmp_path / name
+        done = glshade_in(plugin_python, "sweep", str(sweep), "--out", str(out),
+                          "--no-progress", *extra)  # fmt: skip
+        assert done.returncode == 0, done.stderr[-3000:]
+        with open(out / "results.csv", newline="") as fh:
+            tables[name] = list(csv.DictReader(fh))
+    assert tables["dask"] == tables["local"] and len(tables["local"]) == 4
+    for theta in ("60.0", "30.0"):
+        shallow, deep = (
+            float(row["brightness_change"])
+            for row in tables["local"]
+            if row["camera.theta_deg"] == theta
+        )
+        assert 0.0 < shallow <= deep  # a deeper dent changes the picture at least as much
+
+
+def test_the_optimiser_aims_at_its_goal(plugin_python, tmp_path):
+    done = glshade_in(plugin_python, "optimize", "--metric", "brightness_change",
+                      "--over", "camera.theta_deg=20..80", "--size", "32", "--grid", "4",
+                      "--refine", "4", "--json")  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    found = json.loads(done.stdout)
+    assert (
+        found["metric"] == "brightness_change"
+        and 20.0 <= found["optimum"]["camera.theta_deg"] <= 80.0
+    )
+    assert 0.0 < found["brightness_change"] == found["value"]
+
+
+def test_the_snapshot_plugin_compares_its_numbers(plugin_python, tmp_path):
+    (tmp_path / "test_user.py").write_text(
+        "from glshade.scene import paper_scene\n\n"
+        "def test_panel(glshade_snapshot):\n"
+        '    glshade_snapshot.check(paper_scene().with_size(48), name="panel")\n'
+    )
+    (tmp_path / "pytest.ini").write_text("[pytest]\n")
+    pytest_in = [plugin_python, "-m", "pytest", "-q", "-p", "no:cacheprovider"]
+    run = subprocess.run([*pytest_in, "--glshade-update"], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=300)  # fmt: skip
+    assert run.returncode == 0, run.stdout[-3000:]
+    side = tmp_path / "tests" / "glshade_snapshots" / "panel.json"
+    stored = json.loads(side.read_text())
+    assert stored["numbers"]["brightness"]["status"] == "ok"
+    assert subprocess.run(pytest_in, cwd=tmp_path, capture_output=True, timeout=300).returncode == 0
+    stored["numbers"]["brightness"]["brightness_change"] = 0.001  # a baseline far from now
+    side.write_text(json.dumps(stored))
+    moved = subprocess.run(pytest_in, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert moved.returncode == 1 and "brightness_change" in moved.stdout
+
+
+def test_the_outer_process_knows_two_instruments():
+    assert method_names() == ("paper", "pmd")
