@@ -13,7 +13,7 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.components.emitter.fringes import NO_STRIPE_METRIC
-from glshade.components.emitter.fringes.table import displayed
+from glshade.components.emitter.fringes.codec import FringeCodec
 from glshade.errors import GlshadeError, SceneError
 from glshade.files import read_png
 from glshade.gpu.compose import ShaderFeatures, compose
@@ -96,10 +96,10 @@ def test_quantisation_and_gamma_on_known_values():
     assert commanded == pytest.approx([1.0, 0.5, 0.0, 0.25])
     # 5 levels: 0, 0.25, 0.5, 0.75, 1 (0.25 is a level; halves round up), then squared
     assert em.fringe_radiance(v) == pytest.approx([1.0, 0.25, 0.0, 0.0625])
-    assert displayed(np.array([0.125, 0.12499, 0.3, 1.2, -0.1]), 5, 1.0) == pytest.approx(
-        [0.25, 0.0, 0.25, 1.0, 0.0]
-    )
-    assert displayed(np.array([0.3]), 0, 0.5) == pytest.approx([math.sqrt(0.3)])
+    five = FringeCodec(levels=5).displayed(np.array([0.125, 0.12499, 0.3, 1.2, -0.1]))
+    assert five == pytest.approx([0.25, 0.0, 0.25, 1.0, 0.0])
+    root = FringeCodec(levels=0, gamma=0.5).displayed(np.array([0.3]))
+    assert root == pytest.approx([math.sqrt(0.3)])
     # the phase step: frame n shows the pattern shifted by n/N of a period
     shifted = fringes(frame_shift_index=1, levels=0).emitter
     assert shifted.fringe_radiance(np.array([-150.0 + 0.5]))[0] == pytest.approx(1.0)

@@ -8,17 +8,25 @@ import numpy as np
 import pytest
 from scipy.ndimage import label
 
+from glshade.components.emitter.fringes.codec import displayed_fringe
+from glshade.components.emitter.fringes.screen import ScreenResponse
 from glshade.errors import GlshadeError
 from glshade.metrics import pmd
 
-CODING = pmd.FringeCoding(levels=0)  # continuous grey levels, gamma 1
+
+def one_direction(**values) -> pmd.FringeCodec:
+    """A codec of the ``v`` direction alone (what one decode takes), default otherwise."""
+    return pmd.FringeCodec(directions=("v",), **values)
 
 
-def screen(coding: pmd.FringeCoding, size: int = 4000) -> np.ndarray:
+CODING = one_direction(levels=0)  # continuous grey levels, gamma 1
+
+
+def screen(coding: pmd.FringeCodec, size: int = 4000) -> np.ndarray:
     """A smooth, monotonic map of screen coordinates (mm from the edge) over most of the
     screen: a row of ``size`` pixels."""
     x = np.linspace(0.0, 1.0, size)
-    return (0.02 + 0.95 * x + 0.02 * np.sin(3.0 * x)) * coding.screen_extent_mm
+    return (0.02 + 0.95 * x + 0.02 * np.sin(3.0 * x)) * coding.extent_mm()
 
 
 def test_noise_free_decoding_recovers_the_map():
@@ -36,7 +44,7 @@ def test_eight_bit_levels_stay_within_their_bound():
     ``q``, so the phase errs by at most ``asin(q / B)`` and the coordinate by ``p_1 / 2π``
     times that."""
     s = screen(CODING)
-    eight = pmd.FringeCoding(levels=256)
+    eight = one_direction(levels=256)
     error = np.abs(pmd.decode(eight.sequence(s), eight).s_mm - s)
     bound = eight.periods_mm[0] / (2 * np.pi) * np.arcsin((1 / 255) / eight.amplitude)
     assert 1e-6 < error.max() < bound
@@ -62,25 +70,42 @@ def test_an_image_of_screen_points_decodes_pixel_for_pixel():
 
 def test_the_displayed_radiance_is_the_formula():
     s = np.linspace(0.0, 300.0, 1001)
-    shown = pmd.commanded_to_displayed(s, 16.0, np.pi / 2, offset=0.5, amplitude=0.4)
+    # frame (k = 1, n = 1): the 16 mm fringe shifted by a quarter turn
+    shown = one_direction(offset=0.5, amplitude=0.4, levels=0).radiance(s, 1, 1)
     assert shown.dtype == np.float64
     assert np.allclose(shown, 0.5 + 0.4 * np.cos(2 * np.pi * s / 16.0 - np.pi / 2), atol=1e-15)
-    levels = pmd.commanded_to_displayed(s, 16.0, 0.0, levels=4, gamma=2.0)
-    commanded = np.round((0.5 + 0.5 * np.cos(2 * np.pi * s / 16.0)) * 3) / 3
+    levels = one_direction(levels=4, gamma=2.0).radiance(s, 1, 0)
+    # the fraction of the period, then halves rounded up (s = 84 mm is one: c = 0.5)
+    x = s / 16.0 - np.floor(s / 16.0)
+    commanded = np.floor((0.5 + 0.5 * np.cos(2 * np.pi * x)) * 3 + 0.5) / 3
     assert np.allclose(levels, commanded**2, atol=1e-15)
     assert set(np.round(levels * 9).astype(int)) <= {0, 1, 4, 9}  # (j/3)² only
     # every argument broadcasts: a column of shifts against a row of coordinates
-    grid = pmd.commanded_to_displayed(s[None, :], 16.0, CODING.shift_rad(np.arange(4))[:, None])
+    steps = CODING.shift_rad(np.arange(4))[:, None]
+    grid = displayed_fringe(ScreenResponse(), s[None, :], 16.0, steps, 0.5, 0.5)
     assert grid.shape == (4, 1001) and np.allclose(grid[2], 0.5 - 0.5 * np.cos(2 * np.pi * s / 16))
-    assert np.isnan(pmd.commanded_to_displayed(np.array([np.nan]), 2.0, 0.0)).all()
-    # the coding's frames are this helper with its values
-    coding = pmd.FringeCoding(shifts=5, gamma=1.8, levels=64)
+    assert np.isnan(
+        displayed_fringe(ScreenResponse(), np.array([np.nan]), 2.0, 0.0, 0.5, 0.5)
+    ).all()
+    # the coding's frames are this formula with its values, the screen's frames too
+    coding = one_direction(shifts=5, gamma=1.8, levels=64)
     assert coding.shift_rad(2) == pytest.approx(4 * np.pi / 5)
-    expected = pmd.commanded_to_displayed(
-        s, 128.0, 4 * np.pi / 5, offset=0.5, amplitude=0.5, levels=64, gamma=1.8
-    )
+    expected = displayed_fringe(coding.screen(), s, 128.0, 4 * np.pi / 5, 0.5, 0.5)
     assert np.array_equal(coding.radiance(s, 2, 2), expected)
     assert np.array_equal(coding.sequence(s)[2, 2], expected)
+    assert np.array_equal(coding.frame_radiance(coding.frame("v", 2, 2), s), expected)
+
+
+def test_the_phase_is_reduced_to_one_period_first():
+    """The fraction of the period is reduced to [0, 1) before the cosine, as the shader
+    does: against the cosine of the whole phase the continuous fringe differs by float64
+    rounding only, and ``s`` one period on gives the same fraction's fringe."""
+    s = np.linspace(0.0, 300.0, 200001)
+    continuous = CODING.radiance(s, 0, 1)
+    whole = 0.5 + 0.5 * np.cos(2 * np.pi * s / 2.0 - np.pi / 2)
+    assert 0.0 < np.abs(continuous - whole).max() < 1e-12
+    x = s / 2.0 - np.floor(s / 2.0)
+    np.testing.assert_array_equal(continuous, 0.5 + 0.5 * np.cos(2 * np.pi * x - np.pi / 2))
 
 
 def _fourier(gamma: float, offset: float, amplitude: float, count: int) -> np.ndarray:
@@ -103,7 +128,7 @@ def test_gamma_harmonics_alias_into_three_steps_and_fade_with_more():
     finest = CODING.periods_mm[0]
     errors = {}
     for shifts in (3, 4, 8):
-        coding = pmd.FringeCoding(shifts=shifts, gamma=2.2, levels=0)
+        coding = one_direction(shifts=shifts, gamma=2.2, levels=0)
         decoded = pmd.decode(coding.sequence(s), coding)
         phase_error = np.max(np.abs(decoded.s_mm - s)) * 2 * np.pi / finest
         predicted = abs(b[shifts + 1] - b[shifts - 1]) / b[1]
@@ -114,7 +139,7 @@ def test_gamma_harmonics_alias_into_three_steps_and_fade_with_more():
     assert errors[4] > 200 * errors[8]
     assert errors[3] > 0.2 and errors[8] < 1e-4
     # gamma 1 has no harmonics: three steps are exact
-    three = pmd.FringeCoding(shifts=3, levels=0)
+    three = one_direction(shifts=3, levels=0)
     assert np.max(np.abs(pmd.decode(three.sequence(s), three).s_mm - s)) < 1e-9
 
 
@@ -122,7 +147,7 @@ def test_gamma_harmonics_alias_into_three_steps_and_fade_with_more():
 def test_decoded_noise_matches_the_prediction(shifts):
     """Intensity noise σ_I on each frame gives the phase a noise ``sqrt(2/N) σ_I / B``;
     the decoded coordinate keeps the finest period's, ``p_1 / 2π`` times that."""
-    coding = pmd.FringeCoding(shifts=shifts, levels=0)
+    coding = one_direction(shifts=shifts, levels=0)
     s = screen(coding, 20000)
     clean = coding.sequence(s)
     sigma = 0.01
@@ -144,7 +169,7 @@ def test_noise_at_the_screen_edge_does_not_wrap_round_the_coarsest_period():
     2π, i.e. ``s_K`` near ``p_K`` (1024 mm), far past the 300 mm screen: they are read as
     just below 0, and decode right. A pixel at the far edge is left alone."""
     sigma = 0.01
-    for edge in (0.05, CODING.screen_extent_mm - 0.05):
+    for edge in (0.05, CODING.extent_mm() - 0.05):
         s = np.full(20000, edge)
         noisy = CODING.sequence(s) + np.random.default_rng(3).normal(0.0, sigma, (4, 4, 20000))
         decoded = pmd.decode(noisy, CODING)
@@ -159,8 +184,8 @@ def test_unwrapping_fails_where_the_period_ratio_outgrows_the_noise():
     are not. The failures are counted against the exact map."""
     s = screen(CODING, 20000)
     sigma = 0.03
-    wide = pmd.FringeCoding(periods_mm=(4.0, 256.0, 16384.0), levels=0)
-    safe = pmd.FringeCoding(periods_mm=(4.0, 32.0, 256.0, 2048.0), levels=0)
+    wide = one_direction(periods_mm=(4.0, 256.0, 16384.0), levels=0)
+    safe = one_direction(periods_mm=(4.0, 32.0, 256.0, 2048.0), levels=0)
     counts = {}
     for name, coding in (("wide", wide), ("safe", safe)):
         clean = coding.sequence(s)
@@ -351,17 +376,21 @@ def test_a_dent_seen_in_reflection_comes_back_from_its_screen_points():
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
-        ({"shifts": 2}, "shifts: must be an integer >= 3, got 2"),
-        ({"periods_mm": (2.0, 16.0, 128.0)}, "the coarsest (128 mm) must span the screen's 300"),
-        ({"periods_mm": (16.0, 2.0, 1024.0)}, "periods: must grow from the finest"),
-        ({"gamma": 0.0}, "gamma: must be a finite number > 0, got 0.0"),
-        ({"levels": 1}, "levels: must be 0 (continuous) or at least 2 grey levels, got 1"),
-        ({"offset": 0.6, "amplitude": 0.5}, "offset + amplitude: must be at most 1"),
+        ({"shifts": 2}, "emitter.shifts: must be an integer in [3, 1024], got 2"),
+        (
+            {"periods_mm": (2.0, 16.0, 128.0)},
+            "emitter.periods: must be a coarsest period of at least the screen's extent "
+            "along 'v', 2 half_size = 300 mm",
+        ),
+        ({"periods_mm": (16.0, 2.0, 1024.0)}, "increasing from the finest, got [16.0, 2.0"),
+        ({"gamma": 0.0}, "emitter.gamma: must be a finite number > 0, got 0.0"),
+        ({"levels": 1}, "emitter.levels: must be 0 (continuous) or at least 2 grey levels"),
+        ({"offset": 0.6, "amplitude": 0.5}, "emitter.offset: must be offset + amplitude <= 1"),
     ],
 )
 def test_bad_codings_are_one_line(changes, message):
     with pytest.raises(GlshadeError) as info:
-        pmd.FringeCoding(**changes)
+        one_direction(**changes)
     assert message in str(info.value) and "\n" not in str(info.value)
 
 

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from glshade.app.cli import main
+from glshade.instruments.record import PmdMeasurement
+from glshade.instruments.stripes.single import measure_scene
 from glshade.measure.pmd import measure_pmd_scene, pmd_concerns
 from glshade.measure.pmd_files import DATA_FILES, MAP_FILES, write_frames, write_maps
-from glshade.measure.record import PmdMeasurement
-from glshade.measure.single import measure_scene
 from glshade.metrics import pmd
 from glshade.metrics.coding_laws import screen_harmonics
 from glshade.scene import Scene, paper_scene
@@ -108,16 +108,9 @@ def decode_folder(folder: Path) -> np.ndarray:
         stack = stack.reshape(len(periods), shifts, *response.shape)
         axis = "uv".index(direction)
         half = coding["screen_half_size_mm"][axis]
-        code = pmd.FringeCoding(
-            tuple(periods),
-            shifts,
-            coding["offset"],
-            coding["amplitude"],
-            coding["levels"],
-            coding["gamma"],
-            2.0 * half,
-        )
-        out[..., axis] = pmd.decode(stack, code, min_modulation=threshold).s_mm - half
+        code = pmd.FringeCodec.from_dict(coding)
+        decoded = pmd.decode(stack, code, min_modulation=threshold, direction=direction)
+        out[..., axis] = decoded.s_mm - half
     return out
 
 
@@ -128,6 +121,10 @@ def test_a_frames_folder_decodes_with_its_manifest_alone(written):
     assert 0.5 < manifest["exposure"]["gain"] < 2.0  # the gain applied, as a number
     assert manifest["sensor"]["black_level_dn"] == 64
     assert manifest["sensor_black_level"] == manifest["sensor"]["black_level"] == 64 / 4095
+    # the coding is the scene's codec, written from its own dict: it reads back as that codec
+    codec = Scene.from_dict(manifest["scene"]).emitter.codec
+    assert manifest["coding"] == codec.to_dict()
+    assert pmd.FringeCodec.from_dict(manifest["coding"]) == codec
     mine = decode_folder(frames)
     theirs = np.load(maps / "decoded.npy")
     both = np.isfinite(mine) & np.isfinite(theirs)

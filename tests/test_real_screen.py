@@ -115,10 +115,10 @@ def test_black_level_and_room_light_are_an_offset_the_decoding_drops(renderer):
     seen = a[0] > 0
     np.testing.assert_allclose(b[:, seen], 0.052 + 0.998 * a[:, seen], atol=2e-6)
     periods, shifts = len(plain.emitter.periods), plain.emitter.shifts
-    coding = pmd.FringeCoding.of(plain.emitter, "v")
+    coding = plain.emitter.codec
     count = periods * shifts
-    one = pmd.decode(a[:count].reshape(periods, shifts, 40, 40), coding)
-    two = pmd.decode(b[:count].reshape(periods, shifts, 40, 40), coding)
+    one = pmd.decode(a[:count].reshape(periods, shifts, 40, 40), coding, direction="v")
+    two = pmd.decode(b[:count].reshape(periods, shifts, 40, 40), coding, direction="v")
     both = one.valid & two.valid
     assert both.sum() > 500
     np.testing.assert_allclose(two.s_mm[both], one.s_mm[both], atol=2e-4)

@@ -38,7 +38,7 @@ from glshade.components.emitter.fringes.table import (
     FringesTable,
     fringes_of,
 )
-from glshade.errors import GlshadeError
+from glshade.errors import GlshadeError, SceneError
 from glshade.metrics import pmd
 from glshade.metrics.coding_laws import white_fundamental
 from glshade.metrics.status import (
@@ -51,6 +51,7 @@ from glshade.metrics.status import (
     touches_edge,
 )
 from glshade.oracle.lobe import finish_share
+from glshade.params import Table, param
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
@@ -70,7 +71,7 @@ PMD_VERSION = 2
 
 
 @dataclass(frozen=True)
-class PmdSettings:
+class PmdSettings(Table):
     """How a PMD case is decoded and reconstructed.
 
     ``modulation_share``: a pixel is valid where every period's modulation is at least
@@ -82,40 +83,61 @@ class PmdSettings:
     ``plane_sigmas``: tilt and offset are fitted where the Mahalanobis distance to the
     dent exceeds this."""
 
-    modulation_share: float = 0.1
-    min_modulation: float | None = None
-    heights: str = "least-squares"
-    grid_points: int = 160
-    window_sigmas: float = 5.0
-    plane_sigmas: float = 3.5
+    table = "measure"
 
-    def __post_init__(self) -> None:
-        if not 0.0 < self.modulation_share < 1.0:
-            raise GlshadeError(
-                f"modulation_share: must be in (0, 1), got {self.modulation_share!r}"
+    modulation_share: float = param(
+        "measure.modulation_share", "", 0.1,
+        "pmd: a pixel is valid where every period's modulation is at least this share of "
+        "the amplitude times the response to the screen's white",
+        lo=0.0, hi=1.0, flag="--modulation-share",
+    )  # fmt: skip
+    min_modulation: float | None = param(
+        "measure.min_modulation", "", None,
+        "pmd: the least modulation (recorded units) of a valid pixel, instead of "
+        "modulation_share (unset: modulation_share decides)",
+        lo=0.0,
+    )  # fmt: skip
+    heights: str = param(
+        "measure.heights", "", "least-squares",
+        "pmd: how heights are integrated from the slopes (frankot-chellappa: a rectangle of "
+        "valid grid points only)",
+        value_type="choice", choices=("least-squares", "frankot-chellappa"), flag="--heights",
+    )  # fmt: skip
+    grid_points: int = param(
+        "measure.grid_points", "", 160, "pmd: the height grid's samples along its longer side",
+        value_type="integer", lo=16, hi=1024,
+    )  # fmt: skip
+    window_sigmas: float = param(
+        "measure.window_sigmas", "", 5.0,
+        "pmd: the height grid spans the dent's centre ± this many σ (its largest)",
+        lo=0.0, hi=20.0, closed=True, nonzero=True, allowed_text="in (0, 20]",
+    )  # fmt: skip
+    plane_sigmas: float = param(
+        "measure.plane_sigmas", "", 3.5,
+        "pmd: tilt and offset are fitted where the Mahalanobis distance to the dent exceeds "
+        "this (below window_sigmas)",
+        lo=0.0, hi=20.0,
+    )  # fmt: skip
+
+    @staticmethod
+    def _sigmas(values: dict[str, Any]) -> None:
+        if not values["plane_sigmas"] < values["window_sigmas"]:
+            raise SceneError(
+                "measure.plane_sigmas",
+                f"below measure.window_sigmas ({values['window_sigmas']:g})",
+                values["plane_sigmas"],
             )
-        if self.min_modulation is not None and not self.min_modulation > 0.0:
-            raise GlshadeError(f"min_modulation: must be > 0, got {self.min_modulation!r}")
-        if self.heights not in ("least-squares", "frankot-chellappa"):
-            raise GlshadeError(
-                f"heights: must be least-squares or frankot-chellappa, got {self.heights!r}"
-            )
-        if not 16 <= self.grid_points <= 1024:
-            raise GlshadeError(f"grid_points: must be in [16, 1024], got {self.grid_points!r}")
-        if not 0.0 < self.plane_sigmas < self.window_sigmas <= 20.0:
-            raise GlshadeError(
-                "plane_sigmas, window_sigmas: need 0 < plane_sigmas < window_sigmas <= 20, got "
-                f"{self.plane_sigmas!r}, {self.window_sigmas!r}"
-            )
+
+    table_checks = (_sigmas,)
 
 
 def check_scene(scene: Scene) -> None:
     """Refuse, in one line, a scene a PMD station cannot decode: another emitter than the
-    fringes, or a coding that cannot be decoded (an amplitude of 0 or above the offset)."""
+    fringes, or a coding that cannot be decoded (an amplitude of 0 or above the offset:
+    :meth:`~glshade.components.emitter.fringes.codec.FringeCodec.check_decodable`)."""
     if scene.active.emitter.measured_by != "pmd":
         raise GlshadeError(no_sequence(scene.emitter.kind))
-    for direction in fringes_of(scene).directions:
-        pmd.FringeCoding.of(scene.emitter, direction)
+    fringes_of(scene).codec.check_decodable()
 
 
 # --------------------------------------------------------------------------- capture
@@ -256,10 +278,12 @@ def decode_sequence(
     shape = (2, periods, height, width)
     modulation, offset, wrapped = (np.full(shape, np.nan, np.float32) for _ in range(3))
     for d, direction in enumerate(em.directions):
-        coding = pmd.FringeCoding.of(em, direction)
         block = recorded[d * periods * shifts : (d + 1) * periods * shifts]
         decoded = pmd.decode(
-            block.reshape(periods, shifts, height, width), coding, min_modulation=threshold
+            block.reshape(periods, shifts, height, width),
+            em.codec,
+            min_modulation=threshold,
+            direction=direction,
         )
         axis = DIRECTIONS.index(direction) ^ 1
         uv[..., axis] = decoded.s_mm - em.half_size[axis]
@@ -616,7 +640,7 @@ def modulation_share(scene: Scene, shot: Capture) -> np.ndarray:
     white = shot.white.astype(np.float64)
     seen = seen_pixels(shot.uv) & np.isfinite(white) & (white > 0.0)
     share = np.full((2, *white.shape), np.nan, np.float32)
-    steps = 2.0 * np.pi * np.arange(em.shifts) / em.shifts
+    steps = em.codec.shifts_rad
     for d, direction in enumerate(em.directions):
         first = d * len(em.periods) * em.shifts
         finest = shot.radiance[first : first + em.shifts].astype(np.float64)
@@ -771,10 +795,10 @@ def measure_pmd_scene(
     """What a PMD station measures of ``scene``'s dent, on an existing renderer
     (``baseline``: the defect-free analysis of the same geometry, when the caller has
     it; without one, a case whose buffers and analysis would exceed the renderer's memory
-    budget is refused first, in one line: :func:`glshade.measure.memory.check_pmd`)."""
+    budget is refused first, in one line: :func:`glshade.instruments.memory.check_pmd`)."""
     check_scene(scene)
     if baseline is None:
-        from glshade.measure.memory import check_pmd
+        from glshade.instruments.memory import check_pmd
 
         check_pmd(scene, renderer.memory_budget_bytes)
         baseline = pmd_baseline(renderer, scene, settings)

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from glshade.components.emitter.fringes.table import FringeFrame, FringesTable, fringes_of
+from glshade.components.emitter.fringes.table import FringeFrame, fringes_of
 from glshade.errors import GlshadeError
 from glshade.files import (
     atomic_write_bytes,
@@ -29,7 +29,7 @@ from glshade.files import (
     remove_inside,
     write_npy,
 )
-from glshade.measure.figures import new_figure, save_figure
+from glshade.instruments.figures import new_figure, save_figure
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
@@ -215,7 +215,7 @@ def frames_manifest(
             "coding.amplitude x white.response (min_modulation alone where "
             "modulation_share is null: given as such)",
         },
-        "coding": _coding_entry(em),
+        "coding": em.codec.to_dict(),
         "frames": entries,
         "scene": scene.to_dict(),
     }
@@ -233,36 +233,6 @@ def _sensor_entry(scene: Scene) -> dict[str, Any] | None:
         "black_level_dn": sensor.black_dn,
         "black_level": sensor.black_level,
         "full_scale_dn": sensor.full_scale_dn,
-    }
-
-
-def _coding_entry(em: FringesTable) -> dict[str, Any]:
-    """The fringe coding: every value a frame's radiance and its decoding take."""
-    return {
-        "periods_mm": list(em.periods),
-        "shifts": em.shifts,
-        "directions": list(em.directions),
-        "directions_note": "directions are listed, and their frames stored, in the order "
-        "shown; a frame's direction v codes the screen coordinate v (fringes of constant "
-        "v), u codes u. Every per-direction axis of the --maps files is in the order "
-        "(u, v)",
-        "offset": em.offset,
-        "amplitude": em.amplitude,
-        "gamma": em.gamma,
-        "levels": em.levels,
-        "screen_half_size_mm": list(em.half_size),
-        "screen_black_level": em.black_level,
-        "screen_ambient": em.ambient,
-        "screen_response_file": em.response_file,
-        "phase": "commanded = offset + amplitude cos(2 pi s / period_mm - shift_rad), "
-        "shift_rad = 2 pi shift_index / shifts; quantised to levels grey levels "
-        "(floor(c (levels - 1) + 1/2) / (levels - 1); levels 0: continuous); displayed = "
-        "screen_ambient + screen_black_level + (1 - screen_black_level) R(commanded), R = "
-        "commanded ** gamma or the measured response of screen_response_file",
-        "coordinate": "s = the screen coordinate along the frame's direction + "
-        "screen_half_size_mm of that coordinate (mm from the screen's edge; u is index 0, "
-        "v index 1); the decoded screen point is s - that half size",
-        "units": "lengths in mm, shifts in rad",
     }
 
 

@@ -5,13 +5,14 @@ An inspection station shows sinusoidal fringes on a screen, at ``N`` phase shift
 ``K`` periods per direction, and decodes for every camera pixel the screen point it sees.
 This module is the station's side, pure NumPy/SciPy and independent of rendering:
 
-- :class:`FringeCoding`: the periods (finest first), shifts, offset, amplitude, the
-  screen's grey levels and gamma, and the screen's extent.
-- :func:`commanded_to_displayed` (and :meth:`FringeCoding.radiance`): what a frame
-  displays at a screen coordinate (the oracle of a rendered frame and the generator of
+- :class:`FringeCodec`: the coding, the one the fringe emitter shows
+  (:mod:`glshade.components.emitter.fringes.codec`), validated when made; its
+  :meth:`~FringeCodec.radiance` and :meth:`~FringeCodec.sequence` are what a frame
+  displays at a screen coordinate, the renderer's formula in float64 (the generator of
   synthetic sequences).
-- :func:`decode`: wrapped phases, modulation, offset and temporal unwrapping of a
-  ``(K, N, H, W)`` sequence into the screen coordinate ``s`` (mm from the screen's edge).
+- :func:`decode`: wrapped phases, modulation, offset and temporal unwrapping of one
+  direction's ``(K, N, H, W)`` sequence into the screen coordinate ``s`` (mm from the
+  screen's edge).
 - :func:`unwrap_failures`, :func:`predicted_noise_mm`: against the exact map, and the
   noise a decoder should reach.
 - :func:`normals_from_points`, :func:`slope_deviation`: the measured normals from the
@@ -24,143 +25,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from glshade.components.emitter.fringes.table import DIRECTIONS, displayed
+from glshade.components.emitter.fringes.codec import FringeCodec
 from glshade.errors import GlshadeError
 
 if TYPE_CHECKING:
     from scipy.sparse import csr_matrix
-
-
-@dataclass(frozen=True)
-class FringeCoding:
-    """One direction's fringe sequence. ``periods_mm``: finest first, each longer than the
-    last, the coarsest at least ``screen_extent_mm`` (the screen's length along the
-    direction: one fringe spans it, so the decoding is unambiguous); ``shifts``: ``N >=
-    3`` steps ``δ_n = 2π n / N``; ``offset`` and ``amplitude``: the commanded mean and
-    modulation (``offset ± amplitude`` within [0, 1]); ``levels``: the screen's grey
-    levels (0: continuous); ``gamma``: displayed = commanded ** gamma."""
-
-    periods_mm: tuple[float, ...] = (2.0, 16.0, 128.0, 1024.0)
-    shifts: int = 4
-    offset: float = 0.5
-    amplitude: float = 0.5
-    levels: int = 256
-    gamma: float = 1.0
-    screen_extent_mm: float = 300.0
-
-    def __post_init__(self) -> None:
-        periods = tuple(float(p) for p in self.periods_mm)
-        object.__setattr__(self, "periods_mm", periods)
-        if not periods or any(not (math.isfinite(p) and p > 0) for p in periods):
-            raise GlshadeError(f"periods: must be finite lengths > 0 mm, got {list(periods)}")
-        if any(b <= a for a, b in zip(periods, periods[1:], strict=False)):
-            raise GlshadeError(f"periods: must grow from the finest, got {list(periods)}")
-        if periods[-1] < self.screen_extent_mm:
-            raise GlshadeError(
-                f"periods: the coarsest ({periods[-1]:g} mm) must span the screen's "
-                f"{self.screen_extent_mm:g} mm, or the decoding is ambiguous"
-            )
-        if isinstance(self.shifts, bool) or not isinstance(self.shifts, int) or self.shifts < 3:
-            raise GlshadeError(f"shifts: must be an integer >= 3, got {self.shifts!r}")
-        if not (math.isfinite(self.gamma) and self.gamma > 0):
-            raise GlshadeError(f"gamma: must be a finite number > 0, got {self.gamma!r}")
-        if isinstance(self.levels, bool) or self.levels == 1 or self.levels < 0:
-            raise GlshadeError(
-                f"levels: must be 0 (continuous) or at least 2 grey levels, got {self.levels!r}"
-            )
-        if not (0.0 < self.amplitude and 0.0 <= self.offset - self.amplitude):
-            raise GlshadeError(
-                f"amplitude: must be > 0 and at most the offset (the fringe stays above "
-                f"black), got offset {self.offset:g}, amplitude {self.amplitude:g}"
-            )
-        if self.offset + self.amplitude > 1.0:
-            raise GlshadeError(
-                f"offset + amplitude: must be at most 1 (the screen's white), got "
-                f"{self.offset + self.amplitude:g}"
-            )
-
-    @classmethod
-    def of(cls, emitter: Any, direction: str) -> FringeCoding:
-        """The coding a fringe emitter's table (``emitter``: periods, shifts, offset,
-        amplitude, levels, gamma, half_size) shows along ``direction`` (``"v"`` or
-        ``"u"``); an error names the emitter's key where the table cannot be decoded."""
-        axis = DIRECTIONS.index(direction) ^ 1
-        try:
-            return cls(
-                tuple(emitter.periods),
-                int(emitter.shifts),
-                float(emitter.offset),
-                float(emitter.amplitude),
-                int(emitter.levels),
-                float(emitter.gamma),
-                2.0 * float(emitter.half_size[axis]),
-            )
-        except GlshadeError as exc:
-            raise GlshadeError(f"emitter.{exc} (phase decoding needs it)") from None
-
-    def shift_rad(self, n: int | np.ndarray) -> float | np.ndarray:
-        """``δ_n = 2π n / N`` for shift index ``n`` (an integer or an array of them)."""
-        if np.ndim(n) == 0:
-            return 2.0 * math.pi * int(n) / self.shifts
-        return 2.0 * np.pi * np.asarray(n, np.float64) / self.shifts
-
-    @property
-    def shifts_rad(self) -> np.ndarray:
-        """Every step, ``δ_n`` for n = 0 … N-1."""
-        return 2.0 * np.pi * np.arange(self.shifts) / self.shifts
-
-    def radiance(self, s_mm: np.ndarray, period_index: int, shift_index: int) -> np.ndarray:
-        """What frame ``(k, n)`` displays at screen coordinate ``s_mm`` (mm from the
-        screen's edge): :func:`commanded_to_displayed` with this coding's values."""
-        return commanded_to_displayed(
-            s_mm,
-            self.periods_mm[period_index],
-            self.shift_rad(shift_index),
-            offset=self.offset,
-            amplitude=self.amplitude,
-            levels=self.levels,
-            gamma=self.gamma,
-        )
-
-    def sequence(self, s_mm: np.ndarray) -> np.ndarray:
-        """Every frame of the direction at ``s_mm``: shape ``(K, N) + s_mm.shape``."""
-        return np.stack(
-            [
-                np.stack([self.radiance(s_mm, k, n) for n in range(self.shifts)])
-                for k in range(len(self.periods_mm))
-            ]
-        )
-
-
-def commanded_to_displayed(
-    s_mm: np.ndarray,
-    period_mm: float | np.ndarray,
-    shift_rad: float | np.ndarray,
-    *,
-    offset: float = 0.5,
-    amplitude: float = 0.5,
-    levels: int = 0,
-    gamma: float = 1.0,
-) -> np.ndarray:
-    """A fringe frame's displayed radiance at screen coordinate ``s_mm`` (mm from the
-    screen's edge), float64, every argument broadcast as NumPy arrays:
-
-    - commanded ``c = offset + amplitude cos(2π s / period - δ)``;
-    - clipped to [0, 1], quantised to ``levels`` grey levels (halves up, as the screen's
-      shader rounds) and displayed ``c ** gamma``: the fringe emitter's own rule
-      (:func:`glshade.components.emitter.fringes.table.displayed`), so a synthetic
-      sequence and a rendered frame are quantised alike.
-
-    NaN stays NaN. This is the synthetic sequences' generator."""
-    s = np.asarray(s_mm, np.float64)
-    period = np.asarray(period_mm, np.float64)
-    delta = np.asarray(shift_rad, np.float64)
-    commanded = offset + amplitude * np.cos(2.0 * np.pi * s / period - delta)
-    return np.asarray(displayed(commanded, levels, gamma), np.float64)
 
 
 @dataclass(frozen=True)
@@ -179,11 +52,16 @@ class Decoded:
 
 def decode(
     frames: np.ndarray,
-    coding: FringeCoding,
+    coding: FringeCodec,
     peak_response: float = 1.0,
     min_modulation: float | None = None,
+    direction: str | None = None,
 ) -> Decoded:
-    """Decode a ``(K, N, H, W)`` sequence (frame ``(k, n)`` at period ``k``, shift ``n``).
+    """Decode one direction's ``(K, N, H, W)`` sequence (frame ``(k, n)`` at period ``k``,
+    shift ``n``; ``direction``: which of the coding's, None where it codes one alone).
+    The coding is taken as made (validated then); it is not checked again here, and
+    :meth:`FringeCodec.check_decodable` is the caller's to ask (a station measurement
+    asks it before anything is rendered).
 
     ``φ_k = atan2(Σ I_n sin δ_n, Σ I_n cos δ_n)`` in [0, 2π), ``B_k = (2/N) |Σ I_n
     e^{iδ_n}|``, ``A_k`` the mean; unwrapped from the coarsest period down, ``s_K = p_K
@@ -194,6 +72,7 @@ def decode(
     response to the screen's white)."""
     frames = np.asarray(frames)
     periods = np.asarray(coding.periods_mm)
+    extent = coding.extent_mm(direction)
     if frames.ndim < 3 or frames.shape[:2] != (len(periods), coding.shifts):
         raise GlshadeError(
             f"decode: frames must have shape ({len(periods)}, {coding.shifts}, ...) for this "
@@ -207,7 +86,7 @@ def decode(
     s = periods[-1] * wrapped[-1] / (2.0 * np.pi)
     # the screen spans [0, extent] of the coarsest period: a coordinate past the middle of
     # the gap beyond it is one just below 0 that the noise wrapped round
-    s = np.where(s > 0.5 * (periods[-1] + coding.screen_extent_mm), s - periods[-1], s)
+    s = np.where(s > 0.5 * (periods[-1] + extent), s - periods[-1], s)
     for k in range(len(periods) - 2, -1, -1):
         turns = np.round((2.0 * np.pi * s / periods[k] - wrapped[k]) / (2.0 * np.pi))
         s = periods[k] * (wrapped[k] + 2.0 * np.pi * turns) / (2.0 * np.pi)
@@ -238,7 +117,7 @@ def unwrap_failures(decoded_s: np.ndarray, exact_s: np.ndarray, finest_period_mm
     return int((np.abs(decoded_s[both] - exact_s[both]) > 0.5 * finest_period_mm).sum())
 
 
-def predicted_noise_mm(coding: FringeCoding, sigma_intensity: float, modulation: float) -> float:
+def predicted_noise_mm(coding: FringeCodec, sigma_intensity: float, modulation: float) -> float:
     """The decoded coordinate's noise from intensity noise ``σ_I`` at modulation ``B``:
     ``periods[0] / 2π · sqrt(2 / N) · σ_I / B`` (the finest period's phase noise, which the
     unwrapping keeps when it picks the right fringe)."""

@@ -1,11 +1,12 @@
 """The fringe emitter: a screen on the stripes' plane showing one frame of a
 phase-shifted sinusoidal fringe sequence (phase-measuring deflectometry).
 
-Table: :class:`~glshade.components.emitter.fringes.table.FringesTable`. GLSL:
-``lib/emitter_plane.glsl`` (the plane, shared with the stripes) and ``fringes.glsl`` (the
-frame's radiance). Oracle: :meth:`Fringes.coordinates` (the plane's) and
-:meth:`Fringes.radiance`. The paper's stripe metric is not defined for fringes:
-:meth:`Fringes.pattern` refuses.
+Table: :class:`~glshade.components.emitter.fringes.table.FringesTable`, its coding the
+:class:`~glshade.components.emitter.fringes.codec.FringeCodec` (the uniforms' values and
+the oracle's formula). GLSL: ``lib/emitter_plane.glsl`` (the plane, shared with the
+stripes) and ``fringes.glsl`` (the frame's radiance). Oracle: :meth:`Fringes.coordinates`
+(the plane's) and :meth:`Fringes.radiance`. The paper's stripe metric is not defined for
+fringes: :meth:`Fringes.pattern` refuses.
 """
 
 from __future__ import annotations
@@ -16,12 +17,7 @@ import numpy as np
 
 from glshade.components.base import EmitterComponent
 from glshade.components.emitter import plane
-from glshade.components.emitter.fringes.table import (
-    DIRECTIONS,
-    FringeFrame,
-    FringesTable,
-    frame_radiance,
-)
+from glshade.components.emitter.fringes.table import DIRECTIONS, FringeFrame, FringesTable
 from glshade.errors import GlshadeError
 
 #: Why a fringe scene has no stripe metric.
@@ -63,18 +59,19 @@ class Fringes(EmitterComponent):
         variables = context.variables
         if not variables["shading"]:
             return values
-        screen = em.screen()
+        codec = em.codec
+        screen = codec.screen()
         patterns = context.frames if "frames" in variables["outputs"] else (em.shown(),)
         values.update(
-            u_emitter_fringe_levels=float(em.levels),
-            u_emitter_fringe_step=1.0 / (em.levels - 1) if em.levels else 0.0,
+            u_emitter_fringe_levels=float(codec.levels),
+            u_emitter_fringe_step=codec.level_step,
             u_emitter_fringe_floor=screen.floor,
             u_emitter_fringe_gain=screen.gain,
             u_emitter_frame=[(float(f.axis), f.shift_rad, f.offset, f.amplitude) for f in patterns],
             u_emitter_frame_period=[f.period_mm for f in patterns],
         )
         if screen.curve is None:
-            values["u_emitter_fringe_gamma"] = em.gamma
+            values["u_emitter_fringe_gamma"] = codec.gamma
         if em.pixel_pitch > 0.0:
             values.update(
                 u_emitter_pixel_pitch=em.pixel_pitch,
@@ -128,8 +125,7 @@ class Fringes(EmitterComponent):
     def exposure_scene(self, scene):
         """The screen's brightest level over the whole screen: ``"auto"`` exposes every
         frame of the sequence alike, for the brightest the screen displays."""
-        em = self.frame(scene)
-        top = min(1.0, em.offset + em.amplitude)
+        top = self.frame(scene).codec.peak_commanded
         return scene.updated(emitter={"offset": top, "amplitude": 0.0})
 
     @staticmethod
@@ -197,12 +193,12 @@ class Fringes(EmitterComponent):
         factor's share of the fringe, the ambient light between: the kernel spans hundreds of
         pixels)."""
         em = self.frame(scene)
-        frame, screen = em.shown(), em.screen()
+        frame = em.shown()
         axis = frame.axis
         extent = 2.0 * em.half_size[axis]
         count = int(max(400, math.ceil(16.0 * extent / frame.period_mm)))
         s = (np.arange(count) + 0.5) * extent / count  # from the screen's edge
-        values = frame_radiance(frame, screen, s)
+        values = em.codec.frame_radiance(frame, s)
         if em.pixel_pitch:
             values = em.ambient + em.fill_factor * (values - em.ambient)
         x, w = np.polynomial.legendre.leggauss(48)
