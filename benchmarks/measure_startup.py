@@ -83,7 +83,7 @@ try:  # the command's own module (a tree from before the commands had modules: t
 except ImportError:
     cm = c
 from glshade.gpu import context as gc, renderer as gr, compose as gp
-from glshade.measure import single as ms
+from glshade.instruments.stripes import single as ms
 from glshade.metrics import visibility as mv
 timed("parser", c, "build_parser")
 timed("scene", cm, "scene_from_args")

@@ -234,6 +234,28 @@ def settings_flags_given(args: argparse.Namespace, method: str | None = None) ->
     ]
 
 
+#: The table of ``--set`` paths that set an instrument's settings, not the scene.
+MEASURE_TABLE = "measure."
+
+
+def scene_settings(items: Sequence[str]) -> list[str]:
+    """The ``--set`` items that set the scene (not ``measure.KEY``)."""
+    return [item for item in items if not item.strip().startswith(MEASURE_TABLE)]
+
+
+def _measure_settings(args: argparse.Namespace) -> list[tuple[str, str, str]]:
+    """``(typed, key, value text)`` of every ``--set measure.KEY=VALUE``."""
+    found = []
+    for item in getattr(args, "settings", None) or ():
+        name, sep, text = item.strip().partition("=")
+        if name.strip().startswith(MEASURE_TABLE):
+            if not sep:
+                raise GlshadeError(f"--set {item}: must be NAME=VALUE")
+            key = name.strip()[len(MEASURE_TABLE) :].strip().replace("-", "_")
+            found.append((f"--set {name.strip()}", key, text))
+    return found
+
+
 def instrument_settings(args: argparse.Namespace, method: str, chosen_by: str = "") -> Any:
     """The settings of instrument ``method`` from the command line's flags (the others
     their defaults); a flag of another instrument, or a bad value named by its flag, is
@@ -247,17 +269,37 @@ def instrument_settings(args: argparse.Namespace, method: str, chosen_by: str = 
                 f"{declared.flag}: belongs to {item.title} (--method {item.name}), not to "
                 f"{chosen_by or f'--method {chosen.name}'}"
             )
+    declared_by = {declared.key: declared for _, declared in _settings_params(chosen.name)}
+    typed = [
+        (declared.flag, declared.key, getattr(args, settings_dest(declared), None))
+        for declared in declared_by.values()
+        if declared.flag
+    ]
     given = {}
-    for _, declared in _settings_params(chosen.name):
-        text = getattr(args, settings_dest(declared), None) if declared.flag else None
+    for spelled, key, text in [*typed, *_measure_settings(args)]:
         if text is None:
             continue
+        declared = declared_by.get(key)
+        owner = next((item for item, d in _settings_params() if d.key == key), None)
+        if declared is None and owner is not None:
+            raise GlshadeError(
+                f"{spelled}: belongs to {owner.title} (--method {owner.name}), not to "
+                f"{chosen_by or f'--method {chosen.name}'}"
+            )
+        if declared is None:
+            raise GlshadeError(
+                f"{spelled}: not a setting of {chosen.title} (--method {chosen.name}); its "
+                f"settings: {', '.join(MEASURE_TABLE + name for name in declared_by)}"
+            )
         try:
-            given[declared.key] = declared.check(declared.parse(text))
+            given[key] = declared.check(declared.parse(text))
         except (SceneError, QuantityError) as exc:
             allowed = getattr(exc, "allowed", declared.allowed())
-            raise GlshadeError(f"{declared.flag}: must be {allowed}, got {text}") from None
-    return chosen.settings_type(**given)
+            raise GlshadeError(f"{spelled}: must be {allowed}, got {text.strip()}") from None
+    try:
+        return chosen.settings_type(**given)
+    except SceneError as exc:
+        raise GlshadeError(str(exc)) from None
 
 
 def scene_from_args(args: argparse.Namespace) -> Scene:
@@ -278,7 +320,7 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
             typed[param.path] = param.flag or param.path
     # later settings win; all are applied at once, so values that only make sense together
     # (a kind and its file) can be given together
-    read_settings(args.settings, scene, tables, typed)
+    read_settings(scene_settings(args.settings), scene, tables, typed)
     scene = sized(scene, args.size, tables, typed)
     with named_as_typed(typed):
         return scene.updated(**tables) if tables else scene

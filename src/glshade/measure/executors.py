@@ -25,7 +25,7 @@ from glshade.measure.capacity import check_threads, check_worker_count
 from glshade.measure.engine import measure_many
 
 if TYPE_CHECKING:
-    from glshade.gpu.renderer import Renderer
+    from glshade.rendering import Renderer
 
 #: What every executor yields per case: its key, its record, its image as PNG bytes (when
 #: images were asked for: the paper metric's best phase, phase measuring's first recorded
@@ -97,9 +97,9 @@ class LocalExecutor:
 
     def _renderer(self) -> Renderer:
         if self.renderer is None:
-            from glshade.gpu.renderer import Renderer
+            from glshade.gpu.renderer import Renderer as GlRenderer
 
-            self.renderer = Renderer()
+            self.renderer = GlRenderer()
         return self.renderer
 
     def close(self) -> None:

@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING
 from glshade.measure.executors import Distribution, LocalExecutor
 
 if TYPE_CHECKING:
-    from glshade.gpu.renderer import Renderer
     from glshade.measure.cluster import DaskExecutor
+    from glshade.rendering import Renderer
 
 
 def open_executor(

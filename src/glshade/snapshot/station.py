@@ -10,12 +10,15 @@ too where the scene's emitter shows fringes.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from glshade.errors import ContextError, GlshadeError
 from glshade.scene import Scene
+
+if TYPE_CHECKING:
+    from glshade.rendering import Renderer
 
 #: How a session picks its renderer: ``auto`` the GL renderer, or the oracle where no
 #: OpenGL context can be made; ``gl`` the GL renderer or an error; ``oracle`` the oracle.
@@ -44,7 +47,7 @@ class Station:
     oracle's (``NumPy float64 oracle (glshade 0.1.0)``); ``fallback``: why the oracle
     stands in for the GL renderer (empty when it was asked for, or is not used)."""
 
-    def __init__(self, renderer: Any, identity: str, fallback: str = "") -> None:
+    def __init__(self, renderer: Renderer, identity: str, fallback: str = "") -> None:
         self.renderer = renderer
         self.identity = identity
         self.fallback = fallback
@@ -87,7 +90,7 @@ def _oracle_station(fallback: str) -> Station:
     return Station(oracle, oracle.renderer_string, fallback)
 
 
-def measured_numbers(renderer: Any, scene: Scene) -> dict[str, dict[str, Any]]:
+def measured_numbers(renderer: Renderer, scene: Scene) -> dict[str, dict[str, Any]]:
     """Per instrument, the measured columns of ``scene``'s record on ``renderer``: every
     registered instrument that measures any scene (the paper's stripe metric, on the
     scene's screen), and the one the scene's emitter is measured by."""

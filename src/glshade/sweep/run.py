@@ -15,16 +15,18 @@ from collections.abc import Callable, Iterator
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from glshade.measure.case_files import Rejected
 from glshade.measure.executors import Distribution, Row
-from glshade.measure.locks import run_lock
 from glshade.measure.where import open_executor
 from glshade.sweep import store
 from glshade.sweep.spec import GridPoint, SweepSpec, check_grid
 from glshade.sweep.store import CaseRecord
 from glshade.sweep.table import TableWriter
+
+if TYPE_CHECKING:
+    from glshade.rendering import Renderer
 
 
 @dataclass
@@ -59,7 +61,7 @@ def run_sweep(
     yes: bool = False,
     overwrite: bool = False,
     progress: bool = False,
-    renderer=None,
+    renderer: Renderer | None = None,
     on_row: Callable[[Row], None] | None = None,
     notify: Callable[[str], None] | None = None,
 ) -> SweepResult:
@@ -78,8 +80,7 @@ def run_sweep(
     None)."""
     check_size(spec, yes)
     out_dir = Path(out_dir)
-    with run_lock(out_dir, "glshade sweep"):
-        store.prepare(out_dir, spec, overwrite)
+    with store.opened(out_dir, spec, overwrite):
         tally = _Tally(_progress_bar(spec.count, progress), notify)
         start = time.perf_counter()
         with TableWriter(out_dir, spec) as table, ExitStack() as stack:
@@ -124,13 +125,10 @@ class _Tally:
     def found(self, chunk: list[GridPoint], out_dir: Path, method: str) -> dict[str, CaseRecord]:
         """The chunk's cases already measured (their case files), by id."""
         self._points = Counter(c.case_id for c in chunk)
-        records = {
-            key: store.load_case(out_dir, key, method, self.rejected) for key in self._points
-        }
+        done = store.finished(out_dir, self._points, method, self.rejected)
         if self.rejected.found and not self.said_once:  # the first at once, the rest at the end
             self.rejected.say(self.notify)
             self.rejected, self.said_once = Rejected(), True
-        done = {key: record for key, record in records.items() if record is not None}
         self.skipped += len(done)
         self._advance(sum(self._points[key] for key in done))
         return done

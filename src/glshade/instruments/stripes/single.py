@@ -34,8 +34,8 @@ from glshade.metrics.visibility import (
 )
 from glshade.scene import Scene
 
-if TYPE_CHECKING:  # the GPU is loaded only by measure() when it must make a renderer
-    from glshade.gpu.renderer import Renderer
+if TYPE_CHECKING:
+    from glshade.rendering import Renderer
 
 
 def emitter_map(renderer: Renderer, scene: Scene) -> np.ndarray:
