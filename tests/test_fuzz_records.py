@@ -33,8 +33,8 @@ from typing import Any
 
 import pytest
 
+from glshade.instruments.record import Measurement, PmdMeasurement
 from glshade.measure.case_files import CHECKSUM_KEY, ID_KEY, Rejected, case_file_bytes
-from glshade.measure.record import Measurement, PmdMeasurement
 from glshade.metrics.status import STATUSES
 from glshade.study import pmd_store, store
 from glshade.study.escape import markdown_text
@@ -105,15 +105,15 @@ def make_seeds(folder: Path) -> list[Seed]:
         row = rows[(instrument, key)]
         out = folder / f"seed{index}"
         if where == "study":
-            cases = pmd_store.PMD_LAYOUT.cases if instrument == "pmd" else "cases"
-            (out / cases).mkdir(parents=True)
-            store.write_case(out, row, None, cases)
-            path, name = out / cases / f"{key}.json", key
+            layout = pmd_store.PMD_LAYOUT if instrument == "pmd" else store.STRIPES
+            (out / layout.cases).mkdir(parents=True)
+            store.write_case(out, row, None, layout)
+            path, name = out / layout.cases / f"{key}.json", key
         else:
             record = (PmdMeasurement if instrument == "pmd" else Measurement).from_row(dict(row))
             (out / "cases").mkdir(parents=True)
             sweep_store.write_case(out, SWEEP_ID, record)
-            path, name = sweep_store.case_path(out, SWEEP_ID), SWEEP_ID
+            path, name = out / "cases" / f"{SWEEP_ID}.json", SWEEP_ID
         seeds.append(Seed(where, instrument, name, json.loads(path.read_text())))
     return seeds
 
@@ -253,16 +253,17 @@ def read_mutant(folder: Path, mutant: Mutant, index: int) -> tuple[Any, Rejected
     seed, rejected = mutant.seed, Rejected()
     out = folder / f"m{index}"
     if seed.store == "study":
-        cases = pmd_store.PMD_LAYOUT.cases if seed.instrument == "pmd" else "cases"
-        path = out / cases / f"{seed.name}.json"
+        finished = pmd_store.finished if seed.instrument == "pmd" else store.finished
+        layout = pmd_store.PMD_LAYOUT if seed.instrument == "pmd" else store.STRIPES
+        path = out / layout.cases / f"{seed.name}.json"
         path.parent.mkdir(parents=True)
         path.write_bytes(mutant.data)
-        row_class = pmd_store.PmdCaseResult if seed.instrument == "pmd" else None
-        return store.load_case(path, rejected, row_class), rejected
-    path = sweep_store.case_path(out, seed.name)
+        return finished(out, [seed.name], rejected).get(seed.name), rejected
+    path = out / "cases" / f"{seed.name}.json"
     path.parent.mkdir(parents=True)
     path.write_bytes(mutant.data)
-    return sweep_store.load_case(out, seed.name, seed.instrument, rejected), rejected
+    found = sweep_store.finished(out, [seed.name], seed.instrument, rejected)
+    return found.get(seed.name), rejected
 
 
 def written_on(folder: Path, mutant: Mutant, record: Any, spec: Any) -> None:

@@ -21,8 +21,8 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
+from glshade.instruments.record import Measurement, PmdMeasurement
 from glshade.measure.case_files import Rejected, case_file_bytes
-from glshade.measure.record import Measurement, PmdMeasurement
 from glshade.study import pmd_store, store
 from glshade.study.escape import markdown_text
 from glshade.sweep import store as sweep_store
@@ -99,16 +99,16 @@ def one_warning(rejected: Rejected, name: str, reason: str) -> None:
 @pytest.mark.parametrize(("kind", "name", "value", "reason"), FORGED, ids=IDS)
 def test_a_forged_study_case_file_is_rejected_with_its_reason(tmp_path, kind, name, value, reason):
     row = shipped_row(kind)
-    cases = pmd_store.PMD_LAYOUT.cases if kind == "pmd" else "cases"
-    (tmp_path / cases).mkdir()
-    store.write_case(tmp_path, row, None, cases)
-    path = tmp_path / cases / f"{CASE}.json"
-    load = pmd_store.load_case if kind == "pmd" else store.load_case
-    assert load(path) == row  # the honest file reads back as it was
+    layout = pmd_store.PMD_LAYOUT if kind == "pmd" else store.STRIPES
+    (tmp_path / layout.cases).mkdir()
+    store.write_case(tmp_path, row, None, layout)
+    path = tmp_path / layout.cases / f"{CASE}.json"
+    finished = pmd_store.finished if kind == "pmd" else store.finished
+    assert finished(tmp_path, [CASE]) == {CASE: row}  # the honest file reads back as it was
 
     forge(path, lambda content: content.update({name: value}))
     rejected = Rejected()
-    assert load(path, rejected) is None
+    assert finished(tmp_path, [CASE], rejected) == {}
     one_warning(rejected, CASE, reason)
 
 
@@ -118,12 +118,14 @@ def test_a_forged_sweep_case_file_is_rejected_with_its_reason(tmp_path, kind, na
     record = record_class.from_row(dict(shipped_row(kind)))
     (tmp_path / "cases").mkdir()
     sweep_store.write_case(tmp_path, "0123456789abcdef", record)
-    assert sweep_store.load_case(tmp_path, "0123456789abcdef", kind) == record
+    assert sweep_store.finished(tmp_path, ["0123456789abcdef"], kind) == {
+        "0123456789abcdef": record
+    }
 
-    path = sweep_store.case_path(tmp_path, "0123456789abcdef")
+    path = tmp_path / "cases" / "0123456789abcdef.json"
     forge(path, lambda content: content["outputs"].update({name: value}))
     rejected = Rejected()
-    assert sweep_store.load_case(tmp_path, "0123456789abcdef", kind, rejected) is None
+    assert sweep_store.finished(tmp_path, ["0123456789abcdef"], kind, rejected) == {}
     one_warning(rejected, "0123456789abcdef", reason)
 
 
@@ -139,7 +141,7 @@ def test_a_forged_timing_and_case_point_are_rejected_too(tmp_path):
         store.write_case(tmp_path, row, None)
         forge(path, lambda content: content.update({name: value}))  # noqa: B023
         rejected = Rejected()
-        assert store.load_case(path, rejected) is None
+        assert store.finished(tmp_path, [CASE], rejected) == {}
         one_warning(rejected, CASE, reason)
 
 
@@ -288,7 +290,7 @@ def test_a_forged_sweep_case_is_measured_again_with_one_warning(
     ]
     assert "(1 measured, 0 already done)" in captured.out
     assert (out / "results.csv").read_text() == table
-    assert sweep_store.load_case(out, case_id, "pmd") is not None  # written anew, trusted
+    assert case_id in sweep_store.finished(out, [case_id], "pmd")  # written anew, trusted
 
 
 def test_a_forged_pmd_study_case_never_reaches_the_report(tmp_path, capsys, _session_renderer):

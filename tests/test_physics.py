@@ -144,8 +144,9 @@ def test_results_columns_are_documented():
     """docs/results.md holds the table generated from the study's column schema."""
     from pathlib import Path
 
-    from glshade.study.store import CSV_COLUMNS, results_markdown
+    from glshade.instruments.record import columns_markdown
+    from glshade.study.store import COLUMNS
 
     doc = (Path(__file__).parents[1] / "docs" / "results.md").read_text()
-    assert results_markdown() in doc
-    assert all(f"| `{name}` |" in doc for name in CSV_COLUMNS)
+    assert columns_markdown(COLUMNS) in doc
+    assert all(f"| `{c.name}` |" in doc for c in COLUMNS)

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from glshade.app.cli import main
+from glshade.instruments.record import PMD_COLUMN_NAMES, PmdMeasurement
 from glshade.measure.pmd import dent_region, interior, measure_pmd_scene
-from glshade.measure.record import PMD_COLUMN_NAMES, PmdMeasurement
 from glshade.measure.single import as_method
 from glshade.metrics import physics
 from glshade.metrics.status import dent_window, touches_edge
@@ -39,7 +39,7 @@ from glshade.study.pmd_plan import (
     screen_mm_per_pixel,
 )
 from glshade.study.pmd_run import run_pmd_study
-from glshade.study.pmd_store import PMD_STUDY_CSV_COLUMNS, read_results_csv
+from glshade.study.pmd_store import PMD_STUDY_COLUMNS, read_results_csv
 from glshade.study.rewrite import rewrite_pmd
 
 SIZE = 64
@@ -152,7 +152,7 @@ def test_rows_equal_the_measuring_floor_and_resume_skips_finished_cases(tmp_path
     assert (first.computed, first.skipped) == (2, 0)
     with open(out / "pmd_results.csv", newline="") as fh:
         header = next(csv.reader(fh))
-    assert header == PMD_STUDY_CSV_COLUMNS
+    assert header == [c.name for c in PMD_STUDY_COLUMNS]
     assert header[5:] == list(PMD_COLUMN_NAMES)
     rows = read_results_csv(out / "pmd_results.csv")
     assert [r.case for r in rows] == plan.cases()
@@ -328,10 +328,10 @@ def test_pmd_results_columns_are_documented():
     """docs/results.md holds the table generated from the PMD study's column schema."""
     from pathlib import Path
 
-    from glshade.study.pmd_store import pmd_results_markdown
+    from glshade.instruments.record import columns_markdown
 
     doc = (Path(__file__).parents[1] / "docs" / "results.md").read_text()
-    assert pmd_results_markdown() in doc
+    assert columns_markdown(PMD_STUDY_COLUMNS) in doc
 
 
 def test_the_flags_state_the_chains_defaults():

@@ -22,14 +22,14 @@ import pytest
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
 from glshade.instruments.base import Case
-from glshade.measure.executors import Distribution
-from glshade.measure.pmd import PMD_VERSION, PmdSettings, measure_pmd_scene
 from glshade.instruments.record import (
     PMD_OUTPUT_NAMES,
     Measurement,
     PmdMeasurement,
     columns_markdown,
 )
+from glshade.measure.executors import Distribution
+from glshade.measure.pmd import PMD_VERSION, PmdSettings, measure_pmd_scene
 from glshade.measure.single import as_method
 from glshade.measure.where import open_executor
 from glshade.scene import paper_scene
@@ -164,10 +164,10 @@ def test_the_table_holds_the_pmd_columns_and_equals_measure_pmd(pmd_table, rende
 def test_case_files_read_back_as_pmd_records_and_resume(pmd_table, renderer, tmp_path):
     out, result = pmd_table
     first = pmd_spec().cases()[0].case_id
-    record = store.load_case(out, first, "pmd")
+    record = store.finished(out, [first], "pmd")[first]
     assert isinstance(record, PmdMeasurement) and record.render_s > 0.0
     assert record.outputs() == {k: result.rows[0][k] for k in PMD_OUTPUT_NAMES}
-    assert store.load_case(out, first, "paper") is None  # another instrument's record
+    assert store.finished(out, [first], "paper") == {}  # another instrument's record
     copy = tmp_path / "copy"
     for path in out.rglob("*.json"):
         target = copy / path.relative_to(out)
@@ -198,7 +198,8 @@ def test_a_paper_sweep_written_before_the_method_was_recorded_resumes(tmp_path, 
     (tmp_path / "sweep.json").write_text(json.dumps(manifest))
     again = run_sweep(spec, tmp_path, renderer=renderer)
     assert again.computed == 0 and again.skipped == 1
-    record = store.load_case(tmp_path, spec.cases()[0].case_id)
+    case_id = spec.cases()[0].case_id
+    record = store.finished(tmp_path, [case_id])[case_id]
     assert isinstance(record, Measurement) and record.trace_s > 0.0
 
 
@@ -218,8 +219,8 @@ def test_images_of_a_pmd_sweep_are_the_first_recorded_frame(tmp_path, renderer):
 
 def test_the_docs_hold_the_generated_pmd_columns():
     page = (ROOT / "docs" / "sweeps.md").read_text()
-    assert columns_markdown(store.PMD_OUTPUTS) in page
-    assert columns_markdown(store.OUTPUTS) in page
+    assert columns_markdown(store.outputs("pmd")) in page
+    assert columns_markdown(store.outputs("paper")) in page
 
 
 # ------------------------------------------------------------------ the CLI and Dask
@@ -355,7 +356,10 @@ def test_optimize_pmd_snr_on_real_scenes_skips_a_dent_out_of_the_image(capsys):
         (["--metric", "pmd_snr"], "--metric pmd_snr: needs a sensor"),
         (["--metric", "pmd_noise_mm"], "--metric pmd_noise_mm: needs a sensor"),
         (["--metric", "pmd_nope"], "invalid choice: 'pmd_nope'"),
-        (["--metric", "paper", "--heights", "least-squares"], "--heights: belongs to phase measuring"),
+        (
+            ["--metric", "paper", "--heights", "least-squares"],
+            "--heights: belongs to phase measuring",
+        ),
         (
             ["--metric", "pmd_depth_um", "--modulation-share", "2"],
             "--modulation-share: must be in (0, 1), got 2.0",

@@ -23,7 +23,7 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
-from glshade.measure.record import Measurement
+from glshade.instruments.record import OUTPUT_NAMES, Measurement
 from glshade.study import plan as study
 from glshade.sweep import optimize as opt
 from glshade.sweep import run as sweep_run
@@ -37,6 +37,7 @@ from glshade.sweep.spec import (
     SweepSpec,
     spec_from_dict,
 )
+from glshade.sweep.table import _cell, _csv_cell
 
 #: 99 x 100 x 100 = 990 000 cases.
 BIG_GRID = {
@@ -177,7 +178,7 @@ class RuleExecutor:
         for case in cases:
             theta = case.scene.camera.theta_deg
             ok = theta < 40.0
-            values = dict.fromkeys(store.OUTPUT_NAMES, 0.0)
+            values = dict.fromkeys(OUTPUT_NAMES, 0.0)
             values.update(
                 visibility_px=float(round(theta) % 3),
                 islands=int(theta),
@@ -254,13 +255,13 @@ def write_tables(out_dir: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> 
     columns = ["case_id", *spec.columns, *store.output_names(spec.method)]
     types = []
     for name in columns:
-        values = [store._cell(row.get(name)) for row in rows if row.get(name) is not None]
+        values = [_cell(row.get(name)) for row in rows if row.get(name) is not None]
         kind = pa.array(values).type if values else pa.float64()
         if pa.types.is_integer(kind) and any(isinstance(v, float) for v in values):
             kind = pa.float64()
         types.append(pa.field(name, kind))
     table = pa.Table.from_pylist(
-        [{name: store._cell(row.get(name)) for name in columns} for row in rows],
+        [{name: _cell(row.get(name)) for name in columns} for row in rows],
         schema=pa.schema(types),
     )
     table = table.replace_schema_metadata({b"glshade": json.dumps(spec.manifest()).encode()})
@@ -271,14 +272,14 @@ def write_tables(out_dir: Path, spec: SweepSpec, rows: list[dict[str, Any]]) -> 
     writer = csv.DictWriter(text, fieldnames=columns, lineterminator="\n")
     writer.writeheader()
     for row in rows:
-        writer.writerow({name: store._csv_cell(row.get(name)) for name in columns})
+        writer.writerow({name: _csv_cell(row.get(name)) for name in columns})
     (out_dir / store.CSV).write_text(text.getvalue())
 
 
 def written_whole(spec: SweepSpec, out: Path, where: Path) -> Path:
     """The tables :func:`write_tables` writes from every row of ``out``'s cases."""
     where.mkdir()
-    records = {c.case_id: store.load_case(out, c.case_id) for c in spec.cases()}
+    records = store.finished(out, [c.case_id for c in spec.cases()])
     write_tables(where, spec, store.table_rows(spec, list(spec.cases()), records))
     return where
 

@@ -17,7 +17,9 @@ from glshade.metrics import physics
 from glshade.study import findings, plots
 from glshade.study.plan import StudyPlan
 from glshade.study.run import run_study
-from glshade.study.store import CSV_COLUMNS, CaseResult, read_results_csv
+from glshade.study.store import COLUMNS, CaseResult, read_results_csv
+
+CSV_COLUMNS = [c.name for c in COLUMNS]
 
 TIMING = {"trace_s", "shade_s", "contours_s", "continuous_s"}
 SMALL = dict(thetas=(45.0, 5.0), size=128)

@@ -27,6 +27,7 @@ import glshade
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
 from glshade.gpu.egl_cuda import egl_cuda_numbers, egl_index_for_cuda, worker_egl_device
+from glshade.instruments.record import OUTPUT_NAMES
 from glshade.measure.executors import Distribution
 from glshade.measure.where import open_executor
 from glshade.metrics import physics
@@ -162,7 +163,7 @@ def test_the_table_holds_every_case_and_matches_measure(local_table, renderer):
     assert result.computed == 8 and result.skipped == 0
     rows = store.read_table(out)
     assert rows == result.rows and len(rows) == 8
-    assert set(rows[0]) == {"case_id", *small_spec().columns, *store.OUTPUT_NAMES}
+    assert set(rows[0]) == {"case_id", *small_spec().columns, *OUTPUT_NAMES}
     case = small_spec().cases()[3]
     direct = glshade.measure(case.scene, renderer=renderer)
     row = next(r for r in rows if r["case_id"] == case.case_id)
@@ -176,7 +177,7 @@ def test_the_table_holds_every_case_and_matches_measure(local_table, renderer):
 
 def test_the_docs_list_every_output_column():
     page = (EXAMPLES.parent / "docs" / "sweeps.md").read_text()
-    missing = [name for name in store.OUTPUT_NAMES if f"`{name}`" not in page]
+    missing = [name for name in OUTPUT_NAMES if f"`{name}`" not in page]
     assert not missing, f"docs/sweeps.md does not describe {missing}"
 
 
@@ -550,7 +551,7 @@ def test_a_tampered_case_file_is_measured_again_and_said(local_table, renderer, 
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_bytes(path.read_bytes())
     case = small_spec().cases()[2]
-    case_file = store.case_path(copy, case.case_id)
+    case_file = copy / "cases" / f"{case.case_id}.json"
     data = json.loads(case_file.read_text())
     data["outputs"]["visibility_px"] = 1e308
     case_file.write_text(json.dumps(data))

@@ -14,24 +14,22 @@ from pathlib import Path
 from typing import cast
 
 from glshade.components.emitter.fringes.table import fringes_of
-from glshade.files import make_inside
 from glshade.gpu.renderer import Renderer
+from glshade.instruments.base import Case
+from glshade.instruments.record import PmdMeasurement
 from glshade.measure.case_files import Rejected
-from glshade.measure.engine import Case, measure_many
-from glshade.measure.locks import run_lock
-from glshade.measure.record import PmdMeasurement
+from glshade.measure.engine import measure_many
 from glshade.study.plan import PlanPoint, case_key
 from glshade.study.pmd_plan import PmdStudyPlan
 from glshade.study.pmd_store import (
     PMD_LAYOUT,
     RESULTS_NAME,
     PmdCaseResult,
-    case_path,
-    load_case,
+    finished,
     write_case,
     write_results_csv,
 )
-from glshade.study.store import prepare_out_dir
+from glshade.study.store import opened
 
 
 @dataclass
@@ -64,18 +62,11 @@ def run_pmd_study(
     ``notify(line)`` is told of case files that fail their check (measured again; a
     warning when None)."""
     out_dir = Path(out_dir)
-    with run_lock(out_dir):
-        prepare_out_dir(out_dir, plan.to_dict(), overwrite, PMD_LAYOUT)
-        make_inside(out_dir, PMD_LAYOUT.cases)
-        done: dict[str, PmdCaseResult] = {}
-        pending: list[PlanPoint] = []
+    with opened(out_dir, plan.to_dict(), overwrite, PMD_LAYOUT):
         rejected = Rejected()
-        for point in plan.cases():
-            row = load_case(case_path(out_dir, point), rejected)
-            if row is None:
-                pending.append(point)
-            else:
-                done[case_key(*point)] = row
+        keys = [case_key(*point) for point in plan.cases()]
+        done: dict[str, PmdCaseResult] = finished(out_dir, keys, rejected)
+        pending = [point for point in plan.cases() if case_key(*point) not in done]
         rejected.say(notify)
         skipped = len(done)
         start = time.perf_counter()

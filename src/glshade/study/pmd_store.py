@@ -1,25 +1,30 @@
 """What the study under phase measuring writes and reads back, beside the stripe study in
 the same directory: the typed row of one case (:class:`PmdCaseResult`: the case's point
-of the plan, then the :class:`~glshade.measure.record.PmdMeasurement`), its case file
+of the plan, then the :class:`~glshade.instruments.record.PmdMeasurement`), its case file
 ``pmd_cases/<key>.json`` (written atomically, the "done" mark a rerun looks for),
 ``pmd_results.csv`` rebuilt from them, and the manifest ``pmd_study.json``
 (:data:`PMD_LAYOUT`). No GL here."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Iterable
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
+from glshade.instruments.record import Column, PmdMeasurement
 from glshade.measure.case_files import Rejected
-from glshade.measure.record import Column, PmdMeasurement, columns_markdown
 from glshade.study import store
-from glshade.study.plan import PlanPoint, case_key
-from glshade.study.store import Layout, PlanRow, point_field
+from glshade.study.store import STRIPES, PlanRow, point_field
 
-#: The PMD study's files in an output directory (``--overwrite`` removes only these).
-PMD_LAYOUT = Layout(
+#: The PMD study's files in an output directory: its manifest, its case files' folder,
+#: what ``--overwrite`` removes (only these: the stripe study beside it is never touched)
+#: and the manifest keys that change each case's numbers.
+PMD_LAYOUT = replace(
+    STRIPES,
     manifest="pmd_study.json",
     cases="pmd_cases",
+    images="pmd_cases",
     files=("pmd_results.csv", "pmd_report.md", "pmd_*.png"),
     comparable=("size", "chain", "codings", "settings", "pmd_study_version"),
 )
@@ -42,27 +47,19 @@ class PmdCaseResult(PlanRow, PmdMeasurement):
 
 #: The columns of ``pmd_results.csv``: the case's point of the plan, then the record's.
 PMD_STUDY_COLUMNS: tuple[Column, ...] = PmdCaseResult.table_columns()
-PMD_STUDY_CSV_COLUMNS = [c.name for c in PMD_STUDY_COLUMNS]
 
 
-def pmd_results_markdown() -> str:
-    """The table of ``pmd_results.csv``'s columns (docs/results.md)."""
-    return columns_markdown(PMD_STUDY_COLUMNS)
-
-
-def case_path(out_dir: Path, point: PlanPoint) -> Path:
-    return Path(out_dir) / PMD_LAYOUT.cases / f"{case_key(*point)}.json"
-
-
-def load_case(path: Path, rejected: Rejected | None = None) -> PmdCaseResult | None:
-    """A finished case's record, or None: missing, or not to be trusted (which
-    ``rejected`` collects, with why: :func:`glshade.study.store.load_case`)."""
-    return store.load_case(path, rejected, PmdCaseResult)
+def finished(
+    out_dir: Path, keys: Iterable[str], rejected: Rejected | None = None
+) -> dict[str, Any]:
+    """The finished cases among ``keys``: their records by key (what is not to be trusted
+    ``rejected`` collects, with why: :func:`glshade.study.store.finished`)."""
+    return store.finished(out_dir, keys, rejected, PMD_LAYOUT, PmdCaseResult)
 
 
 def write_case(out_dir: Path, result: PmdCaseResult) -> None:
     """A finished case on disk, atomically, with its case id and checksum."""
-    store.write_case(out_dir, result, None, PMD_LAYOUT.cases)
+    store.write_case(out_dir, result, None, PMD_LAYOUT)
 
 
 def write_results_csv(path: Path, rows: list[PmdCaseResult]) -> None:

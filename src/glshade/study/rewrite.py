@@ -6,19 +6,18 @@ overlays (they need the case's images, so only a run draws them)."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-from glshade.files import read_regular
+from glshade.measure.store import read_manifest
 from glshade.metrics.visibility import MetricSettings
 from glshade.study import findings, plots
 from glshade.study.plan import OVERLAY_CASES, StudyPlan
-from glshade.study.store import read_results_csv
+from glshade.study.store import STRIPES, read_results_csv
 
 
 def stored_plan(out_dir: Path) -> StudyPlan:
     """The plan a study directory was run with (its ``study.json``)."""
-    data = json.loads(read_regular(Path(out_dir) / "study.json", "study"))
+    data = read_manifest(out_dir, STRIPES, "study")
     known = set(MetricSettings.__dataclass_fields__)
     metric = MetricSettings(**{k: v for k, v in data.get("metric", {}).items() if k in known})
     return StudyPlan(
@@ -50,8 +49,9 @@ def stored_pmd_plan(out_dir: Path):
     """The plan a PMD study in ``out_dir`` was run with (its ``pmd_study.json``)."""
     from glshade.measure.pmd import PmdSettings
     from glshade.study.pmd_plan import PmdChain, PmdStudyPlan
+    from glshade.study.pmd_store import PMD_LAYOUT
 
-    data = json.loads(read_regular(Path(out_dir) / "pmd_study.json", "study"))
+    data = read_manifest(out_dir, PMD_LAYOUT, "study")
     chain = dict(data["chain"])
     chain["periods"] = tuple(chain.get("periods") or ())
     chain["surface_periods"] = tuple(
@@ -78,7 +78,7 @@ def rewrite_pmd(out_dir: Path) -> Path:
     plan = stored_pmd_plan(out_dir)
     rows = pmd_store.read_results_csv(out_dir / pmd_store.RESULTS_NAME)
     paper = read_results_csv(out_dir / "results.csv")
-    size = stored_plan(out_dir).size if (out_dir / "study.json").exists() else None
+    size = stored_plan(out_dir).size if (out_dir / STRIPES.manifest).exists() else None
     image = (size, size) if size else None
     figures = pmd_plots.write_pmd_figures(rows, paper, out_dir, plan, image)
     return pmd_findings.write_pmd_report(rows, paper, out_dir, plan, figures, size)

@@ -25,11 +25,11 @@ import numpy as np
 from glshade.errors import GlshadeError
 from glshade.files import encode_png
 from glshade.gpu.renderer import Renderer
+from glshade.instruments.base import Case, Measured
+from glshade.instruments.record import Measurement
+from glshade.instruments.stripes.group import CaseView
 from glshade.measure.case_files import Rejected
-from glshade.measure.engine import Case, CaseView, Measured
 from glshade.measure.executors import Distribution
-from glshade.measure.locks import run_lock
-from glshade.measure.record import Measurement
 from glshade.measure.where import open_executor
 from glshade.metrics import contours
 from glshade.metrics import visibility as vis
@@ -43,8 +43,8 @@ from glshade.study.plan import (
 )
 from glshade.study.store import (
     CaseResult,
-    load_case,
-    prepare_out_dir,
+    finished,
+    opened,
     write_case,
     write_results_csv,
 )
@@ -123,7 +123,7 @@ def run_study(
     The directory is locked for the run (:func:`glshade.measure.locks.run_lock`: a second
     run on it is
     refused); a directory holding another plan is refused unless ``overwrite``, which
-    removes the old study's files first (:func:`store.prepare_out_dir`).
+    removes the old study's files first (:func:`glshade.study.store.opened`).
 
     ``workers``: threads for the analysis (the GL work stays on this thread).
     ``distribution``: measure elsewhere instead (:class:`~glshade.measure.executors.
@@ -139,8 +139,7 @@ def run_study(
     """
     check_workers(workers)
     out_dir = Path(out_dir)
-    with run_lock(out_dir):
-        prepare_out_dir(out_dir, plan.to_dict(), overwrite)
+    with opened(out_dir, plan.to_dict(), overwrite):
         where = distribution or Distribution(threads=workers)
         return _run_locked(
             plan, out_dir, where, progress, renderer, (on_case_done, on_surface_done), notify
@@ -159,15 +158,9 @@ def check_workers(workers: int) -> None:
 
 def _run_locked(plan, out_dir, distribution, progress, renderer, callbacks, notify) -> StudyResult:
     on_case_done, on_surface_done = callbacks
-    done: dict[str, CaseResult] = {}
-    pending = []
     rejected = Rejected()
-    for case in plan.cases():
-        row = load_case(out_dir / "cases" / f"{case_key(*case)}.json", rejected)
-        if row is not None:
-            done[case_key(*case)] = row
-        else:
-            pending.append(case)
+    done: dict[str, CaseResult] = finished(out_dir, [case_key(*c) for c in plan.cases()], rejected)
+    pending = [case for case in plan.cases() if case_key(*case) not in done]
     rejected.say(notify)
     skipped = len(done)
     state = _Progress(
@@ -255,7 +248,7 @@ def _write(row: CaseResult, figures: CaseFigures, timings: Timings, out_dir: Pat
     timings.continuous += row.continuous_s
     start = time.perf_counter()
     if figures.overlay is not None:
-        from glshade.measure.figures import overlay_figure
+        from glshade.instruments.figures import overlay_figure
 
         rgb, result, first_column, title = figures.overlay
         overlay_figure(

@@ -57,10 +57,10 @@ class TableWriter:
         import pyarrow as pa
 
         for row in rows:
-            self._csv_rows.writerow({name: store._csv_cell(row.get(name)) for name in self.columns})
+            self._csv_rows.writerow({name: _csv_cell(row.get(name)) for name in self.columns})
         types = [_inferred(name, rows) for name in self.columns]
         table = pa.Table.from_pylist(
-            [{name: store._cell(row.get(name)) for name in self.columns} for row in rows],
+            [{name: _cell(row.get(name)) for name in self.columns} for row in rows],
             schema=pa.schema(list(zip(self.columns, types, strict=True))),
         )
         self._types = [_widened(a, b) for a, b in zip(self._types, types, strict=True)]
@@ -139,13 +139,25 @@ def _inferred(name: str, rows: list[dict[str, Any]]):
     value a float column), but null where it has none (another chunk may have some)."""
     import pyarrow as pa
 
-    values = [store._cell(row.get(name)) for row in rows if row.get(name) is not None]
+    values = [_cell(row.get(name)) for row in rows if row.get(name) is not None]
     if not values:
         return pa.null()
     kind = pa.array(values).type
     if pa.types.is_integer(kind) and any(isinstance(v, float) for v in values):
         kind = pa.float64()
     return kind
+
+
+def _cell(value: Any) -> Any:
+    """A table's cell in ``results.parquet``: a tuple as a list."""
+    return list(value) if isinstance(value, tuple) else value
+
+
+def _csv_cell(value: Any) -> Any:
+    """A table's cell in ``results.csv``: a list or a mapping as JSON, nothing empty."""
+    if isinstance(value, (list, tuple, dict)):
+        return json.dumps(list(value) if isinstance(value, tuple) else value)
+    return "" if value is None else value
 
 
 def _widened(before, now):
