@@ -22,7 +22,7 @@ from scipy.optimize import brentq
 
 from glshade.components.emitter.fringes.table import FringeFrame
 from glshade.gpu.renderer import Renderer
-from glshade.measure.pmd import PmdSettings, measure_pmd_scene
+from glshade.instruments.pmd.station import PmdSettings, measure_pmd_scene
 from glshade.oracle.lobe import kernel_transfer, lobe_footprint
 from glshade.scene import Scene, paper_scene
 

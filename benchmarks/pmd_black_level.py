@@ -26,7 +26,7 @@ def main() -> int:
     args = parser.parse_args()
 
     from glshade.gpu.renderer import Renderer
-    from glshade.measure.pmd import measure_pmd_scene
+    from glshade.instruments.pmd.station import measure_pmd_scene
     from glshade.measure.single import as_method
     from glshade.scene import paper_scene
 

@@ -20,7 +20,7 @@ import statistics
 import time
 
 from glshade.gpu.renderer import Renderer
-from glshade.measure.pmd import PmdSettings, measure_pmd_scene, pmd_baseline
+from glshade.instruments.pmd.station import PmdSettings, measure_pmd_scene, pmd_baseline
 from glshade.scene import Scene, paper_scene
 
 

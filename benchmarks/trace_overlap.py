@@ -205,9 +205,9 @@ def engine_run(kind: str, size: int, work: int) -> None:
     from distributed import as_completed
 
     from glshade.gpu.renderer import Renderer
+    from glshade.instruments.stripes.single import measure_scene
     from glshade.measure.cluster import DaskExecutor, batches
     from glshade.measure.executors import Distribution, LocalExecutor
-    from glshade.instruments.stripes.single import measure_scene
     from glshade.process import reuse_freed_memory
     from glshade.sweep.spec import load_spec
 

@@ -17,10 +17,10 @@ import pytest
 from glshade.app.cli import main
 from glshade.components.emitter.fringes.table import FringesTable, fringes_of
 from glshade.errors import GlshadeError
-from glshade.measure import coding, coding_files
-from glshade.measure.coding import CodingSettings, choose_coding
-from glshade.measure.memory import check_pmd, pmd_estimate
-from glshade.measure.pmd import measure_pmd_scene
+from glshade.instruments.memory import check_pmd, pmd_estimate
+from glshade.instruments.pmd import coding, coding_files
+from glshade.instruments.pmd.coding import CodingSettings, choose_coding
+from glshade.instruments.pmd.station import measure_pmd_scene
 from glshade.measure.single import as_method
 from glshade.metrics import coding_laws as laws
 from glshade.scene import Scene, paper_scene

@@ -24,7 +24,7 @@ from glshade.budget import MEMORY_BUDGET_RANGE_MB, memory_budget_from_env
 from glshade.errors import SceneError
 from glshade.image_header import ImageHeaderError, check_pixels, image_header
 from glshade.instruments import memory
-from glshade.measure.pmd import measure_pmd_scene
+from glshade.instruments.pmd.station import measure_pmd_scene
 from glshade.measure.single import as_method
 from glshade.scene import Scene, paper_scene
 from glshade.units import MAX_QUANTITY_CHARS, QuantityError, parse_quantity

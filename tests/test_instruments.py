@@ -14,10 +14,10 @@ import pytest
 from glshade.errors import GlshadeError, SceneError
 from glshade.instruments import registry as reg
 from glshade.instruments.base import Goal, Instrument
+from glshade.instruments.pmd.station import PmdSettings
 from glshade.instruments.record import Measurement, PmdMeasurement
 from glshade.instruments.registry import declaration_problem, instrument, instrument_for
 from glshade.instruments.settings_doc import settings_markdown
-from glshade.measure.pmd import PmdSettings
 from glshade.metrics.visibility import MetricSettings
 from glshade.scene import paper_scene
 from glshade.sweep.spec import case_id

@@ -15,12 +15,12 @@ import pytest
 from glshade.errors import GlshadeError
 from glshade.gpu.renderer import Renderer
 from glshade.instruments import memory
-from glshade.instruments.stripes.group import AHEAD
 from glshade.instruments.base import Case
-from glshade.measure.engine import budget_plan, check_budget, measure_many
-from glshade.measure.pmd import measure_pmd_scene, pmd_baseline
-from glshade.measure.single import as_method
+from glshade.instruments.pmd.station import measure_pmd_scene, pmd_baseline
+from glshade.instruments.stripes.group import AHEAD
 from glshade.instruments.stripes.single import measure_scene
+from glshade.measure.engine import budget_plan, check_budget, measure_many
+from glshade.measure.single import as_method
 from glshade.metrics import visibility as vis
 from glshade.scene import Scene, paper_scene
 from glshade_process import run_glshade

@@ -11,7 +11,7 @@ from scipy.ndimage import label
 from glshade.components.emitter.fringes.codec import displayed_fringe
 from glshade.components.emitter.fringes.screen import ScreenResponse
 from glshade.errors import GlshadeError
-from glshade.metrics import pmd
+from glshade.instruments.pmd import decode as pmd
 
 
 def one_direction(**values) -> pmd.FringeCodec:

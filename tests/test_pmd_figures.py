@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 from glshade.files import read_png
-from glshade.measure.pmd import measure_pmd, project
-from glshade.measure.pmd_files import (
+from glshade.instruments.pmd.files import (
     DATA_FILES,
     MAP_FILES,
     NO_VALUE,
@@ -18,6 +17,7 @@ from glshade.measure.pmd_files import (
     map_scale,
     write_maps,
 )
+from glshade.instruments.pmd.station import measure_pmd, project
 from glshade.measure.single import as_method
 from glshade.scene import paper_scene
 

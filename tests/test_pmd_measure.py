@@ -15,8 +15,9 @@ import pytest
 import glshade
 from glshade.app.cli import main
 from glshade.files import read_png
-from glshade.measure.pmd import PmdResult, PmdSettings, measure_pmd_scene, pmd_baseline
-from glshade.metrics import physics, pmd
+from glshade.instruments.pmd import decode as pmd
+from glshade.instruments.pmd.station import PmdResult, PmdSettings, measure_pmd_scene, pmd_baseline
+from glshade.metrics import physics
 from glshade.scene import Scene, paper_scene
 
 SENSOR = {"full_well_e": 10000.0, "read_noise_e": 5.0, "bit_depth": 12}
@@ -169,7 +170,7 @@ def test_a_dent_below_the_noise_is_noise(renderer):
 
 
 def test_auto_exposure_puts_the_brightest_fringe_near_full_scale(renderer):
-    from glshade.measure.pmd import capture
+    from glshade.instruments.pmd.station import capture
 
     shot = capture(renderer, station(size=48).updated(sensor=SENSOR))
     recorded = shot.recorded()
@@ -189,7 +190,7 @@ def test_the_python_call_measures_by_phase_on_request():
     assert isinstance(glshade.measure(station(size=32)), PmdResult)  # fringes: by default
     with pytest.raises(glshade.GlshadeError, match="method: must be one of paper, pmd"):
         glshade.measure(scene, method="phase")
-    with pytest.raises(glshade.GlshadeError, match="overlay and settings"):
+    with pytest.raises(glshade.GlshadeError, match="overlay: method 'pmd' draws no contour"):
         glshade.measure(station(size=32), overlay="x.png")
 
 
@@ -253,9 +254,9 @@ def test_output_directories_and_flags_of_the_other_instrument(tmp_path, capsys):
     assert main(["measure", "--method", "pmd", "--size", "16", "--maps", str(afile)]) == 2
     assert "is not a directory" in capsys.readouterr().err
     assert main(["measure", "--size", "16", "--maps", str(tmp_path / "m")]) == 2
-    assert "--maps: belongs to --method pmd" in capsys.readouterr().err
+    assert "--maps: belongs to phase measuring (--method pmd)" in capsys.readouterr().err
     assert main(["measure", "--size", "16", "--frames", str(tmp_path / "m")]) == 2
-    assert "--frames: belongs to --method pmd" in capsys.readouterr().err
+    assert "--frames: belongs to phase measuring (--method pmd)" in capsys.readouterr().err
     missing = tmp_path / "no" / "such"
     assert main(["measure", "--method", "pmd", "--size", "16", "--frames", str(missing)]) == 2
     assert "does not exist" in capsys.readouterr().err

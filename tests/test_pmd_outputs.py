@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from glshade.app.cli import main
+from glshade.instruments.pmd import decode as pmd
+from glshade.instruments.pmd.files import DATA_FILES, MAP_FILES, write_frames, write_maps
+from glshade.instruments.pmd.station import measure_pmd_scene, pmd_concerns
 from glshade.instruments.record import PmdMeasurement
 from glshade.instruments.stripes.single import measure_scene
-from glshade.measure.pmd import measure_pmd_scene, pmd_concerns
-from glshade.measure.pmd_files import DATA_FILES, MAP_FILES, write_frames, write_maps
-from glshade.metrics import pmd
 from glshade.metrics.coding_laws import screen_harmonics
 from glshade.scene import Scene, paper_scene
 
@@ -80,7 +80,7 @@ def test_the_maps_recompute_the_shift_and_the_noise(written):
 # --------------------------------------------------------------------------- --frames
 def decode_folder(folder: Path) -> np.ndarray:
     """A ``--frames`` folder decoded with nothing but its manifest and the files it names
-    (OpenCV reads them; :func:`glshade.metrics.pmd.decode` decodes): the screen points
+    (OpenCV reads them; :func:`glshade.instruments.pmd.decode.decode` decodes): the screen points
     (H, W, 2: u, v in mm, NaN where not valid or not coded)."""
     manifest = json.loads((folder / "manifest.json").read_text())
     scale = 65535.0 if manifest["format"].startswith("16-bit") else 1.0

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from glshade.app.cli import main
+from glshade.instruments.pmd.station import dent_region, interior, measure_pmd_scene
 from glshade.instruments.record import PMD_COLUMN_NAMES, PmdMeasurement
-from glshade.measure.pmd import dent_region, interior, measure_pmd_scene
 from glshade.measure.single import as_method
 from glshade.metrics import physics
 from glshade.metrics.status import dent_window, touches_edge

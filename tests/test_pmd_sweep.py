@@ -1,7 +1,7 @@
 """Phase-measuring deflectometry in sweeps, on Dask and in the optimiser (docs/sweeps.md).
 
 Oracles: a case is a pure function of its scene and settings, so a pmd sweep's table must
-equal :func:`glshade.measure.pmd.measure_pmd_scene` case by case, and the Dask table the
+equal :func:`glshade.instruments.pmd.station.measure_pmd_scene` case by case, and the Dask table the
 in-process one; case ids against the documented identity (hashed by hand here) and, for
 the paper's metric, against ids computed before phase measuring reached the sweeps; the
 optimiser's status handling against a stub executor whose records are known by
@@ -22,6 +22,7 @@ import pytest
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
 from glshade.instruments.base import Case
+from glshade.instruments.pmd.station import PMD_VERSION, PmdSettings, measure_pmd_scene
 from glshade.instruments.record import (
     PMD_OUTPUT_NAMES,
     Measurement,
@@ -29,7 +30,6 @@ from glshade.instruments.record import (
     columns_markdown,
 )
 from glshade.measure.executors import Distribution
-from glshade.measure.pmd import PMD_VERSION, PmdSettings, measure_pmd_scene
 from glshade.measure.single import as_method
 from glshade.measure.where import open_executor
 from glshade.scene import paper_scene

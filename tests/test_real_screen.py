@@ -20,7 +20,7 @@ import pytest
 from glshade.components.emitter.fringes.screen import read_response
 from glshade.errors import GlshadeError
 from glshade.gpu.compose import ShaderFeatures, compose
-from glshade.metrics import pmd
+from glshade.instruments.pmd import decode as pmd
 from glshade.oracle.tracer import first_hit
 from glshade.scene import Scene, paper_scene
 

@@ -210,7 +210,7 @@ def test_a_station_reads_a_finish_by_its_closed_form_or_names_it():
     """The silent mirror, gone: a PMD station on a glossy part reports the modulation the
     finish leaves (its closed form), and a finish that washes the finest fringe out is
     unresolved, named."""
-    from glshade.measure.pmd import measure_pmd
+    from glshade.instruments.pmd.station import measure_pmd
     from glshade.metrics.status import dent_window
 
     station = paper_scene("flat", theta_deg=45.0).with_size(64)

@@ -279,18 +279,19 @@ def instrument_settings(args: argparse.Namespace, method: str, chosen_by: str = 
     for spelled, key, text in [*typed, *_measure_settings(args)]:
         if text is None:
             continue
-        declared = declared_by.get(key)
+        found = declared_by.get(key)
         owner = next((item for item, d in _settings_params() if d.key == key), None)
-        if declared is None and owner is not None:
+        if found is None and owner is not None:
             raise GlshadeError(
                 f"{spelled}: belongs to {owner.title} (--method {owner.name}), not to "
                 f"{chosen_by or f'--method {chosen.name}'}"
             )
-        if declared is None:
+        if found is None:
             raise GlshadeError(
                 f"{spelled}: not a setting of {chosen.title} (--method {chosen.name}); its "
                 f"settings: {', '.join(MEASURE_TABLE + name for name in declared_by)}"
             )
+        declared = found
         try:
             given[key] = declared.check(declared.parse(text))
         except (SceneError, QuantityError) as exc:

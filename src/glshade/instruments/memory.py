@@ -47,8 +47,8 @@ FIXED_BYTES = 16 << 20
 WAITING_BYTES_PER_PIXEL = 12
 
 #: Phase measuring's coefficients are fitted to the peak resident memory of
-#: :func:`glshade.measure.pmd.measure_pmd_scene` above a process that has imported glshade
-#: and opened its GL context (sampled every 10 ms through the whole case: 256² to 1024²,
+#: :func:`glshade.instruments.pmd.station.measure_pmd_scene` above a process that has
+#: imported glshade and opened its GL context (sampled every 10 ms through the whole case: 256² to 1024²,
 #: 24 to 252 frames, 3 and 5 periods a direction, one and two directions, with and
 #: without a sensor; docs/coding.md), rounded up, and the per-period terms to the memory
 #: the decoding holds (3000 periods at 72² and 85² took 25 % more than the fitted
@@ -67,7 +67,8 @@ PMD_DECODE_BYTES_PER_PERIOD = 56
 #: … per pixel and frame: the case's rendered sequence (float32), and with a sensor its
 #: recorded copy (measured together: 7.1 a frame; the sensor's copy alone: 4.0). The
 #: layers a draw renders and reads back are the renderer's (:func:`render_bytes`).
-#: Measured per period (tracemalloc peaks of :func:`~glshade.measure.pmd.measure_pmd_scene`
+#: Measured per period (tracemalloc peaks of
+#: :func:`~glshade.instruments.pmd.station.measure_pmd_scene`
 #: at 48², 10 to 160 periods, two directions, four shifts: eight frames a period): 122
 #: bytes a pixel without a sensor, 175 with one, where these coefficients give 136 and
 #: 192; one direction, three shifts: 108 and 144, given 116 and 152

@@ -114,6 +114,10 @@ class Record:
 
     #: Set on each record class: its own fields are the record's columns.
     record: ClassVar[bool] = False
+    #: Every record says whether its numbers can be read: ``ok``, or why not (its own
+    #: words), and what to change (two of its columns).
+    status: str
+    status_reason: str
 
     @classmethod
     def columns(cls) -> tuple[Column, ...]:
@@ -500,7 +504,7 @@ class PmdMeasurement(Record):
 
     @classmethod
     def of(cls, scene: Scene, result: Any, baseline_seconds: float = 0.0) -> PmdMeasurement:
-        """The record of ``result`` (a :class:`glshade.measure.pmd.PmdResult`)."""
+        """The record of ``result`` (a :class:`glshade.instruments.pmd.station.PmdResult`)."""
         spent = result.seconds
         law = physics.pmd_shift_law_check(scene)
         return cls(

@@ -163,8 +163,9 @@ def declaration_problem(item: Instrument) -> str | None:
         return f"instrument {name!r}: its default settings fail: {described(exc)}"
     columns = {c.name for c in record.columns()}
     missing = [o for o in getattr(item, "outputs", ()) if o not in columns]
-    if missing or "status" not in columns:
-        return f"instrument {name!r}: outputs {missing or ['status']} are not columns of its record"
+    missing += [name for name in ("status", "status_reason") if name not in columns]
+    if missing:
+        return f"instrument {name!r}: {missing} are not columns of its record"
     for goal in getattr(item, "goals", ()):
         if goal.column not in columns or goal.method != name:
             return f"instrument {name!r}: goal {goal.name!r} reads no column of its record"

@@ -11,7 +11,7 @@ The checksum is the SHA-256 of the record's canonical JSON (keys sorted, no spac
 case id included), so any change to a number, a key or the id breaks it. It guards
 against accidents and careless edits, not against someone who recomputes it: an
 integrity check, not a signature. So what a file holds is checked as well, by the store
-that reads it (:meth:`glshade.measure.record.Record.json_problem`): every field against
+that reads it (:meth:`glshade.instruments.record.Record.json_problem`): every field against
 its column's declared type, range and words (a status from the status list, a finite
 number in its unit's range, a count a non-negative int below 2**31, a text of at most
 4096 characters without a control character). A forged file with a recomputed checksum

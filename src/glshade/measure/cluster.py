@@ -88,16 +88,12 @@ class RendererPlugin(WorkerPlugin):
         self.context = self.renderer = None
 
 
-def measure_batch(
-    cases: list[Case], settings: Any, images: bool
-) -> list[Row]:
+def measure_batch(cases: list[Case], settings: Any, images: bool) -> list[Row]:
     """A Dask task: measure one batch with the worker's renderer; returns its rows."""
     return list(measure_rows(_worker_renderer(), cases, settings, images))
 
 
-def measure_whole(
-    cases: list[Case], settings: Any, extra: Extra | None
-) -> list[Measured]:
+def measure_whole(cases: list[Case], settings: Any, extra: Extra | None) -> list[Measured]:
     """A Dask task: measure one batch with the worker's renderer; returns its results
     whole, with what ``extra`` made of each (the worker traces and analyses in turn)."""
     return list(measure_many(_worker_renderer(), cases, settings, extra=extra))
@@ -108,9 +104,7 @@ def _worker_renderer() -> Renderer:
     return plugin.get()
 
 
-def batches(
-    cases: list[Case], size: int, settings: Any = None
-) -> list[list[Case]]:
+def batches(cases: list[Case], size: int, settings: Any = None) -> list[list[Case]]:
     """The tasks: the engine's geometry groups (for ``settings``), each cut into pieces of
     at most ``size``."""
     out = []
@@ -193,16 +187,12 @@ class DaskExecutor:
             method = instrument_for(settings).name
             check_worker_count(self.distribution.workers, frame_pixels(cases), method)
 
-    def rows(
-        self, cases: list[Case], settings: Any, images: bool
-    ) -> Iterator[Row]:
+    def rows(self, cases: list[Case], settings: Any, images: bool) -> Iterator[Row]:
         """Rows of ``cases``, as their batches finish (any order)."""
         for rows in self._run(measure_batch, cases, settings, images):
             yield from rows
 
-    def measured(
-        self, cases: list[Case], settings: Any, extra: Extra | None
-    ) -> Iterator[Measured]:
+    def measured(self, cases: list[Case], settings: Any, extra: Extra | None) -> Iterator[Measured]:
         """Whole results of ``cases`` (``extra`` run on the workers), as their batches
         finish (any order)."""
         for results in self._run(measure_whole, cases, settings, extra):

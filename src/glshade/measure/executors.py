@@ -82,9 +82,7 @@ class LocalExecutor:
     def __init__(self, threads: int = 2, renderer: Renderer | None = None) -> None:
         self.threads, self.renderer, self._owns = threads, renderer, renderer is None
 
-    def rows(
-        self, cases: Sequence[Case], settings: Any, images: bool
-    ) -> Iterator[Row]:
+    def rows(self, cases: Sequence[Case], settings: Any, images: bool) -> Iterator[Row]:
         with ThreadPoolExecutor(max_workers=self.threads) as pool:
             yield from measure_rows(self._renderer(), cases, settings, images, pool)
 
@@ -131,5 +129,6 @@ def _best_image_png(chosen: Instrument, case: Case, result: Any, view: Any) -> b
     """The case's picture as its instrument's camera records it (the paper metric's image
     at its best phase; phase measuring's first recorded frame), as PNG."""
     from glshade.files import encode_png
+
     image = chosen.image(case, result, view)
     return None if image is None else encode_png(image, bits=8)

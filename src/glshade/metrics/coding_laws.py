@@ -13,7 +13,7 @@
   ladder (:func:`ladder`) and its unwrapping margin (:class:`ErrorBudget`).
 
 Pure functions of a scene's tables and of numbers; rendering them is
-:mod:`glshade.measure.coding`'s.
+:mod:`glshade.instruments.pmd.coding`'s.
 """
 
 from __future__ import annotations

@@ -77,43 +77,76 @@ class MetricSettings(Table):
     table_checks = ()
 
     threshold: float = param(
-        "measure.threshold", "", 0.5,
+        "measure.threshold",
+        "",
+        0.5,
         "paper: binarisation level, a fraction of what level_from says (the emitter's peak)",
-        lo=0.0, hi=1.0, flag="--threshold",
+        lo=0.0,
+        hi=1.0,
+        flag="--threshold",
     )
     otsu: bool = param(
-        "measure.otsu", "", False, "paper: Otsu's level per image instead (rendered images only)",
+        "measure.otsu",
+        "",
+        False,
+        "paper: Otsu's level per image instead (rendered images only)",
         value_type="boolean",
     )
     keep_fraction: float = param(
-        "measure.keep_fraction", "", 0.5, "paper: the central fraction of the columns kept",
-        lo=0.0, hi=1.0, closed=True, nonzero=True, allowed_text="in (0, 1]",
+        "measure.keep_fraction",
+        "",
+        0.5,
+        "paper: the central fraction of the columns kept",
+        lo=0.0,
+        hi=1.0,
+        closed=True,
+        nonzero=True,
+        allowed_text="in (0, 1]",
         flag="--keep-fraction",
     )
     step_mm: float = param(
-        "measure.step_mm", "mm", 0.25,
+        "measure.step_mm",
+        "mm",
+        0.25,
         "paper: phase step of the stripe sweep (at most one period)",
-        lo=0.0, flag="--step",
+        lo=0.0,
+        flag="--step",
     )
     max_offset_px: int = param(
-        "measure.max_offset_px", "px", 8, "paper: search radius of the registration",
-        value_type="integer", lo=0, hi=64,
+        "measure.max_offset_px",
+        "px",
+        8,
+        "paper: search radius of the registration",
+        value_type="integer",
+        lo=0,
+        hi=64,
     )
     min_period_px: float = param(
-        "measure.min_period_px", "px", 4.0,
+        "measure.min_period_px",
+        "px",
+        4.0,
         "paper: pixels where the defect-free stripe period spans fewer pixels than this are "
         "left out of the contours (0 keeps every pixel)",
-        lo=0.0, closed=True,
+        lo=0.0,
+        closed=True,
     )
     limit_upsample: int = param(
-        "measure.limit_upsample", "", 2,
+        "measure.limit_upsample",
+        "",
+        2,
         "paper: rows per pixel row of the continuous limit's search inside a fold",
-        value_type="integer", lo=1, hi=32,
+        value_type="integer",
+        lo=1,
+        hi=32,
     )
     limit_phases: int = param(
-        "measure.limit_phases", "", 32,
+        "measure.limit_phases",
+        "",
+        32,
         "paper: phases per period of the continuous limit's search inside a fold",
-        value_type="integer", lo=4, hi=1024,
+        value_type="integer",
+        lo=4,
+        hi=1024,
     )
     level_from: str = param(
         "measure.level_from", "", "auto",

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from glshade.files import read_png
-from glshade.measure.figures import new_figure as _figure
-from glshade.measure.figures import save_figure as _save
+from glshade.instruments.figures import new_figure as _figure
+from glshade.instruments.figures import save_figure as _save
 from glshade.study.notation import image_size
 from glshade.study.plan import GRID_THETAS, StudyPlan, case_key, surface_label
 from glshade.study.status import is_measurable, status_of

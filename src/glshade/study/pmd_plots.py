@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glshade.measure.figures import new_figure, save_figure
+from glshade.instruments.figures import new_figure, save_figure
 from glshade.study.plan import surface_label
 from glshade.study.plots import (
     NOT_MEASURABLE,

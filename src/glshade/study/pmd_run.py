@@ -1,6 +1,6 @@
 """Running the paper's study under phase measuring on a renderer: every pending case of
 the plan through the measuring engine (:func:`glshade.measure.engine.measure_many` with
-:class:`~glshade.measure.pmd.PmdSettings`: one defect-free analysis per (surface, θ,
+:class:`~glshade.instruments.pmd.station.PmdSettings`: one defect-free analysis per (surface, θ,
 σ²), shared by its depths), each finished case written at once (``pmd_cases/<key>.json``), so
 an interrupted run loses nothing and a rerun measures only what is missing. The
 directory is locked for the run (:func:`glshade.measure.locks.run_lock`)."""

@@ -1,5 +1,5 @@
 """``glshade coding`` (docs/coding.md): the command-line face of
-:mod:`glshade.measure.coding`, choosing a PMD station's fringe coding for a scene. Bad
+:mod:`glshade.instruments.pmd.coding`, choosing a PMD station's fringe coding for a scene. Bad
 input is one line and exit code 2, as everywhere in the CLI."""
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from glshade.app.args import (
 from glshade.errors import GlshadeError
 from glshade.oracle.advice import scene_warnings
 
-#: Flag -> the :class:`~glshade.measure.coding.CodingSettings` field it sets.
+#: Flag -> the :class:`~glshade.instruments.pmd.coding.CodingSettings` field it sets.
 CODING_FLAGS = {
     "--target-noise": "target_noise_mm",
     "--resolved-share": "resolved_share",
@@ -84,9 +84,9 @@ def add(sub: argparse._SubParsersAction) -> None:
 
 
 def coding_settings(args: argparse.Namespace):
-    """The :class:`~glshade.measure.coding.CodingSettings` of the command line, a bad
+    """The :class:`~glshade.instruments.pmd.coding.CodingSettings` of the command line, a bad
     value named by its flag."""
-    from glshade.measure.coding import CodingSettings
+    from glshade.instruments.pmd.coding import CodingSettings
 
     given = {
         field: getattr(args, field_dest(flag))
@@ -108,9 +108,9 @@ def field_dest(flag: str) -> str:
 def run(args: argparse.Namespace) -> int:
     from glshade.gpu.context import GLContext
     from glshade.gpu.renderer import Renderer
-    from glshade.measure.coding import choose_coding
-    from glshade.measure.coding_files import coded_scene, summary, write_plot
-    from glshade.measure.pmd import check_scene
+    from glshade.instruments.pmd.coding import choose_coding
+    from glshade.instruments.pmd.coding_files import coded_scene, summary, write_plot
+    from glshade.instruments.pmd.station import check_scene
     from glshade.measure.single import as_method
 
     settings = coding_settings(args)

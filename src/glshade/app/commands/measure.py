@@ -118,4 +118,3 @@ def run(args: argparse.Namespace) -> int:
     for line in written:
         print(f"  wrote {line}")
     return 0
-

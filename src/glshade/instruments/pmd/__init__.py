@@ -19,8 +19,7 @@ from glshade.instruments.base import (
     Measured,
     WorkerMemory,
 )
-from glshade.instruments.record import PMD_OUTPUT_NAMES, PmdMeasurement
-from glshade.measure.pmd import (
+from glshade.instruments.pmd.station import (
     PMD_VERSION,
     PmdBaseline,
     PmdResult,
@@ -30,6 +29,7 @@ from glshade.measure.pmd import (
     pmd_baseline,
     pmd_concerns,
 )
+from glshade.instruments.record import PMD_OUTPUT_NAMES, PmdMeasurement
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
@@ -139,14 +139,14 @@ class PhaseInstrument(Instrument):
         return result.maps.recorded[0]
 
     def check_files(self, files: dict[str, Any], scene: Scene, inputs: Sequence[Any]) -> None:
-        from glshade.measure.pmd_files import check_output_dir
+        from glshade.instruments.pmd.files import check_output_dir
 
         for flag in ("--maps", "--frames"):
             if files.get(flag) is not None:
-                check_output_dir(files[flag], flag, inputs)
+                check_output_dir(files[flag], flag, tuple(inputs))
 
     def write_files(self, files: dict[str, Any], scene: Scene, result: Any) -> list[str]:
-        from glshade.measure.pmd_files import write_frames, write_maps
+        from glshade.instruments.pmd.files import write_frames, write_maps
 
         written = []
         if files.get("--frames") is not None:

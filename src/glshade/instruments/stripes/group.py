@@ -55,8 +55,6 @@ class CaseView:
         return vis.stripe_radiance(self.v1, self.baseline.pattern, result.best_phase_mm)
 
 
-
-
 def ahead_within(
     scene: Scene, settings: vis.MetricSettings, threads: int, budget_bytes: int
 ) -> int:
@@ -71,8 +69,6 @@ def ahead_within(
     while ahead and need(ahead) > budget_bytes:
         ahead //= 2
     return ahead
-
-
 
 
 def _traced(renderer: Renderer, case: Case) -> tuple[np.ndarray, float]:

@@ -1,6 +1,6 @@
 """The fringe codec: the one description of a phase-measuring fringe coding, shared by the
 screen that shows it (the fringe emitter's uniforms and its float64 oracle), the station
-that decodes it (:mod:`glshade.metrics.pmd`) and the frames manifest of ``--frames``.
+that decodes it (:mod:`glshade.instruments.pmd.decode`) and the frames manifest of ``--frames``.
 
 :class:`FringeCodec` holds the sequence (``periods_mm`` finest first, ``shifts``,
 ``directions``), the commanded fringe (``offset``, ``amplitude``) and the screen that

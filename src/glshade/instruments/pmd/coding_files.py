@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from glshade.errors import GlshadeError
-from glshade.measure.coding import CodingPlan, CodingReport
+from glshade.instruments.pmd.coding import CodingPlan, CodingReport
 from glshade.metrics.coding_laws import box_share, closed_form_share
 from glshade.scene import Scene
 
@@ -125,7 +125,7 @@ def write_plot(report: CodingReport, path: Path) -> None:
     per direction (markers; the title says so where they are not read in the dent's
     window), the chain's closed form (lines), a real pixel's box (dashed), the resolved
     level, the finest resolved period and the recommended finest period."""
-    from glshade.measure.figures import new_figure, save_figure
+    from glshade.instruments.figures import new_figure, save_figure
 
     probe = report.probe
     fig = new_figure(7.0, 4.2)

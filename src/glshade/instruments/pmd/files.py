@@ -38,7 +38,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
     from matplotlib.image import AxesImage
 
-    from glshade.measure.pmd import Heights, PmdResult
+    from glshade.instruments.pmd.station import Heights, PmdResult
 
 #: A window of an image: first row, last row, first column, last column.
 Box = tuple[int, int, int, int]
@@ -129,7 +129,7 @@ def frame_name(index: int, frame: FringeFrame, suffix: str) -> str:
 
 
 def write_frames(directory: Path, scene: Scene, result: PmdResult, fmt: str = "png") -> Path:
-    """The recorded sequence of a :class:`~glshade.measure.pmd.PmdResult`, one image per
+    """The recorded sequence of a :class:`~glshade.instruments.pmd.station.PmdResult`, one image per
     frame in the order shown, the screen's white recorded alike (``frame_white``), and
     ``manifest.json``: all a decoder needs (:func:`frames_manifest`). The frames of an
     earlier run that this one does not write are removed, and the old manifest first (an
@@ -237,8 +237,8 @@ def _sensor_entry(scene: Scene) -> dict[str, Any] | None:
 
 
 def write_maps(directory: Path, scene: Scene, result: PmdResult) -> list[Path]:
-    """Each map of a :class:`~glshade.measure.pmd.PmdResult` as ``.npy`` (:data:`MAP_FILES`
-    with a ``.png`` figure, :data:`DATA_FILES` without); returns the paths written."""
+    """Each map of a :class:`~glshade.instruments.pmd.station.PmdResult` as ``.npy``
+    (:data:`MAP_FILES` with a ``.png`` figure, :data:`DATA_FILES` without); returns the paths written."""
     directory.mkdir(parents=False, exist_ok=True)
     maps = result.maps
     arrays = {

@@ -5,7 +5,7 @@ A case renders the fringe sequence of the scene and of its defect-free twin thro
 whole imaging chain (one trace each: every ray is shaded for every frame,
 :meth:`Renderer.render <glshade.gpu.renderer.Renderer.render>` with the ``frames``
 output), records each frame with the sensor's own noise, decodes both like a station
-(:mod:`glshade.metrics.pmd`), and compares:
+(:mod:`glshade.instruments.pmd.decode`), and compares:
 
 - the decoded screen points with and without the dent (``pmd_shift_mm``), against the
   noise of two decodes of the defect-free scene with different seeds (``pmd_noise_mm``)
@@ -39,7 +39,7 @@ from glshade.components.emitter.fringes.table import (
     fringes_of,
 )
 from glshade.errors import GlshadeError, SceneError
-from glshade.metrics import pmd
+from glshade.instruments.pmd import decode as pmd
 from glshade.metrics.coding_laws import white_fundamental
 from glshade.metrics.status import (
     STATUSES,
@@ -55,7 +55,7 @@ from glshade.params import Table, param
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
-    from glshade.gpu.renderer import Renderer
+    from glshade.rendering import Renderer
 
 #: The share of its largest move above which a pixel belongs to the dent's region.
 REGION_SHARE = 0.2

@@ -21,14 +21,15 @@ A station designer asks, for one part and one camera:
 3. the ranges: the unambiguous range (the coarsest period), the slopes the screen can
    measure around the dent's screen point, and the dent's shift against the noise.
 4. whether ``glshade measure --method pmd`` can measure the coding within the memory
-   budget (:func:`glshade.measure.memory.pmd_estimate`): where it cannot, the budget it
+   budget (:func:`glshade.instruments.memory.pmd_estimate`): where it cannot, the budget it
    needs (``GLSHADE_MEMORY_BUDGET_MB``), the least noise within the budget
    (:func:`within_budget`) and the largest image that fits, before anything is measured.
 
 Everything here is per coded direction (``emitter.directions``); a scene of stripes is
-measured with the fringes on the same screen (:func:`~glshade.measure.single.as_method`).
+measured with the fringes on the same screen
+(:meth:`~glshade.instruments.base.Instrument.prepared`).
 The closed forms are :mod:`glshade.metrics.coding_laws`; the outputs (JSON, the coded
-scene, the plot) :mod:`glshade.measure.coding_files`.
+scene, the plot) :mod:`glshade.instruments.pmd.coding_files`.
 """
 
 from __future__ import annotations
@@ -48,9 +49,8 @@ from glshade.components.emitter.fringes.table import (
     fringes_of,
 )
 from glshade.errors import GlshadeError
-from glshade.measure.memory import largest_size, pmd_estimate, size_text
-from glshade.measure.pmd import check_scene
-from glshade.measure.single import as_method
+from glshade.instruments.memory import largest_size, pmd_estimate, size_text
+from glshade.instruments.pmd.station import check_scene
 from glshade.metrics.coding_laws import (
     ErrorBudget,
     Resolved,
@@ -255,7 +255,7 @@ def intensity_variance(scene: Scene, level: np.ndarray) -> np.ndarray:
     """The recorded intensity's variance at the mean ``level`` (recorded units): photon
     noise ``A / full_well``, read noise ``(read / full_well)²`` and the sensor's
     quantisation ``q² / 12``; 0 without a sensor (as
-    :func:`glshade.measure.pmd.predicted_noise_mm`)."""
+    :func:`glshade.instruments.pmd.station.predicted_noise_mm`)."""
     sensor = scene.sensor
     if not scene.active.records(scene) or sensor.full_well_e is None:
         return np.zeros_like(level)
@@ -471,7 +471,9 @@ def choose_coding(
 ) -> CodingReport:
     """Render the probe of ``scene`` (a scene of stripes: the fringes on its screen) and
     choose its coding (:class:`CodingReport`)."""
-    scene = integrating(as_method(scene, "pmd"))
+    from glshade.instruments.pmd import PhaseInstrument
+
+    scene = integrating(PhaseInstrument().prepared(scene))
     check_scene(scene)
     periods = probe_periods(scene, settings)
     probe = render_probe(renderer, scene, periods)
@@ -645,7 +647,7 @@ def with_memory(scene: Scene, plan: CodingPlan, budget_bytes: int | None = None)
 
 def measure_bytes(scene: Scene, periods: tuple[float, ...], shifts: int) -> int:
     """What ``glshade measure --method pmd`` of ``scene`` with this coding needs within
-    the memory budget (bytes: :func:`~glshade.measure.memory.pmd_estimate`, the check
+    the memory budget (bytes: :func:`~glshade.instruments.memory.pmd_estimate`, the check
     that command makes before it renders)."""
     return pmd_estimate(coded(scene, periods, shifts)).required_bytes
 
