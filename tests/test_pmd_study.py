@@ -340,3 +340,19 @@ def test_the_flags_state_the_chains_defaults():
     chain = PmdChain()
     for flag, (_, default, _) in CHAIN_FLAGS.items():
         assert getattr(chain, CHAIN_FIELDS[flag]) == default, flag
+
+
+@pytest.mark.slow
+def test_the_study_on_two_dask_workers_writes_the_same_table(tmp_path, renderer):
+    """One execution path: the PMD study measured by Dask worker processes, as sweeps and
+    the stripe study are, gives the in-process table (every column but the timings)."""
+    from glshade.measure.executors import Distribution
+
+    plan = _plan()
+    here, there = tmp_path / "here", tmp_path / "there"
+    run_pmd_study(plan, here, renderer=renderer, progress=False)
+    result = run_pmd_study(plan, there, distribution=Distribution(workers=2), progress=False)
+    assert result.computed == 2
+    near, far = (read_results_csv(out / "pmd_results.csv") for out in (here, there))
+    assert [row.outputs() for row in far] == [row.outputs() for row in near]
+    assert [row.case for row in far] == plan.cases()

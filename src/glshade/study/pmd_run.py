@@ -1,9 +1,10 @@
-"""Running the paper's study under phase measuring on a renderer: every pending case of
-the plan through the measuring engine (:func:`glshade.measure.engine.measure_many` with
-:class:`~glshade.instruments.pmd.station.PmdSettings`: one defect-free analysis per (surface, θ,
-σ²), shared by its depths), each finished case written at once (``pmd_cases/<key>.json``), so
-an interrupted run loses nothing and a rerun measures only what is missing. The
-directory is locked for the run (:func:`glshade.measure.locks.run_lock`)."""
+"""Running the paper's study under phase measuring: every pending case of the plan
+through the executors every study and sweep measures with (in this process or on Dask
+workers: :func:`glshade.measure.where.open_executor`; the engine shares one defect-free
+analysis per (surface, θ, σ²) among its depths), each finished case written at once
+(``pmd_cases/<key>.json``), so an interrupted run loses nothing and a rerun measures only
+what is missing. The directory is locked for the run
+(:func:`glshade.measure.locks.run_lock`)."""
 
 from __future__ import annotations
 
@@ -11,14 +12,14 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 from glshade.components.emitter.fringes.table import fringes_of
-from glshade.gpu.renderer import Renderer
 from glshade.instruments.base import Case
 from glshade.instruments.record import PmdMeasurement
 from glshade.measure.case_files import Rejected
-from glshade.measure.engine import measure_many
+from glshade.measure.executors import Distribution
+from glshade.measure.where import open_executor
 from glshade.study.plan import PlanPoint, case_key
 from glshade.study.pmd_plan import PmdStudyPlan
 from glshade.study.pmd_store import (
@@ -30,6 +31,9 @@ from glshade.study.pmd_store import (
     write_results_csv,
 )
 from glshade.study.store import opened
+
+if TYPE_CHECKING:
+    from glshade.rendering import Renderer
 
 
 @dataclass
@@ -49,6 +53,7 @@ def run_pmd_study(
     out_dir: Path,
     *,
     renderer: Renderer | None = None,
+    distribution: Distribution | None = None,
     progress: bool = True,
     overwrite: bool = False,
     on_case_done: Callable[[PmdCaseResult], None] | None = None,
@@ -60,7 +65,8 @@ def run_pmd_study(
     ``overwrite`` (which removes only the PMD study's files: the stripe study beside it
     is never touched). ``on_case_done(row)`` is called once a case is safely on disk;
     ``notify(line)`` is told of case files that fail their check (measured again; a
-    warning when None)."""
+    warning when None). ``distribution``: where the cases are measured (default: this
+    process, on ``renderer`` or a renderer of its own)."""
     out_dir = Path(out_dir)
     with opened(out_dir, plan.to_dict(), overwrite, PMD_LAYOUT):
         rejected = Rejected()
@@ -70,27 +76,25 @@ def run_pmd_study(
         rejected.say(notify)
         skipped = len(done)
         start = time.perf_counter()
-        owns = renderer is None
-        renderer = renderer or Renderer()
         bar = _progress_bar(len(plan.cases()), skipped, progress)
+        where = distribution or Distribution(threads=1)
         try:
             cases = [Case(point, plan.scene(*point)) for point in pending]
-            for measured in measure_many(renderer, cases, plan.settings):
-                point = cast(PlanPoint, measured.case.key)
-                record = cast(PmdMeasurement, measured.record)
-                period = float(fringes_of(measured.case.scene).periods[0])
-                row = PmdCaseResult.of_point(point, period, record)
-                write_case(out_dir, row)
-                done[case_key(*point)] = row
-                if bar is not None:
-                    bar.update(1)
-                if on_case_done is not None:
-                    on_case_done(row)
+            periods = {case.key: float(fringes_of(case.scene).periods[0]) for case in cases}
+            with open_executor(where, renderer) as executor:
+                rows = executor.rows(cases, plan.settings, False)
+                for key, record, _ in rows:
+                    point = cast(PlanPoint, key)
+                    row = PmdCaseResult.of_point(point, periods[key], cast(PmdMeasurement, record))
+                    write_case(out_dir, row)
+                    done[case_key(*point)] = row
+                    if bar is not None:
+                        bar.update(1)
+                    if on_case_done is not None:
+                        on_case_done(row)
         finally:
             if bar is not None:
                 bar.close()
-            if owns:
-                renderer.release()
         seconds = time.perf_counter() - start
         rows = [done[case_key(*point)] for point in plan.cases()]
         write_results_csv(out_dir / RESULTS_NAME, rows)

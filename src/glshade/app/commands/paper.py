@@ -110,7 +110,8 @@ def _add_run_flags(p: argparse.ArgumentParser) -> None:
         help="worker processes, each tracing and measuring whole geometries with its own "
         "renderer (a local Dask cluster); 0: in this process; auto (the default): 2 when "
         "the study is large enough to repay their start (64 cases at 512² or the like), "
-        "else 0",
+        "else 0. With --method pmd the phase-measuring cases go to N workers only when N is "
+        "given (auto: in this process; their memory is several times the stripe metric's)",
     )
     p.add_argument(
         "--threads",
@@ -151,8 +152,16 @@ def run(args: argparse.Namespace) -> int:
         metric=metric,
     )
     study.check_size(plan, args.yes)  # before --out is touched, in both methods
-    args.workers = paper_workers(args.workers, plan, args.device)
+    typed_workers, args.workers = args.workers, paper_workers(args.workers, plan, args.device)
     if args.method == "pmd":
+        # phase measuring goes to worker processes only when asked: its cases take
+        # several times the stripe metric's memory
+        args.pmd_workers = args.workers if typed_workers != "auto" else 0
+        if args.pmd_workers:
+            from glshade.measure.capacity import check_worker_count
+
+            pixels = plan.size * plan.size
+            check_worker_count(args.pmd_workers, pixels, "pmd", in_process=True)
         pmd = pmd_plan(args, plan)  # bad input is refused before --out is touched
         with run_lock(args.out):
             return cmd_paper_pmd(args, plan, pmd, _run_stripes)

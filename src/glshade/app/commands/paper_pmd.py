@@ -180,11 +180,8 @@ def cmd_paper_pmd(args: argparse.Namespace, cases_plan, plan, run_stripes) -> in
     ``cases_plan`` first where ``--out`` has no ``results.csv`` (``run_stripes(args,
     cases_plan)``, resumable), then the PMD study ``plan`` (:func:`pmd_plan`), its figures
     and its report."""
-    from glshade.gpu.context import GLContext
-    from glshade.gpu.renderer import Renderer
     from glshade.study.pmd_findings import write_pmd_report
     from glshade.study.pmd_plots import write_pmd_figures
-    from glshade.study.pmd_run import run_pmd_study
     from glshade.study.pmd_store import RESULTS_NAME
     from glshade.study.store import read_results_csv
 
@@ -197,14 +194,7 @@ def cmd_paper_pmd(args: argparse.Namespace, cases_plan, plan, run_stripes) -> in
         run_stripes(argparse.Namespace(**{**vars(args), "overwrite": False}), cases_plan)
     paper_rows = read_results_csv(out / "results.csv")
     reuse_freed_memory()
-    with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
-        result = run_pmd_study(
-            plan,
-            out,
-            renderer=renderer,
-            progress=not args.no_progress,
-            overwrite=args.overwrite,
-        )
+    result = _measured(args, plan, out)
     paper_size = _paper_size(out)
     image = (paper_size, paper_size) if paper_size else None
     figures = write_pmd_figures(result.rows, paper_rows, out, plan, image)
@@ -217,6 +207,22 @@ def cmd_paper_pmd(args: argparse.Namespace, cases_plan, plan, run_stripes) -> in
         f"{time.perf_counter() - start:.1f} s"
     )
     return 0
+
+
+def _measured(args: argparse.Namespace, plan, out: Path):
+    """The PMD study run in this process, or on ``--workers`` Dask worker processes."""
+    from glshade.gpu.context import GLContext
+    from glshade.gpu.renderer import Renderer
+    from glshade.measure.executors import Distribution
+    from glshade.study.pmd_run import run_pmd_study
+
+    options = {"progress": not args.no_progress, "overwrite": args.overwrite}
+    workers = getattr(args, "pmd_workers", 0)
+    if workers:  # checked against this machine before --out was touched
+        distribution = Distribution(workers=workers, verbose=args.verbose)
+        return run_pmd_study(plan, out, distribution=distribution, **options)
+    with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
+        return run_pmd_study(plan, out, renderer=renderer, **options)
 
 
 def _paper_size(out: Path) -> int | None:
