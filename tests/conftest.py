@@ -39,12 +39,15 @@ def renderer(_session_renderer, gl_context):
 def pytest_collection_modifyitems(config, items):
     """``gl`` on every test that needs the GL context (directly or through ``renderer``);
     ``subprocess`` on the tests of a module that starts processes (it imports
-    :mod:`subprocess` or the suite's :func:`glshade_process.run_glshade`)."""
+    :mod:`subprocess`, the suite's :func:`glshade_process.run_glshade` or
+    :func:`plugin_venv.glshade_in`)."""
     for item in items:
         if "gl_context" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.gl)
         module = getattr(item, "module", None)
         if module is not None and (
-            getattr(module, "subprocess", None) is subprocess or hasattr(module, "run_glshade")
+            getattr(module, "subprocess", None) is subprocess
+            or hasattr(module, "run_glshade")
+            or hasattr(module, "glshade_in")
         ):
             item.add_marker(pytest.mark.subprocess)

@@ -11,14 +11,11 @@ from __future__ import annotations
 import csv
 import importlib.util
 import json
-import shutil
-import site
-import subprocess
 import sys
-import venv
 from pathlib import Path
 
 import pytest
+from tests.plugin_venv import glshade_in, venv_with
 from tests.test_components import check_absent_code, check_oracle, check_round_trip, check_uniforms
 
 from glshade.components.registry import registry
@@ -29,32 +26,8 @@ PACKAGE = Path(__file__).parent / "plugins" / "glshade_paraboloid"
 
 @pytest.fixture(scope="module")
 def plugin_python(tmp_path_factory) -> Path:
-    """The python of a fresh virtual environment that sees this environment's packages
-    (glshade, editable or not) and has the plug-in package installed by pip."""
-    root = tmp_path_factory.mktemp("plugin-venv")
-    venv.EnvBuilder(with_pip=False).create(root)
-    python = root / "bin" / "python"
-    inner = subprocess.run(
-        [python, "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"],
-        capture_output=True, text=True, check=True,
-    ).stdout.strip()  # fmt: skip
-    outer = [*site.getsitepackages(), site.getusersitepackages()]
-    lines = [f"import site; site.addsitedir({path!r})" for path in outer if Path(path).is_dir()]
-    (Path(inner) / "outer_environment.pth").write_text("\n".join(lines) + "\n")
-    # built from a copy: setuptools leaves build/ and *.egg-info beside the sources
-    source = shutil.copytree(PACKAGE, root / "source")
-    install = [python, "-m", "pip", "install", "--no-deps", "--no-build-isolation", "--no-index"]
-    done = subprocess.run(
-        [*install, "--quiet", str(source)], capture_output=True, text=True, cwd=root
-    )
-    assert done.returncode == 0, done.stderr[-3000:]
-    return python
-
-
-def glshade_in(python: Path, *args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [python, "-m", "glshade", *args], capture_output=True, text=True, cwd=cwd, timeout=300
-    )
+    """The python of a fresh virtual environment with the plug-in package installed."""
+    return venv_with(PACKAGE, tmp_path_factory.mktemp("plugin-venv"))
 
 
 def test_the_cli_of_the_venv_measures_and_renders_the_plugin(plugin_python, tmp_path):

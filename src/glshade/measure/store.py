@@ -174,10 +174,10 @@ def write_case(
     """A finished case on disk: its image (a PNG) first, then its record (JSON-able) with
     its case id and checksum, the "done" mark a rerun looks for; each atomically."""
     out_dir = Path(out_dir)
+    data = case_file_bytes(key, json.loads(json.dumps(record)))  # made before either write
     if image is not None:
         path = out_dir / layout.images / f"{key}.png"
         atomic_write_bytes(path, image, "--out", within=out_dir)
-    data = case_file_bytes(key, json.loads(json.dumps(record)))
     atomic_write_bytes(_case_path(out_dir, layout, key), data, "--out", within=out_dir)
 
 
