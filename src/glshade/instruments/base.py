@@ -22,6 +22,8 @@ workers) reaches it through this interface and never by its name:
 - **goals**: the record columns the optimiser may aim at (:class:`Goal`);
 - **resources**: a worker's memory (:attr:`Instrument.worker_memory`), a geometry's check
   against the memory budget (:meth:`Instrument.budget_plan`).
+- **views**: the maps and numbers it offers the interactive viewer
+  (:meth:`Instrument.views`, :class:`InstrumentViews`).
 
 Nothing here imports the renderer or an instrument: this module is the contract.
 """
@@ -92,7 +94,8 @@ class Goal:
     ``label`` how it reads on a plot's axis (default: the column and its unit);
     ``strict``: any status but ok makes it unreadable (else the instrument's
     :meth:`Instrument.concerns`); ``value_key``, ``tolerance_key`` and ``digits``: how
-    ``glshade optimize --json`` names and rounds its value and tolerance."""
+    ``glshade optimize --json`` names and rounds its value and tolerance; ``quantity``:
+    what its value is called in a line of text (else the column's name and the sense)."""
 
     name: str
     column: str
@@ -106,6 +109,7 @@ class Goal:
     value_key: str | None = None
     tolerance_key: str = "tolerance"
     digits: int | None = None
+    quantity: str = ""
 
 
 @dataclass(frozen=True)
@@ -139,6 +143,58 @@ class FileOption:
     def dest(self) -> str:
         """The argparse destination of its flag."""
         return "file_" + self.flag.lstrip("-").replace("-", "_")
+
+
+@dataclass(frozen=True)
+class ViewMap:
+    """A map of a measured case, as one of an instrument's views shows it: ``values``
+    (H, W, float, NaN where the case has none), on a scale from ``bottom`` to ``top`` in
+    ``unit``, with ``caption`` its words and ``colours`` a matplotlib colour map's name."""
+
+    values: np.ndarray
+    bottom: float
+    top: float
+    unit: str
+    caption: str
+    colours: str = "viridis"
+
+
+@dataclass(frozen=True)
+class InstrumentView:
+    """One map an instrument offers the viewer: ``name`` (``glshade view --set
+    view=NAME``), ``label`` (the hover's word for its value), ``map_of(scene, result)``
+    its map of a case (``scene`` as measured, ``result`` what :meth:`Instrument.measure`
+    gave), and ``no_value`` what the hover says where the map has none."""
+
+    name: str
+    label: str
+    map_of: Callable[[Scene, Any], ViewMap]
+    no_value: str = "no value"
+
+    def hover(self, shown: ViewMap, row: int, col: int) -> str:
+        """The hover's words for pixel ``(row, col)`` of the map ``shown``."""
+        value = shown.values[row, col]
+        if not np.isfinite(value):
+            return f"{self.label}: {self.no_value}"
+        return f"{self.label} {value:.4g} {shown.unit}"
+
+
+@dataclass(frozen=True)
+class InstrumentViews:
+    """What an instrument offers the interactive viewer: its ``views`` (in the view
+    menu's order), measured on :meth:`Instrument.prepared`'s scene at ``size`` pixels
+    across (at most the image's, the same field of view); ``label`` its name in the
+    readout; ``readout(scene, result, missing)`` the readout's lines of a measured case,
+    or with ``result`` None the same lines with ``missing`` for each number ("..." while
+    measuring, "-" when refused); ``measurer(settings)``, where given, a function
+    ``(renderer, scene) -> result`` that keeps what it may between cases (a defect-free
+    analysis), else each case is :meth:`Instrument.measure`'s."""
+
+    label: str
+    views: tuple[InstrumentView, ...]
+    readout: Callable[[Scene | None, Any, str], list[str]]
+    size: int = 256
+    measurer: Callable[[Any], Callable[[Renderer, Scene], Any]] | None = None
 
 
 class Instrument(ABC):
@@ -313,6 +369,11 @@ class Instrument(ABC):
     def column_unit(self, column: str) -> str:
         """The unit of one of its record's columns."""
         return next(c.unit for c in self.record_type.columns() if c.name == column)
+
+    # ------------------------------------------------------------------ viewer
+    def views(self) -> InstrumentViews | None:
+        """What it offers the interactive viewer (:class:`InstrumentViews`); default none."""
+        return None
 
 
 def _plain(settings: Any) -> dict[str, Any]:

@@ -16,6 +16,7 @@ from glshade.instruments.base import (
     FileOption,
     Goal,
     Instrument,
+    InstrumentViews,
     Measured,
     WorkerMemory,
 )
@@ -164,3 +165,10 @@ class PhaseInstrument(Instrument):
 
     def concerns(self, status: str, column: str) -> bool:
         return pmd_concerns(status, column)
+
+    def views(self) -> InstrumentViews:
+        """The viewer's PMD views: the phase, modulation, error and slope maps
+        (:mod:`glshade.instruments.pmd.views`)."""
+        from glshade.instruments.pmd.views import pmd_views
+
+        return pmd_views()
