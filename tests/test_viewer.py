@@ -32,17 +32,30 @@ from glshade.app.viewer.colourbar import (
     colour_index,
     colour_lut,
 )
+from glshade.app.viewer.instrument_view import InstrumentCase, case_lines, case_scene
 from glshade.app.viewer.model import IDLE_WAIT_S, POLL_S, SETTLE_FRAMES, FrameSchedule
-from glshade.app.viewer.pmd_view import PmdReadout, pmd_readout_lines, pmd_scene
 from glshade.errors import GlshadeError, SceneError
 from glshade.files import read_png
 from glshade.gpu.renderer import Renderer, render
-from glshade.measure.pmd import PmdSettings, measure_pmd_scene
+from glshade.instruments.pmd.station import PmdSettings, measure_pmd_scene
+from glshade.instruments.pmd.views import PMD_SIZE
+from glshade.instruments.registry import instrument
 from glshade.measure.single import measure
 from glshade.metrics.visibility import Visibility
 from glshade.scene import paper_scene
 
 SIZE = 96
+
+
+def pmd_scene(scene, size=PMD_SIZE):
+    """The scene the viewer's PMD views measure: phase measuring's, at ``size`` px."""
+    return case_scene(instrument("pmd"), geometry_key(scene), size)
+
+
+def pmd_readout_lines(scene, result, size):
+    """The readout of a PMD view of ``result``, measured on ``scene`` at ``size`` px."""
+    pmd = instrument("pmd")
+    return case_lines(pmd.views(), InstrumentCase(pmd, scene, result), False, size)
 
 
 # --------------------------------------------------------------------------- model
@@ -337,7 +350,7 @@ def test_pmd_view_measures_once_per_change_in_its_own_thread():
     the phase, another PMD map or a rest submit nothing; a new dent does; the image
     view shows the paper's readout again."""
     scene = paper_scene("flat", 45.0, 1.0, 0.005).with_size(96)
-    model = ViewerModel(scene, view="pmd-slope", pmd_size=64)
+    model = ViewerModel(scene, view="pmd-slope", case_size=64)
     model.traced(
         render(scene, ("uv",)).uv, render(scene.without_defect(), ("uv",)).uv[..., 1].copy()
     )
@@ -348,16 +361,16 @@ def test_pmd_view_measures_once_per_change_in_its_own_thread():
     assert measured.camera.width == 64 and measured.active.emitter.measured_by == "pmd"
     with Renderer() as renderer:
         truth = measure_pmd_scene(renderer, measured, PmdSettings())
-    result = model.pmd.result
-    assert model.pmd.scene == measured and result is not None
+    result = model.cases.last.result
+    assert model.cases.last.scene == measured and result is not None
     for name in ("pmd_shift_mm", "pmd_depth_um", "pmd_snr", "unwrap_failures", "status"):
         assert getattr(result, name) == getattr(truth, name), name
-    expected = pmd_readout_lines(PmdReadout(measured, truth), False, 64)
+    expected = pmd_readout_lines(measured, truth, 64)
     assert model.readout_text()[:5] == expected[:5]
     assert expected[0] == f"PMD shift: {truth.pmd_shift_mm:.4g} mm on the screen"
     assert expected[2] == f"PMD depth: {truth.pmd_depth_um:.4g} um (dmax 5 um)"
     # the picture: the slope map at the image's size, its peak at the top of the scale
-    rgba, scale = model.pmd_rgba()
+    rgba, scale = model.instrument_rgba()
     slope = np.hypot(*np.moveaxis(result.maps.slopes_urad, -1, 0))
     assert rgba.shape == (96, 96, 4) and scale.unit == "urad" and scale.bottom == 0.0
     assert scale.top == pytest.approx(np.nanmax(slope[~result.maps.failed]))
@@ -370,19 +383,21 @@ def test_pmd_view_measures_once_per_change_in_its_own_thread():
     for change in (lambda: None, lambda: model.set("phase", 0.7)):
         change()
         model.start_metrics()
-        assert model._pmd_job is None
+        assert model.cases.job is None
     model.view = "pmd-phase"  # another map of the same case
     model.start_metrics()
-    assert model._pmd_job is None and model.pmd_rgba()[1].top == pytest.approx(2 * np.pi)
+    assert model.cases.job is None
+    assert model.instrument_rgba()[1].top == pytest.approx(2 * np.pi)
     model.set("dmax", 0.003)  # a new dent: one case
     model.start_metrics()
-    assert model._pmd_job is not None
+    assert model.cases.job is not None
     model.wait_for_metrics()
     # the heights are linear in the slopes: the depth scales with dmax
-    assert model.pmd.result.pmd_depth_um == pytest.approx(0.6 * truth.pmd_depth_um, rel=0.02)
+    assert model.cases.last.result.pmd_depth_um == pytest.approx(0.6 * truth.pmd_depth_um, rel=0.02)
     model.view = "image"
     model.start_metrics()
-    assert model._pmd_job is None and model.readout_text() == readout_lines(model.readout)
+    assert model.cases.job is None
+    assert model.readout_text() == readout_lines(model.readout)
     model.close()
 
 
@@ -504,7 +519,7 @@ def test_scripted_pmd_view_shows_the_map_its_colour_bar_and_the_station_numbers(
     scene = paper_scene().with_size(128)
     with Renderer() as renderer:
         truth = measure_pmd_scene(renderer, pmd_scene(scene), PmdSettings())
-    lines = pmd_readout_lines(PmdReadout(pmd_scene(scene), truth), False, 128)
+    lines = pmd_readout_lines(pmd_scene(scene), truth, 128)
     assert line.startswith("readout: " + "; ".join(lines[:5])), line
     assert "PMD at 128 px: " in line and "..." not in line
     pixels = read_png(path)

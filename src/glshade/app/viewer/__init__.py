@@ -12,9 +12,9 @@ window's own GL context. What is recomputed is only what changed:
   Blinn-Phong or supersampling, where the picture is not a function of the uv map, the
   image is re-rendered instead;
 - the visibility metrics run in a worker thread, never on the render thread, and the
-  panel shows the latest finished result; in a PMD view the station measures the scene
-  (its fringe sequence rendered and decoded) in a thread of its own, whenever the scene
-  changed;
+  panel shows the latest finished result; in an instrument's view (the PMD maps) the
+  station measures the scene through that instrument (for phase measuring: its fringe
+  sequence rendered and decoded) in a thread of its own, whenever the scene changed;
 - nothing changed, nothing is drawn: the window waits for input, the worker's result or
   the animation (``FrameSchedule``), and a frame for the panel alone copies the kept
   picture instead of running the display pass again.
@@ -22,18 +22,17 @@ window's own GL context. What is recomputed is only what changed:
 The package: ``controls`` (the controls, generated from the parameter schema),
 ``model`` (``ViewerModel`` and ``FrameSchedule``: everything but the window, tested
 without a display), ``panel`` (the imgui panel, and the window height it needs),
-``colourbar`` (the colour-mapped views' labelled colour bar), ``pmd_view`` (the PMD
-views: a phase-measuring station's maps and numbers, measured in a thread of its own
-with a renderer of its own) and ``window`` (the moderngl-window window and its
-event-driven loop). The
-scripted mode (``--frames N --screenshot out.png --set theta=5``) runs a real window for
-tests and demos. Needs the ``viewer`` extra: ``pip install "glshade[viewer]"``.
+``colourbar`` (the colour-mapped views' labelled colour bar), ``instrument_view`` (the
+views the registered instruments offer, :meth:`glshade.instruments.base.Instrument.views`:
+their maps and numbers, measured in a thread of its own with a renderer of its own) and
+``window`` (the moderngl-window window and its event-driven loop). The scripted mode
+(``--frames N --screenshot out.png --set theta=5``) runs a real window for tests and
+demos. Needs the ``viewer`` extra: ``pip install "glshade[viewer]"``.
 """
 
 from __future__ import annotations
 
 from glshade.app.viewer.controls import (
-    VIEWS,
     Choice,
     Control,
     apply_setting,
@@ -42,10 +41,16 @@ from glshade.app.viewer.controls import (
     controls,
     geometry_key,
     parse_sets,
+    views,
 )
+from glshade.app.viewer.instrument_view import STRIPE_VIEWS
 from glshade.app.viewer.model import Readout, ViewerModel, ViewerOptions, readout_lines
-from glshade.app.viewer.pmd_view import PMD_SIZE, PMD_VIEWS
 from glshade.errors import GlshadeError
+from glshade.instruments.base import InstrumentViews
+
+#: ``glshade view``'s ``pmd_size`` when not set: an instrument view's case size where its
+#: instrument does not say (:attr:`~glshade.instruments.base.InstrumentViews.size`).
+PMD_SIZE = InstrumentViews.size
 
 
 def run(options: ViewerOptions) -> dict:
@@ -96,8 +101,7 @@ def _check_display() -> None:
 
 __all__ = [
     "PMD_SIZE",
-    "PMD_VIEWS",
-    "VIEWS",
+    "STRIPE_VIEWS",
     "Choice",
     "Control",
     "Readout",
@@ -111,4 +115,5 @@ __all__ = [
     "parse_sets",
     "readout_lines",
     "run",
+    "views",
 ]

@@ -11,25 +11,24 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
+from glshade.app.viewer.instrument_view import STRIPE_VIEWS, instrument_views
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
 from glshade.params import Param
 from glshade.scene import Scene
 
-#: The views: the camera image, its defect-free twin, the Fig. 9 contour overlay, the
-#: displacement, and the maps a phase-measuring station measures
-#: (:data:`glshade.app.viewer.pmd_view.PMD_VIEWS`).
-VIEWS = (
-    "image",
-    "defect-free",
-    "overlay",
-    "displacement",
-    "pmd-phase",
-    "pmd-modulation",
-    "pmd-error",
-    "pmd-slope",
-)
+if TYPE_CHECKING:
+    from glshade.instruments.registry import Instruments
+
+
+def views(found: Instruments | None = None) -> tuple[str, ...]:
+    """The views, in the view menu's order: the viewer's own (the camera image, its
+    defect-free twin, the Fig. 9 contour overlay, the displacement), then the maps the
+    instruments of ``found`` (default: the registry) offer
+    (:func:`glshade.app.viewer.instrument_view.instrument_views`)."""
+    return STRIPE_VIEWS + tuple(instrument_views(found))
 
 
 @dataclass(frozen=True)
@@ -175,8 +174,9 @@ def parse_sets(
         if not sep or not name:
             raise GlshadeError(f"--set {item!r}: expected name=value")
         if name == "view":
-            if raw not in VIEWS:
-                raise GlshadeError(f"--set view: must be one of {', '.join(VIEWS)}, got {raw!r}")
+            known = views()
+            if raw not in known:
+                raise GlshadeError(f"--set view: must be one of {', '.join(known)}, got {raw!r}")
             extra[name] = raw
         elif name in ("animate", "pmd_size"):
             extra[name] = raw
@@ -194,7 +194,8 @@ def parse_sets(
 
 
 def _pmd_size(raw: str, scene: Scene) -> int:
-    """``--set pmd_size=N``: pixels across the PMD views' case, 16 to the image's width."""
+    """``--set pmd_size=N``: pixels across an instrument view's case (the PMD views'),
+    16 to the image's width."""
     width = scene.camera.width
     try:
         size = int(raw)

@@ -1,27 +1,30 @@
 """The viewer's state without a window: the scene, the traced maps, the metrics in a
-worker thread, and which work a change calls for (tested without a display)."""
+worker thread, the instrument views' cases in a station of their own, and which work a
+change calls for (tested without a display)."""
 
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import wait as wait_for
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from glshade.app.viewer.colourbar import ColourScale, colour_index, colour_lut
 from glshade.app.viewer.controls import apply_setting, geometry_key
-from glshade.app.viewer.pmd_view import (
-    PMD_SIZE,
-    PMD_VIEWS,
-    PmdReadout,
-    PmdStation,
-    pmd_hover,
-    pmd_readout_lines,
-    pmd_rgba,
-    pmd_scene,
+from glshade.app.viewer.instrument_view import (
+    STRIPE_VIEWS,
+    InstrumentCases,
+    OfferedView,
+    case_lines,
+    first_views,
+    instrument_views,
+    view_hover,
+    view_rgba,
 )
 from glshade.errors import GlshadeError, SceneError
 from glshade.instruments.stripes.single import judged, map_baseline
@@ -29,6 +32,10 @@ from glshade.metrics import contours
 from glshade.metrics import visibility as vis
 from glshade.metrics.status import concerns
 from glshade.scene import PAPER_SURFACES, Scene, paper_scene
+
+if TYPE_CHECKING:
+    from glshade.instruments.registry import Instruments
+    from glshade.rendering import Renderer
 
 
 @dataclass
@@ -105,7 +112,8 @@ class _Once:
 @dataclass
 class ViewerModel:
     """Everything the viewer knows, without a window: the scene, the traced maps, the
-    metrics, and which work a change calls for."""
+    metrics, the views the instruments of ``instruments`` (default: the registry) offer
+    and their latest case, and which work a change calls for."""
 
     scene: Scene
     view: str = "image"
@@ -122,16 +130,19 @@ class ViewerModel:
     reshades: int = 0
     scene_passes: int = 0  # the window's display pass run (not per frame: on a change)
     refused: str = ""
-    pmd_size: int = PMD_SIZE  # pixels across the PMD views' case is measured on (at most)
-    pmd: PmdReadout = field(default_factory=PmdReadout)
-    pmd_results: int = 0  # PMD results taken (a new one changes the picture)
+    instruments: Instruments | None = None  # whose views it offers (None: the registry's)
+    make_renderer: Callable[[], Renderer] | None = None  # the station's (None: headless GL)
+    case_size: int | None = None  # an instrument view's case's pixels across (at most)
+    cases: InstrumentCases = field(init=False)  # the instrument views' cases
     _baseline: _Once | None = None
     _pool: ThreadPoolExecutor | None = None
     _case_job: Future | None = None
     _phase_job: Future | None = None
     _case_done: bool = False
-    _station: PmdStation | None = None
-    _pmd_job: Future | None = None
+    _offered: dict[str, OfferedView] | None = None
+
+    def __post_init__(self) -> None:
+        self.cases = InstrumentCases(self.make_renderer)
 
     # ---------------------------------------------------------------- edits
     def set(self, name: str, value, slider: bool = False) -> bool:
@@ -241,26 +252,30 @@ class ViewerModel:
         rgba[..., :3] = np.where(finite[..., None], lut[index], 0)
         return rgba, top
 
-    def pmd_rgba(self) -> tuple[np.ndarray, ColourScale]:
-        """The PMD view's map as a colour map at the image's size, and its scale (the
-        latest case the station finished; dark, captioned, before the first)."""
+    def instrument_rgba(self) -> tuple[np.ndarray, ColourScale]:
+        """The instrument view's map as a colour map at the image's size, and its scale
+        (the latest case the station finished; dark, captioned, before the first)."""
         shape = self.traced_map().shape
-        pmd = self.pmd
-        if pmd.result is None or pmd.scene is None:
+        offered = self.instrument_view
+        case = self.cases.of(offered)
+        if offered is None:
+            raise GlshadeError(f"view {self.view!r} is not an instrument's")
+        if case.result is None or case.scene is None:
             rgba = np.zeros((*shape, 4), np.uint8)
             rgba[..., 3] = 255
-            doing = "not measured (see the readout)" if pmd.error else "computing..."
-            return rgba, ColourScale(0.0, 0.0, "", f"phase measuring: {doing}")
-        return pmd_rgba(self.view, pmd.scene, pmd.result, shape)
+            doing = "not measured (see the readout)" if case.error else "computing..."
+            return rgba, ColourScale(0.0, 0.0, "", f"{offered.instrument.title}: {doing}")
+        return view_rgba(offered.view, case.scene, case.result, shape)
 
     def hover(self, col: int, row: int) -> str:
         if self.uv1 is None or not (0 <= row < self.uv1.shape[0] and 0 <= col < self.uv1.shape[1]):
             return ""
         u, v = self.uv1[row, col]
-        if self.view in PMD_VIEWS and self.pmd.result is not None and self.pmd.scene is not None:
-            value = pmd_hover(
-                self.view, self.pmd.scene, self.pmd.result, row, col, self.uv1.shape[:2]
-            )
+        offered = self.instrument_view
+        case = self.cases.of(offered)
+        if offered is not None and case.result is not None and case.scene is not None:
+            shape = self.uv1.shape[:2]
+            value = view_hover(offered.view, case.scene, case.result, row, col, shape)
             return f"pixel ({col}, {row}): {value}"
         if not np.isfinite(v):
             return f"pixel ({col}, {row}): no emitter hit"
@@ -270,29 +285,63 @@ class ViewerModel:
         return text
 
     def readout_text(self) -> list[str]:
-        """The panel's readout for the view: the station's numbers in a PMD view, the
-        paper's otherwise."""
-        if self.view not in PMD_VIEWS:
+        """The panel's readout for the view: the instrument's numbers in an instrument
+        view, the paper's otherwise."""
+        offered = self.instrument_view
+        if offered is None:
             return readout_lines(self.readout)
-        shown = self.pmd.scene
-        size = shown.camera.width if shown is not None else min(self.pmd_size, self.width)
-        return pmd_readout_lines(self.pmd, self._pmd_job is not None, size)
+        case = self.cases.of(offered)
+        shown = case.scene
+        size = shown.camera.width if shown is not None else self._case_size(offered)
+        return case_lines(offered.offer, case, self.cases.job is not None, size)
 
     @property
     def width(self) -> int:
         return self.scene.camera.width
 
+    # ---------------------------------------------------------------- views
+    def offered_views(self) -> dict[str, OfferedView]:
+        """The views the instruments offer, by name (asked once)."""
+        if self._offered is None:
+            self._offered = instrument_views(self.instruments)
+        return self._offered
+
+    def view_names(self) -> tuple[str, ...]:
+        """The view menu: the viewer's own views, then the instruments'."""
+        return STRIPE_VIEWS + tuple(self.offered_views())
+
+    def first_views(self) -> list[OfferedView]:
+        """Each instrument's first view (the P key shows the first of them)."""
+        return first_views(self.offered_views())
+
+    def toggle_instrument_view(self) -> None:
+        """The P key: the first instrument view, or from any instrument view the image."""
+        firsts = self.first_views()
+        if self.instrument_view is not None:
+            self.view = "image"
+        elif firsts:
+            self.view = firsts[0].view.name
+
+    @property
+    def instrument_view(self) -> OfferedView | None:
+        """The view shown, where an instrument offers it; None in the viewer's own."""
+        return self.offered_views().get(self.view)
+
+    def _case_size(self, offered: OfferedView) -> int:
+        size = self.case_size if self.case_size is not None else offered.offer.size
+        return min(size, self.width)
+
     # ---------------------------------------------------------------- metrics
     @property
     def metrics_pending(self) -> bool:
         """A job is in the worker (the window polls for it instead of sleeping)."""
-        jobs = (self._case_job, self._phase_job, self._pmd_job)
+        jobs = (self._case_job, self._phase_job, self.cases.job)
         return any(job is not None for job in jobs)
 
     def collect_metrics(self) -> bool:
         """Take whatever the workers finished (call before :meth:`start_metrics`); True
         when something was taken (the panel has news to show)."""
-        taken = self._collect_pmd()
+        taken = self.cases.collect()
         if self._case_job is not None and self._case_job.done():
             trace, result, error = self._case_job.result()
             self._case_job, taken = None, True
@@ -326,10 +375,10 @@ class ViewerModel:
 
     def start_metrics(self) -> None:
         """Give the workers what is missing: the whole case once per trace, the
-        comparison at the current phase whenever the phase changed, and in a PMD view
-        the station's case whenever the scene changed. A job is never replaced before it
-        was collected (throttled, never queued up)."""
-        self._start_pmd()
+        comparison at the current phase whenever the phase changed, and in an instrument
+        view the station's case whenever the scene changed. A job is never replaced
+        before it was collected (throttled, never queued up)."""
+        self._start_instrument()
         if self.v0 is None or self._baseline is None or self.readout.error is not None:
             return
         if self._pool is None:
@@ -349,34 +398,16 @@ class ViewerModel:
                 _attempt, key, lambda: baseline.get().at_phase(v1, phase)
             )
 
-    def _start_pmd(self) -> None:
-        """In a PMD view, measure the scene with the station unless its latest case was
-        of this scene or one is in flight (a scene the fringes refuse is shown refused)."""
-        if self.view not in PMD_VIEWS or self._pmd_job is not None:
-            return
-        try:
-            scene = pmd_scene(self.scene, self.pmd_size)
-        except GlshadeError as exc:
-            error = " ".join(str(exc).split())
-            if self.pmd.error != error:
-                self.pmd, self.pmd_results = PmdReadout(error=error), self.pmd_results + 1
-            return
-        if scene == self.pmd.scene:
-            return
-        if self._station is None:
-            self._station = PmdStation()
-        self._pmd_job = self._station.submit(scene)
-
-    def _collect_pmd(self) -> bool:
-        if self._pmd_job is None or not self._pmd_job.done():
-            return False
-        self.pmd, self._pmd_job = self._pmd_job.result(), None
-        self.pmd_results += 1
-        return True
+    def _start_instrument(self) -> None:
+        """In an instrument view, give the station the scene (a change of the stripes'
+        phase is none)."""
+        offered = self.instrument_view
+        if offered is not None:
+            self.cases.start(offered, geometry_key(self.scene), self._case_size(offered))
 
     def wait_for_metrics(self, timeout_s: float = 60.0) -> None:
         """Block until the jobs in flight are done and collected (tests, scripted runs)."""
-        jobs = (self._case_job, self._phase_job, self._pmd_job)
+        jobs = (self._case_job, self._phase_job, self.cases.job)
         _, pending = wait_for([job for job in jobs if job is not None], timeout=timeout_s)
         if pending:
             raise TimeoutError(f"the visibility metrics took more than {timeout_s:g} s")
@@ -394,9 +425,7 @@ class ViewerModel:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
-        if self._station is not None:
-            self._station.close()
-            self._station = None
+        self.cases.close()
 
 
 #: Frames drawn after the last input event: imgui answers an event a frame or two later
@@ -447,4 +476,4 @@ class ViewerOptions:
     benchmark: str | None = None  # "phase" or "theta": time frames and print fps
     panel: bool = True
     out_dir: Path = Path(".")
-    pmd_size: int = PMD_SIZE
+    pmd_size: int | None = None  # --set pmd_size: an instrument view's case size

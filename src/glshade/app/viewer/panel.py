@@ -13,9 +13,8 @@ from dataclasses import replace
 from imgui_bundle import imgui
 
 from glshade.app.viewer.colourbar import colour_bar_layout, draw_colour_bar
-from glshade.app.viewer.controls import VIEWS, combo, panel_params, slider
+from glshade.app.viewer.controls import combo, panel_params, slider
 from glshade.app.viewer.model import ViewerModel
-from glshade.app.viewer.pmd_view import PMD_VIEWS
 from glshade.params import Param
 
 PANEL_WIDTH = 360
@@ -44,9 +43,9 @@ def panel_style() -> None:
 
 
 def panel_height(model: ViewerModel, image: tuple[int, int]) -> int:
-    """The window height the panel needs for ``model``'s scene, in its view and in a PMD
-    view (whose readout is a line longer), laid out by imgui without a window (its own
-    context, destroyed after)."""
+    """The window height the panel needs for ``model``'s scene, in its view and in each
+    instrument's first view (whose readout may be longer), laid out by imgui without a
+    window (its own context, destroyed after)."""
     previous = imgui.get_current_context()
     context = imgui.create_context()
     try:
@@ -56,7 +55,7 @@ def panel_height(model: ViewerModel, image: tuple[int, int]) -> int:
         io.fonts.build()
         panel_style()
         bottoms = []
-        for view in (model.view, PMD_VIEWS[0]):  # room for the PMD readout too
+        for view in (model.view, *(o.view.name for o in model.first_views())):
             shown = replace(model, view=view)
             bottoms.append(draw_panel(shown, image[0], 4096, dict(SAMPLE_STATUS), image)[0])
     finally:
@@ -172,10 +171,18 @@ def _combo(model: ViewerModel, name: str, value) -> None:
         model.set(name, allowed[index])
 
 
+def _keys(model: ViewerModel) -> str:
+    """The keys' help line; P shows the first instrument view (the PMD phase)."""
+    first = model.first_views()[:1]
+    toggle = "".join(f", P {o.offer.label} {o.view.label}" for o in first)
+    return "keys: S screenshot, T save scene, R reset, O overlay" + toggle
+
+
 def _view_and_readout(model: ViewerModel, status: dict) -> None:
-    changed, index = imgui.combo("view", VIEWS.index(model.view), list(VIEWS))
+    views = model.view_names()
+    changed, index = imgui.combo("view", views.index(model.view), list(views))
     if changed:
-        model.view = VIEWS[index]
+        model.view = views[index]
     imgui.separator()
     for line in model.readout_text():
         if not line.startswith("status: "):
@@ -194,7 +201,7 @@ def _view_and_readout(model: ViewerModel, status: dict) -> None:
         )
     imgui.text_wrapped(status["hover"] or "hover over the image")
     imgui.text(f"last frame {status['frame_ms']:.1f} ms, {model.traces} traces")
-    imgui.text_wrapped("keys: S screenshot, T save scene, R reset, O overlay, P PMD phase")
+    imgui.text_wrapped(_keys(model))
     if status["message"]:
         imgui.text_wrapped(status["message"])
     if model.refused:

@@ -25,7 +25,6 @@ from moderngl_window.integrations.imgui_bundle import ModernglWindowRenderer
 from glshade.app.viewer.colourbar import BAR_HEIGHT, displacement_scale
 from glshade.app.viewer.model import FrameSchedule, ViewerModel, ViewerOptions
 from glshade.app.viewer.panel import PANEL_WIDTH, draw_panel, panel_height, panel_style
-from glshade.app.viewer.pmd_view import PMD_VIEWS
 from glshade.errors import GlshadeError
 from glshade.files import refuse_link, write_png
 from glshade.gpu.compose import compose_display, display_features, display_uniforms
@@ -68,7 +67,7 @@ class ViewerWindow(mglw.WindowConfig):
             self.options.scene,
             view=self.options.view,
             animate=self.options.animate,
-            pmd_size=self.options.pmd_size,
+            case_size=self.options.pmd_size,
         )
         self.renderer = Renderer(GLContext.wrap(self.ctx))
         self._programs: dict = {}  # the display pass, per the emitter's features
@@ -140,8 +139,8 @@ class ViewerWindow(mglw.WindowConfig):
             self.status["scale_top"], self.status["scale"] = top, displacement_scale(top)
             self.tex_rgba.write(rgba.tobytes())
             return 2
-        if m.view in PMD_VIEWS:
-            rgba, self.status["scale"] = m.pmd_rgba()
+        if m.instrument_view is not None:
+            rgba, self.status["scale"] = m.instrument_rgba()
             self.tex_rgba.write(np.ascontiguousarray(rgba).tobytes())
             return 2
         scene = m.scene if m.view == "image" else m.scene.without_defect()
@@ -158,8 +157,8 @@ class ViewerWindow(mglw.WindowConfig):
     def _state(self):
         m = self.model
         measured = m.view == "displacement" and m.displacement is not None
-        pmd = m.pmd_results if m.view in PMD_VIEWS else None
-        return (m.traced_for, m.scene.emitter.phase, m.view, measured, pmd)
+        cases = m.cases.taken if m.instrument_view is not None else None
+        return (m.traced_for, m.scene.emitter.phase, m.view, measured, cases)
 
     # ------------------------------------------------------------ frame
     def on_render(self, time_s, frame_time):
@@ -288,7 +287,7 @@ class ViewerWindow(mglw.WindowConfig):
         elif key == keys.O:
             self.model.view = "image" if self.model.view == "overlay" else "overlay"
         elif key == keys.P:
-            self.model.view = "image" if self.model.view in PMD_VIEWS else PMD_VIEWS[0]
+            self.model.toggle_instrument_view()
 
     def _save(self, screenshot: bool, out_dir: Path) -> None:
         """S and T: a screenshot or the scene; a refusal (an unwritable directory, a
