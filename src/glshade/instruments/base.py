@@ -94,7 +94,8 @@ class Goal:
     ``label`` how it reads on a plot's axis (default: the column and its unit);
     ``strict``: any status but ok makes it unreadable (else the instrument's
     :meth:`Instrument.concerns`); ``value_key``, ``tolerance_key`` and ``digits``: how
-    ``glshade optimize --json`` names and rounds its value and tolerance."""
+    ``glshade optimize --json`` names and rounds its value and tolerance; ``quantity``:
+    what its value is called in a line of text (else the column's name and the sense)."""
 
     name: str
     column: str
@@ -108,6 +109,7 @@ class Goal:
     value_key: str | None = None
     tolerance_key: str = "tolerance"
     digits: int | None = None
+    quantity: str = ""
 
 
 @dataclass(frozen=True)

@@ -48,11 +48,12 @@ WAITING_BYTES_PER_PIXEL = 12
 
 #: Phase measuring's coefficients are fitted to the peak resident memory of
 #: :func:`glshade.instruments.pmd.station.measure_pmd_scene` above a process that has
-#: imported glshade and opened its GL context (sampled every 10 ms through the whole case: 256² to 1024²,
-#: 24 to 252 frames, 3 and 5 periods a direction, one and two directions, with and
-#: without a sensor; docs/coding.md), rounded up, and the per-period terms to the memory
-#: the decoding holds (3000 periods at 72² and 85² took 25 % more than the fitted
-#: estimate): the estimate lies 14-45 % above every run measured.
+#: imported glshade and opened its GL context (sampled every 10 ms through the whole
+#: case: 256² to 1024², 24 to 252 frames, 3 and 5 periods a direction, one and two
+#: directions, with and without a sensor; docs/coding.md), rounded up, and the
+#: per-period terms to the memory the decoding holds (3000 periods at 72² and 85² took
+#: 25 % more than the fitted estimate): the estimate lies 14-45 % above every run
+#: measured.
 #: Per pixel: the nominal geometry, both exact maps, the decoded points, slopes, heights.
 PMD_BYTES_PER_PIXEL = 160
 #: … per pixel, map (screen coordinate x period: the maps are held for both coordinates,

@@ -82,8 +82,7 @@ def run_pmd_study(
             cases = [Case(point, plan.scene(*point)) for point in pending]
             periods = {case.key: float(fringes_of(case.scene).periods[0]) for case in cases}
             with open_executor(where, renderer) as executor:
-                rows = executor.rows(cases, plan.settings, False)
-                for key, record, _ in rows:
+                for key, record, _ in executor.rows(cases, plan.settings, False):
                     point = cast(PlanPoint, key)
                     row = PmdCaseResult.of_point(point, periods[key], cast(PmdMeasurement, record))
                     write_case(out_dir, row)

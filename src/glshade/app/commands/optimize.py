@@ -175,13 +175,13 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _value_line(result, members: int) -> str:
+    """The optimum's objective: the worst case over the family, in its unit."""
     from glshade.sweep.goals import unit
 
-    """The optimum's objective: the worst case over the family, in its unit."""
     goal = result.goal
-    if goal.method == "paper":
-        worst = f"worst case over {members} dents" if members > 1 else "visibility"
-        return f"{worst} ({result.metric}): {result.value:.3f} px"
+    if goal.quantity:  # a named quantity (the paper's visibility), three decimals
+        worst = f"worst case over {members} dents" if members > 1 else goal.quantity
+        return f"{worst} ({result.metric}): {result.value:.3f} {unit(goal)}"
     shown = unit(goal)
     unit_text = f" {shown}" if shown else ""
     worst = f", worst case over {members} dents" if members > 1 else ""

@@ -238,7 +238,8 @@ def _sensor_entry(scene: Scene) -> dict[str, Any] | None:
 
 def write_maps(directory: Path, scene: Scene, result: PmdResult) -> list[Path]:
     """Each map of a :class:`~glshade.instruments.pmd.station.PmdResult` as ``.npy``
-    (:data:`MAP_FILES` with a ``.png`` figure, :data:`DATA_FILES` without); returns the paths written."""
+    (:data:`MAP_FILES` with a ``.png`` figure, :data:`DATA_FILES` without); returns the
+    paths written."""
     directory.mkdir(parents=False, exist_ok=True)
     maps = result.maps
     arrays = {

@@ -57,11 +57,12 @@ class StripeInstrument(Instrument):
             "paper", "visibility_px", "paper", whole=True,
             tie_column="visibility_continuous_px", label="visibility (paper), px",
             value_key="visibility_px", tolerance_key="tolerance_px", digits=4,
+            quantity="visibility",
         ),
         Goal(
             "continuous", "visibility_continuous_px", "paper",
             label="visibility (continuous), px", value_key="visibility_px",
-            tolerance_key="tolerance_px", digits=4,
+            tolerance_key="tolerance_px", digits=4, quantity="visibility",
         ),
     )  # fmt: skip
     always_snapshot: ClassVar[bool] = True
