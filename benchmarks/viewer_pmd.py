@@ -26,13 +26,13 @@ def _settled(model: ViewerModel) -> float:
     start = time.perf_counter()
     model.start_metrics()
     while True:
-        if model.collect_metrics() and model._pmd_job is None:
+        if model.collect_metrics() and model.cases.job is None:
             return time.perf_counter() - start
         time.sleep(1 / 30)
 
 
 def run(size: int, pmd_size: int, repeats: int) -> dict[str, float]:
-    model = ViewerModel(paper_scene().with_size(size), view="pmd-phase", pmd_size=pmd_size)
+    model = ViewerModel(paper_scene().with_size(size), view="pmd-phase", case_size=pmd_size)
     times = {"first": _settled(model), "dent": [], "theta": []}
     for i in range(repeats):
         model.set("dmax", 0.004 + 0.0005 * i)

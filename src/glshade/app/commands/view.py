@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
         screenshot=args.screenshot,
         benchmark=args.benchmark,
         panel=not args.no_panel,
-        pmd_size=int(extra.get("pmd_size", viewer.PMD_SIZE)),
+        pmd_size=int(extra["pmd_size"]) if "pmd_size" in extra else None,
     )
     stats = viewer.run(options)
     if args.benchmark and stats["seconds"] > 0:
