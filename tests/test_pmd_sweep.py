@@ -57,6 +57,17 @@ def pmd_spec(**changes):
 
 
 # ------------------------------------------------------------------ the sweep file
+def test_the_measure_table_is_the_metric_table():
+    """``[measure]`` (the table's name) and ``[metric]`` (its former name) read the same."""
+    table = dict(PMD["metric"])
+    rest = {key: value for key, value in PMD.items() if key != "metric"}
+    spec = spec_from_dict({**rest, "measure": table})
+    assert spec.settings == pmd_spec().settings and spec.method == "pmd"
+    assert [c.case_id for c in spec.cases()] == [c.case_id for c in pmd_spec().cases()]
+    with pytest.raises(GlshadeError, match=r"<sweep>: measure\.heights: must be one of"):
+        spec_from_dict({**rest, "measure": {**table, "heights": "x"}})
+
+
 def test_paper_case_ids_are_unchanged():
     spec = spec_from_dict(PAPER)
     assert spec.method == "paper" and spec.manifest()["method"] == "paper"
@@ -116,9 +127,9 @@ def test_the_base_scenes_emitter_chooses_the_default_method(tmp_path):
     [
         ({"metric": {"method": "pmd", "step_mm": 0.5}}, "metric.step_mm: unknown setting"),
         ({"metric": {"method": "laser"}}, "metric.method: must be one of paper, pmd, got 'laser'"),
-        ({"metric": {"method": "pmd", "grid_points": "a"}}, "metric.grid_points: must be an int"),
-        ({"metric": {"method": "pmd", "grid_points": 4}}, "metric.grid_points: must be in"),
-        ({"metric": {"method": "pmd", "heights": 3}}, "metric.heights: must be text"),
+        ({"metric": {"method": "pmd", "grid_points": "a"}}, "metric.grid_points: must be an integer in [16, 1024]"),
+        ({"metric": {"method": "pmd", "grid_points": 4}}, "metric.grid_points: must be an integer in [16, 1024], got 4"),
+        ({"metric": {"method": "pmd", "heights": 3}}, "metric.heights: must be one of least-squares, frankot-chellappa, got 3"),
         ({"metric": {"method": "pmd", "modulation_share": True}}, "metric.modulation_share"),
         (
             {"grid": {"surface": [{"label": "s", "emitter.kind": "stripes"}]}},
@@ -126,6 +137,7 @@ def test_the_base_scenes_emitter_chooses_the_default_method(tmp_path):
         ),
         ({"grid": {"emitter.periods": [[2.0, 16.0, 128.0]]}}, "grid.emitter.periods"),
         ({"grid": {"emitter.shifts": [2]}}, "grid.emitter.shifts"),
+        ({"measure": {"method": "pmd"}}, "[measure] and [metric] are one table"),
     ],
 )
 def test_bad_pmd_sweep_files_are_one_line(changes, words):
@@ -362,7 +374,7 @@ def test_optimize_pmd_snr_on_real_scenes_skips_a_dent_out_of_the_image(capsys):
         ),
         (
             ["--metric", "pmd_depth_um", "--modulation-share", "2"],
-            "--modulation-share: must be in (0, 1), got 2.0",
+            "--modulation-share: must be in (0, 1), got 2",
         ),
     ],
 )

@@ -140,7 +140,7 @@ def test_directory_with_other_settings_is_refused(tmp_path):
         (["--thetas", "5,45"], "thetas: must be strictly decreasing"),
         (["--thetas", "95,45"], "thetas: every value must be in (0.001, 90)"),
         (["--step", "3"], "step: must be at most one stripe period (2 mm)"),
-        (["--step", "0"], "step: must be a number of mm > 0"),
+        (["--step", "0"], "--step: must be a finite number > 0, got 0"),
         (["--sigma2s", "-1"], "sigma2s: every value must be in (0, inf)"),
         (["--workers", "-1"], "--workers: must be auto or an integer in [0, 256]"),
         (["--threads", "0"], "--threads: must be an integer >= 1"),

@@ -410,8 +410,8 @@ def _settings(data: dict, source: str, base: Scene) -> Settings:
         )
     try:
         return kind(**table)
-    except GlshadeError as exc:
-        raise GlshadeError(f"{source}: {exc}") from None
+    except GlshadeError as exc:  # named as the file spells its table
+        raise GlshadeError(f"{source}: {name}.{str(exc).removeprefix('measure.')}") from None
 
 
 def _axis(name: str, value, source: str) -> Axis:
