@@ -27,7 +27,7 @@ def summary_lines(scene: Scene, record: Any) -> list[str]:
     def flag(column: str) -> str:
         return f"  [{record.status}: not measurable]" if pmd_concerns(record.status, column) else ""
 
-    def number(value, fmt: str) -> str:
+    def number(value: float | None, fmt: str) -> str:
         return "n/a" if value is None else format(value, fmt)
 
     snr = "inf (no sensor: noise-free)" if record.pmd_snr is None else f"{record.pmd_snr:.1f}"
