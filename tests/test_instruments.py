@@ -74,6 +74,22 @@ def test_a_malformed_declaration_is_named_in_one_line(attributes, words):
     assert problem is not None and words in problem and "\n" not in problem
 
 
+def test_a_malformed_offer_of_views_is_named_in_one_line():
+    from glshade.instruments.base import InstrumentView, InstrumentViews
+
+    view = InstrumentView("toy-map", "toy", lambda scene, result: None)
+    good = InstrumentViews("toy", (view,), lambda scene, result, missing: [])
+    assert declaration_problem(_variant(views=lambda self: good)) is None
+    offers = {
+        "must give InstrumentViews": object(),
+        "names repeat": InstrumentViews("toy", (view, view), good.readout),
+        "case size": InstrumentViews("toy", (view,), good.readout, size=4),
+    }
+    for words, offer in offers.items():
+        problem = declaration_problem(_variant(views=lambda self, offer=offer: offer))
+        assert problem is not None and words in problem
+
+
 def test_a_plugin_that_fails_to_load_is_left_out_with_one_warning(monkeypatch, tmp_path):
     (tmp_path / "broken_instrument.py").write_text("raise SystemExit(3)\n")
     monkeypatch.syspath_prepend(str(tmp_path))

@@ -21,7 +21,7 @@ from typing import Any
 from glshade.components.plugin_guard import PluginRefused, described, run_plugin_code
 from glshade.components.registry import only_builtin_declared
 from glshade.errors import GlshadeError, GlshadeWarning
-from glshade.instruments.base import Instrument
+from glshade.instruments.base import Instrument, InstrumentView, InstrumentViews
 from glshade.instruments.record import Record
 
 ENTRY_POINT_GROUP = "glshade.instruments"
@@ -169,4 +169,21 @@ def declaration_problem(item: Instrument) -> str | None:
     for goal in getattr(item, "goals", ()):
         if goal.column not in columns or goal.method != name:
             return f"instrument {name!r}: goal {goal.name!r} reads no column of its record"
+    return _views_problem(item)
+
+
+def _views_problem(item: Instrument) -> str | None:
+    """What is malformed in what an instrument offers the viewer; None when nothing."""
+    offer = item.views()
+    if offer is None:
+        return None
+    if not isinstance(offer, InstrumentViews) or not offer.views:
+        return f"instrument {item.name!r}: views() must give InstrumentViews with views"
+    names = [getattr(view, "name", None) for view in offer.views]
+    if not all(isinstance(view, InstrumentView) for view in offer.views):
+        return f"instrument {item.name!r}: each of its views must be an InstrumentView"
+    if len(set(names)) != len(names):
+        return f"instrument {item.name!r}: its views' names repeat ({', '.join(map(str, names))})"
+    if not (isinstance(offer.size, int) and 16 <= offer.size <= 16384):
+        return f"instrument {item.name!r}: its views' case size must be in [16, 16384]"
     return None
