@@ -127,9 +127,18 @@ def test_the_base_scenes_emitter_chooses_the_default_method(tmp_path):
     [
         ({"metric": {"method": "pmd", "step_mm": 0.5}}, "metric.step_mm: unknown setting"),
         ({"metric": {"method": "laser"}}, "metric.method: must be one of paper, pmd, got 'laser'"),
-        ({"metric": {"method": "pmd", "grid_points": "a"}}, "grid_points: must be an integer in [16, 1024]"),
-        ({"metric": {"method": "pmd", "grid_points": 4}}, "grid_points: must be an integer in [16, 1024], got 4"),
-        ({"metric": {"method": "pmd", "heights": 3}}, "heights: must be one of least-squares, frankot-chellappa"),
+        (
+            {"metric": {"method": "pmd", "grid_points": "a"}},
+            "grid_points: must be an integer in [16, 1024]",
+        ),
+        (
+            {"metric": {"method": "pmd", "grid_points": 4}},
+            "grid_points: must be an integer in [16, 1024], got 4",
+        ),
+        (
+            {"metric": {"method": "pmd", "heights": 3}},
+            "heights: must be one of least-squares, frankot-chellappa",
+        ),
         ({"metric": {"method": "pmd", "modulation_share": True}}, "metric.modulation_share"),
         (
             {"grid": {"surface": [{"label": "s", "emitter.kind": "stripes"}]}},
