@@ -38,3 +38,19 @@ def glshade_in(python: Path, *args: str, cwd: Path | None = None) -> subprocess.
     return subprocess.run(
         [python, "-m", "glshade", *args], capture_output=True, text=True, cwd=cwd, timeout=300
     )
+
+
+def swept_here_and_on_dask(python: Path, sweep: Path, out: Path) -> dict[str, list[dict]]:
+    """The sweep file ``sweep`` run in that environment on a 2-worker Dask cluster and in
+    one process, into folders under ``out``: each run's ``results.csv`` rows."""
+    import csv
+
+    tables = {}
+    for name, extra in (("dask", ["--workers", "2"]), ("local", [])):
+        folder = out / name
+        done = glshade_in(python, "sweep", str(sweep), "--out", str(folder),
+                          "--no-progress", *extra)  # fmt: skip
+        assert done.returncode == 0, done.stderr[-3000:]
+        with open(folder / "results.csv", newline="") as fh:
+            tables[name] = list(csv.DictReader(fh))
+    return tables

@@ -9,13 +9,12 @@ test process never installs it: it knows two instruments.
 
 from __future__ import annotations
 
-import csv
 import json
 import subprocess
 from pathlib import Path
 
 import pytest
-from tests.plugin_venv import glshade_in, venv_with
+from tests.plugin_venv import glshade_in, swept_here_and_on_dask, venv_with
 
 from glshade.instruments.registry import method_names
 
@@ -48,14 +47,7 @@ def test_a_sweep_in_one_process_and_on_two_dask_workers(plugin_python, tmp_path)
         'size = 48\n[metric]\nmethod = "brightness"\n[grid]\n'
         '"camera.theta_deg" = [60.0, 30.0]\n"defect.dmax" = [0.002, 0.01]\n'
     )
-    tables = {}
-    for name, extra in (("dask", ["--workers", "2"]), ("local", [])):
-        out = tmp_path / name
-        done = glshade_in(plugin_python, "sweep", str(sweep), "--out", str(out),
-                          "--no-progress", *extra)  # fmt: skip
-        assert done.returncode == 0, done.stderr[-3000:]
-        with open(out / "results.csv", newline="") as fh:
-            tables[name] = list(csv.DictReader(fh))
+    tables = swept_here_and_on_dask(plugin_python, sweep, tmp_path)
     assert tables["dask"] == tables["local"] and len(tables["local"]) == 4
     for theta in ("60.0", "30.0"):
         shallow, deep = (

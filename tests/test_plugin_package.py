@@ -8,14 +8,13 @@ no paraboloid, and meets the plug-in only to run the component contracts on it.
 
 from __future__ import annotations
 
-import csv
 import importlib.util
 import json
 import sys
 from pathlib import Path
 
 import pytest
-from tests.plugin_venv import glshade_in, venv_with
+from tests.plugin_venv import glshade_in, swept_here_and_on_dask, venv_with
 from tests.test_components import check_absent_code, check_oracle, check_round_trip, check_uniforms
 
 from glshade.components.registry import registry
@@ -55,14 +54,7 @@ def test_a_sweep_on_two_dask_workers_sees_the_plugin(plugin_python, tmp_path):
         'size = 64\n[grid]\n"surface.kind" = ["flat", "paraboloid"]\n'
         '"camera.theta_deg" = [45.0, 20.0]\n"surface.focal_radius" = [120.0]\n'
     )
-    tables = {}
-    for name, extra in (("dask", ["--workers", "2"]), ("local", [])):
-        out = tmp_path / name
-        done = glshade_in(plugin_python, "sweep", str(sweep), "--out", str(out),
-                          "--no-progress", *extra)  # fmt: skip
-        assert done.returncode == 0, done.stderr[-3000:]
-        with open(out / "results.csv", newline="") as fh:
-            tables[name] = list(csv.DictReader(fh))
+    tables = swept_here_and_on_dask(plugin_python, sweep, tmp_path)
     assert tables["dask"] == tables["local"]
     kinds = [row["surface.kind"] for row in tables["dask"]]
     assert kinds.count("paraboloid") == 2
