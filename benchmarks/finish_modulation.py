@@ -22,7 +22,8 @@ from scipy.optimize import brentq
 
 from glshade.components.emitter.fringes.table import FringeFrame
 from glshade.gpu.renderer import Renderer
-from glshade.instruments.pmd.station import PmdSettings, measure_pmd_scene
+from glshade.instruments.pmd.settings import PmdSettings
+from glshade.instruments.pmd.station import measure_pmd_scene
 from glshade.oracle.lobe import kernel_transfer, lobe_footprint
 from glshade.scene import Scene, paper_scene
 

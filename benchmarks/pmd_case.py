@@ -20,7 +20,9 @@ import statistics
 import time
 
 from glshade.gpu.renderer import Renderer
-from glshade.instruments.pmd.station import PmdSettings, measure_pmd_scene, pmd_baseline
+from glshade.instruments.pmd.baseline import pmd_baseline
+from glshade.instruments.pmd.settings import PmdSettings
+from glshade.instruments.pmd.station import measure_pmd_scene
 from glshade.scene import Scene, paper_scene
 
 

@@ -421,7 +421,7 @@ def test_sweeps_group_cases_by_program():
     every σ² shares one analysis; phase measuring's keeps σ² (its nominal geometry's grid
     is cut around the dent)."""
     from glshade.instruments.base import Case
-    from glshade.instruments.pmd.station import PmdSettings
+    from glshade.instruments.pmd.settings import PmdSettings
     from glshade.measure.engine import geometry_key, grouped, program_key
 
     scenes = [

@@ -16,7 +16,8 @@ from glshade.components.emitter.fringes import codec as codec_module
 from glshade.components.emitter.fringes.codec import FringeCodec
 from glshade.errors import GlshadeError, SceneError
 from glshade.instruments.pmd import decode as pmd
-from glshade.instruments.pmd.station import PmdSettings, check_scene, decode_sequence
+from glshade.instruments.pmd.capture import decode_sequence
+from glshade.instruments.pmd.settings import PmdSettings, check_scene
 from glshade.scene import Scene, paper_scene
 
 #: One unit in the last place of a float32 in [1, 2).

@@ -14,7 +14,7 @@ import pytest
 from glshade.errors import GlshadeError, SceneError
 from glshade.instruments import registry as reg
 from glshade.instruments.base import Goal, Instrument
-from glshade.instruments.pmd.station import PmdSettings
+from glshade.instruments.pmd.settings import PmdSettings
 from glshade.instruments.record import Measurement, PmdMeasurement
 from glshade.instruments.registry import declaration_problem, instrument, instrument_for
 from glshade.instruments.settings_doc import settings_markdown

@@ -16,7 +16,8 @@ from glshade.errors import GlshadeError
 from glshade.gpu.renderer import Renderer
 from glshade.instruments import memory
 from glshade.instruments.base import Case
-from glshade.instruments.pmd.station import measure_pmd_scene, pmd_baseline
+from glshade.instruments.pmd.baseline import pmd_baseline
+from glshade.instruments.pmd.station import measure_pmd_scene
 from glshade.instruments.stripes.group import AHEAD
 from glshade.instruments.stripes.single import measure_scene
 from glshade.measure.engine import budget_plan, check_budget, measure_many

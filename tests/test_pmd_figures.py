@@ -17,7 +17,8 @@ from glshade.instruments.pmd.files import (
     map_scale,
     write_maps,
 )
-from glshade.instruments.pmd.station import measure_pmd, project
+from glshade.instruments.pmd.reconstruct import project
+from glshade.instruments.pmd.station import measure_pmd
 from glshade.measure.single import as_method
 from glshade.scene import paper_scene
 

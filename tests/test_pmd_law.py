@@ -15,7 +15,8 @@ import math
 import numpy as np
 import pytest
 
-from glshade.instruments.pmd.station import PmdSettings, measure_pmd_scene
+from glshade.instruments.pmd.settings import PmdSettings
+from glshade.instruments.pmd.station import measure_pmd_scene
 from glshade.measure.single import as_method
 from glshade.metrics import physics
 from glshade.metrics.status import dent_window

@@ -16,7 +16,9 @@ import glshade
 from glshade.app.cli import main
 from glshade.files import read_png
 from glshade.instruments.pmd import decode as pmd
-from glshade.instruments.pmd.station import PmdResult, PmdSettings, measure_pmd_scene, pmd_baseline
+from glshade.instruments.pmd.baseline import pmd_baseline
+from glshade.instruments.pmd.settings import PmdSettings
+from glshade.instruments.pmd.station import PmdResult, measure_pmd_scene
 from glshade.metrics import physics
 from glshade.scene import Scene, paper_scene
 
@@ -170,7 +172,7 @@ def test_a_dent_below_the_noise_is_noise(renderer):
 
 
 def test_auto_exposure_puts_the_brightest_fringe_near_full_scale(renderer):
-    from glshade.instruments.pmd.station import capture
+    from glshade.instruments.pmd.capture import capture
 
     shot = capture(renderer, station(size=48).updated(sensor=SENSOR))
     recorded = shot.recorded()

@@ -17,7 +17,8 @@ import pytest
 from glshade.app.cli import main
 from glshade.instruments.pmd import decode as pmd
 from glshade.instruments.pmd.files import DATA_FILES, MAP_FILES, write_frames, write_maps
-from glshade.instruments.pmd.station import measure_pmd_scene, pmd_concerns
+from glshade.instruments.pmd.station import measure_pmd_scene
+from glshade.instruments.pmd.status import pmd_concerns
 from glshade.instruments.record import PmdMeasurement
 from glshade.instruments.stripes.single import measure_scene
 from glshade.metrics.coding_laws import screen_harmonics

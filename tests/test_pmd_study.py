@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from glshade.app.cli import main
-from glshade.instruments.pmd.station import dent_region, interior, measure_pmd_scene
+from glshade.instruments.pmd.capture import interior
+from glshade.instruments.pmd.station import dent_region, measure_pmd_scene
 from glshade.instruments.record import PMD_COLUMN_NAMES, PmdMeasurement
 from glshade.measure.single import as_method
 from glshade.metrics import physics

@@ -22,7 +22,8 @@ import pytest
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
 from glshade.instruments.base import Case
-from glshade.instruments.pmd.station import PMD_VERSION, PmdSettings, measure_pmd_scene
+from glshade.instruments.pmd.settings import PMD_VERSION, PmdSettings
+from glshade.instruments.pmd.station import measure_pmd_scene
 from glshade.instruments.record import (
     PMD_OUTPUT_NAMES,
     Measurement,

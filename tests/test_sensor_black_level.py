@@ -13,7 +13,8 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.components.registry import registry
-from glshade.instruments.pmd.station import capture, measure_pmd_scene
+from glshade.instruments.pmd.capture import capture
+from glshade.instruments.pmd.station import measure_pmd_scene
 from glshade.instruments.stripes.single import measure_scene
 from glshade.metrics.status import exposure_problem
 from glshade.scene import paper_scene

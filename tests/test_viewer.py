@@ -37,7 +37,8 @@ from glshade.app.viewer.model import IDLE_WAIT_S, POLL_S, SETTLE_FRAMES, FrameSc
 from glshade.errors import GlshadeError, SceneError
 from glshade.files import read_png
 from glshade.gpu.renderer import Renderer, render
-from glshade.instruments.pmd.station import PmdSettings, measure_pmd_scene
+from glshade.instruments.pmd.settings import PmdSettings
+from glshade.instruments.pmd.station import measure_pmd_scene
 from glshade.instruments.pmd.views import PMD_SIZE
 from glshade.instruments.registry import instrument
 from glshade.measure.single import measure

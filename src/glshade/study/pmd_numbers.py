@@ -22,7 +22,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
-from glshade.instruments.pmd.station import pmd_concerns
+from glshade.instruments.pmd.status import pmd_concerns
 from glshade.metrics.physics import pmd_shift_law_check
 from glshade.metrics.status import concerns
 from glshade.study import findings_numbers as findings

@@ -2,7 +2,7 @@
 pmd``): Table 1's cases (:class:`~glshade.study.plan.StudyPlan`), each scene shown the
 fringe sequence on the paper's screen instead of its stripes, recorded through a stated
 imaging chain (:class:`PmdChain`: a sensor and the pixels' footprints) and decoded as a
-station decodes it (:class:`~glshade.instruments.pmd.station.PmdSettings`).
+station decodes it (:class:`~glshade.instruments.pmd.settings.PmdSettings`).
 No GL here: plans are made and validated anywhere."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import math
 from dataclasses import asdict, dataclass, field
 
 from glshade.errors import GlshadeError
-from glshade.instruments.pmd.station import PmdSettings
+from glshade.instruments.pmd.settings import PmdSettings
 from glshade.measure.single import as_method
 from glshade.metrics.physics import base_curvatures
 from glshade.scene import Scene

@@ -47,7 +47,7 @@ def rewrite(out_dir: Path) -> Path:
 
 def stored_pmd_plan(out_dir: Path):
     """The plan a PMD study in ``out_dir`` was run with (its ``pmd_study.json``)."""
-    from glshade.instruments.pmd.station import PmdSettings
+    from glshade.instruments.pmd.settings import PmdSettings
     from glshade.study.pmd_plan import PmdChain, PmdStudyPlan
     from glshade.study.pmd_store import PMD_LAYOUT
 

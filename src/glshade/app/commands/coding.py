@@ -110,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
     from glshade.gpu.renderer import Renderer
     from glshade.instruments.pmd.coding import choose_coding
     from glshade.instruments.pmd.coding_files import coded_scene, summary, write_plot
-    from glshade.instruments.pmd.station import check_scene
+    from glshade.instruments.pmd.settings import check_scene
     from glshade.measure.single import as_method
 
     settings = coding_settings(args)

@@ -138,7 +138,7 @@ def _parse_periods(given: list[str] | None) -> tuple[tuple, tuple]:
 
 def pmd_plan(args: argparse.Namespace, cases_plan):
     """The :class:`~glshade.study.pmd_plan.PmdStudyPlan` of the command line."""
-    from glshade.instruments.pmd.station import PmdSettings
+    from glshade.instruments.pmd.settings import PmdSettings
     from glshade.study.pmd_plan import MODULATION_SHARE, PmdChain, PmdStudyPlan
 
     chain_values = {

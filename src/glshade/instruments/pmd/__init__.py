@@ -20,16 +20,10 @@ from glshade.instruments.base import (
     Measured,
     WorkerMemory,
 )
-from glshade.instruments.pmd.station import (
-    PMD_VERSION,
-    PmdBaseline,
-    PmdResult,
-    PmdSettings,
-    check_scene,
-    measure_pmd_scene,
-    pmd_baseline,
-    pmd_concerns,
-)
+from glshade.instruments.pmd.baseline import PmdBaseline, pmd_baseline
+from glshade.instruments.pmd.settings import PMD_VERSION, PmdSettings, check_scene
+from glshade.instruments.pmd.station import PmdResult, measure_pmd_scene
+from glshade.instruments.pmd.status import pmd_concerns
 from glshade.instruments.record import PMD_OUTPUT_NAMES, PmdMeasurement
 from glshade.scene import Scene
 

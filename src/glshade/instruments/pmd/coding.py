@@ -50,7 +50,7 @@ from glshade.components.emitter.fringes.table import (
 )
 from glshade.errors import GlshadeError
 from glshade.instruments.memory import largest_size, pmd_estimate, size_text
-from glshade.instruments.pmd.station import check_scene
+from glshade.instruments.pmd.settings import check_scene
 from glshade.metrics.coding_laws import (
     ErrorBudget,
     Resolved,
@@ -255,7 +255,7 @@ def intensity_variance(scene: Scene, level: np.ndarray) -> np.ndarray:
     """The recorded intensity's variance at the mean ``level`` (recorded units): photon
     noise ``A / full_well``, read noise ``(read / full_well)²`` and the sensor's
     quantisation ``q² / 12``; 0 without a sensor (as
-    :func:`glshade.instruments.pmd.station.predicted_noise_mm`)."""
+    :func:`glshade.instruments.pmd.baseline.predicted_noise_mm`)."""
     sensor = scene.sensor
     if not scene.active.records(scene) or sensor.full_well_e is None:
         return np.zeros_like(level)

@@ -38,7 +38,8 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
     from matplotlib.image import AxesImage
 
-    from glshade.instruments.pmd.station import Heights, PmdResult
+    from glshade.instruments.pmd.reconstruct import Heights
+    from glshade.instruments.pmd.station import PmdResult
 
 #: A window of an image: first row, last row, first column, last column.
 Box = tuple[int, int, int, int]

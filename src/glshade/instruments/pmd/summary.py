@@ -12,7 +12,7 @@ def summary_lines(scene: Scene, record: Any) -> list[str]:
     its own line (``glshade measure --method pmd``)."""
     lines: list[str] = []
     from glshade.components.emitter.fringes.table import fringes_of
-    from glshade.instruments.pmd.station import pmd_concerns
+    from glshade.instruments.pmd.status import pmd_concerns
 
     em, cam = fringes_of(scene), scene.camera
     frames = len(em.directions) * len(em.periods) * em.shifts

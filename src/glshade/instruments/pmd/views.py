@@ -17,16 +17,12 @@ import numpy as np
 
 from glshade.components.emitter.fringes.table import fringes_of
 from glshade.instruments.base import InstrumentView, InstrumentViews, ViewMap
+from glshade.instruments.pmd.baseline import PmdBaseline, pmd_baseline
+from glshade.instruments.pmd.capture import coded_axes
 from glshade.instruments.pmd.files import decoded_only
-from glshade.instruments.pmd.station import (
-    PmdBaseline,
-    PmdResult,
-    PmdSettings,
-    coded_axes,
-    measure_pmd_scene,
-    pmd_baseline,
-    pmd_concerns,
-)
+from glshade.instruments.pmd.settings import PmdSettings
+from glshade.instruments.pmd.station import PmdResult, measure_pmd_scene
+from glshade.instruments.pmd.status import pmd_concerns
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
