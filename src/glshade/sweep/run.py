@@ -156,8 +156,13 @@ class _Tally:
 
 
 def _rows(spec: SweepSpec, pending: list[GridPoint], executor) -> Iterator[Row]:
-    if pending:
-        yield from executor.rows([point.case for point in pending], spec.settings, spec.images)
+    """The pending cases measured, those of one instrument setting together (a
+    ``measure.KEY`` axis gives several)."""
+    by_settings: dict[Any, list[GridPoint]] = {}
+    for point in pending:
+        by_settings.setdefault(point.settings or spec.settings, []).append(point)
+    for settings, points in by_settings.items():
+        yield from executor.rows([point.case for point in points], settings, spec.images)
 
 
 def _progress_bar(total: int, enabled: bool):

@@ -27,6 +27,7 @@ scene or setting makes other cases, and a case already measured is never measure
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import itertools
 import json
@@ -42,6 +43,7 @@ from glshade.instruments.base import Case
 from glshade.instruments.registry import instrument, instrument_for, method_names
 from glshade.measure.single import as_method
 from glshade.metrics.visibility import MetricSettings
+from glshade.params import Param, declared_params
 from glshade.scene import Scene, paper_scene
 from glshade.scene.model import read_toml
 from glshade.units import parse_quantity
@@ -65,6 +67,8 @@ _TOP_KEYS = ("base", "size", "grid", "measure", "metric", "output")
 _OUTPUT_KEYS = ("images",)
 #: The key of ``[metric]`` that chooses the instrument; the others are its settings.
 METHOD_KEY = "method"
+#: A grid key that sweeps a setting of the instrument (``measure.threshold``).
+MEASURE_PREFIX = "measure."
 #: An instrument's settings (its :attr:`~glshade.instruments.base.Instrument.settings_type`).
 Settings = Any
 
@@ -95,6 +99,7 @@ class GridPoint:
 
     index: tuple[int, ...]
     case: Case
+    settings: Any = None  # the instrument's settings at this point (measure.* axes)
 
     @property
     def case_id(self) -> str:
@@ -139,13 +144,22 @@ class SweepSpec:
         (all at once, so keys that only make sense together can be swept together)."""
         pairs = [pair for axis, i in zip(self.axes, index, strict=True) for pair in axis.entries[i]]
         size = next((value for key, value in reversed(pairs) if key == SIZE_KEY), self.size)
-        scene = self.base.with_values([(key, value) for key, value in pairs if key != SIZE_KEY])
+        scene = self.base.with_values(
+            [(key, value) for key, value in pairs if key != SIZE_KEY and not _measures(key)]
+        )
         return scene.with_size(size) if size is not None else scene
+
+    def settings_at(self, index: tuple[int, ...]) -> Settings:
+        """The instrument's settings at one point of the grid: the sweep's, with each
+        ``measure.KEY`` axis's value."""
+        pairs = [pair for axis, i in zip(self.axes, index, strict=True) for pair in axis.entries[i]]
+        changed = {key.removeprefix(MEASURE_PREFIX): v for key, v in pairs if _measures(key)}
+        return dataclasses.replace(self.settings, **changed) if changed else self.settings
 
     def point(self, index: tuple[int, ...]) -> GridPoint:
         """The case at one point of the grid (its scene made and hashed now)."""
-        scene = self.scene(index)
-        return GridPoint(index, Case(case_id(scene, self.settings), scene))
+        scene, settings = self.scene(index), self.settings_at(index)
+        return GridPoint(index, Case(case_id(scene, settings), scene), settings)
 
     def cases(self) -> GridCases:
         """Every case of the grid, first axis outermost: a sequence that makes each case
@@ -160,7 +174,9 @@ class SweepSpec:
             if axis.linked:
                 values[axis.name] = axis.labels[i]
         for key in self.columns:
-            if key not in values:
+            if key not in values and _measures(key):
+                values[key] = getattr(case.settings, key.removeprefix(MEASURE_PREFIX))
+            elif key not in values:
                 values[key] = _column_value(case.scene, key)
         return values
 
@@ -239,6 +255,11 @@ class GridCases(Sequence[GridPoint]):
             yield chunk
 
 
+def _measures(key: str) -> bool:
+    """A grid key that sweeps a setting of the instrument, not the scene."""
+    return key.startswith(MEASURE_PREFIX)
+
+
 def _column_value(scene: Scene, key: str) -> Any:
     if key == SIZE_KEY:
         return scene.camera.width
@@ -297,7 +318,7 @@ def spec_from_dict(
     settings = _settings(data, source, base)
     base = as_method(base, method_of(settings))
     size = _size(size if size is not None else data.get("size"), f"{source}: size")
-    axes = tuple(_axis(name, value, source) for name, value in grid.items())
+    axes = tuple(_axis(name, value, source, type(settings)) for name, value in grid.items())
     output = data.get("output", {})
     if not isinstance(output, dict) or set(output) - set(_OUTPUT_KEYS):
         raise GlshadeError(f"{source}: [output] may only hold {', '.join(_OUTPUT_KEYS)}")
@@ -313,7 +334,7 @@ def spec_from_dict(
                 scene = spec.scene(index)
             except SceneError as exc:
                 raise GlshadeError(f"{source}: grid.{axis.name}: {exc}") from None
-            _check_case(scene, settings, f"{source}: grid.{axis.name}")
+            _check_case(scene, spec.settings_at(index), f"{source}: grid.{axis.name}")
     return spec
 
 
@@ -414,7 +435,9 @@ def _settings(data: dict, source: str, base: Scene) -> Settings:
         raise GlshadeError(f"{source}: {name}.{str(exc).removeprefix('measure.')}") from None
 
 
-def _axis(name: str, value, source: str) -> Axis:
+def _axis(name: str, value, source: str, settings_type: type | None = None) -> Axis:
+    """One ``[grid]`` axis; a ``measure.KEY`` axis is checked against ``settings_type``'s
+    declarations (the sweep's instrument's settings)."""
     where = f"{source}: grid.{name}"
     name = canonical_key(name)
     if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
@@ -426,7 +449,10 @@ def _axis(name: str, value, source: str) -> Axis:
                 raise GlshadeError(f"{where}[{i}]: a linked entry must set at least one dotted key")
             entries.append(
                 tuple(
-                    (canonical_key(key), _value(canonical_key(key), v, f"{where}[{i}].{key}"))
+                    (
+                        canonical_key(key),
+                        _value(canonical_key(key), v, f"{where}[{i}].{key}", settings_type),
+                    )
                     for key, v in entry.items()
                 )
             )
@@ -434,15 +460,20 @@ def _axis(name: str, value, source: str) -> Axis:
         if len(set(map(str, labels))) != len(labels):
             raise GlshadeError(f"{where}: the entries' labels must differ")
         return Axis(name, tuple(entries), tuple(labels))
-    checked = tuple(_value(name, v, where) for v in _values(value, where, _unit(name)))
+    unit = _unit(name, settings_type)
+    checked = tuple(_value(name, v, where, settings_type) for v in _values(value, where, unit))
     if len({json.dumps(v, default=str) for v in checked}) != len(checked):
         raise GlshadeError(f"{where}: values must not repeat")
     return Axis(name, tuple(((name, v),) for v in checked), checked)
 
 
-def _unit(key: str) -> str:
+def _unit(key: str, settings_type: type | None = None) -> str:
     """The unit of a swept key's numbers (``""`` for ``size``, or one not known: its
     values name it when they are checked)."""
+    if key.startswith(MEASURE_PREFIX):
+        declared = {p.key: p for p in declared_params(settings_type)} if settings_type else {}
+        found = declared.get(key.removeprefix(MEASURE_PREFIX))
+        return found.unit if found is not None else ""  # an unknown one is named when checked
     try:
         entry = registry().entry(key)
         return (entry[0] if entry is not None else registry().param(key)).unit
@@ -526,11 +557,18 @@ def _number(value, where: str, unit: str = "") -> float:
     return float(value)
 
 
-def _value(key: str, value, where: str):
+def _value(key: str, value, where: str, settings_type: type | None = None):
     """A grid value parsed and checked by its parameter's declaration (an unknown key is
-    an error naming it)."""
+    an error naming it); ``measure.KEY``: by the instrument's setting's."""
     if key == SIZE_KEY:
         return _size(value, where)
+    if key.startswith(MEASURE_PREFIX) and settings_type is not None:
+        declared = _setting(key, settings_type, where)
+        try:
+            text = isinstance(value, str) and declared.value_type not in ("choice", "text")
+            return declared.check(declared.parse(value) if text else value)
+        except SceneError as exc:
+            raise GlshadeError(f"{where}: {_without(exc, key)}") from None
     if "." not in key:
         raise GlshadeError(
             f"{where}: unknown key {key!r}; expected a dotted scene key such as camera.theta_deg, "
@@ -550,6 +588,19 @@ def _value(key: str, value, where: str):
         return value
     except SceneError as exc:
         raise GlshadeError(f"{where}: {_without(exc, key)}") from None
+
+
+def _setting(key: str, settings_type: type, where: str) -> Param:
+    """The declaration of setting ``measure.KEY`` of ``settings_type`` (one line naming
+    the settings there are otherwise)."""
+    declared = {p.key: p for p in declared_params(settings_type)}
+    found = declared.get(key.removeprefix(MEASURE_PREFIX))
+    if found is None:
+        names = ", ".join(MEASURE_PREFIX + name for name in declared)
+        raise GlshadeError(
+            f"{where}: not a setting of this sweep's instrument; its settings: {names}"
+        )
+    return found
 
 
 def _without(exc: SceneError, key: str) -> str:
