@@ -13,7 +13,8 @@ How each instrument measures: its settings, declared once with their unit, defau
 range. The same declarations give the command line's short flags (`glshade measure`,
 `optimize`, `paper`), `--set measure.KEY=VALUE`, the `[measure]` table of a sweep file
 (`method = "NAME"` and that instrument's keys), a sweep's `measure.KEY` axes
-(`"measure.threshold" = [0.3, 0.5]`) and the one-line errors that name a bad value. A setting of another instrument than the one measuring is refused in one line.
+(`"measure.threshold" = [0.3, 0.5]`) and the one-line errors that name a bad value. A
+setting of another instrument than the one measuring is refused in one line.
 
 This page is generated from those declarations
 (`python -m glshade.instruments.settings_doc > docs/measure-settings.md`); a test keeps
