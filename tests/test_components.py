@@ -423,6 +423,7 @@ def test_sweeps_group_cases_by_program():
     from glshade.instruments.base import Case
     from glshade.instruments.pmd.settings import PmdSettings
     from glshade.measure.engine import geometry_key, grouped, program_key
+    from glshade.metrics.visibility import MetricSettings
 
     scenes = [
         paper_scene(surface, theta, sigma2, dmax)
@@ -432,12 +433,13 @@ def test_sweeps_group_cases_by_program():
         for dmax in (0.0, 0.003, 0.005)
     ]
     cases = [Case(i, scene) for i, scene in enumerate(scenes)]
-    groups = grouped(cases)
+    stripes = MetricSettings()
+    groups = grouped(cases, stripes)
     assert len(groups) == 4  # (flat, sphere) x θ
     assert len(grouped(cases, PmdSettings())) == 8  # (flat, sphere) x θ x σ²
     assert sorted(c.key for group in groups for c in group) == list(range(len(scenes)))
     for group in groups:
-        assert len({geometry_key(c.scene) for c in group}) == 1
+        assert len({geometry_key(c.scene, stripes) for c in group}) == 1
     order = [program_key(group[0].scene) for group in groups]
     runs = [key for i, key in enumerate(order) if i == 0 or key != order[i - 1]]
     assert len(runs) == len(set(runs)) == 2  # one run of geometries per surface's program

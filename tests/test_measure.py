@@ -149,3 +149,18 @@ def test_viewer_reports_what_measure_reports(size, theta):
     # the live comparison at phase 0 is the sweep's first phase (no registration offset here)
     assert truth.offset_px == (0, 0) and r.at_phase_px == truth.per_phase[0].distance_px
     model.close()
+
+
+def test_the_python_call_writes_the_overlay_through_the_instrument(tmp_path, renderer):
+    """``glshade.measure(scene, overlay=...)`` writes the stripe metric's declared
+    ``--overlay`` file and measures what the call without it measures."""
+    import glshade
+    from glshade.files import read_png
+    from glshade.scene import paper_scene
+
+    scene = paper_scene().with_size(64)
+    png = tmp_path / "overlay.png"
+    drawn = glshade.measure(scene, renderer=renderer, overlay=png)
+    plain = glshade.measure(scene, renderer=renderer)
+    assert drawn.visibility_px == plain.visibility_px and drawn.status == plain.status
+    assert read_png(png).shape[:2][0] > 0

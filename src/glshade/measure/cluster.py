@@ -104,7 +104,7 @@ def _worker_renderer() -> Renderer:
     return plugin.get()
 
 
-def batches(cases: list[Case], size: int, settings: Any = None) -> list[list[Case]]:
+def batches(cases: list[Case], size: int, settings: Any) -> list[list[Case]]:
     """The tasks: the engine's geometry groups (for ``settings``), each cut into pieces of
     at most ``size``."""
     out = []

@@ -29,13 +29,10 @@ if TYPE_CHECKING:
 UNSAID_THREADS = 17
 
 
-def geometry_key(scene: Scene, settings: Any = None) -> str:
+def geometry_key(scene: Scene, settings: Any) -> str:
     """Scenes with equal keys share their defect-free trace and analysis: the key of the
-    instrument ``settings`` belong to (the paper's stripe metric's when None)."""
-    from glshade.instruments.registry import instrument
-
-    chosen = instrument("paper") if settings is None else instrument_for(settings)
-    return chosen.geometry_key(scene, settings)
+    instrument ``settings`` belong to."""
+    return instrument_for(settings).geometry_key(scene, settings)
 
 
 def program_key(scene: Scene) -> Hashable:
@@ -43,7 +40,7 @@ def program_key(scene: Scene) -> Hashable:
     return ShaderFeatures.from_scene(scene, ("uv",))
 
 
-def grouped(cases: Sequence[Case], settings: Any = None) -> list[list[Case]]:
+def grouped(cases: Sequence[Case], settings: Any) -> list[list[Case]]:
     """``cases`` by geometry (:func:`geometry_key`; first appearance first), the
     geometries of one shader feature set next to each other: the order the engine
     measures them in."""

@@ -87,19 +87,21 @@ def measure(
 def _with_overlay(
     chosen: Any, scene: Scene, settings: Any, overlay: Any, renderer: Renderer | None
 ) -> Any:
-    """The stripe metric's measurement with its Fig. 9 overlay written to ``overlay``."""
-    draw = getattr(chosen, "measure_with_overlay", None)
-    if draw is None:
+    """The measurement with the instrument's ``--overlay`` file written to ``overlay``
+    (the stripe metric's Fig. 9 contour overlay)."""
+    option = next((o for o in chosen.file_options if o.flag == "--overlay"), None)
+    if option is None:
         raise GlshadeError(f"overlay: method {chosen.name!r} draws no contour overlay")
     from glshade.files import check_output
 
-    check_output(overlay, "overlay", (".png",))
+    check_output(overlay, "overlay", option.suffixes)
+    files = {"--overlay": overlay}
     if renderer is not None:
-        return draw(renderer, scene, settings, overlay)
+        return chosen.measure_files(renderer, scene, settings, files)
     from glshade.gpu.renderer import Renderer as GlRenderer
 
     with GlRenderer() as own:
-        return draw(own, scene, settings, overlay)
+        return chosen.measure_files(own, scene, settings, files)
 
 
 def _scene(scene: Any) -> Scene:

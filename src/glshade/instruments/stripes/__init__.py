@@ -8,7 +8,6 @@ contours compared, the largest shift the dent's visibility (``--method paper``).
 from __future__ import annotations
 
 import dataclasses
-import os
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -97,14 +96,6 @@ class StripeInstrument(Instrument):
         from glshade.instruments.stripes.single import measure_scene
 
         return measure_scene(renderer, scene, settings)
-
-    def measure_with_overlay(
-        self, renderer: Renderer, scene: Scene, settings: Any, overlay: str | os.PathLike[str]
-    ) -> Visibility:
-        """:meth:`measure`, and the Fig. 9 contour overlay written to ``overlay`` (PNG)."""
-        from glshade.instruments.stripes.single import measure_scene
-
-        return measure_scene(renderer, scene, settings, overlay=overlay)
 
     def measure_files(
         self, renderer: Renderer, scene: Scene, settings: Any, files: dict[str, Any]
