@@ -135,3 +135,18 @@ def test_the_settings_page_is_generated_from_the_declarations():
     assert page.read_text() == settings_markdown(), (
         "regenerate: python -m glshade.instruments.settings_doc > docs/measure-settings.md"
     )
+
+
+def test_set_measure_is_the_measuring_instruments_and_refused_where_nothing_measures(
+    tmp_path, capsys
+):
+    from glshade.app.cli import main
+
+    out = tmp_path / "frame.png"
+    assert main(["render", "--size", "16", "-o", str(out), "--set", "measure.threshold=0.3"]) == 2
+    err = capsys.readouterr().err
+    assert "--set measure.threshold=0.3: an instrument's setting" in err and not out.exists()
+    assert main(["measure", "--size", "16", "--set", "measure.heights=poisson"]) == 2
+    assert "belongs to phase measuring (--method pmd)" in capsys.readouterr().err
+    assert main(["measure", "--size", "16", "--set", "measure.threshold=2"]) == 2
+    assert "--set measure.threshold: must be in (0, 1), got 2" in capsys.readouterr().err

@@ -238,9 +238,20 @@ def settings_flags_given(args: argparse.Namespace, method: str | None = None) ->
 MEASURE_TABLE = "measure."
 
 
-def scene_settings(items: Sequence[str]) -> list[str]:
-    """The ``--set`` items that set the scene (not ``measure.KEY``)."""
-    return [item for item in items if not item.strip().startswith(MEASURE_TABLE)]
+def scene_settings(args: argparse.Namespace) -> list[str]:
+    """The ``--set`` items that set the scene; ``measure.KEY`` items are the measuring
+    instrument's (:func:`instrument_settings`), refused in one line by a command that
+    measures nothing (it would ignore them)."""
+    items = list(args.settings or ())
+    scene_items = [item for item in items if not item.strip().startswith(MEASURE_TABLE)]
+    measures = any(hasattr(args, settings_dest(p)) for _, p in _settings_params() if p.flag)
+    if len(scene_items) < len(items) and not measures:
+        typed = next(item for item in items if item.strip().startswith(MEASURE_TABLE))
+        raise GlshadeError(
+            f"--set {typed.strip()}: an instrument's setting, and glshade {args.command} "
+            "measures nothing (measure, optimize and paper take it)"
+        )
+    return scene_items
 
 
 def _measure_settings(args: argparse.Namespace) -> list[tuple[str, str, str]]:
@@ -321,7 +332,7 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
             typed[param.path] = param.flag or param.path
     # later settings win; all are applied at once, so values that only make sense together
     # (a kind and its file) can be given together
-    read_settings(scene_settings(args.settings), scene, tables, typed)
+    read_settings(scene_settings(args), scene, tables, typed)
     scene = sized(scene, args.size, tables, typed)
     with named_as_typed(typed):
         return scene.updated(**tables) if tables else scene
