@@ -17,6 +17,7 @@ from glshade.components.emitter.fringes.codec import FringeCodec
 from glshade.errors import GlshadeError, SceneError
 from glshade.instruments.pmd import decode as pmd
 from glshade.instruments.pmd.capture import decode_sequence
+from glshade.instruments.pmd.model import station_model
 from glshade.instruments.pmd.settings import PmdSettings, check_scene
 from glshade.scene import Scene, paper_scene
 
@@ -89,7 +90,7 @@ def test_a_table_makes_its_codec_once_and_the_decoder_never_checks_it(monkeypatc
     s = np.linspace(5.0, 295.0, 64).reshape(8, 8)
     recorded = np.concatenate([em.codec.sequence(s).reshape(-1, 8, 8)] * 2)
     check_scene(scene)
-    decoding = decode_sequence(scene, recorded, 1.0, PmdSettings())
+    decoding = decode_sequence(station_model(scene).coding, recorded, 1.0, PmdSettings())
     np.testing.assert_allclose(decoding.uv[..., 1], s - 150.0, atol=1e-9)
     np.testing.assert_allclose(decoding.uv[..., 0], s - 150.0, atol=1e-9)
     assert em.sequence() == em.codec.frames() and em.white() == em.codec.white()

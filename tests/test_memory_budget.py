@@ -17,6 +17,7 @@ from glshade.gpu.renderer import Renderer
 from glshade.instruments import memory
 from glshade.instruments.base import Case
 from glshade.instruments.pmd.baseline import pmd_baseline
+from glshade.instruments.pmd.model import station_model
 from glshade.instruments.pmd.station import measure_pmd_scene
 from glshade.instruments.stripes.group import AHEAD
 from glshade.instruments.stripes.single import measure_scene
@@ -123,7 +124,7 @@ def test_a_case_beyond_the_budget_is_refused_before_it_is_traced(gl_context):
 
 def test_a_pmd_baseline_keeps_no_frames(renderer):
     scene = as_method(paper_scene().with_size(32), "pmd")
-    baseline = pmd_baseline(renderer, scene)
+    baseline = pmd_baseline(renderer, station_model(scene))
     assert baseline.capture.radiance.size == 0
     assert baseline.capture.white.base is None  # its own array, not a layer of the stack
 

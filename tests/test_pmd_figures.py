@@ -17,6 +17,7 @@ from glshade.instruments.pmd.files import (
     map_scale,
     write_maps,
 )
+from glshade.instruments.pmd.model import station_model
 from glshade.instruments.pmd.reconstruct import project
 from glshade.instruments.pmd.station import measure_pmd
 from glshade.measure.single import as_method
@@ -81,6 +82,6 @@ def test_the_zoom_window_holds_the_dent(case):
     r0, r1, c0, c1 = box
     d = scene.defect
     centre = np.array([d.x0, float(scene.active.surface.height(scene, d.x0, d.z0)), d.z0])
-    row, col = (float(v) for v in project(scene, centre))
+    row, col = (float(v) for v in project(station_model(scene), centre))
     assert r0 <= row <= r1 and c0 <= col <= c1
     assert (r1 - r0 + 1) * (c1 - c0 + 1) < 0.25 * 128 * 128

@@ -17,6 +17,7 @@ from glshade.app.cli import main
 from glshade.files import read_png
 from glshade.instruments.pmd import decode as pmd
 from glshade.instruments.pmd.baseline import pmd_baseline
+from glshade.instruments.pmd.model import station_model
 from glshade.instruments.pmd.settings import PmdSettings
 from glshade.instruments.pmd.station import PmdResult, measure_pmd_scene
 from glshade.metrics import physics
@@ -136,7 +137,7 @@ def test_a_dent_on_a_height_map_surface(renderer, tmp_path):
 
 def test_one_defect_free_analysis_serves_every_dent(renderer):
     scene = station(size=64)
-    baseline = pmd_baseline(renderer, scene, PmdSettings())
+    baseline = pmd_baseline(renderer, station_model(scene), PmdSettings())
     deeper = scene.updated(defect={"dmax": 0.01})
     shared = measure_pmd_scene(renderer, deeper, PmdSettings(), baseline)
     own = measure_pmd_scene(renderer, deeper, PmdSettings())

@@ -13,6 +13,7 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.instruments.pmd.capture import interior
+from glshade.instruments.pmd.model import station_model
 from glshade.instruments.pmd.station import dent_region, measure_pmd_scene
 from glshade.instruments.record import PMD_COLUMN_NAMES, PmdMeasurement
 from glshade.measure.single import as_method
@@ -125,11 +126,11 @@ def test_a_pixel_straddling_the_screens_edge_is_not_the_dents_region():
 
     exact1 = moved(SIZE / 2, 2.0)
     exact1[SIZE // 2, edge] += 0.5  # the straddling pixel's jump: half the dent's peak
-    region = dent_region(scene, exact0, exact1)
+    region = dent_region(station_model(scene), exact0, exact1)
     seen = interior(np.all(np.isfinite(exact0), axis=-1))
     assert region[SIZE // 2, SIZE // 2] and not region[SIZE // 2, edge]
     assert touches_edge(region, seen) is None
-    reaching = dent_region(scene, exact0, moved(edge + 3, 4.0))
+    reaching = dent_region(station_model(scene), exact0, moved(edge + 3, 4.0))
     assert touches_edge(reaching, seen) == "the edge of the region that sees the emitter"
 
 

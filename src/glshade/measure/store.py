@@ -206,7 +206,8 @@ def load_cases(
     (:func:`_load_case`; what is not trusted ``rejected`` collects)."""
     found = {}
     for key in keys:
-        record = _load_case(_case_path(out_dir, layout, key), key, read, rejected)
+        path = _case_path(out_dir, layout, key)
+        record = _load_case(path, key, read, rejected)
         if record is not None:
             found[key] = record
     return found

@@ -67,8 +67,8 @@ def run_pmd_study(
     ``notify(line)`` is told of case files that fail their check (measured again; a
     warning when None). ``distribution``: where the cases are measured (default: this
     process, on ``renderer`` or a renderer of its own)."""
-    out_dir = Path(out_dir)
-    with opened(out_dir, plan.to_dict(), overwrite, PMD_LAYOUT):
+    out_dir, manifest = Path(out_dir), plan.to_dict()
+    with opened(out_dir, manifest, overwrite, PMD_LAYOUT):
         rejected = Rejected()
         keys = [case_key(*point) for point in plan.cases()]
         done: dict[str, PmdCaseResult] = finished(out_dir, keys, rejected)

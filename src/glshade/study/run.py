@@ -77,20 +77,21 @@ class _Progress:
     def __init__(
         self,
         plan: StudyPlan,
+        keys: dict[PlanPoint, str],
         done: dict[str, CaseResult],
         pending: list[PlanPoint],
         bar,
         on_case_done,
         on_surface_done,
     ) -> None:
-        self.plan, self.done, self.bar = plan, done, bar
+        self.plan, self.keys, self.done, self.bar = plan, keys, done, bar
         self.on_case_done, self.on_surface_done = on_case_done, on_surface_done
         self.left = {
             surface: sum(case[0] == surface for case in pending) for surface in plan.surfaces
         }
 
     def finished(self, row: CaseResult) -> None:
-        self.done[case_key(*row.case)] = row
+        self.done[self.keys[row.case]] = row
         if self.bar is not None:
             self.bar.update(1)
         if self.on_case_done is not None:
@@ -101,7 +102,7 @@ class _Progress:
 
     def rows(self, surface: str | None = None) -> list[CaseResult]:
         """The finished rows in plan order (of one surface, or all)."""
-        keys = [case_key(*c) for c in self.plan.cases() if surface is None or c[0] == surface]
+        keys = [key for point, key in self.keys.items() if surface is None or point[0] == surface]
         return [self.done[key] for key in keys if key in self.done]
 
 
@@ -138,8 +139,8 @@ def run_study(
     again; a warning when None).
     """
     check_workers(workers)
-    out_dir = Path(out_dir)
-    with opened(out_dir, plan.to_dict(), overwrite):
+    out_dir, manifest = Path(out_dir), plan.to_dict()
+    with opened(out_dir, manifest, overwrite):
         where = distribution or Distribution(threads=workers)
         return _run_locked(
             plan, out_dir, where, progress, renderer, (on_case_done, on_surface_done), notify
@@ -159,12 +160,14 @@ def check_workers(workers: int) -> None:
 def _run_locked(plan, out_dir, distribution, progress, renderer, callbacks, notify) -> StudyResult:
     on_case_done, on_surface_done = callbacks
     rejected = Rejected()
-    done: dict[str, CaseResult] = finished(out_dir, [case_key(*c) for c in plan.cases()], rejected)
-    pending = [case for case in plan.cases() if case_key(*case) not in done]
+    keys = {point: case_key(*point) for point in plan.cases()}  # in the plan's order
+    done: dict[str, CaseResult] = finished(out_dir, list(keys.values()), rejected)
+    pending = [point for point, key in keys.items() if key not in done]
     rejected.say(notify)
     skipped = len(done)
     state = _Progress(
         plan,
+        keys,
         done,
         pending,
         _progress_bar(len(plan.cases()), skipped, progress),

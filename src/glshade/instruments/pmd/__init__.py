@@ -21,6 +21,7 @@ from glshade.instruments.base import (
     WorkerMemory,
 )
 from glshade.instruments.pmd.baseline import PmdBaseline, pmd_baseline
+from glshade.instruments.pmd.model import station_model
 from glshade.instruments.pmd.settings import PMD_VERSION, PmdSettings, check_scene
 from glshade.instruments.pmd.station import PmdResult, measure_pmd_scene
 from glshade.instruments.pmd.status import pmd_concerns
@@ -121,7 +122,7 @@ class PhaseInstrument(Instrument):
     ) -> Iterator[Measured]:
         """One geometry measured as a PMD station measures it, its defect-free analysis
         once; ``extra`` gets a :class:`PmdView`."""
-        baseline = pmd_baseline(renderer, group[0].scene, settings)
+        baseline = pmd_baseline(renderer, station_model(group[0].scene), settings)
         for case in group:
             result = measure_pmd_scene(renderer, case.scene, settings, baseline)
             made = extra(case, result, PmdView(baseline)) if extra is not None else None

@@ -14,26 +14,24 @@ import numpy as np
 from glshade.components.emitter.fringes.table import (
     DIRECTIONS,
     FringesTable,
-    fringes_of,
 )
 from glshade.instruments.pmd.capture import (
     Capture,
     Decoding,
     capture,
-    coded_axes,
     decode_sequence,
     failures,
     interior,
     released,
     seen_pixels,
 )
+from glshade.instruments.pmd.model import StationModel
 from glshade.instruments.pmd.reconstruct import (
     Nominal,
     nominal_geometry,
 )
-from glshade.instruments.pmd.settings import PmdSettings, check_scene
+from glshade.instruments.pmd.settings import PmdSettings
 from glshade.metrics.coding_laws import white_fundamental
-from glshade.scene import Scene
 
 if TYPE_CHECKING:
     from glshade.rendering import Renderer
@@ -44,9 +42,10 @@ if TYPE_CHECKING:
 class PmdBaseline:
     """The defect-free analysis of one geometry, shared by every dent on it: its capture,
     decoded from one recording and again from a second with another seed (the noise),
-    the nominal geometry, and the prediction of the noise."""
+    the nominal geometry, and the prediction of the noise; ``model`` the station's model
+    of the geometry (:class:`~glshade.instruments.pmd.model.StationModel`)."""
 
-    scene: Scene
+    model: StationModel
     settings: PmdSettings
     capture: Capture
     decoding: Decoding
@@ -63,8 +62,8 @@ class PmdBaseline:
         exact = self.capture.uv
         # off the edge of the valid region too (:func:`interior`), as the dent's shift
         both = window & interior(self.decoding.valid & self.twin.valid)
-        both &= ~failures(self.decoding.uv, exact, self.scene)
-        return both & ~failures(self.twin.uv, exact, self.scene)
+        both &= ~failures(self.decoding.uv, exact, self.model)
+        return both & ~failures(self.twin.uv, exact, self.model)
 
     def noise(self, window: np.ndarray) -> Noise:
         """The decoded coordinate's noise over the pixels of ``window``
@@ -74,13 +73,13 @@ class PmdBaseline:
         if self.twin is None:
             return Noise(0.0, 0.0, 0.0)
         pixels = self.noise_pixels(window)
-        diff = (self.decoding.uv - self.twin.uv)[pixels][:, coded_axes(self.scene)]
+        diff = (self.decoding.uv - self.twin.uv)[pixels][:, list(self.model.axes)]
         if not diff.size:
             return Noise(math.nan, math.nan, math.nan)
         return Noise(
             float(np.std(diff) / math.sqrt(2.0)),
             float(np.abs(diff).max()),
-            predicted_noise_mm(self.scene, self.decoding, pixels),
+            predicted_noise_mm(self.model, self.decoding, pixels),
         )
 
 
@@ -95,23 +94,23 @@ class Noise:
 
 
 def pmd_baseline(
-    renderer: Renderer, scene: Scene, settings: PmdSettings = PmdSettings()
+    renderer: Renderer, model: StationModel, settings: PmdSettings = PmdSettings()
 ) -> PmdBaseline:
-    """The defect-free analysis of ``scene``'s geometry (its defect is ignored)."""
-    check_scene(scene)
-    normal = scene.without_defect()
-    shot = capture(renderer, normal)
+    """The defect-free analysis of the geometry of ``model``
+    (:func:`~glshade.instruments.pmd.model.station_model`): its nominal part's fringe
+    sequence captured and decoded, twice where a sensor adds noise."""
+    shot = capture(renderer, model.part)
     start = time.perf_counter()
     seen = seen_pixels(shot.uv)
-    decoding = decode_sequence(normal, shot.recorded(), shot.peak_response, settings, seen)
+    coding, peak = model.coding, shot.peak_response
+    decoding = decode_sequence(coding, shot.recorded(), peak, settings, seen)
     twin = None
-    if normal.active.records(normal):
-        twice = shot.recorded(seed_offset=1)
-        twin = decode_sequence(normal, twice, shot.peak_response, settings, seen)
+    if model.sensor is not None:
+        twin = decode_sequence(coding, shot.recorded(seed_offset=1), peak, settings, seen)
     decode_s = time.perf_counter() - start
-    nominal = nominal_geometry(renderer, scene)
+    nominal = nominal_geometry(renderer, model)
     return PmdBaseline(
-        normal,
+        model,
         settings,
         released(shot),
         decoding,
@@ -122,7 +121,7 @@ def pmd_baseline(
 
 
 # --------------------------------------------------------------------------- noise
-def predicted_noise_mm(scene: Scene, decoding: Decoding, mask: np.ndarray) -> float:
+def predicted_noise_mm(model: StationModel, decoding: Decoding, mask: np.ndarray) -> float:
     """``periods[0] / 2π · sqrt(2 / N) · σ_I / B`` per pixel of ``mask`` (valid ones),
     pooled as the root mean square (what the measured standard deviation estimates):
     ``σ_I`` the sensor's noise at the pixel's mean level ``A`` (recorded units, the black
@@ -130,14 +129,14 @@ def predicted_noise_mm(scene: Scene, decoding: Decoding, mask: np.ndarray) -> fl
     so photon noise ``(1 - b) (A - b) / full_well`` and read noise ``((1 - b) read /
     full_well)²`` in variance, and the quantisation's ``q² / 12``), ``B`` its modulation
     of the finest period, each coded direction counted. 0 without a sensor."""
-    sensor, em = scene.sensor, fringes_of(scene)
-    if sensor.full_well_e is None:
+    sensor, em = model.sensor, model.coding
+    if sensor is None or sensor.full_well_e is None:
         return 0.0
     full_well, black = sensor.full_well_e, sensor.black_level
     q = 1.0 / sensor.full_scale_dn
     scale = em.periods[0] / (2.0 * math.pi)
     variances = []
-    for axis in coded_axes(scene):
+    for axis in model.axes:
         level = decoding.offset[axis, 0][mask].astype(np.float64)
         modulation = decoding.modulation[axis, 0][mask].astype(np.float64)
         sigma2 = (
@@ -151,7 +150,7 @@ def predicted_noise_mm(scene: Scene, decoding: Decoding, mask: np.ndarray) -> fl
 
 
 # --------------------------------------------------------------------------- modulation
-def modulation_share(scene: Scene, shot: Capture) -> np.ndarray:
+def modulation_share(em: FringesTable, shot: Capture) -> np.ndarray:
     """Per screen coordinate (u, v) and pixel (2, H, W, float32), the finest period's
     modulation share of the noise-free radiance, ``B / (b_1 W)``: ``B`` the pixel's
     modulation of the finest fringes, ``W`` its own response to the screen's white, and
@@ -160,7 +159,6 @@ def modulation_share(scene: Scene, shot: Capture) -> np.ndarray:
     leave of the fringe: 1 for a sharp mirror (within the screen's grey levels' rounding,
     ±0.5 % at 256 levels), less where they average it out; an optical property, before
     the sensor. NaN for a coordinate not coded and for a pixel that sees no screen."""
-    em = fringes_of(scene)
     fundamental = displayed_fundamental(em)
     white = shot.white.astype(np.float64)
     seen = seen_pixels(shot.uv) & np.isfinite(white) & (white > 0.0)
@@ -186,11 +184,11 @@ def displayed_fundamental(em: FringesTable) -> float:
     return white_fundamental(em)
 
 
-def median_share(scene: Scene, share: np.ndarray, region: np.ndarray) -> float:
+def median_share(axes: tuple[int, ...], share: np.ndarray, region: np.ndarray) -> float:
     """The record's ``modulation``: the median of :func:`modulation_share` over the coded
     coordinates of the dent's region, else (no region) of every pixel that sees the
     screen; NaN where none does."""
-    values = share[coded_axes(scene)].astype(np.float64)
+    values = share[list(axes)].astype(np.float64)
     where = region if region.any() else np.isfinite(values).all(axis=0)
     picked = values[:, where]
     picked = picked[np.isfinite(picked)]

@@ -14,13 +14,14 @@ import numpy as np
 from glshade.components.emitter.fringes.table import (
     DIRECTIONS,
     FringeFrame,
-    fringes_of,
+    FringesTable,
 )
 from glshade.instruments.pmd import decode as pmd
 from glshade.instruments.pmd.settings import PmdSettings
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
+    from glshade.instruments.pmd.model import StationModel
     from glshade.rendering import Renderer
 
 
@@ -100,10 +101,11 @@ def capture(renderer: Renderer, scene: Scene) -> Capture:
     """Render ``scene``'s whole coded sequence and its white frame in one trace."""
     start = time.perf_counter()
     emitter = scene.active.emitter
-    frames = tuple(emitter.sequence(scene))
-    stack = renderer.render(scene, ("frames", "uv"), frames=(*frames, emitter.white(scene)))
+    frames, white = tuple(emitter.sequence(scene)), emitter.white(scene)
+    records = scene.active.records(scene)
+    stack = renderer.render(scene, ("frames", "uv"), frames=(*frames, white))
+    gain = renderer.exposure_gain(scene) if records else 1.0
     layers = stack.output("frames")
-    gain = renderer.exposure_gain(scene) if scene.active.records(scene) else 1.0
     return Capture(
         scene,
         frames,
@@ -134,30 +136,30 @@ class Decoding:
     threshold: float
 
 
-def threshold_of(scene: Scene, peak_response: float, settings: PmdSettings) -> float:
+def threshold_of(coding: FringesTable, peak_response: float, settings: PmdSettings) -> float:
     """The modulation a valid pixel needs (recorded units): ``min_modulation`` where
     given, else ``modulation_share`` of ``amplitude`` times ``peak_response`` (the
     brightest pixel's response to the screen's white above the black level)."""
     if settings.min_modulation is not None:
         return float(settings.min_modulation)
-    return float(settings.modulation_share * fringes_of(scene).amplitude * peak_response)
+    return float(settings.modulation_share * coding.amplitude * peak_response)
 
 
 def decode_sequence(
-    scene: Scene,
+    em: FringesTable,
     recorded: np.ndarray,
     peak_response: float,
     settings: PmdSettings,
     seen: np.ndarray | None = None,
 ) -> Decoding:
-    """Decode every coded direction of a recorded ``(F, H, W)`` sequence (``seen``: the
-    pixels that see the screen; the per-direction maps are NaN elsewhere)."""
-    em = fringes_of(scene)
+    """Decode every coded direction of a recorded ``(F, H, W)`` sequence of the coding
+    ``em`` (``seen``: the pixels that see the screen; the per-direction maps are NaN
+    elsewhere)."""
     periods, shifts = len(em.periods), em.shifts
     height, width = recorded.shape[1:]
     uv = np.full((height, width, 2), np.nan)
     valid = np.ones((height, width), bool)
-    threshold = threshold_of(scene, peak_response, settings)
+    threshold = threshold_of(em, peak_response, settings)
     # float32 as each direction is decoded: one direction's float64 maps at a time
     shape = (2, periods, height, width)
     modulation, offset, wrapped = (np.full(shape, np.nan, np.float32) for _ in range(3))
@@ -190,17 +192,17 @@ def seen_pixels(exact_uv: np.ndarray) -> np.ndarray:
     return np.all(np.isfinite(exact_uv), axis=-1)
 
 
-def coded_axes(scene: Scene) -> list[int]:
+def coded_axes(coding: FringesTable) -> list[int]:
     """The screen coordinates the sequence codes (0: u, 1: v)."""
-    return [DIRECTIONS.index(d) ^ 1 for d in fringes_of(scene).directions]
+    return [DIRECTIONS.index(d) ^ 1 for d in coding.directions]
 
 
-def failures(decoded_uv: np.ndarray, exact_uv: np.ndarray, scene: Scene) -> np.ndarray:
+def failures(decoded_uv: np.ndarray, exact_uv: np.ndarray, model: StationModel) -> np.ndarray:
     """Valid pixels where some coded direction decodes more than half the finest period
     away from the exact map (the unwrapping picked another fringe)."""
-    half = 0.5 * fringes_of(scene).periods[0]
+    half = model.half_period_mm
     bad = np.zeros(decoded_uv.shape[:2], bool)
-    for axis in coded_axes(scene):
+    for axis in model.axes:
         with np.errstate(invalid="ignore"):
             bad |= np.abs(decoded_uv[..., axis] - exact_uv[..., axis]) > half
     return bad

@@ -12,8 +12,8 @@ import numpy as np
 
 from glshade.errors import GlshadeError
 from glshade.instruments.pmd import decode as pmd
+from glshade.instruments.pmd.model import StationModel, screen_points
 from glshade.instruments.pmd.settings import PmdSettings
-from glshade.scene import Scene
 
 if TYPE_CHECKING:
     from glshade.rendering import Renderer
@@ -31,14 +31,14 @@ class Nominal:
     camera: np.ndarray
 
 
-def nominal_geometry(renderer: Renderer, scene: Scene) -> Nominal:
-    """Each pixel's point on the nominal surface along its chief (pinhole) ray, and the
-    surface's unit normal there (the surface component's float64 oracle)."""
-    chief = scene.without_defect().updated(camera={"f_number": 0.0}, render={"supersample": 1})
+def nominal_geometry(renderer: Renderer, model: StationModel) -> Nominal:
+    """Each pixel's point on the model's nominal part along its chief (pinhole) ray, and
+    the surface's unit normal there (the surface component's float64 oracle)."""
+    chief = model.part.updated(camera={"f_number": 0.0}, render={"supersample": 1})
     distance = renderer.render(chief, ("distance",)).output("distance").astype(np.float64)
-    origin, directions = scene.active.camera.pixel_rays(chief)
+    origin, directions = chief.active.camera.pixel_rays(chief)
     points = np.asarray(origin) + distance[..., None] * directions
-    surface = scene.active.surface
+    surface = chief.active.surface
     flat = np.zeros(distance.shape)
     normals = np.asarray(
         surface.normal(chief, points[..., 0], points[..., 2], flat, flat), np.float64
@@ -48,13 +48,7 @@ def nominal_geometry(renderer: Renderer, scene: Scene) -> Nominal:
     return Nominal(points, normals, np.asarray(origin, np.float64))
 
 
-def screen_points(scene: Scene, uv: np.ndarray) -> np.ndarray:
-    """World points (mm) of screen coordinates ``uv`` (…, 2)."""
-    plane = scene.emitter_plane()
-    return plane.centre + uv[..., :1] * plane.e_u + uv[..., 1:] * plane.e_v
-
-
-def slope_map(scene: Scene, nominal: Nominal, decoded_uv: np.ndarray) -> np.ndarray:
+def slope_map(model: StationModel, nominal: Nominal, decoded_uv: np.ndarray) -> np.ndarray:
     """The measured slope deviation ``(∂d/∂x, ∂d/∂z)`` (H, W, 2), rad: the normal that
     bisects the directions to the camera and to the decoded screen point, against the
     nominal normal. A sequence coding one direction leaves the other coordinate at the
@@ -62,7 +56,7 @@ def slope_map(scene: Scene, nominal: Nominal, decoded_uv: np.ndarray) -> np.ndar
     the missing coordinate is taken from the nominal mirror, so only one slope is
     measured)."""
     measured = pmd.normals_from_points(
-        nominal.points, nominal.camera, screen_points(scene, decoded_uv)
+        nominal.points, nominal.camera, screen_points(model, decoded_uv)
     )
     gx, gz = pmd.slope_deviation(measured, nominal.normals)
     return np.stack([gx, gz], axis=-1)
@@ -82,10 +76,10 @@ class HeightGrid:
         return float(self.x[1] - self.x[0]), float(self.z[1] - self.z[0])
 
 
-def height_grid(scene: Scene, nominal: Nominal, settings: PmdSettings) -> HeightGrid:
+def height_grid(model: StationModel, nominal: Nominal, settings: PmdSettings) -> HeightGrid:
     """A square grid over the dent's centre ± ``window_sigmas`` of its largest σ, at the
     pixels' own spacing on the surface (their median), at most ``grid_points`` across."""
-    defect = scene.defect
+    defect = model.defect
     cov = np.array([[defect.sigma_x2, defect.sigma_xz], [defect.sigma_xz, defect.sigma_z2]])
     half = settings.window_sigmas * math.sqrt(float(np.linalg.eigvalsh(cov).max()))
     p = nominal.points
@@ -101,13 +95,12 @@ def height_grid(scene: Scene, nominal: Nominal, settings: PmdSettings) -> Height
     return HeightGrid(x, z)
 
 
-def project(scene: Scene, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def project(model: StationModel, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Image ``(rows, cols)`` (pixel units, centres at integers) of world points (…, 3)
-    through the camera, its distortion included; NaN behind the camera."""
+    through the model's camera, its distortion included; NaN behind the camera."""
     from glshade.components.camera.perspective.optics import distort
 
-    cam = scene.camera
-    pose = cam.pose()
+    cam, pose = model.camera, model.pose
     d = np.asarray(points, np.float64) - pose.position
     depth = d @ pose.forward
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -174,20 +167,21 @@ class Heights:
 
 
 def reconstruct(
-    scene: Scene, nominal: Nominal, slopes: np.ndarray, settings: PmdSettings
+    model: StationModel, nominal: Nominal, slopes: np.ndarray, settings: PmdSettings
 ) -> Heights:
     """Slopes → heights on the grid → the dent: the slope map sampled at the grid's points
     (projected through the camera onto the image), integrated by least squares (tilt and
     offset removed beyond ``plane_sigmas``), and the Gaussian fitted to it."""
     from scipy.interpolate import RegularGridInterpolator
 
-    grid = height_grid(scene, nominal, settings)
+    grid = height_grid(model, nominal, settings)
     xx, zz = np.meshgrid(grid.x, grid.z)
-    yy = np.asarray(scene.active.surface.height(scene, xx, zz), np.float64)
-    rows, cols = project(scene, np.stack([xx, yy, zz], axis=-1))
+    part = model.part
+    yy = np.asarray(part.active.surface.height(part, xx, zz), np.float64)
+    rows, cols = project(model, np.stack([xx, yy, zz], axis=-1))
     gx = sample(slopes[..., 0], rows, cols)
     gz = sample(slopes[..., 1], rows, cols)
-    defect = scene.defect
+    defect = model.defect
     cov = np.array([[defect.sigma_x2, defect.sigma_xz], [defect.sigma_xz, defect.sigma_z2]])
     rel = np.stack([xx - defect.x0, zz - defect.z0], axis=-1)
     mahalanobis = np.sqrt(np.einsum("...i,ij,...j->...", rel, np.linalg.inv(cov), rel))

@@ -44,12 +44,12 @@ from glshade.instruments.pmd.capture import (
     Capture,
     Decoding,
     capture,
-    coded_axes,
     decode_sequence,
     failures,
     interior,
     seen_pixels,
 )
+from glshade.instruments.pmd.model import StationModel, station_model
 from glshade.instruments.pmd.reconstruct import (
     Heights,
     reconstruct,
@@ -57,9 +57,6 @@ from glshade.instruments.pmd.reconstruct import (
 )
 from glshade.instruments.pmd.settings import PmdSettings, check_scene
 from glshade.instruments.pmd.status import assess_pmd
-from glshade.metrics.status import (
-    dent_window,
-)
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
@@ -158,12 +155,11 @@ def seen_in_both(exact0: np.ndarray, exact1: np.ndarray, axes: list[int]) -> np.
     return interior(seen & np.all(np.isfinite(exact1[..., axes]), axis=-1))
 
 
-def dent_region(scene: Scene, exact0: np.ndarray, exact1: np.ndarray) -> np.ndarray:
+def dent_region(model: StationModel, exact0: np.ndarray, exact1: np.ndarray) -> np.ndarray:
     """Where, inside its window and off the edge of what sees the screen
     (:func:`interior`), the dent moves the exact screen points by at least
     :data:`REGION_SHARE` of its largest move."""
-    window = dent_window(scene, exact0.shape[:2])
-    axes = coded_axes(scene)
+    window, axes = model.window, list(model.axes)
     moved = np.linalg.norm((exact1 - exact0)[..., axes], axis=-1)
     moved = np.where(window & seen_in_both(exact0, exact1, axes), moved, 0.0)
     peak = float(moved.max()) if moved.size else 0.0
@@ -181,62 +177,73 @@ def measure_pmd_scene(
     """What a PMD station measures of ``scene``'s dent, on an existing renderer
     (``baseline``: the defect-free analysis of the same geometry, when the caller has
     it; without one, a case whose buffers and analysis would exceed the renderer's memory
-    budget is refused first, in one line: :func:`glshade.instruments.memory.check_pmd`)."""
-    check_scene(scene)
+    budget is refused first, in one line: :func:`glshade.instruments.memory.check_pmd`).
+    The frames are rendered from ``scene``; decoding, slopes and heights use the
+    station's model of it (:func:`~glshade.instruments.pmd.model.station_model`)."""
+    model = station_model(scene)
     if baseline is None:
         from glshade.instruments.memory import check_pmd
 
         check_pmd(scene, renderer.memory_budget_bytes)
-        baseline = pmd_baseline(renderer, scene, settings)
+        baseline = pmd_baseline(renderer, model, settings)
     shot = capture(renderer, scene)
     start = time.perf_counter()
     recorded = shot.recorded()
     peak = baseline.capture.peak_response
-    decoding = decode_sequence(scene, recorded, peak, settings, seen_pixels(shot.uv))
+    decoding = decode_sequence(model.coding, recorded, peak, settings, seen_pixels(shot.uv))
     share = settings.modulation_share if settings.min_modulation is None else None
     white = shot.recorded_white()
     recording = Recording(shot.gain, shot.black_level, peak, decoding.threshold, share, white)
     decode_s = time.perf_counter() - start
     start = time.perf_counter()
-    slopes = slope_map(scene, baseline.nominal, decoding.uv)
-    heights = reconstruct(scene, baseline.nominal, slopes, settings)
+    slopes = slope_map(model, baseline.nominal, decoding.uv)
+    heights = reconstruct(model, baseline.nominal, slopes, settings)
     heights_s = time.perf_counter() - start
     seconds = {"render": shot.seconds, "decode": decode_s, "heights": heights_s}
-    return _result(scene, baseline, shot, recorded, recording, decoding, slopes, heights, seconds)
+    case = _Case(model, shot, recorded, recording, decoding, slopes, heights)
+    return _result(scene, baseline, case, seconds)
+
+
+@dataclass(frozen=True)
+class _Case:
+    """One case's capture and analysis, before its numbers are taken."""
+
+    model: StationModel
+    shot: Capture
+    recorded: np.ndarray
+    recording: Recording
+    decoding: Decoding
+    slopes: np.ndarray
+    heights: Heights
 
 
 def _result(
-    scene: Scene,
-    baseline: PmdBaseline,
-    shot: Capture,
-    recorded: np.ndarray,
-    recording: Recording,
-    decoding: Decoding,
-    slopes: np.ndarray,
-    heights: Heights,
-    seconds: dict[str, float],
+    scene: Scene, baseline: PmdBaseline, case: _Case, seconds: dict[str, float]
 ) -> PmdResult:
-    axes = coded_axes(scene)
+    model, shot, decoding = case.model, case.shot, case.decoding
+    axes = list(model.axes)
     base, exact0 = baseline.decoding, baseline.capture.uv
-    window = dent_window(scene, decoding.valid.shape)
-    failed = failures(decoding.uv, shot.uv, scene)
+    window = model.window
+    failed = failures(decoding.uv, shot.uv, model)
     # valid in both decodes and off the edge of that region (a pixel straddling it mixes
     # the screen with the curtain: :func:`interior`)
     both = window & interior(decoding.valid & base.valid)
-    both &= ~failed & ~failures(base.uv, exact0, scene)
+    both &= ~failed & ~failures(base.uv, exact0, model)
     shift = np.linalg.norm((decoding.uv - base.uv)[..., axes], axis=-1)
     moved = np.linalg.norm((shot.uv - exact0)[..., axes], axis=-1)
     moved = np.where(window & seen_in_both(exact0, shot.uv, axes), moved, np.nan)
     noise = baseline.noise(window)
-    region = dent_region(scene, exact0, shot.uv)
-    status = assess_pmd(scene, baseline, shot, decoding, region, failed, _largest(moved), noise)
+    region = dent_region(model, exact0, shot.uv)
+    exact_mm = _largest(moved)
+    status = assess_pmd(scene, model, baseline, shot, decoding, region, failed, exact_mm, noise)
     shift_mm = _largest(np.where(both, shift, np.nan))
+    slopes = case.slopes
     slope = np.hypot(slopes[..., 0], slopes[..., 1])
-    share = modulation_share(scene, shot)
-    dent = heights.dent
+    share = modulation_share(model.coding, shot)
+    dent = case.heights.dent
     return PmdResult(
         pmd_shift_mm=shift_mm,
-        pmd_shift_exact_mm=_largest(moved),
+        pmd_shift_exact_mm=exact_mm,
         pmd_noise_mm=noise.std,
         pmd_noise_floor_mm=noise.floor,
         pmd_noise_predicted_mm=noise.predicted,
@@ -244,33 +251,46 @@ def _result(
         pmd_slope_urad=1e6 * _largest(np.where(region & decoding.valid & ~failed, slope, np.nan)),
         pmd_depth_um=dent.depth if dent is not None else math.nan,
         pmd_sigma_mm=dent.sigma_mm if dent is not None else math.nan,
-        decode_rms_mm=_decode_rms(scene, baseline),
+        decode_rms_mm=_decode_rms(baseline),
         unwrap_failures=int(failed.sum()),
         valid_fraction=_valid_share(decoding, shot.uv[..., axes[0]]),
-        modulation=median_share(scene, share, region),
+        modulation=median_share(model.axes, share, region),
         status=status.status,
         status_reason=status.reason,
-        maps=PmdMaps(
-            decoded=decoding.uv,
-            exact=shot.uv,
-            error=decoding.uv - shot.uv,
-            exact_defect_free=exact0,
-            decoded_defect_free=base.uv,
-            decoded_twin=base.uv if baseline.twin is None else baseline.twin.uv,
-            modulation=decoding.modulation,
-            wrapped=decoding.wrapped,
-            modulation_share=share,
-            slopes_urad=(1e6 * slopes).astype(np.float32),
-            height_um=heights.per_pixel_um,
-            heights=heights,
-            failed=failed,
-            region=region,
-            shift_pixels=both,
-            noise_pixels=baseline.noise_pixels(window),
-            recorded=recorded,
-            recording=recording,
-        ),
+        maps=_maps(baseline, case, share, failed, region, both),
         seconds=seconds,
+    )
+
+
+def _maps(
+    baseline: PmdBaseline,
+    case: _Case,
+    share: np.ndarray,
+    failed: np.ndarray,
+    region: np.ndarray,
+    shift_pixels: np.ndarray,
+) -> PmdMaps:
+    decoding, exact = case.decoding, case.shot.uv
+    base = baseline.decoding
+    return PmdMaps(
+        decoded=decoding.uv,
+        exact=exact,
+        error=decoding.uv - exact,
+        exact_defect_free=baseline.capture.uv,
+        decoded_defect_free=base.uv,
+        decoded_twin=base.uv if baseline.twin is None else baseline.twin.uv,
+        modulation=decoding.modulation,
+        wrapped=decoding.wrapped,
+        modulation_share=share,
+        slopes_urad=(1e6 * case.slopes).astype(np.float32),
+        height_um=case.heights.per_pixel_um,
+        heights=case.heights,
+        failed=failed,
+        region=region,
+        shift_pixels=shift_pixels,
+        noise_pixels=baseline.noise_pixels(case.model.window),
+        recorded=case.recorded,
+        recording=case.recording,
     )
 
 
@@ -280,12 +300,12 @@ def _largest(values: np.ndarray) -> float:
     return float(finite.max()) if finite.size else math.nan
 
 
-def _decode_rms(scene: Scene, baseline: PmdBaseline) -> float:
+def _decode_rms(baseline: PmdBaseline) -> float:
     """Root mean square of the defect-free scene's decoded minus exact points over its valid
     pixels that did not fail to unwrap, each coded coordinate counted."""
     base, exact = baseline.decoding, baseline.capture.uv
-    ok = base.valid & ~failures(base.uv, exact, scene)
-    error = (base.uv - exact)[ok][:, coded_axes(scene)]
+    ok = base.valid & ~failures(base.uv, exact, baseline.model)
+    error = (base.uv - exact)[ok][:, list(baseline.model.axes)]
     return float(np.sqrt(np.mean(error**2))) if error.size else math.nan
 
 

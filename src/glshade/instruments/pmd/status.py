@@ -7,10 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from glshade.components.emitter.fringes.table import (
-    fringes_of,
-)
-from glshade.instruments.pmd.capture import Capture, Decoding, coded_axes, interior
+from glshade.instruments.pmd.capture import Capture, Decoding, interior
 from glshade.metrics.status import (
     STATUSES,
     Status,
@@ -24,6 +21,7 @@ from glshade.scene import Scene
 
 if TYPE_CHECKING:
     from glshade.instruments.pmd.baseline import Noise, PmdBaseline
+    from glshade.instruments.pmd.model import StationModel
 
 
 #: Where the finish's lobe keeps less than this share of the finest fringe (its closed
@@ -37,6 +35,7 @@ INVALID_SHARE = 0.25
 # --------------------------------------------------------------------------- status
 def assess_pmd(
     scene: Scene,
+    model: StationModel,
     baseline: PmdBaseline,
     shot: Capture,
     decoding: Decoding,
@@ -63,8 +62,8 @@ def assess_pmd(
             "the dent is not seen: no pixel that sees the screen moves (move the dent, "
             "defect.x0/z0, or the camera)",
         )
-    found = [_pmd_edge(scene, region, shot), _pmd_resolution(scene, region, decoding)]
-    if scene.active.records(scene):
+    found = [_pmd_edge(scene, region, shot), _pmd_resolution(scene, model, region, decoding)]
+    if model.sensor is not None:
         found.append(_pmd_exposure(baseline))
     floor = noise.floor
     if baseline.twin is not None and not exact_mm > floor:
@@ -72,7 +71,7 @@ def assess_pmd(
         if noise.std > 2.0 * noise.predicted:
             hint = (
                 f" (the noise is {noise.std / noise.predicted:.3g} times its prediction: the "
-                f"{fringes_of(scene).periods[0]:g} mm fringes alias or nearly fail to unwrap "
+                f"{model.coding.periods[0]:g} mm fringes alias or nearly fail to unwrap "
                 "there; a longer emitter.periods[0] or a smaller period ratio helps)"
             )
         found.append(
@@ -104,16 +103,18 @@ def _pmd_edge(scene: Scene, region: np.ndarray, shot: Capture) -> Status:
     return Status("edge", f"the dent's region touches {where}") if where else Status()
 
 
-def _pmd_resolution(scene: Scene, region: np.ndarray, decoding: Decoding) -> Status:
+def _pmd_resolution(
+    scene: Scene, model: StationModel, region: np.ndarray, decoding: Decoding
+) -> Status:
     count = int(region.sum())
     if not count:
         return Status()
     share = float((region & ~decoding.valid).sum() / count)
     if share <= INVALID_SHARE:
         return Status()
-    finest = fringes_of(scene).periods[0]
+    finest = model.coding.periods[0]
     said = f"{share:.0%} of the dent's region has a modulation below {decoding.threshold:.3g}: "
-    finish = finish_share(scene, region, finest, tuple(coded_axes(scene)))
+    finish = finish_share(scene, region, finest, model.axes)
     if finish is not None and finish.share < FINISH_CAUSE_SHARE:
         return Status(
             "unresolved",
@@ -132,7 +133,7 @@ def _pmd_exposure(baseline: PmdBaseline) -> Status:
     ``gain`` × radiance: the share of the range above the black level it fills (the full
     well fills that range), so the black level is left out by construction."""
     signal = baseline.capture.white * baseline.capture.gain
-    signal = signal * fringes_of(baseline.scene).brightest()
+    signal = signal * baseline.model.coding.brightest()
     seen = np.isfinite(signal) & (baseline.capture.white > 0)
     values = signal[seen]
     if not values.size:

@@ -20,6 +20,7 @@ from glshade.instruments.base import InstrumentView, InstrumentViews, ViewMap
 from glshade.instruments.pmd.baseline import PmdBaseline, pmd_baseline
 from glshade.instruments.pmd.capture import coded_axes
 from glshade.instruments.pmd.files import decoded_only
+from glshade.instruments.pmd.model import station_model
 from glshade.instruments.pmd.settings import PmdSettings
 from glshade.instruments.pmd.station import PmdResult, measure_pmd_scene
 from glshade.instruments.pmd.status import pmd_concerns
@@ -37,7 +38,7 @@ PMD_SIZE = 256
 def phase_map(scene: Scene, result: PmdResult) -> ViewMap:
     """The finest period's wrapped phase, where the pixel was decoded."""
     em = fringes_of(scene)
-    shown, maps = coded_axes(scene)[0], result.maps  # the first coded direction's layer
+    shown, maps = coded_axes(fringes_of(scene))[0], result.maps  # the first coded direction's layer
     values = decoded_only(maps.wrapped[shown, 0], maps.decoded)
     caption = f"phase, {em.periods[0]:g} mm fringes along {em.directions[0]}"
     return ViewMap(values, 0.0, 2.0 * math.pi, "rad", caption, "twilight")
@@ -45,7 +46,7 @@ def phase_map(scene: Scene, result: PmdResult) -> ViewMap:
 
 def modulation_map(scene: Scene, result: PmdResult) -> ViewMap:
     """The finest period's modulation (a share of full scale where the sensor records)."""
-    shown = coded_axes(scene)[0]
+    shown = coded_axes(fringes_of(scene))[0]
     values = result.maps.modulation[shown, 0].astype(np.float64)
     units = "of full scale" if scene.active.records(scene) else "radiance"
     caption = f"modulation ({units}), {fringes_of(scene).periods[0]:g} mm"
@@ -54,7 +55,7 @@ def modulation_map(scene: Scene, result: PmdResult) -> ViewMap:
 
 def error_map(scene: Scene, result: PmdResult) -> ViewMap:
     """Decoded minus exact screen point along the first coded direction (µm)."""
-    axis, maps = coded_axes(scene)[0], result.maps
+    axis, maps = coded_axes(fringes_of(scene))[0], result.maps
     values = 1e3 * maps.error[..., axis]
     top = _top(np.abs(values[~maps.failed]), 99.5)
     caption = f"decoded - exact {'uv'[axis]} on the screen"
@@ -120,7 +121,7 @@ class KeptBaseline:
     def __call__(self, renderer: Renderer, scene: Scene) -> PmdResult:
         key = scene.without_defect()
         if self._baseline is None or self._baseline[0] != key:
-            self._baseline = (key, pmd_baseline(renderer, scene, self.settings))
+            self._baseline = (key, pmd_baseline(renderer, station_model(scene), self.settings))
         return measure_pmd_scene(renderer, scene, self.settings, self._baseline[1])
 
 
