@@ -311,7 +311,7 @@ def test_end_to_end_runs_the_stripe_study_first(tmp_path, capsys):
     "extra, fragment",
     [
         (["--method", "nonsense"], "invalid choice: 'nonsense'"),
-        (["--supersample", "3"], "--supersample: belongs to --method pmd"),
+        (["--supersample", "3"], "--supersample: belongs to phase measuring (--method pmd)"),
         (["--method", "pmd", "--step", "0.5"], "--step: belongs to the paper's stripe metric"),
         (["--method", "pmd", "--periods", "cone=2,16,128,1024"], "not a surface of this study"),
         (["--method", "pmd", "--periods", "2,16,128"], "300"),

@@ -40,6 +40,10 @@ MAX_STUDY_CASES = 100_000
 #: memory a row: 1.3 GiB at 64).
 MAX_SIGMA2S = 64
 
+#: The instrument whose settings a plan carries (:attr:`StudyPlan.metric`): every study
+#: measures the stripe study's cases, and phase measuring reads the stripe study beside it.
+PLAN_METHOD = "paper"
+
 #: A point of the plan: (surface, θ in degrees, σ² in mm², dmax in mm).
 PlanPoint = tuple[str, float, float, float]
 

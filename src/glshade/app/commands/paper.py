@@ -1,25 +1,15 @@
-"""``glshade paper``: the paper's whole study (Table 1), its figures and report.md; with
-``--method pmd`` the same cases measured by a phase-measuring station
-(:mod:`glshade.app.commands.paper_pmd`; :func:`run` chooses between the two)."""
+"""``glshade paper``: the paper's whole study (Table 1) measured by an instrument with a
+study (:mod:`glshade.app.studies`: the stripe metric's, :mod:`.paper_stripes`, by
+default; phase measuring's, :mod:`.paper_pmd`), its figures and its report."""
 
 from __future__ import annotations
 
 import argparse
-import functools
-import time
 from pathlib import Path
 
-from glshade.app.args import (
-    add_settings_flags,
-    check_memory,
-    instrument_settings,
-    path_arg,
-    quantity_list,
-    warn,
-)
+from glshade.app.args import instrument_settings, path_arg, quantity_list
+from glshade.app.studies import refuse_other_flags, study_kind, study_kinds
 from glshade.errors import GlshadeError
-from glshade.oracle.advice import scene_warnings
-from glshade.process import reuse_freed_memory
 
 #: ``glshade paper --help``'s description.
 _PAPER_DESCRIPTION = (
@@ -41,11 +31,26 @@ def add(sub: argparse._SubParsersAction) -> None:
     )
     _add_output_flags(p)
     _add_plan_flags(p)
-    add_settings_flags(p, "paper")
     _add_run_flags(p)
-    from glshade.app.commands.paper_pmd import add_pmd_paper_flags
+    _add_method_flags(p)
 
-    add_pmd_paper_flags(p)
+
+def _add_method_flags(p: argparse.ArgumentParser) -> None:
+    """``--method`` (the instruments with a study) and each study's own flags."""
+    from glshade.instruments.registry import instrument
+
+    kinds = study_kinds()
+    listed = "; ".join(
+        f"{name} ({instrument(name).title}: {k.writes})" for name, k in kinds.items()
+    )
+    p.add_argument(
+        "--method",
+        choices=tuple(kinds),
+        default=next(iter(kinds)),
+        help=f"the instrument that measures the study: {listed}",
+    )
+    for kind in kinds.values():
+        kind.add_flags(p)
 
 
 def _add_output_flags(p: argparse.ArgumentParser) -> None:
@@ -134,14 +139,14 @@ def _add_run_flags(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from glshade.app.commands.paper_pmd import check_method_flags, cmd_paper_pmd, pmd_plan
     from glshade.measure.locks import run_lock
     from glshade.study import plan as study
     from glshade.study.run import check_workers
 
     check_workers(args.threads)  # before --out is touched
-    check_method_flags(args)
-    metric = instrument_settings(args, "paper")
+    kind = study_kind(args.method)
+    refuse_other_flags(args, kind)
+    metric = instrument_settings(args, study.PLAN_METHOD)
     surfaces = tuple(part.strip() for part in args.surfaces.split(",") if part.strip())
     plan = study.StudyPlan(
         surfaces=surfaces,
@@ -153,37 +158,9 @@ def run(args: argparse.Namespace) -> int:
     )
     study.check_size(plan, args.yes)  # before --out is touched, in both methods
     typed_workers, args.workers = args.workers, paper_workers(args.workers, plan, args.device)
-    if args.method == "pmd":
-        # phase measuring goes to worker processes only when asked: its cases take
-        # several times the stripe metric's memory
-        args.pmd_workers = args.workers if typed_workers != "auto" else 0
-        if args.pmd_workers:
-            from glshade.measure.capacity import check_worker_count
-
-            pixels = plan.size * plan.size
-            check_worker_count(args.pmd_workers, pixels, "pmd", in_process=True)
-        pmd = pmd_plan(args, plan)  # bad input is refused before --out is touched
-        with run_lock(args.out):
-            return cmd_paper_pmd(args, plan, pmd, _run_stripes)
-    from glshade.instruments.base import Case
-
-    firsts = [(surface, *plan.cases()[0][1:]) for surface in plan.surfaces]
-    check_memory(
-        [Case(point, plan.scene(*point)) for point in firsts],
-        plan.metric,
-        threads=args.threads,
-        pooled=not args.workers,
-    )
-    warn(
-        tuple(
-            line
-            for sigma2 in plan.sigma2s
-            for dmax in plan.dmaxs
-            for line in scene_warnings(plan.scene(plan.surfaces[0], plan.thetas[0], sigma2, dmax))
-        )
-    )
+    prepared = kind.prepared(args, plan, typed_workers)  # bad input refused before --out
     with run_lock(args.out):
-        return _run_stripes(args, plan)
+        return kind.run(args, plan, prepared)
 
 
 #: ``--workers auto`` starts worker processes for a study of at least this many pixels to
@@ -216,55 +193,3 @@ def paper_workers(given: str, plan, device: int | None) -> int:
             "CUDA_VISIBLE_DEVICES)"
         )
     return workers
-
-
-def _run_stripes(args: argparse.Namespace, plan) -> int:
-    """The study, its figures and its report, with ``--out`` locked."""
-    from glshade.gpu.context import GLContext
-    from glshade.gpu.renderer import Renderer
-    from glshade.study import findings, plots
-    from glshade.study import plan as study
-    from glshade.study.run import run_study
-    from glshade.study.store import CaseResult
-
-    reuse_freed_memory()
-    start = time.perf_counter()
-    drawn: dict = {}
-    figure_seconds = 0.0
-
-    def draw(
-        surface: str, rows: list[CaseResult]
-    ) -> None:  # while the workers measure the next surface
-        nonlocal figure_seconds
-        begin = time.perf_counter()
-        drawn[surface] = plots.surface_figures(rows, args.out, plan, surface)
-        figure_seconds += time.perf_counter() - begin
-
-    run = functools.partial(
-        run_study,
-        plan,
-        args.out,
-        progress=not args.no_progress,
-        on_surface_done=draw,
-        overwrite=args.overwrite,
-    )
-    if args.workers:
-        from glshade.measure.executors import Distribution
-
-        result = run(distribution=Distribution(workers=args.workers, verbose=args.verbose))
-    else:
-        with GLContext(device_index=args.device) as context, Renderer(context) as renderer:
-            result = run(workers=args.threads, renderer=renderer)
-    figure_start = time.perf_counter()
-    written = plots.write_figures(result.rows, args.out, plan, drawn)
-    result.timings.figures = figure_seconds + time.perf_counter() - figure_start
-    overlays = [
-        args.out / name for name in study.OVERLAY_CASES.values() if (args.out / name).exists()
-    ]
-    report = findings.write_report(result.rows, args.out, plan, overlays + written, result.timings)
-    print(
-        f"{result.computed} cases computed, {result.skipped} resumed; wrote "
-        f"{args.out / 'results.csv'}, "
-        f"{len(written)} figures and {report} in {time.perf_counter() - start:.1f} s"
-    )
-    return 0

@@ -10,13 +10,18 @@ import argparse
 import json
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-from glshade.app.args import param_type, settings_flags_given, warn
+from glshade.app.args import param_type, warn
+from glshade.app.studies import StudyKind
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError
 from glshade.files import read_regular
 from glshade.oracle.advice import scene_warnings
 from glshade.process import reuse_freed_memory
+
+if TYPE_CHECKING:
+    from glshade.study.plan import StudyPlan
 
 #: The station's chain: flag -> (the scene parameter it sets, the study's default, what
 #: it is).
@@ -53,16 +58,40 @@ def _dest(flag: str) -> str:
     return "pmd_" + flag.lstrip("-").replace("-", "_")
 
 
-def add_pmd_paper_flags(p: argparse.ArgumentParser) -> None:
-    """``--method`` and the station's flags on ``glshade paper``."""
-    p.add_argument(
-        "--method",
-        choices=("paper", "pmd"),
-        default="paper",
-        help="the instrument: paper (binarised stripe edges, the default) or pmd (a "
-        "phase-measuring station: writes pmd_results.csv, pmd_report.md and pmd_*.png beside "
-        "the stripe study, running that first where --out has no results.csv)",
+class PmdStudy(StudyKind):
+    """Phase measuring's study: the paper's cases measured by a PMD station, beside the
+    stripe study (run first where ``--out`` has no results.csv)."""
+
+    name = "pmd"
+    writes = (
+        "a phase-measuring station: pmd_results.csv, pmd_report.md and pmd_*.png beside the "
+        "stripe study, running that first where --out has no results.csv"
     )
+
+    def add_flags(self, parser: argparse.ArgumentParser) -> None:
+        add_pmd_paper_flags(parser)
+
+    def flags_given(self, args: argparse.Namespace) -> list[str]:
+        return pmd_flags_given(args)
+
+    def prepared(self, args: argparse.Namespace, plan: StudyPlan, workers: str) -> Any:
+        """The PMD plan of the command line; its cases go to worker processes only when
+        ``--workers`` is given (their memory is several times the stripe metric's)."""
+        args.pmd_workers = args.workers if workers != "auto" else 0
+        if args.pmd_workers:
+            from glshade.measure.capacity import check_worker_count
+
+            check_worker_count(args.pmd_workers, plan.size * plan.size, "pmd", in_process=True)
+        return pmd_plan(args, plan)
+
+    def run(self, args: argparse.Namespace, plan: StudyPlan, prepared: Any) -> int:
+        from glshade.app.commands.paper_stripes import run_stripes
+
+        return cmd_paper_pmd(args, plan, prepared, run_stripes)
+
+
+def add_pmd_paper_flags(p: argparse.ArgumentParser) -> None:
+    """The station's flags on ``glshade paper``."""
     group = p.add_argument_group("phase measuring (--method pmd only)")
     for flag, (path, default, meaning) in CHAIN_FLAGS.items():
         param = registry().param(path)
@@ -103,19 +132,6 @@ def pmd_flags_given(args: argparse.Namespace) -> list[str]:
     """The station's flags the command line set."""
     flags = [*CHAIN_FLAGS, *OTHER_FLAGS]
     return [flag for flag in flags if getattr(args, _dest(flag), None) is not None]
-
-
-def check_method_flags(args: argparse.Namespace) -> None:
-    """Refuse, in one line, a flag of one instrument given to the other."""
-    if args.method != "pmd":
-        for flag in pmd_flags_given(args):
-            raise GlshadeError(f"{flag}: belongs to --method pmd (the phase-measuring station)")
-        return
-    for flag in settings_flags_given(args, "paper"):
-        raise GlshadeError(
-            f"{flag}: belongs to the paper's stripe metric, not to --method pmd (run "
-            "'glshade paper' with it first: --method pmd reads its results.csv)"
-        )
 
 
 def _parse_periods(given: list[str] | None) -> tuple[tuple, tuple]:
