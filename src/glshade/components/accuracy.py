@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
+from numpy.typing import NDArray
 
 T = TypeVar("T")
 
@@ -82,7 +83,11 @@ class AccuracyKnob:
         raise NotImplementedError
 
 
-def image_errors(image, ref_image, mask) -> tuple[float, float]:
+def image_errors(
+    image: NDArray[np.floating[Any]],
+    ref_image: NDArray[np.floating[Any]],
+    mask: NDArray[np.bool_],
+) -> tuple[float, float]:
     """Largest and RMS difference of two radiance images over ``mask``."""
     diff = np.abs(image.astype(np.float64) - ref_image)[mask]
     return (float(diff.max()), float(np.sqrt(np.mean(diff**2)))) if diff.size else (0.0, 0.0)

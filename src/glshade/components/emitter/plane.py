@@ -7,6 +7,7 @@ import math
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 
 def uniforms(scene: Any, context: Any) -> dict[str, object]:
@@ -26,7 +27,9 @@ def uniforms(scene: Any, context: Any) -> dict[str, object]:
     }
 
 
-def coordinates(scene: Any, points: Any, directions: Any, glass: tuple[float, float] | None = None):
+def coordinates(
+    scene: Any, points: Any, directions: Any, glass: tuple[float, float] | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """Where rays ``points + t r`` (mm; ``r`` need not be unit) meet the emitter.
 
     Returns ``(u, v, valid)``: screen coordinates in mm, shape (…); ``valid`` requires

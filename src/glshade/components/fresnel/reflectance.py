@@ -16,11 +16,13 @@ NumPy arithmetic.
 
 from __future__ import annotations
 
+from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
-from glshade.components.base import FresnelComponent
+from glshade.components.base import FresnelComponent, SceneView, UniformContext
 from glshade.params import Control, Table, param
 
 
@@ -53,29 +55,30 @@ class ComplexIndexTable(IndexTable):
 class Reflectance(FresnelComponent):
     """A Fresnel factor of a (complex) refractive index. Oracle: :meth:`reflectance`."""
 
-    def features(self, scene):
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
         return {"fresnel": True}
 
-    def glsl(self, variables):
+    def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
         return ("lib/fresnel.glsl",) if variables["shading"] else ()
 
-    def uniforms(self, scene, context):
+    def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
         if not context.variables["shading"]:
             return {}
-        return {"u_fresnel_ior": scene.render.ior, "u_fresnel_extinction": self.extinction(scene)}
+        ior = cast(IndexTable, scene.render).ior
+        return {"u_fresnel_ior": ior, "u_fresnel_extinction": self.extinction(scene)}
 
-    def shades_from_emitter_map(self, scene):
+    def shades_from_emitter_map(self, scene: SceneView) -> bool:
         return False
 
-    def keeps_emitter_scale(self, scene):
+    def keeps_emitter_scale(self, scene: SceneView) -> bool:
         return False
 
-    def extinction(self, scene) -> float:
+    def extinction(self, scene: SceneView) -> float:
         return 0.0
 
-    def reflectance(self, scene, cos_i: np.ndarray) -> np.ndarray:
+    def reflectance(self, scene: SceneView, cos_i: np.ndarray) -> np.ndarray:
         """Unpolarised reflectance at incidence ``cos θi`` from air (complex Snell's law)."""
-        eta = complex(scene.render.ior, self.extinction(scene))
+        eta = complex(cast(IndexTable, scene.render).ior, self.extinction(scene))
         c = np.clip(np.asarray(cos_i, np.float64), 0.0, 1.0).astype(complex)
         cos_t = np.sqrt(1.0 - (1.0 - c * c) / eta**2)
         cos_t = np.where((eta * cos_t).imag < 0, -cos_t, cos_t)  # the transmitted wave decays

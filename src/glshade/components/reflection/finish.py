@@ -23,11 +23,17 @@ Table: :class:`FinishTable`, a base of every reflection model's table. GLSL: the
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
 from glshade.params import Control, Table, param
+
+if TYPE_CHECKING:
+    from glshade.components.base import SceneView
 
 
 @dataclass(frozen=True)
@@ -52,19 +58,20 @@ class FinishTable(Table):
     )  # fmt: skip
 
 
-def coherence_on(scene) -> bool:
-    return scene.render.height_rms_um > 0.0
+def coherence_on(scene: SceneView) -> bool:
+    return cast(FinishTable, scene.render).height_rms_um > 0.0
 
 
-def coherence_uniforms(scene) -> dict[str, object]:
+def coherence_uniforms(scene: SceneView) -> dict[str, object]:
     """``u_reflection_coherence``: ``4π σ_h / λ`` (dimensionless)."""
-    ratio = scene.render.height_rms_um / scene.render.wavelength_um
+    render = cast(FinishTable, scene.render)
+    ratio = render.height_rms_um / render.wavelength_um
     return {"u_reflection_coherence": 4.0 * math.pi * ratio}
 
 
 def features(
-    scene, kernel: str = "none", filtered: bool = False, diffuse: bool = False
-) -> dict[str, object]:
+    scene: SceneView, kernel: str = "none", filtered: bool = False, diffuse: bool = False
+) -> dict[str, Hashable]:
     """The template variables every reflection component declares: ``coherence`` (eq. (1)
     is on), ``kernel`` (``none``, ``gaussian``, ``ggx``: the unit kernel of its lobe,
     ``shaders/lib/kernels.glsl``) and what it asks of the emitter's GLSL: ``filtered`` (the
@@ -78,7 +85,7 @@ def features(
     }
 
 
-def glsl(variables, *model_files: str) -> tuple[str, ...]:
+def glsl(variables: Mapping[str, Hashable], *model_files: str) -> tuple[str, ...]:
     """A reflection model's files, after the library's ``coherence.glsl`` when eq. (1) is
     on and its lobe's ``kernels.glsl``; none in a program that shades no pattern."""
     if not variables["shading"]:
@@ -89,25 +96,26 @@ def glsl(variables, *model_files: str) -> tuple[str, ...]:
     return (*library, *model_files)
 
 
-def uniforms(scene, variables) -> dict[str, object]:
+def uniforms(scene: SceneView, variables: Mapping[str, Hashable]) -> dict[str, object]:
     """eq. (1)'s uniform where the program has it."""
     return coherence_uniforms(scene) if variables["shading"] and variables["coherence"] else {}
 
 
-def coherent_fraction(scene, cos_i: np.ndarray) -> np.ndarray:
+def coherent_fraction(scene: SceneView, cos_i: np.ndarray) -> np.ndarray:
     """``exp(-g)`` in the mirror direction, ``g = (4π σ_h cos θi / λ)²`` (float64)."""
-    k = 4.0 * math.pi * scene.render.height_rms_um / scene.render.wavelength_um
+    render = cast(FinishTable, scene.render)
+    k = 4.0 * math.pi * render.height_rms_um / render.wavelength_um
     return np.exp(-((k * np.asarray(cos_i)) ** 2))
 
 
-def lambert(scene, p: np.ndarray, n: np.ndarray) -> np.ndarray:
+def lambert(scene: SceneView, p: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Lambertian radiance of the emitter at hits ``p`` (N, 3) with unit normals ``n``: the
     emitter component's oracle (:meth:`EmitterComponent.diffuse
     <glshade.components.base.EmitterComponent.diffuse>`)."""
     return scene.active.emitter.diffuse(scene, p, n)
 
 
-def mirror_radiance(scene, uv: np.ndarray, ok: np.ndarray) -> np.ndarray:
+def mirror_radiance(scene: SceneView, uv: np.ndarray, ok: np.ndarray) -> np.ndarray:
     """The emitter's radiance where mirror rays land at screen points ``uv`` ((…, 2) mm; 0
     where not ``ok``)."""
     safe = np.where(ok[..., None], uv, 0.0)
@@ -115,7 +123,13 @@ def mirror_radiance(scene, uv: np.ndarray, ok: np.ndarray) -> np.ndarray:
     return np.where(ok, radiance, 0.0)
 
 
-def mix_coherent(scene, mirror_value, lobe_value, d, n):
+def mix_coherent(
+    scene: SceneView,
+    mirror_value: NDArray[np.float64],
+    lobe_value: NDArray[np.float64],
+    d: NDArray[np.float64],
+    n: NDArray[np.float64],
+) -> NDArray[np.float64]:
     """``exp(-g) mirror + (1 - exp(-g)) lobe`` when eq. (1) is on, else the lobe value."""
     if not coherence_on(scene):
         return lobe_value

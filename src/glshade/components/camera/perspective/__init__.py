@@ -26,9 +26,11 @@ Oracle: :meth:`Perspective.pixel_rays` (pinhole rays) and :meth:`Perspective.sam
 
 from __future__ import annotations
 
+from collections.abc import Hashable, Mapping
+
 import numpy as np
 
-from glshade.components.base import CameraComponent
+from glshade.components.base import CameraComponent, SceneView, UniformContext
 from glshade.components.camera.perspective.optics import (
     aperture_points,
     aperture_radius,
@@ -45,11 +47,11 @@ class Perspective(CameraComponent):
     )
     table = Camera
 
-    def features(self, scene):
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
         cam = scene.camera
         return {"aperture": cam.f_number > 0.0, "distortion": any(cam.distortion)}
 
-    def stripe_blur_mm(self, scene) -> float:
+    def stripe_blur_mm(self, scene: SceneView) -> float:
         """How far a thin lens spreads one point of the emitter's mirror image (mm on the
         emitter; 0 for the pinhole): the blur disc's angular diameter ``A |so - sf| /
         (so sf)`` at ``so = camera.distance + emitter.distance``, times ``so`` (a flat
@@ -60,7 +62,7 @@ class Perspective(CameraComponent):
         so, sf = cam.distance + scene.emitter.distance, focus_distance(cam)
         return 2.0 * aperture_radius(cam) * abs(so - sf) / sf
 
-    def warnings(self, scene):
+    def warnings(self, scene: SceneView) -> tuple[str, ...]:
         blur = self.stripe_blur_mm(scene)
         if blur <= 0.0:
             return ()
@@ -77,13 +79,13 @@ class Perspective(CameraComponent):
             f"mirror image (camera.focus_distance = {stripes:g})",
         )
 
-    def dimming(self, scene):
+    def dimming(self, scene: SceneView) -> str | None:
         blur = self.stripe_blur_mm(scene)
         if blur <= 0.0:
             return None
         return f"defocus: f/{scene.camera.f_number:g} blurs each emitter point over {blur:.3g} mm"
 
-    def glsl(self, variables):
+    def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
         files = ["camera.glsl"]
         if variables["aperture"]:
             files.append("lens.glsl")
@@ -91,7 +93,7 @@ class Perspective(CameraComponent):
             files.append("distortion.glsl")
         return (*files, "ray.glsl")
 
-    def uniforms(self, scene, context):
+    def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
         cam = scene.camera
         pose = cam.pose()
         values: dict[str, object] = {
@@ -117,19 +119,31 @@ class Perspective(CameraComponent):
             )
         return values
 
-    def shades_from_emitter_map(self, scene):
+    def shades_from_emitter_map(self, scene: SceneView) -> bool:
         return scene.camera.f_number == 0.0
 
-    def samples(self, scene) -> int:
+    def samples(self, scene: SceneView) -> int:
         return scene.camera.aperture_samples if scene.camera.f_number > 0.0 else 1
 
     # ---------------------------------------------------------------- oracle
-    def pixel_rays(self, scene, rows=None, cols=None, supersample: int = 1):
+    def pixel_rays(
+        self,
+        scene: SceneView,
+        rows: slice | None = None,
+        cols: slice | None = None,
+        supersample: int = 1,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The chief (pinhole) rays: :meth:`Camera.pixel_rays
         <glshade.components.camera.perspective.table.Camera.pixel_rays>`."""
         return scene.camera.pixel_rays(rows, cols, supersample)
 
-    def sample_rays(self, scene, rows=None, cols=None, supersample: int = 1):
+    def sample_rays(
+        self,
+        scene: SceneView,
+        rows: slice | None = None,
+        cols: slice | None = None,
+        supersample: int = 1,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Every ray of every pixel: ``(origins, directions)`` of shape (h, w, S, 3) with
         ``S = supersample² x aperture samples`` (sub-pixel sample major)."""
         camera = scene.camera

@@ -5,10 +5,16 @@ aperture (Vogel's spiral). Used by the camera's table (its check) and its oracle
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from glshade.errors import SceneError
+
+if TYPE_CHECKING:  # the table imports this module
+    from glshade.components.camera.perspective.table import Camera
 
 #: Newton iterations of the distortion's inversion (quadratic convergence: 6 reach fp64
 #: from the distorted point for any non-folding distortion; more cost nothing).
@@ -22,7 +28,9 @@ def sensor_half_extent(width: int, height: int, pitch: float, focal: float) -> t
     return width * pitch / (2.0 * focal), height * pitch / (2.0 * focal)
 
 
-def distort(coeffs, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def distort(
+    coeffs: Sequence[float], x: NDArray[np.float64], y: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """OpenCV's distortion of ideal normalised coordinates (``y`` down), float64."""
     k1, k2, p1, p2, k3 = coeffs
     r2 = x * x + y * y
@@ -33,7 +41,9 @@ def distort(coeffs, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarra
     )
 
 
-def distortion_jacobian(coeffs, x: np.ndarray, y: np.ndarray):
+def distortion_jacobian(
+    coeffs: Sequence[float], x: NDArray[np.float64], y: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """``(dxd/dx, dxd/dy = dyd/dx, dyd/dy)`` of :func:`distort` (the model's Jacobian is
     symmetric)."""
     k1, k2, p1, p2, k3 = coeffs
@@ -46,7 +56,9 @@ def distortion_jacobian(coeffs, x: np.ndarray, y: np.ndarray):
     return a, b, d
 
 
-def undistort(coeffs, xd: np.ndarray, yd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def undistort(
+    coeffs: Sequence[float], xd: NDArray[np.float64], yd: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The ideal normalised coordinates whose distortion is ``(xd, yd)``: Newton's method
     from the distorted point (the shader's method, in float64)."""
     x, y = np.array(xd, np.float64), np.array(yd, np.float64)
@@ -61,7 +73,7 @@ def undistort(coeffs, xd: np.ndarray, yd: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def distortion_fold(
-    coeffs, half_x: float, half_y: float, angles: int = 90, steps: int = 1500
+    coeffs: Sequence[float], half_x: float, half_y: float, angles: int = 90, steps: int = 1500
 ) -> float | None:
     """Where (an ideal radius) the distortion folds inside the sensor, or None.
 
@@ -91,7 +103,7 @@ def distortion_fold(
     return None
 
 
-def check_distortion(values: dict) -> None:
+def check_distortion(values: dict[str, Any]) -> None:
     """A camera table's distortion does not fold inside its sensor."""
     coeffs = values["distortion"]
     half = sensor_half_extent(
@@ -109,17 +121,17 @@ def check_distortion(values: dict) -> None:
         )
 
 
-def aperture_radius(camera) -> float:
+def aperture_radius(camera: Camera) -> float:
     """Radius of the lens disc (mm): ``focal / (2 f_number)``."""
     return camera.focal / (2.0 * camera.f_number)
 
 
-def focus_distance(camera) -> float:
+def focus_distance(camera: Camera) -> float:
     """The plane in focus (mm along the optical axis): ``focus_distance`` or the camera distance."""
     return camera.focus_distance if camera.focus_distance is not None else camera.distance
 
 
-def aperture_points(count: int) -> np.ndarray:
+def aperture_points(count: int) -> NDArray[np.float64]:
     """Vogel's spiral on the unit disc: (count, 2), ``r = sqrt((k + 1/2)/count)``,
     ``φ = k · golden angle``."""
     k = np.arange(count, dtype=np.float64)

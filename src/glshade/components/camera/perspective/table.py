@@ -7,6 +7,7 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import NDArray
 
 from glshade.components.camera.perspective.optics import check_distortion, undistort
 from glshade.params import Control, Table, param
@@ -126,7 +127,9 @@ class Camera(Table):
         )
 
     # ---------------------------------------------------------------- the oracle's rays
-    def sensor_offsets(self, rows=None, cols=None, supersample: int = 1):
+    def sensor_offsets(
+        self, rows: slice | None = None, cols: slice | None = None, supersample: int = 1
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Ideal sensor positions ``(sx, sy)`` (mm; x right, y up) of the pixel samples,
         indexed ``(i, j, a, b)``: distortion undone."""
         n = int(supersample)
@@ -144,7 +147,9 @@ class Camera(Table):
             sx, sy = x * self.focal, -y * self.focal
         return sx, sy
 
-    def pixel_rays(self, rows=None, cols=None, supersample: int = 1):
+    def pixel_rays(
+        self, rows: slice | None = None, cols: slice | None = None, supersample: int = 1
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``(origin, directions)``, float64: ``origin`` the principal point (3,) in mm,
         unit ``directions`` (h, w, 3), or (h, w, n, n, 3) for ``n = supersample > 1``
         where ``[..., a, b, :]`` is the sub-pixel sample at ``((b + 0.5)/n, (a + 0.5)/n)``:

@@ -11,9 +11,13 @@ Scene files may give an isotropic Σ as one key, ``sigma2`` (written back that w
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Hashable, Mapping
+from typing import Any
 
-from glshade.components.base import DefectComponent
+import numpy as np
+from numpy.typing import NDArray
+
+from glshade.components.base import DefectComponent, SceneView, UniformContext
 from glshade.components.defect.gaussian.table import SIGMA2, Defect
 from glshade.errors import SceneError
 from glshade.numerics import stable_roots
@@ -30,7 +34,9 @@ class Gaussian(DefectComponent):
     shorthands = ((SIGMA2, "sigma_x2"),)
 
     # ------------------------------------------------------------------ files
-    def read_file(self, values: dict, current: dict | None = None) -> dict:
+    def read_file(
+        self, values: dict[str, Any], current: dict[str, Any] | None = None
+    ) -> dict[str, Any]:
         """``sigma2`` (isotropic) becomes the three covariance keys."""
         if "sigma2" not in values:
             return values
@@ -43,7 +49,7 @@ class Gaussian(DefectComponent):
         values.setdefault("sigma_xz", 0.0)
         return values
 
-    def write_file(self, values: dict) -> dict:
+    def write_file(self, values: dict[str, Any]) -> dict[str, Any]:
         """An isotropic covariance is written as ``sigma2``."""
         if values.get("sigma_xz") != 0.0 or values.get("sigma_x2") != values.get("sigma_z2"):
             return values
@@ -52,17 +58,17 @@ class Gaussian(DefectComponent):
         return out
 
     # ------------------------------------------------------------------ shader
-    def features(self, scene):
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
         d = scene.defect
         return {"defect": "none" if not d.present else ("isotropic" if d.isotropic else "full")}
 
-    def glsl(self, variables):
+    def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
         variant = variables["defect"]
         if variant == "none":
             return ("hit_base.glsl",)
         return (f"{variant}.glsl", "lib/march.glsl", "hit_dent.glsl")
 
-    def uniforms(self, scene, context):
+    def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
         variant = context.variables["defect"]
         if variant == "none":
             return {}
@@ -83,14 +89,14 @@ class Gaussian(DefectComponent):
             values["u_defect_axis"], values["u_defect_inv_var"] = self._principal(dent)
         return values
 
-    def loop_iterations(self, scene, solver):
+    def loop_iterations(self, scene: SceneView, solver: Any) -> int:
         # the march, then the Newton-bisection polish
         return (
             (solver.march_steps + 1) + (solver.newton_iterations + 1) if scene.defect.present else 0
         )
 
     @staticmethod
-    def _principal(dent) -> tuple[tuple[float, float], tuple[float, float]]:
+    def _principal(dent: Defect) -> tuple[tuple[float, float], tuple[float, float]]:
         """The first principal axis (x, z) and the inverse principal variances (1/mm²)."""
         variances, axes = np.linalg.eigh(
             np.array([[dent.sigma_x2, dent.sigma_xz], [dent.sigma_xz, dent.sigma_z2]])
@@ -101,16 +107,16 @@ class Gaussian(DefectComponent):
         )
 
     # ------------------------------------------------------------------ oracle
-    def present(self, scene):
+    def present(self, scene: SceneView) -> bool:
         return scene.defect.present
 
-    def centre(self, scene):
+    def centre(self, scene: SceneView) -> np.ndarray:
         return np.array([scene.defect.x0, 0.0, scene.defect.z0])
 
-    def band(self, scene):
+    def band(self, scene: SceneView) -> tuple[float, float]:
         return min(0.0, -scene.defect.dmax), max(0.0, -scene.defect.dmax)
 
-    def depth(self, scene, x, z):
+    def depth(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
         """``D = -dmax exp(-1/2 p^T Σ^-1 p)`` (mm), ``p = (x - x0, z - z0)``."""
         defect = scene.defect
         if not defect.present:
@@ -121,7 +127,9 @@ class Gaussian(DefectComponent):
         q = ia * px * px + 2.0 * ib * px * pz + ic * pz * pz
         return -defect.dmax * np.exp(-0.5 * q)
 
-    def gradient(self, scene, x, z):
+    def gradient(
+        self, scene: SceneView, x: np.ndarray, z: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """``(D_x, D_z)`` (dimensionless): ``∇D = -D Σ^-1 p``."""
         defect = scene.defect
         if not defect.present:
@@ -133,7 +141,7 @@ class Gaussian(DefectComponent):
         d = self.depth(scene, x, z)
         return -d * (ia * px + ib * pz), -d * (ib * px + ic * pz)
 
-    def breakpoints(self, scene, o, d):
+    def breakpoints(self, scene: SceneView, o: np.ndarray, d: np.ndarray) -> list[np.ndarray]:
         """The ray's crossings of the Mahalanobis ellipses ``q = 1, 9, 72.25`` (beyond the
         last the defect is below ``2e-16 |dmax|``)."""
         if not scene.defect.present:
@@ -145,7 +153,9 @@ class Gaussian(DefectComponent):
         ]
 
     @staticmethod
-    def _ellipse_roots(defect, o, d, radius):
+    def _ellipse_roots(
+        defect: Defect, o: NDArray[np.float64], d: NDArray[np.float64], radius: float
+    ) -> list[NDArray[np.float64]]:
         ia, ib, ic = defect.inverse_covariance()
         px, pz = o[:, 0] - defect.x0, o[:, 2] - defect.z0
         dx, dz = d[:, 0], d[:, 2]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from glshade.errors import SceneError
 from glshade.params import Control, Param, Table, param
@@ -30,7 +31,7 @@ SIGMA2 = Param(
 )  # fmt: skip
 
 
-def check_positive_definite(values: dict) -> None:
+def check_positive_definite(values: dict[str, Any]) -> None:
     """The covariance is positive definite."""
     sx2, sz2, sxz = values["sigma_x2"], values["sigma_z2"], values["sigma_xz"]
     if sxz * sxz >= sx2 * sz2:
@@ -85,7 +86,7 @@ class Defect(Table):
     def isotropic_dent(cls, dmax: float, sigma2: float, x0: float = 0.0, z0: float = 0.0) -> Defect:
         return cls(dmax=dmax, sigma_x2=sigma2, sigma_z2=sigma2, sigma_xz=0.0, x0=x0, z0=z0)
 
-    def clamp(self, name: str, value):
+    def clamp(self, name: str, value: Any) -> Any:
         """The covariance positive definite."""
         if name != "sigma_xz":
             return value

@@ -12,13 +12,18 @@ fringes: :meth:`Fringes.pattern` refuses.
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable, Mapping
+from typing import TYPE_CHECKING, Any, NoReturn, cast
 
 import numpy as np
 
-from glshade.components.base import EmitterComponent
+from glshade.components.base import EmitterComponent, SceneView, UniformContext
 from glshade.components.emitter import plane
 from glshade.components.emitter.fringes.table import DIRECTIONS, FringeFrame, FringesTable
 from glshade.errors import GlshadeError
+
+if TYPE_CHECKING:
+    from glshade.scene.model import Scene
 
 #: Why a fringe scene has no stripe metric.
 NO_STRIPE_METRIC = (
@@ -35,7 +40,7 @@ class Fringes(EmitterComponent):
     measured_by = "pmd"
     pattern_noun = "fringe"
 
-    def features(self, scene):
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
         em = self.frame(scene)
         return {
             "cover_glass": em.glass_thickness > 0.0,
@@ -43,13 +48,13 @@ class Fringes(EmitterComponent):
             "fringe_response": "curve" if em.response_file is not None else "gamma",
         }
 
-    def glsl(self, variables):
+    def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
         if not variables["shading"]:
             return ("lib/emitter_plane.glsl",)
         kernels = ("lib/kernels.glsl",) if variables["filtered"] else ()
         return ("lib/emitter_plane.glsl", *kernels, "fringes.glsl")
 
-    def uniforms(self, scene, context):
+    def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
         values = plane.uniforms(scene, context)
         em = self.frame(scene)
         if em.glass_thickness > 0.0:
@@ -61,7 +66,8 @@ class Fringes(EmitterComponent):
             return values
         codec = em.codec
         screen = codec.screen()
-        patterns = context.frames if "frames" in variables["outputs"] else (em.shown(),)
+        outputs = cast("tuple[str, ...]", variables["outputs"])
+        patterns = context.frames if "frames" in outputs else (em.shown(),)
         values.update(
             u_emitter_fringe_levels=float(codec.levels),
             u_emitter_fringe_step=codec.level_step,
@@ -87,7 +93,7 @@ class Fringes(EmitterComponent):
             ]
         return values
 
-    def textures(self, scene):
+    def textures(self, scene: SceneView) -> dict[str, np.ndarray]:
         em = self.frame(scene)
         if em.response_file is None:
             return {}
@@ -95,7 +101,7 @@ class Fringes(EmitterComponent):
         assert curve is not None
         return {"t_emitter_response": curve.texture}
 
-    def pattern_loop_iterations(self, scene, solver):
+    def pattern_loop_iterations(self, scene: SceneView, solver: Any) -> int:
         # per pattern shaded: its harmonics through a lobe (7), or the kernel's points over a
         # pixelated screen; the diffuse part's harmonics times its stretches (7 x 24)
         variables = scene.active.features(scene)
@@ -107,46 +113,46 @@ class Fringes(EmitterComponent):
             count += 8 * 25
         return count
 
-    def loop_iterations(self, scene, solver):
+    def loop_iterations(self, scene: SceneView, solver: Any) -> int:
         # once per hit: the diffuse part's marginals (25 x 8 Gauss points) and polygon
         return 25 * 9 + 1 + 6 if scene.active.features(scene).get("diffuse") else 0
 
-    def sequence(self, scene) -> tuple[FringeFrame, ...]:
+    def sequence(self, scene: SceneView) -> tuple[FringeFrame, ...]:
         """The coding's frames (:meth:`FringesTable.sequence`)."""
         return self.frame(scene).sequence()
 
-    def white(self, scene) -> FringeFrame:
+    def white(self, scene: SceneView) -> FringeFrame:
         return self.frame(scene).white()
 
-    def showing(self, scene, frame: FringeFrame):
+    def showing(self, scene: SceneView, frame: FringeFrame) -> Scene:
         """The scene showing ``frame`` (its ``frame_*`` values, or the white screen's)."""
-        return scene.updated(emitter=self.frame(scene).showing(frame))
+        return cast("Scene", scene).updated(emitter=self.frame(scene).showing(frame))
 
-    def exposure_scene(self, scene):
+    def exposure_scene(self, scene: SceneView) -> Scene:
         """The screen's brightest level over the whole screen: ``"auto"`` exposes every
         frame of the sequence alike, for the brightest the screen displays."""
         top = self.frame(scene).codec.peak_commanded
-        return scene.updated(emitter={"offset": top, "amplitude": 0.0})
+        return cast("Scene", scene).updated(emitter={"offset": top, "amplitude": 0.0})
 
     @staticmethod
-    def frame(scene) -> FringesTable:
+    def frame(scene: SceneView) -> FringesTable:
         """The scene's emitter table, as the fringes read it."""
-        return scene.emitter
+        return cast(FringesTable, scene.emitter)
 
-    def pattern(self, scene):
+    def pattern(self, scene: SceneView) -> NoReturn:
         raise GlshadeError(NO_STRIPE_METRIC)
 
-    def pattern_axes(self, scene) -> tuple[int, ...]:
+    def pattern_axes(self, scene: SceneView) -> tuple[int, ...]:
         """The sequence's directions: ``u`` (0) and ``v`` (1) as coded."""
         return tuple(sorted(DIRECTIONS.index(d) ^ 1 for d in self.frame(scene).directions))
 
-    def finest_period_mm(self, scene) -> float:
+    def finest_period_mm(self, scene: SceneView) -> float:
         return self.frame(scene).periods[0]
 
-    def radiance_step(self, scene) -> float:
+    def radiance_step(self, scene: SceneView) -> float:
         return self.frame(scene).largest_step()
 
-    def feature_mm(self, scene) -> float:
+    def feature_mm(self, scene: SceneView) -> float:
         """A sinusoid changes over ``period / 2π``; a pixelated screen's pixels and its
         black matrix over their own widths."""
         em = self.frame(scene)
@@ -157,35 +163,44 @@ class Fringes(EmitterComponent):
         return finest
 
     # ------------------------------------------------------------------ oracle
-    def cover_glass(self, scene) -> tuple[float, float] | None:
+    def cover_glass(self, scene: SceneView) -> tuple[float, float] | None:
         """The screen's cover glass ``(thickness mm, index)``, None without one."""
         em = self.frame(scene)
         return (em.glass_thickness, em.glass_index) if em.glass_thickness > 0.0 else None
 
-    def jacobian(self, scene, points, r, a1, a2):
+    def jacobian(
+        self,
+        scene: SceneView,
+        points: np.ndarray,
+        r: np.ndarray,
+        a1: np.ndarray,
+        a2: np.ndarray,
+    ) -> np.ndarray:
         """The plane's (:func:`glshade.components.emitter.plane.jacobian`)."""
         return plane.jacobian(scene, points, r, a1, a2, self.cover_glass(scene))
 
-    def coordinates(self, scene, points, directions):
+    def coordinates(
+        self, scene: SceneView, points: np.ndarray, directions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Where rays meet the screen's emitting layer (through its cover glass):
         :func:`glshade.components.emitter.plane.coordinates`."""
         return plane.coordinates(scene, points, directions, self.cover_glass(scene))
 
-    def along(self, scene, u, v):
+    def along(self, scene: SceneView, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         return u if self.frame(scene).axis == 0 else v
 
-    def radiance(self, scene, v):
+    def radiance(self, scene: SceneView, v: np.ndarray) -> np.ndarray:
         """The frame's displayed radiance at the screen coordinate along its direction
         (``v`` for a ``"v"`` frame, ``u`` for a ``"u"`` frame: :meth:`along`) of a
         continuous screen."""
         return self.frame(scene).fringe_radiance(v)
 
-    def radiance_uv(self, scene, u, v):
+    def radiance_uv(self, scene: SceneView, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The frame's displayed radiance at screen points ``(u, v)``, on the screen's
         pixels where it has a pitch (:meth:`FringesTable.radiance_uv`)."""
         return self.frame(scene).radiance_uv(u, v)
 
-    def diffuse(self, scene, p, n):
+    def diffuse(self, scene: SceneView, p: np.ndarray, n: np.ndarray) -> np.ndarray:
         """The Lambertian radiance of the frame shown at hits ``p`` with unit normals ``n``:
         ``(1/π) ∫ L cos θs cos θe / r² dA`` over the screen, by brute force: the kernel
         integrated across the fringes by Gauss–Legendre (48 points) at midpoints along them

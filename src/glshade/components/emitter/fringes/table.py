@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
 from glshade.components.emitter.fringes.codec import (
     AMBIENT,
@@ -215,7 +216,9 @@ class FringesTable(Table):
         s = np.asarray(along, np.float64) + self.half_size[self.axis]
         return self.codec.frame_radiance(self.shown(), s)
 
-    def radiance_uv(self, u: np.ndarray, v: np.ndarray, frame: FringeFrame | None = None):
+    def radiance_uv(
+        self, u: np.ndarray, v: np.ndarray, frame: FringeFrame | None = None
+    ) -> NDArray[np.float64]:
         """What the screen shows at screen points ``(u, v)`` (mm; float64, NaN propagates):
         ``frame`` (default: the scene's own), on the screen's pixels where it has a pitch
         (the value at the centre of the pixel a point lies in; the black matrix shows the

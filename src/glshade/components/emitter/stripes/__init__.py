@@ -11,7 +11,12 @@ Oracle: :meth:`Stripes.coordinates` and the pattern's radiance.
 
 from __future__ import annotations
 
-from glshade.components.base import EmitterComponent, no_sequence
+from collections.abc import Hashable, Mapping
+from typing import Any, cast
+
+import numpy as np
+
+from glshade.components.base import EmitterComponent, SceneView, UniformContext, no_sequence
 from glshade.components.emitter import plane
 from glshade.components.emitter.stripes.table import Emitter
 from glshade.errors import GlshadeError
@@ -22,11 +27,11 @@ class Stripes(EmitterComponent):
     doc = "a plane of Gaussian stripes facing the origin, opposite the camera"
     table = Emitter
 
-    def features(self, scene):
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
         return {"cover_glass": False}
 
-    def glsl(self, variables):
-        if "frames" in variables["outputs"]:
+    def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
+        if "frames" in cast("tuple[str, ...]", variables["outputs"]):
             raise GlshadeError(no_sequence(self.name))
         if not variables["shading"]:
             return ("lib/emitter_plane.glsl",)
@@ -37,7 +42,7 @@ class Stripes(EmitterComponent):
             *(("diffuse.glsl",) if variables["diffuse"] else ()),
         )
 
-    def uniforms(self, scene, context):
+    def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
         em = scene.emitter
         values = plane.uniforms(scene, context)
         if context.variables["shading"]:
@@ -48,24 +53,33 @@ class Stripes(EmitterComponent):
                 values["u_emitter_mean"] = em.mean_radiance()
         return values
 
-    def loop_iterations(self, scene, solver):
+    def loop_iterations(self, scene: SceneView, solver: Any) -> int:
         # once per ray: the diffuse polygon (at most 5 corners)
         return 6 if scene.active.features(scene).get("diffuse") else 0
 
-    def pattern_loop_iterations(self, scene, solver):
+    def pattern_loop_iterations(self, scene: SceneView, solver: Any) -> int:
         # per pattern shaded: the harmonics of the stripes seen through a GGX lobe (at most 64)
         variables = scene.active.features(scene)
         return 65 if variables.get("filtered") and variables.get("kernel") == "ggx" else 0
 
-    def pattern(self, scene) -> Emitter:
+    def pattern(self, scene: SceneView) -> Emitter:
         return scene.emitter
 
     # ------------------------------------------------------------------ oracle
-    def jacobian(self, scene, points, r, a1, a2):
+    def jacobian(
+        self,
+        scene: SceneView,
+        points: np.ndarray,
+        r: np.ndarray,
+        a1: np.ndarray,
+        a2: np.ndarray,
+    ) -> np.ndarray:
         """The plane's (:func:`glshade.components.emitter.plane.jacobian`)."""
         return plane.jacobian(scene, points, r, a1, a2, self.cover_glass(scene))
 
-    def coordinates(self, scene, points, directions):
+    def coordinates(
+        self, scene: SceneView, points: np.ndarray, directions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Where rays meet the emitter: :func:`glshade.components.emitter.plane.coordinates`."""
         return plane.coordinates(scene, points, directions)
 

@@ -111,10 +111,10 @@ class Emitter(Table):
             return self.stripe_sigma
         return self.period * STRIPE_SIGMA_PER_PERIOD
 
-    def effective(self, name: str):
+    def effective(self, name: str) -> Any:
         return self.sigma_mm if name == "stripe_sigma" else getattr(self, name)
 
-    def clamp(self, name: str, value):
+    def clamp(self, name: str, value: Any) -> Any:
         """A stripe no wider than half a period."""
         return min(value, 0.5 * self.period) if name == "stripe_sigma" else value
 

@@ -4,7 +4,12 @@ aluminium): the library's ``fresnel.glsl``; table
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, cast
+
 from glshade.components.fresnel.reflectance import ComplexIndexTable, Reflectance
+
+if TYPE_CHECKING:
+    from glshade.components.base import SceneView
 
 
 class Conductor(Reflectance):
@@ -13,8 +18,8 @@ class Conductor(Reflectance):
     doc = "a conductor's Fresnel reflectance, complex index n + ik (polished steel, aluminium)"
     table = ComplexIndexTable
 
-    def extinction(self, scene):
-        return scene.render.extinction
+    def extinction(self, scene: SceneView) -> float:
+        return cast(ComplexIndexTable, scene.render).extinction
 
 
 COMPONENTS = (Conductor,)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Hashable
+
 import numpy as np
 
-from glshade.components.base import FresnelComponent
+from glshade.components.base import FresnelComponent, SceneView
 
 
 class NoFresnel(FresnelComponent):
@@ -12,10 +14,10 @@ class NoFresnel(FresnelComponent):
     rank = 0
     doc = "no Fresnel factor: the reflected radiance is the emitter's"
 
-    def features(self, scene):
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
         return {"fresnel": False}
 
-    def reflectance(self, scene, cos_i):
+    def reflectance(self, scene: SceneView, cos_i: np.ndarray) -> np.ndarray:
         return np.ones(np.shape(cos_i))
 
 

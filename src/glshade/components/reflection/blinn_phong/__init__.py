@@ -11,16 +11,21 @@ error budget are in :mod:`glshade.oracle.tracer`'s docstring).
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
-from typing import cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
-from glshade.components.base import ReflectionComponent, SceneView
+from glshade.components.base import ReflectionComponent, SceneView, UniformContext
 from glshade.components.reflection import finish
 from glshade.components.reflection.kernels import lobe_frame
 from glshade.errors import SceneError
 from glshade.params import Control, param
+
+if TYPE_CHECKING:  # the knob is imported when asked for
+    from glshade.components.reflection.blinn_phong.accuracy import BlinnPhongKnob
 
 #: The default exponent: the lobe (reflected-direction std ``2/√N`` = 0.63 mrad) blurs
 #: the paper's 2 mm stripes seen 256 mm away by ±0.16 mm, keeping 88 % of their contrast.
@@ -68,40 +73,50 @@ class BlinnPhong(ReflectionComponent):
     doc = "a Blinn-Phong lobe of exponent N around the mirror direction"
     table = BlinnPhongTable
 
-    def features(self, scene):
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
         return finish.features(scene, kernel="gaussian", filtered=True)
 
-    def glsl(self, variables):
+    def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
         return finish.glsl(variables, "blinn_phong.glsl")
 
-    def uniforms(self, scene, context):
+    def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
         if not context.variables["shading"]:
             return {}
         values = finish.uniforms(scene, context.variables)
-        return {"u_reflection_shininess": scene.render.shininess, **values}
+        return {"u_reflection_shininess": cast(BlinnPhongTable, scene.render).shininess, **values}
 
-    def loop_iterations(self, scene, solver):
+    def loop_iterations(self, scene: SceneView, solver: Any) -> int:
         return 1  # the end of its loop over the patterns
 
-    def pattern_loop_iterations(self, scene, solver):
+    def pattern_loop_iterations(self, scene: SceneView, solver: Any) -> int:
         return 1  # each pattern once
 
-    def keeps_emitter_scale(self, scene):
+    def keeps_emitter_scale(self, scene: SceneView) -> bool:
         return not finish.coherence_on(scene)
 
-    def shade(self, scene, p, d, n, uv, ok):
+    def shade(
+        self,
+        scene: SceneView,
+        p: np.ndarray,
+        d: np.ndarray,
+        n: np.ndarray,
+        uv: np.ndarray,
+        ok: np.ndarray,
+    ) -> np.ndarray:
         lobe = _blinn_phong(scene, p, d, n)
         if not finish.coherence_on(scene):
             return lobe
         return finish.mix_coherent(scene, finish.mirror_radiance(scene, uv, ok), lobe, d, n)
 
-    def accuracy_knob(self):
+    def accuracy_knob(self) -> BlinnPhongKnob:
         # imported here: the knob is only run by `glshade accuracy`
         from glshade.components.reflection.blinn_phong.accuracy import BlinnPhongKnob
 
         return BlinnPhongKnob()
 
-    def footprint(self, scene, p, d, n):
+    def footprint(
+        self, scene: SceneView, p: np.ndarray, d: np.ndarray, n: np.ndarray
+    ) -> tuple[np.ndarray, str] | None:
         """``J (2 a, 2 cos i b) / √N``: the reflected direction's Gaussian spread in (``a``)
         and across (``b``) the plane of incidence, through the emitter's Jacobian ``J``."""
         r = d - 2.0 * np.einsum("nk,nk->n", d, n)[:, None] * n
@@ -115,23 +130,32 @@ class BlinnPhong(ReflectionComponent):
         b /= np.linalg.norm(b, axis=1, keepdims=True)
         a = np.cross(b, r)
         cos_i = -np.einsum("nk,nk->n", d, n)
-        scale = 2.0 / math.sqrt(scene.render.shininess)
+        scale = 2.0 / math.sqrt(cast(BlinnPhongTable, scene.render).shininess)
         emitter = scene.active.emitter
         return emitter.jacobian(scene, p, r, scale * a, (scale * cos_i)[:, None] * b), "gaussian"
 
-    def finish_name(self, scene):
-        return f"blinn-phong, shininess {scene.render.shininess:.3g}"
+    def finish_name(self, scene: SceneView) -> str:
+        return f"blinn-phong, shininess {cast(BlinnPhongTable, scene.render).shininess:.3g}"
 
-    def lobe_std_rad(self, scene):
+    def lobe_std_rad(self, scene: SceneView) -> float:
         """``(n·h)^N ≈ exp(-N α²/2)``: the half vector's angle has std ``1/√N``, the
         reflected direction twice that."""
-        return 2.0 / math.sqrt(scene.render.shininess)
+        return 2.0 / math.sqrt(cast(BlinnPhongTable, scene.render).shininess)
 
-    def sharpen_hint(self, scene, ratio):
-        return f"render.shininess >= {scene.render.shininess * ratio**2:.3g}"
+    def sharpen_hint(self, scene: SceneView, ratio: float) -> str:
+        return f"render.shininess >= {cast(BlinnPhongTable, scene.render).shininess * ratio**2:.3g}"
 
 
-def _lobe_samples(scene, p, wo, n_s, e1, e2, a, b):
+def _lobe_samples(
+    scene: SceneView,
+    p: NDArray[np.float64],
+    wo: NDArray[np.float64],
+    n_s: NDArray[np.float64],
+    e1: NDArray[np.float64],
+    e2: NDArray[np.float64],
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """Weights ``∝ w dω_l`` and the emitter's ``u``, ``v`` (mm) and validity at the gnomonic
     half-vector offsets ``(a, b)`` (grid arrays (1, n1, n2)) for the N pixels of ``p``.
 
@@ -142,12 +166,12 @@ def _lobe_samples(scene, p, wo, n_s, e1, e2, a, b):
     emitter's axes, which are linear in ``(a, b)``: no 3-vectors per sample.
     """
     plane = scene.emitter_plane()
-    shininess = scene.render.shininess
+    shininess = cast(BlinnPhongTable, scene.render).shininess
     rr = 1.0 + a * a + b * b
     inv = 1.0 / np.sqrt(rr)
     base = np.exp(-0.5 * (shininess + 3.0) * np.log(rr))
 
-    def along(x: np.ndarray):
+    def along(x: np.ndarray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``(h·x, wo·x)`` for a fixed vector ``x``, per pixel and sample."""
         hx = (
             (n_s @ x)[:, None, None] + a * (e1 @ x)[:, None, None] + b * (e2 @ x)[:, None, None]
@@ -181,11 +205,20 @@ def _lobe_samples(scene, p, wo, n_s, e1, e2, a, b):
     return weight, u, v, ok
 
 
-def _grid_points(scene, p, wo, n_s, e1, e2, half) -> tuple[np.ndarray, np.ndarray]:
+def _grid_points(
+    scene: SceneView,
+    p: NDArray[np.float64],
+    wo: NDArray[np.float64],
+    n_s: NDArray[np.float64],
+    e1: NDArray[np.float64],
+    e2: NDArray[np.float64],
+    half: float,
+) -> tuple[np.ndarray, np.ndarray]:
     """Per-pixel grid sizes ``(N1, N2)`` along ``(e1, e2)`` that resolve the lobe and the
     stripes, rounded up to multiples of 16 (pixels with equal sizes share a batch).
     ``v`` is sampled on a 9 x 9 coarse grid of each box to bound its slopes."""
-    step_lobe = 1.0 / (math.sqrt(scene.render.shininess) * _LOBE_POINTS_PER_STD)
+    shininess = cast(BlinnPhongTable, scene.render).shininess
+    step_lobe = 1.0 / (math.sqrt(shininess) * _LOBE_POINTS_PER_STD)
     n_lobe = 2.0 * half / step_lobe
     c = np.linspace(-1.0, 1.0, 9) * half
     a, b = np.meshgrid(c, c, indexing="ij")
@@ -207,7 +240,7 @@ def _grid_points(scene, p, wo, n_s, e1, e2, half) -> tuple[np.ndarray, np.ndarra
                 "points per "
                 f"axis needed to resolve the emitter's {feature:g} mm features; limit "
                 f"{_LOBE_MAX_POINTS})",
-                scene.render.shininess,
+                shininess,
             )
         sizes.append((16 * np.ceil(wanted / 16.0)).astype(np.int64))
     return sizes[0], sizes[1]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import statistics
 from functools import partial
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -15,6 +16,10 @@ from glshade.components.accuracy import (
     image_errors,
     points_table,
 )
+from glshade.components.reflection.blinn_phong import BlinnPhongTable
+
+if TYPE_CHECKING:
+    from glshade.scene.model import Scene
 
 #: Blinn-Phong errors are reported away from the emitter's edge too: the closed form does
 #: not see a lobe that straddles it (docs/numerics.md).
@@ -23,7 +28,7 @@ EDGE_MARGIN_MM = 5.0
 SURFACES = ("flat", "sphere")
 
 
-def monte_carlo(bench: AccuracyBench, scene, samples: int, seed: int = 1) -> np.ndarray:
+def monte_carlo(bench: AccuracyBench, scene: Scene, samples: int, seed: int = 1) -> np.ndarray:
     """Blinn-Phong radiance by Monte-Carlo: half vectors drawn from the (n·h)^N lobe
     around the normal, l = reflect(wo, h), self-normalised weights 4 (wo·h) (the
     Jacobian from h to l); a miss of the emitter counts 0. Seeded, so reproducible."""
@@ -31,7 +36,7 @@ def monte_carlo(bench: AccuracyBench, scene, samples: int, seed: int = 1) -> np.
     d, points, normals, hit = bench.hits(scene)
     emitter = scene.active.emitter
     out = np.zeros(len(d))
-    n_exp = scene.render.shininess
+    n_exp = cast(BlinnPhongTable, scene.render).shininess
     for i in np.nonzero(hit)[0]:
         n = normals[i]
         wo = -d[i]
@@ -83,7 +88,9 @@ class BlinnPhongKnob(AccuracyKnob):
             for s, t in zip(scenes, truths, strict=True)
         ]
 
-        def point(label, images, seconds, default=False) -> KnobPoint:
+        def point(
+            label: str, images: list[np.ndarray], seconds: list[float], default: bool = False
+        ) -> KnobPoint:
             errors = {"image": 0.0, "image_rms": 0.0, "image_edge": 0.0}
             for image, truth, away in zip(images, truths, inside, strict=True):
                 peak, rms = image_errors(image, truth.image, away)

@@ -29,14 +29,20 @@ sampling density), its standard error :attr:`Microfacet.oracle_samples` bounded.
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
-from glshade.components.base import ReflectionComponent
+from glshade.components.base import ReflectionComponent, SceneView, UniformContext
 from glshade.components.reflection import finish
 from glshade.components.reflection.kernels import lobe_frame
 from glshade.params import Control, param
+
+if TYPE_CHECKING:  # the knob is imported when asked for
+    from glshade.components.reflection.microfacet.accuracy import MicrofacetKnob
 
 LOBE_METHODS = ("closed", "lattice", "sampling")
 MAX_LOBE_SAMPLES = 4096
@@ -107,55 +113,62 @@ class Microfacet(ReflectionComponent):
     #: The lobe's unit kernel (``shaders/lib/kernels.glsl``): its slopes' law at unit scale.
     kernel: str = "none"
 
-    def features(self, scene):
-        closed = scene.render.lobe_method == "closed"
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
+        render = cast(MicrofacetTable, scene.render)
+        closed = render.lobe_method == "closed"
         return {
             **finish.features(scene, kernel=self.kernel, filtered=closed),
             "lobe": self.name,
-            "lobe_method": scene.render.lobe_method,
+            "lobe_method": render.lobe_method,
         }
 
-    def glsl(self, variables):
+    def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
         return finish.glsl(variables, "microfacet.glsl")
 
-    def uniforms(self, scene, context):
+    def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
         if not context.variables["shading"]:
             return {}
+        render = cast(MicrofacetTable, scene.render)
         values = finish.uniforms(scene, context.variables)
-        values["u_reflection_alpha"] = scene.render.roughness
+        values["u_reflection_alpha"] = render.roughness
         if context.variables["lobe_method"] != "closed":
-            values["u_reflection_lobe_samples"] = scene.render.lobe_samples
+            values["u_reflection_lobe_samples"] = render.lobe_samples
         return values
 
-    def keeps_emitter_scale(self, scene):
+    def keeps_emitter_scale(self, scene: SceneView) -> bool:
         return False
 
-    def work_factor(self, scene):
-        return 1 if scene.render.lobe_method == "closed" else scene.render.lobe_samples
+    def work_factor(self, scene: SceneView) -> int:
+        render = cast(MicrofacetTable, scene.render)
+        return 1 if render.lobe_method == "closed" else render.lobe_samples
 
-    def loop_iterations(self, scene, solver):
+    def loop_iterations(self, scene: SceneView, solver: Any) -> int:
         # the lattice's loop over its slope samples, and the end of each loop over the
         # patterns (one per sample, one for eq. (1)'s coherent part or the closed form's)
-        if scene.render.lobe_method == "closed":
+        render = cast(MicrofacetTable, scene.render)
+        if render.lobe_method == "closed":
             return 1
-        return 2 * scene.render.lobe_samples + 2
+        return 2 * render.lobe_samples + 2
 
-    def pattern_loop_iterations(self, scene, solver):
+    def pattern_loop_iterations(self, scene: SceneView, solver: Any) -> int:
         # every pattern once per slope sample (the closed form: once)
-        return 1 if scene.render.lobe_method == "closed" else scene.render.lobe_samples + 1
+        render = cast(MicrofacetTable, scene.render)
+        return 1 if render.lobe_method == "closed" else render.lobe_samples + 1
 
-    def accuracy_knob(self):
+    def accuracy_knob(self) -> MicrofacetKnob:
         # imported here: the knob is only run by `glshade accuracy`
         from glshade.components.reflection.microfacet.accuracy import MicrofacetKnob
 
         return MicrofacetKnob()
 
-    def footprint(self, scene, p, d, n):
+    def footprint(
+        self, scene: SceneView, p: np.ndarray, d: np.ndarray, n: np.ndarray
+    ) -> tuple[np.ndarray, str] | None:
         """``J (dl/dx, dl/dy) s``: the slopes' unit kernel at scale ``s`` (``α/√2`` for
         Beckmann's Gaussian slopes, ``α`` for GGX) mapped onto the emitter through the
         reflected direction's derivatives and the emitter's Jacobian ``J``; None for the
         mirror (``α = 0``)."""
-        alpha = scene.render.roughness
+        alpha = cast(MicrofacetTable, scene.render).roughness
         if alpha == 0.0:
             return None
         wo = -d
@@ -168,35 +181,54 @@ class Microfacet(ReflectionComponent):
         emitter = scene.active.emitter
         return emitter.jacobian(scene, p, r, scale * dl_x, scale * dl_y), self.kernel
 
-    def finish_name(self, scene):
-        return f"{self.name}, roughness {scene.render.roughness:.3g}"
+    def finish_name(self, scene: SceneView) -> str:
+        return f"{self.name}, roughness {cast(MicrofacetTable, scene.render).roughness:.3g}"
 
-    def lobe_std_rad(self, scene):
+    def lobe_std_rad(self, scene: SceneView) -> float | None:
         """The reflected direction turns by twice the facet's tilt: std ``2 α/√2``
         (Beckmann); GGX's heavy tails are summarised by the same scale."""
-        return math.sqrt(2.0) * scene.render.roughness if scene.render.roughness > 0 else None
+        render = cast(MicrofacetTable, scene.render)
+        return math.sqrt(2.0) * render.roughness if render.roughness > 0 else None
 
-    def sharpen_hint(self, scene, ratio):
-        return f"render.roughness <= {scene.render.roughness / ratio:.3g}"
+    def sharpen_hint(self, scene: SceneView, ratio: float) -> str:
+        return f"render.roughness <= {cast(MicrofacetTable, scene.render).roughness / ratio:.3g}"
 
     # ---------------------------------------------------------------- oracle
-    def shade(self, scene, p, d, n, uv, ok, samples: int | None = None, seed: int = 0):
+    def shade(
+        self,
+        scene: SceneView,
+        p: np.ndarray,
+        d: np.ndarray,
+        n: np.ndarray,
+        uv: np.ndarray,
+        ok: np.ndarray,
+        samples: int | None = None,
+        seed: int = 0,
+    ) -> np.ndarray:
         """Monte-Carlo estimate (``samples`` per pixel, fixed ``seed``) of the lobe
         integral: slopes drawn from ``P22``, so ``l`` has the density
         ``pdf(l) = D(h) (n·h) / (4 (wo·h))`` with ``D = P22 / (n·h)⁴``; each sample weighs
         ``f cos θl / pdf(l)``, ``f = D G2 / (4 cos θo cos θl)``. With eq. (1) on, the
         coherent fraction is the mirror's."""
         mirror = finish.mirror_radiance(scene, uv, ok)
-        alpha = scene.render.roughness
+        alpha = cast(MicrofacetTable, scene.render).roughness
         if alpha == 0.0:
             lobe = mirror
         else:
             lobe = self.monte_carlo(scene, p, d, n, samples or self.oracle_samples, seed)[0]
         return finish.mix_coherent(scene, mirror, lobe, d, n)
 
-    def monte_carlo(self, scene, p, d, n, samples: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    def monte_carlo(
+        self,
+        scene: SceneView,
+        p: NDArray[np.float64],
+        d: NDArray[np.float64],
+        n: NDArray[np.float64],
+        samples: int,
+        seed: int,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``(mean, standard error)`` per hit."""
-        alpha, kind = scene.render.roughness, self.name
+        alpha, kind = cast(MicrofacetTable, scene.render).roughness, self.name
         rng = np.random.default_rng(seed)
         mean = np.zeros(len(p))
         error = np.zeros(len(p))

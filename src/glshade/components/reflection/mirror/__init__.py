@@ -10,7 +10,12 @@ emitter's radiance at the mirror ray's ``v`` (and the finish's quadrature).
 
 from __future__ import annotations
 
-from glshade.components.base import ReflectionComponent
+from collections.abc import Hashable, Mapping
+from typing import Any
+
+import numpy as np
+
+from glshade.components.base import ReflectionComponent, SceneView, UniformContext
 from glshade.components.reflection import finish
 
 
@@ -21,28 +26,36 @@ class Mirror(ReflectionComponent):
     table = finish.FinishTable
     mirror_only = True
 
-    def features(self, scene):
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
         return finish.features(scene, diffuse=finish.coherence_on(scene))
 
-    def glsl(self, variables):
+    def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
         return finish.glsl(variables, "mirror.glsl")
 
-    def uniforms(self, scene, context):
+    def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
         return finish.uniforms(scene, context.variables)
 
-    def shades_from_emitter_map(self, scene):
+    def shades_from_emitter_map(self, scene: SceneView) -> bool:
         return not finish.coherence_on(scene)
 
-    def loop_iterations(self, scene, solver):
+    def loop_iterations(self, scene: SceneView, solver: Any) -> int:
         return 1  # the end of its loop over the patterns
 
-    def pattern_loop_iterations(self, scene, solver):
+    def pattern_loop_iterations(self, scene: SceneView, solver: Any) -> int:
         return 1  # each pattern once
 
-    def keeps_emitter_scale(self, scene):
+    def keeps_emitter_scale(self, scene: SceneView) -> bool:
         return not finish.coherence_on(scene)
 
-    def shade(self, scene, p, d, n, uv, ok):
+    def shade(
+        self,
+        scene: SceneView,
+        p: np.ndarray,
+        d: np.ndarray,
+        n: np.ndarray,
+        uv: np.ndarray,
+        ok: np.ndarray,
+    ) -> np.ndarray:
         mirror = finish.mirror_radiance(scene, uv, ok)
         if not finish.coherence_on(scene):
             return mirror

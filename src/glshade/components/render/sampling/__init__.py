@@ -7,7 +7,9 @@ Table: :class:`~glshade.components.render.sampling.table.SamplingTable`. GLSL:
 
 from __future__ import annotations
 
-from glshade.components.base import RenderComponent
+from collections.abc import Hashable, Mapping
+
+from glshade.components.base import RenderComponent, SceneView, UniformContext
 from glshade.components.render.sampling.table import SamplingTable
 
 
@@ -16,13 +18,13 @@ class Sampling(RenderComponent):
     doc = "float32 or float64 arithmetic, one or n x n rays per pixel"
     table = SamplingTable
 
-    def features(self, scene):
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
         return {"precision": scene.render.precision, "supersample": scene.render.supersample > 1}
 
-    def glsl(self, variables):
+    def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
         return (f"precision_{variables['precision']}.glsl",)
 
-    def uniforms(self, scene, context):
+    def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
         if not context.variables["supersample"]:
             return {}
         return {"u_render_supersample": scene.render.supersample}

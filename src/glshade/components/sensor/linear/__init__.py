@@ -27,15 +27,16 @@ from __future__ import annotations
 
 import hashlib
 import json
+from typing import Any
 
 import numpy as np
 
-from glshade.components.base import SensorComponent
+from glshade.components.base import SceneView, SensorComponent
 from glshade.components.sensor.linear.table import DEFAULT_FULL_WELL_E, Sensor
 from glshade.frame import exposure_gain
 
 
-def noise_key(scene, exposure: int) -> list[int]:
+def noise_key(scene: SceneView, exposure: int) -> list[int]:
     """The noise stream's seed: the sensor's seed, a digest of the rest of the scene and
     the exposure number."""
     described = json.dumps(scene.to_dict(), sort_keys=True, default=str).encode()
@@ -51,26 +52,29 @@ class LinearSensor(SensorComponent):
     )
     table = Sensor
 
-    def read_file(self, values, current=None):
+    def read_file(
+        self, values: dict[str, Any], current: dict[str, Any] | None = None
+    ) -> dict[str, Any]:
         """A ``[sensor]`` table (or a changed key) switches the sensor on with a full well of
         :data:`DEFAULT_FULL_WELL_E` electrons unless it gives one."""
         if "full_well_e" not in values and (current is None or current.get("full_well_e") is None):
             values = {**values, "full_well_e": DEFAULT_FULL_WELL_E}
         return values
 
-    def write_file(self, values):
+    def write_file(self, values: dict[str, Any]) -> dict[str, Any]:
         return values if values.get("full_well_e") is not None else {}
 
-    def shades_from_emitter_map(self, scene):
+    def shades_from_emitter_map(self, scene: SceneView) -> bool:
         return not scene.sensor.on
 
-    def records(self, scene):
+    def records(self, scene: SceneView) -> bool:
         return scene.sensor.on
 
-    def develop(self, scene, image, exposure=0):
+    def develop(self, scene: SceneView, image: np.ndarray, exposure: int = 0) -> np.ndarray:
         sensor = scene.sensor
         if not sensor.on:
             return image
+        assert sensor.full_well_e is not None  # on: set
         rng = np.random.default_rng(noise_key(scene, exposure))
         radiance = np.nan_to_num(np.asarray(image, np.float64), nan=0.0)
         radiance *= exposure_gain(scene.camera.exposure, radiance)  # "auto": from this image
