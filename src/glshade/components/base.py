@@ -89,7 +89,8 @@ class UniformContext:
 
 class SceneView(Protocol):
     """What a component reads of a scene: its tables, the emitter's plane, the local
-    frame's origin, the scene as a file writes it and its active components."""
+    frame's origin, the scene as a file writes it, its active components, and a copy
+    with some keys of some tables replaced."""
 
     @property
     def camera(self) -> Camera: ...
@@ -111,6 +112,8 @@ class SceneView(Protocol):
     def local_origin(self) -> np.ndarray: ...
 
     def to_dict(self) -> dict[str, dict[str, Any]]: ...
+
+    def updated(self, **tables: dict[str, Any]) -> SceneView: ...
 
 
 class Component:

@@ -6,15 +6,27 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from glshade.errors import SceneError
 
-if TYPE_CHECKING:  # the table imports this module
-    from glshade.components.camera.perspective.table import Camera
+
+class Lens(Protocol):
+    """What the lens's closed forms read of a camera table (mm; ``focus_distance`` None:
+    the camera's distance)."""
+
+    @property
+    def focal(self) -> float: ...
+    @property
+    def f_number(self) -> float: ...
+    @property
+    def focus_distance(self) -> float | None: ...
+    @property
+    def distance(self) -> float: ...
+
 
 #: Newton iterations of the distortion's inversion (quadratic convergence: 6 reach fp64
 #: from the distorted point for any non-folding distortion; more cost nothing).
@@ -121,12 +133,12 @@ def check_distortion(values: dict[str, Any]) -> None:
         )
 
 
-def aperture_radius(camera: Camera) -> float:
+def aperture_radius(camera: Lens) -> float:
     """Radius of the lens disc (mm): ``focal / (2 f_number)``."""
     return camera.focal / (2.0 * camera.f_number)
 
 
-def focus_distance(camera: Camera) -> float:
+def focus_distance(camera: Lens) -> float:
     """The plane in focus (mm along the optical axis): ``focus_distance`` or the camera distance."""
     return camera.focus_distance if camera.focus_distance is not None else camera.distance
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Hashable, Mapping
-from typing import TYPE_CHECKING, Any, NoReturn, cast
+from typing import Any, NoReturn, cast
 
 import numpy as np
 
@@ -21,9 +21,6 @@ from glshade.components.base import EmitterComponent, SceneView, UniformContext
 from glshade.components.emitter import plane
 from glshade.components.emitter.fringes.table import DIRECTIONS, FringeFrame, FringesTable
 from glshade.errors import GlshadeError
-
-if TYPE_CHECKING:
-    from glshade.scene.model import Scene
 
 #: Why a fringe scene has no stripe metric.
 NO_STRIPE_METRIC = (
@@ -124,15 +121,15 @@ class Fringes(EmitterComponent):
     def white(self, scene: SceneView) -> FringeFrame:
         return self.frame(scene).white()
 
-    def showing(self, scene: SceneView, frame: FringeFrame) -> Scene:
+    def showing(self, scene: SceneView, frame: FringeFrame) -> SceneView:
         """The scene showing ``frame`` (its ``frame_*`` values, or the white screen's)."""
-        return cast("Scene", scene).updated(emitter=self.frame(scene).showing(frame))
+        return scene.updated(emitter=self.frame(scene).showing(frame))
 
-    def exposure_scene(self, scene: SceneView) -> Scene:
+    def exposure_scene(self, scene: SceneView) -> SceneView:
         """The screen's brightest level over the whole screen: ``"auto"`` exposes every
         frame of the sequence alike, for the brightest the screen displays."""
         top = self.frame(scene).codec.peak_commanded
-        return cast("Scene", scene).updated(emitter={"offset": top, "amplitude": 0.0})
+        return scene.updated(emitter={"offset": top, "amplitude": 0.0})
 
     @staticmethod
     def frame(scene: SceneView) -> FringesTable:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import statistics
 from functools import partial
-from typing import TYPE_CHECKING, cast
+from typing import cast
 
 import numpy as np
 
@@ -16,10 +16,8 @@ from glshade.components.accuracy import (
     image_errors,
     points_table,
 )
+from glshade.components.base import SceneView
 from glshade.components.reflection.blinn_phong import BlinnPhongTable
-
-if TYPE_CHECKING:
-    from glshade.scene.model import Scene
 
 #: Blinn-Phong errors are reported away from the emitter's edge too: the closed form does
 #: not see a lobe that straddles it (docs/numerics.md).
@@ -28,7 +26,7 @@ EDGE_MARGIN_MM = 5.0
 SURFACES = ("flat", "sphere")
 
 
-def monte_carlo(bench: AccuracyBench, scene: Scene, samples: int, seed: int = 1) -> np.ndarray:
+def monte_carlo(bench: AccuracyBench, scene: SceneView, samples: int, seed: int = 1) -> np.ndarray:
     """Blinn-Phong radiance by Monte-Carlo: half vectors drawn from the (n·h)^N lobe
     around the normal, l = reflect(wo, h), self-normalised weights 4 (wo·h) (the
     Jacobian from h to l); a miss of the emitter counts 0. Seeded, so reproducible."""
