@@ -10,13 +10,16 @@ import difflib
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError, printable
 from glshade.params import Param
 from glshade.scene import Scene
 from glshade.units import QuantityError
+
+if TYPE_CHECKING:
+    from glshade.instruments.table import MeasureTable
 
 EXIT_USAGE = 2
 
@@ -267,13 +270,34 @@ def _measure_settings(args: argparse.Namespace) -> list[tuple[str, str, str]]:
     return found
 
 
-def instrument_settings(args: argparse.Namespace, method: str, chosen_by: str = "") -> Any:
-    """The settings of instrument ``method`` from the command line's flags (the others
-    their defaults); a flag of another instrument, or a bad value named by its flag, is
-    one line. ``chosen_by``: how the command line chose the instrument (``--method pmd``)."""
+def scene_measure_table(args: argparse.Namespace, scene: Scene) -> MeasureTable:
+    """The ``[measure]`` table of the command line's scene file (empty without one):
+    how the file says its scene is measured, checked."""
+    from glshade.instruments.table import MeasureTable, file_measure_table
+
+    if args.scene is None:
+        return MeasureTable()
+    return file_measure_table(args.scene, scene.active.emitter.measured_by)
+
+
+def instrument_settings(
+    args: argparse.Namespace,
+    method: str,
+    chosen_by: str = "",
+    table: MeasureTable | None = None,
+) -> Any:
+    """The settings of instrument ``method``: its defaults, the scene file's ``[measure]``
+    ``table`` where it is for this instrument (a warning where it names another), then
+    the command line's flags and ``--set measure.KEY``; a flag of another instrument, or
+    a bad value named by its flag, is one line. ``chosen_by``: how the command line chose
+    the instrument (``--method pmd``)."""
     from glshade.instruments.registry import instrument
 
     chosen = instrument(method)
+    if table is not None and table.values and table.method != chosen.name:
+        theirs = instrument(table.method or chosen.name).title
+        by = chosen_by or f"--method {chosen.name}"
+        warn([f"{table.source}: its [measure] is {theirs}'s: {by} measures with its own settings"])
     for item, declared in _settings_params():
         if item is not chosen and declared.flag in settings_flags_given(args, item.name):
             raise GlshadeError(
@@ -286,7 +310,7 @@ def instrument_settings(args: argparse.Namespace, method: str, chosen_by: str = 
         for declared in declared_by.values()
         if declared.flag
     ]
-    given = {}
+    given = table.for_method(chosen.name) if table is not None else {}
     for spelled, key, text in [*typed, *_measure_settings(args)]:
         if text is None:
             continue

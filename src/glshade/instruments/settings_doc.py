@@ -11,8 +11,9 @@ _INTRO = """# Instrument settings
 
 How each instrument measures: its settings, declared once with their unit, default and
 range. The same declarations give the command line's short flags (`glshade measure`,
-`optimize`, `paper`), `--set measure.KEY=VALUE`, the `[measure]` table of a sweep file
-(`method = "NAME"` and that instrument's keys), a sweep's `measure.KEY` axes
+`optimize`, `paper`), `--set measure.KEY=VALUE`, the `[measure]` table of a scene file
+or a sweep file (`method = "NAME"` and that instrument's keys; the command line and a
+sweep's table override a scene file's key by key), a sweep's `measure.KEY` axes
 (`"measure.threshold" = [0.3, 0.5]`) and the one-line errors that name a bad value. A
 setting of another instrument than the one measuring is refused in one line.
 

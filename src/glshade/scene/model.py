@@ -257,11 +257,15 @@ class Scene:
     def from_dict(cls, data: dict[str, Any], base: Path | None = None) -> Scene:
         """Build from the scene-file layout; missing keys take the paper's defaults,
         unknown tables or keys are an error. ``base``: the directory relative file paths
-        (a height map's ``surface.file``) are read from."""
+        (a height map's ``surface.file``) are read from. A ``[measure]`` table (how the
+        scene is measured: :mod:`glshade.instruments.table`) is the file's, not the
+        scene's: it is read where the scene is measured, not here."""
         if not isinstance(data, dict):
             raise SceneError("scene", "a table of tables (" + ", ".join(TABLE_CLASSES) + ")", data)
         parts: dict[str, Any] = {}
         for table, values in data.items():
+            if table == MEASURE_TABLE:
+                continue
             if table not in TABLE_CLASSES:
                 raise SceneError(
                     table, "one of the tables " + ", ".join(TABLE_CLASSES) + " (unknown table)"
@@ -288,6 +292,10 @@ class Scene:
         data = self.to_file_dict(Path(path).parent)
         atomic_write_bytes(Path(path), tomli_w.dumps(data).encode())
 
+
+#: A scene file's table that says how its scene is measured (the instrument and its
+#: settings), read by :func:`glshade.instruments.table.file_measure_table`.
+MEASURE_TABLE = "measure"
 
 #: A scene file is a few hundred bytes; anything beyond this is not one.
 MAX_SCENE_FILE_BYTES = 1 << 20

@@ -48,6 +48,26 @@ and the field of view follows it, so `--set camera.pixel_pitch=0.01 --size 512` 
 scene of a file with `width = 512`, `height = 512` and `pixel_pitch = 0.01`. A typed
 `camera.width` other than N is refused: the two conflict.
 
+## How the scene is measured: `[measure]`
+
+A scene file may also say how its scene is measured, in a `[measure]` table: `method =
+"NAME"` (the instrument; default: the one its emitter is measured by) and that
+instrument's settings (`docs/measure-settings.md`), each checked against its declaration
+when the scene is measured:
+
+```toml
+[measure]
+method = "pmd"
+heights = "frankot-chellappa"
+```
+
+`glshade measure` and `glshade optimize` start from it, and a sweep from its base file's;
+the command line's flags and `--set measure.KEY=VALUE`, or the sweep file's own
+`[measure]`, override it key by key, and `--method` another instrument than the table's
+measures with that instrument's own settings (a warning says so). The table is the
+file's, not the scene's: the scene, its case id and `--save-scene` are the same without
+it, and `glshade render` and `view` do not read it.
+
 ## Units
 
 A bare number is in the unit of its row: lengths in mm (a few in µm, as their row

@@ -18,8 +18,10 @@ step_mm = 0.25                 # (PmdSettings: modulation_share, grid_points, ..
 images = false                 # best-phase image of every case (PNG; pmd: the first frame)
 ```
 
-``size`` may also be an axis of the grid. ``method`` defaults to the instrument the base
-scene's emitter is measured by (pmd for fringes); with ``pmd`` every case shows the fringe
+``size`` may also be an axis of the grid. ``method`` defaults to the one the base scene
+file's own ``[measure]`` names (its settings come first, the sweep's override them key by
+key: :mod:`glshade.instruments.table`), else to the instrument the base scene's emitter is
+measured by (pmd for fringes); with ``pmd`` every case shows the fringe
 sequence on its screen (:func:`glshade.measure.single.as_method`). A case is identified by
 :func:`case_id`, the hash of its full scene and the instrument's settings: a changed base
 scene or setting makes other cases, and a case already measured is never measured again.
@@ -33,14 +35,15 @@ import itertools
 import json
 import math
 from collections.abc import Iterator, Sequence
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, overload
 
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError
 from glshade.instruments.base import Case
-from glshade.instruments.registry import instrument, instrument_for, method_names
+from glshade.instruments.registry import instrument_for
+from glshade.instruments.table import MeasureTable, file_measure_table, measure_table
 from glshade.measure.single import as_method
 from glshade.metrics.visibility import MetricSettings
 from glshade.params import Param, declared_params
@@ -314,8 +317,8 @@ def spec_from_dict(
             f'{source}: [grid] must hold at least one axis, e.g. "camera.theta_deg" = [85, 45, 5]'
         )
     check_grid([_axis_length(name, value, source) for name, value in grid.items()], source, yes)
-    base = _base_scene(data.get("base"), directory, source)
-    settings = _settings(data, source, base)
+    base, base_table = _base_scene(data.get("base"), directory, source)
+    settings = _settings(data, source, base, base_table)
     base = as_method(base, method_of(settings))
     size = _size(size if size is not None else data.get("size"), f"{source}: size")
     axes = tuple(_axis(name, value, source, type(settings)) for name, value in grid.items())
@@ -383,12 +386,14 @@ def _check_case(scene: Scene, settings: Settings, where: str) -> None:
         raise GlshadeError(f"{where}: {exc}") from None
 
 
-def _base_scene(base, directory: Path, source: str) -> Scene:
+def _base_scene(base, directory: Path, source: str) -> tuple[Scene, MeasureTable]:
+    """The base scene and its file's ``[measure]`` table (empty for the paper's scene)."""
     if base is None:
-        return paper_scene()
+        return paper_scene(), MeasureTable()
     if not isinstance(base, str) or not base.strip():
         raise GlshadeError(f"{source}: base must be the path of a scene file, got {base!r}")
-    return Scene.load(directory / base)
+    scene = Scene.load(directory / base)
+    return scene, file_measure_table(directory / base, scene.active.emitter.measured_by)
 
 
 def _size(value, where: str) -> int | None:
@@ -399,40 +404,18 @@ def _size(value, where: str) -> int | None:
     return registry().param("camera.width").check(value)
 
 
-def _settings(data: dict, source: str, base: Scene) -> Settings:
-    """``[measure]`` (or its older name ``[metric]``): ``method`` (default: the instrument
-    the base scene's emitter is measured by) and that instrument's settings, each checked
-    against its declaration."""
+def _settings(data: dict, source: str, base: Scene, base_table: MeasureTable) -> Settings:
+    """``[measure]`` (or its older name ``[metric]``): ``method`` (default: the one the
+    base scene file's ``[measure]`` names, else the instrument the base scene's emitter is
+    measured by) and that instrument's settings, each checked against its declaration,
+    over the base file's where they are for the same instrument."""
     if "measure" in data and "metric" in data:
         raise GlshadeError(f"{source}: [measure] and [metric] are one table: give one of them")
     name = "measure" if "measure" in data else "metric"
-    table = data.get(name, {})
-    if not isinstance(table, dict):
-        raise GlshadeError(
-            f"{source}: [{name}] must be a table: {METHOD_KEY} ({' or '.join(method_names())}) "
-            "and the instrument's settings"
-        )
-    table = dict(table)
-    method = table.pop(METHOD_KEY, None)
-    if method is None:
-        method = base.active.emitter.measured_by
-    elif method not in method_names():
-        raise GlshadeError(
-            f"{source}: {name}.{METHOD_KEY}: must be one of {', '.join(method_names())}, got "
-            f"{method!r}"
-        )
-    kind = instrument(method).settings_type
-    names = [METHOD_KEY, *(f.name for f in fields(kind))]
-    unknown = sorted(set(table) - set(names))
-    if unknown:
-        raise GlshadeError(
-            f"{source}: {name}.{unknown[0]}: unknown setting of method {method}; allowed: "
-            f"{', '.join(names)}"
-        )
-    try:
-        return kind(**table)
-    except GlshadeError as exc:  # named as the file spells its table
-        raise GlshadeError(f"{source}: {name}.{str(exc).removeprefix('measure.')}") from None
+    default = base_table.method or base.active.emitter.measured_by
+    table = measure_table(data.get(name), f"{source}: ", default, name)
+    method = table.method or default
+    return base_table.settings(method, table.values, f"{source}: ", name)
 
 
 def _axis(name: str, value, source: str, settings_type: type | None = None) -> Axis:

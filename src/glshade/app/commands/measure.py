@@ -19,6 +19,7 @@ from glshade.app.args import (
     run_inputs,
     save_scene,
     scene_from_args,
+    scene_measure_table,
     warn,
 )
 from glshade.errors import GlshadeError
@@ -84,9 +85,11 @@ def run(args: argparse.Namespace) -> int:
     from glshade.gpu.renderer import Renderer
 
     scene = scene_from_args(args)
-    chosen = instrument(method_for(scene, args.method))
+    table = scene_measure_table(args, scene)
+    named = table.method if table.named else None
+    chosen = instrument(method_for(scene, args.method or named))
     scene = chosen.prepared(scene)
-    settings = instrument_settings(args, chosen.name)
+    settings = instrument_settings(args, chosen.name, table=table)
     files = files_given(args, chosen)
     chosen.check_case(scene, settings)
     outputs = [

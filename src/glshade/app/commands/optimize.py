@@ -17,6 +17,7 @@ from glshade.app.args import (
     path_arg,
     save_scene,
     scene_from_args,
+    scene_measure_table,
     warn,
 )
 from glshade.app.commands.distribution import add_distribution_flags, distribution_of
@@ -115,11 +116,11 @@ def run(args: argparse.Namespace) -> int:
     )
 
     goal = goal_of(args.metric)
-    settings = instrument_settings(args, goal.method, f"--metric {args.metric}")
-
     if args.size is None:
         args.size = OPTIMIZE_SIZE
     scene = scene_from_args(args)
+    table = scene_measure_table(args, scene)
+    settings = instrument_settings(args, goal.method, f"--metric {args.metric}", table)
     dimensions = parse_over(args.over)
     if not 1 <= args.family_points <= 64:
         raise GlshadeError(
