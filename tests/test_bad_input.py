@@ -139,10 +139,14 @@ BAD_INPUTS: list[tuple[list[str], str, dict[str, str]]] = [
     (["paper", "--out", "latin1.toml"], "--out latin1.toml: is not a directory", {}),
     (["paper", "--out", "fifo.png"], "--out fifo.png: is not a directory", {}),
     (["paper", "--out", ""], "argument --out: expected a path, got an empty string", {}),
-    (["paper", "--threads", "0", "--out", "p"], "--threads: must be an integer >= 1, got 0", {}),
+    (
+        ["paper", "--threads", "0", "--out", "p"],
+        "--threads: must be an integer in [1, 512], got 0",
+        {},
+    ),
     (
         ["paper", "--workers", "x", "--out", "p"],
-        "--workers: must be auto or an integer in [0, 256], got x",
+        '--workers: must be an integer in [0, 256] or "auto", got x',
         {},
     ),
     (

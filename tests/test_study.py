@@ -142,8 +142,8 @@ def test_directory_with_other_settings_is_refused(tmp_path):
         (["--step", "3"], "step: must be at most one stripe period (2 mm)"),
         (["--step", "0"], "--step: must be a finite number > 0, got 0"),
         (["--sigma2s", "-1"], "sigma2s: every value must be in (0, inf)"),
-        (["--workers", "-1"], "--workers: must be auto or an integer in [0, 256]"),
-        (["--threads", "0"], "--threads: must be an integer >= 1"),
+        (["--workers", "-1"], '--workers: must be an integer in [0, 256] or "auto"'),
+        (["--threads", "0"], "--threads: must be an integer in [1, 512]"),
         (["--size", "0"], "camera.width: must be an integer in [1, 16384]"),
     ],
 )

@@ -10,7 +10,7 @@ import difflib
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError, SceneError, printable
@@ -50,9 +50,68 @@ def add_scene_flags(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--size", type=int, metavar="N", help=SIZE_HELP)
     add_save_scene(p)
-    p.add_argument(
-        "--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)"
-    )
+    add_run_flags(p, ("device",))
+
+
+def add_run_flags(
+    p: argparse.ArgumentParser | argparse._ArgumentGroup,
+    keys: Sequence[str],
+    defaults: dict[str, Any] | None = None,
+    notes: dict[str, str] | None = None,
+    words: dict[str, tuple[str, ...]] | None = None,
+) -> None:
+    """The flags of the run settings ``keys`` (:class:`~glshade.run_settings.
+    RunSettings`), their help from the declarations; ``defaults``: a command's own default
+    where it differs from the declaration's, ``notes``: what a setting means in this
+    command, after its declared meaning, ``words``: the keywords this command takes for a
+    setting besides its values (``glshade paper --workers auto``; ``p`` must then be the
+    parser). :func:`check_run_settings` checks what was typed."""
+    from dataclasses import replace
+
+    if words:
+        cast(argparse.ArgumentParser, p).set_defaults(run_words=words)
+    declared = _run_params(words)
+    for key in keys:
+        item = declared[key]
+        default = (defaults or {}).get(key, item.default)
+        shown = replace(item, default=default).default_text()
+        unit = f" {item.unit}" if item.unit else ""
+        note = f"; {notes[key]}" if notes and key in notes else ""
+        p.add_argument(
+            str(item.flag),
+            dest=key,
+            default=default,
+            metavar=key.upper() if item.value_type == "text" else "N",
+            help=f"{item.doc}{note} ({item.path}; default {shown}{unit})",
+        )
+
+
+def check_run_settings(args: argparse.Namespace) -> None:
+    """Every run setting the command has, as typed, parsed and checked against its
+    declaration in place (with the keywords the command takes: :func:`add_run_flags`); a
+    bad value is one line naming its flag."""
+    for key, item in _run_params(getattr(args, "run_words", None)).items():
+        value = getattr(args, key, None)
+        if value is None or not isinstance(value, str):
+            continue
+        try:
+            setattr(args, key, item.check(item.parse(value)))
+        except (SceneError, QuantityError):
+            allowed = item.allowed()
+            raise GlshadeError(f"{item.flag}: must be {allowed}, got {value.strip()}") from None
+
+
+def _run_params(words: dict[str, tuple[str, ...]] | None = None) -> dict[str, Param]:
+    """The run settings' declarations by key, each with a command's ``words``."""
+    from dataclasses import replace
+
+    from glshade.params import declared_params
+    from glshade.run_settings import RunSettings
+
+    found = {item.key: item for item in declared_params(RunSettings)}
+    for key, keywords in (words or {}).items():
+        found[key] = replace(found[key], keywords=keywords)
+    return found
 
 
 #: ``--size``'s help, for every command that has it.

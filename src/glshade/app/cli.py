@@ -17,7 +17,7 @@ import sys
 from typing import Protocol
 
 from glshade import __version__
-from glshade.app.args import EXIT_USAGE, Parser, one_line
+from glshade.app.args import EXIT_USAGE, Parser, check_run_settings, one_line
 from glshade.app.commands import (
     accuracy,
     bench,
@@ -131,6 +131,7 @@ def _run(argv: list[str], verbose: bool, interrupts: InterruptWatch | None) -> i
     args = None
     try:  # (the libraries' loggers are quietened where Dask starts: glshade.logs)
         args = build_parser(command_of(argv)).parse_args(argv)
+        check_run_settings(args)
         return COMMANDS[args.command].run(args)
     except SystemExit as exc:  # --help, --version, or a usage error already printed as one line
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE

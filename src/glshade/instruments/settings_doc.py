@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from glshade.instruments.registry import Instruments, instruments
 from glshade.params import Param, declared_params
+from glshade.run_settings import RunSettings
 
 _INTRO = """# Instrument settings
 
@@ -20,6 +21,19 @@ setting of another instrument than the one measuring is refused in one line.
 This page is generated from those declarations
 (`python -m glshade.instruments.settings_doc > docs/measure-settings.md`); a test keeps
 it current.
+"""
+
+_RUN_INTRO = """## Run settings: where the cases run
+
+Not how a case is measured but where and how fast: a run's worker processes or Dask
+cluster, its analysis threads, the cases per Dask task and the EGL device, declared the
+same way (`glshade.run_settings`). Their flags are on the commands that run
+cases (`paper`, `sweep`, `optimize`; `--device` also on `render`, `measure`, `view`,
+`info`), each with its declared default unless the command's help says otherwise
+(`glshade paper --workers` defaults to `auto`); a value out of range is one line naming
+the flag. What the machine can hold (two threads per CPU core, the workers the memory
+budget holds) is checked when the run starts. They change no number: a case id never
+depends on them.
 """
 
 
@@ -47,6 +61,9 @@ def settings_markdown(found: Instruments | None = None) -> str:
         lines += [f"## `{name}`: {item.title}", "", header, "|---|---|---|---|---|---|"]
         lines += [_row(declared) for declared in declared_params(item.settings_type)]
         lines.append("")
+    lines += [_RUN_INTRO, header, "|---|---|---|---|---|---|"]
+    lines += [_row(declared) for declared in declared_params(RunSettings)]
+    lines.append("")
     return "\n".join(lines)
 
 

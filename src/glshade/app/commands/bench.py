@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from glshade.app.args import add_run_flags
 from glshade.errors import GlshadeError
 from glshade.scene import Camera
 
@@ -25,7 +26,7 @@ def add(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--reference-rows", type=int, metavar="R", help="trace only R rows with NumPy and scale"
     )
-    p.add_argument("--device", type=int, metavar="N", help="EGL device index")
+    add_run_flags(p, ("device",))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -7,42 +7,17 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from glshade.app.args import add_run_flags
+
 if TYPE_CHECKING:  # the measuring machinery is loaded by the commands that run it
     from glshade.measure.executors import Distribution
 
 
 def add_distribution_flags(p: argparse.ArgumentParser) -> None:
-    where = p.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers",
-        type=int,
-        metavar="N",
-        help="start a local Dask cluster of N worker processes (default: run in this process); "
-        "at most 2 per CPU core and as many as the memory budget holds "
-        "(GLSHADE_MEMORY_BUDGET_MB)",
-    )
-    where.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="use an existing Dask cluster, e.g. tcp://head:8786 (dask-jobqueue, dask-cuda, ...)",
-    )
-    p.add_argument(
-        "--connect-timeout",
-        type=float,
-        default=10.0,
-        metavar="S",
-        help="seconds joining --scheduler may take before giving up (default 10)",
-    )
-    p.add_argument(
-        "--threads",
-        type=int,
-        default=2,
-        metavar="N",
-        help="in-process: threads for the metric's analysis (default 2, at most 2 per CPU core)",
-    )
-    p.add_argument(
-        "--batch", type=int, default=16, metavar="K", help="Dask: most cases per task (default 16)"
-    )
+    """Where a sweep's or an optimisation's cases run: ``--workers`` or ``--scheduler``
+    (one of them), ``--connect-timeout``, ``--threads`` and ``--batch``."""
+    add_run_flags(p.add_mutually_exclusive_group(), ("workers", "scheduler"))
+    add_run_flags(p, ("connect_timeout", "threads", "batch"))
 
 
 def distribution_of(args: argparse.Namespace) -> Distribution:

@@ -9,9 +9,9 @@ from glshade import __version__
 
 def add(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("info", help="print the GL renderer, version and fp64 support")
-    p.add_argument(
-        "--device", type=int, metavar="N", help="EGL device index (default GLSHADE_EGL_DEVICE or 0)"
-    )
+    from glshade.app.args import add_run_flags
+
+    add_run_flags(p, ("device",))
 
 
 def run(args: argparse.Namespace) -> int:

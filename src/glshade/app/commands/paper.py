@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from glshade.app.args import instrument_settings, path_arg, quantity_list
+from glshade.app.args import add_run_flags, instrument_settings, path_arg, quantity_list
 from glshade.app.studies import refuse_other_flags, study_kind, study_kinds
 from glshade.errors import GlshadeError
 
@@ -108,24 +108,15 @@ def _add_plan_flags(p: argparse.ArgumentParser) -> None:
 def _add_run_flags(p: argparse.ArgumentParser) -> None:
     """How ``glshade paper`` runs: workers, threads, the size confirmation, the progress
     bar and the EGL device."""
-    p.add_argument(
-        "--workers",
-        default="auto",
-        metavar="N",
-        help="worker processes, each tracing and measuring whole geometries with its own "
-        "renderer (a local Dask cluster); 0: in this process; auto (the default): 2 when "
-        "the study is large enough to repay their start (64 cases at 512² or the like), "
-        "else 0. With --method pmd the phase-measuring cases go to N workers only when N is "
-        "given (auto: in this process; their memory is several times the stripe metric's)",
-    )
-    p.add_argument(
-        "--threads",
-        type=int,
-        default=2,
-        metavar="N",
-        help="in this process: threads for the metric's analysis while this thread traces "
-        "(default 2)",
-    )
+    notes = {
+        "workers": "0: in this process; auto: 2 when the study is large enough to repay their "
+        "start (64 cases at 512² or the like), else 0. With --method pmd the phase-measuring "
+        "cases go to N workers only when N is given (auto: in this process; their memory is "
+        "several times the stripe metric's)",
+        "device": "only with --workers 0",
+    }
+    words: dict[str, tuple[str, ...]] = {"workers": ("auto",)}
+    add_run_flags(p, ("workers", "threads"), {"workers": "auto"}, notes, words)
     p.add_argument(
         "--yes",
         action="store_true",
@@ -133,9 +124,7 @@ def _add_run_flags(p: argparse.ArgumentParser) -> None:
         "confirmation limit",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument(
-        "--device", type=int, metavar="N", help="EGL device index (in this process only)"
-    )
+    add_run_flags(p, ("device",), notes=notes)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -168,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
 AUTO_WORKERS_PIXELS = 64 * 512 * 512
 
 
-def paper_workers(given: str, plan, device: int | None) -> int:
+def paper_workers(given: str | int, plan, device: int | None) -> int:
     """The worker processes of a study: ``--workers`` (an integer >= 0, or ``auto``), at
     most as many as this machine's cores and memory budget hold at the plan's size
     (:mod:`glshade.measure.capacity`; ``auto`` takes at most that many)."""
