@@ -3,6 +3,10 @@ library's free-form march (``lib/freeform.glsl``)."""
 
 from __future__ import annotations
 
+from typing import Protocol
+
+from glshade.components.base import SceneView, UniformContext
+
 #: Steps of the first-hit march (it converges from above in a few; skimming rays take more).
 MARCH_STEPS = 256
 #: The GLSL every free-form surface puts before its own.
@@ -13,19 +17,29 @@ MARCH_GLSL = ("lib/march.glsl", "lib/freeform.glsl")
 POLISH_ITERATIONS = 64
 
 
-def march_steps(solver) -> int:
+class MarchSolver(Protocol):
+    """What the march reads of the renderer's dent solver
+    (:class:`glshade.gpu.renderer.RootSolver`)."""
+
+    @property
+    def march_steps(self) -> int: ...
+
+    def tolerance_for(self, precision: str) -> float: ...
+
+
+def march_steps(solver: MarchSolver) -> int:
     """Steps of the free-form march for the renderer's dent solver."""
     return max(MARCH_STEPS, 4 * solver.march_steps)
 
 
-def march_loop_iterations(scene, solver) -> int:
+def march_loop_iterations(scene: SceneView, solver: MarchSolver) -> int:
     """Loop iterations of one ray's first hit: the march and its polish, on each of the two
     shifted surfaces that bracket a dent (once without one)."""
     surfaces = 2 if scene.defect.present else 1
     return surfaces * ((march_steps(solver) + 1) + (POLISH_ITERATIONS + 1))
 
 
-def march_uniforms(scene, context) -> dict[str, object]:
+def march_uniforms(scene: SceneView, context: UniformContext) -> dict[str, object]:
     """The uniforms of ``lib/freeform.glsl``."""
     return {
         "u_surface_march_steps": march_steps(context.solver),

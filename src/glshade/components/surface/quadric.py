@@ -11,10 +11,11 @@ loses no digits near the apex or the rim.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
-from glshade.components.base import SurfaceComponent
+from glshade.components.base import SceneView, SurfaceComponent
 from glshade.numerics import circle_roots
 from glshade.params import Control, Table, param
 
@@ -36,32 +37,39 @@ class Quadric(SurfaceComponent):
     """Base of the curved kinds: a subclass says which coordinates span its cross-section
     (``dims``, indices into (x, y, z), y included) and how far a point is from its axis."""
 
-    def rho(self, scene, x, z) -> np.ndarray:
+    def rho(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
-    def dims(self, scene) -> list[int]:
+    def dims(self, scene: SceneView) -> list[int]:
         raise NotImplementedError
 
     @staticmethod
-    def signed_radius(scene) -> tuple[float, float]:
+    def surface_table(scene: SceneView) -> QuadricTable:
+        """The scene's surface table, as the curved kinds read it."""
+        return cast(QuadricTable, scene.surface)
+
+    @staticmethod
+    def signed_radius(scene: SceneView) -> tuple[float, float]:
         """``(s, a)``: ``s = sign(R)`` (+1 convex, -1 concave), ``a = |R|`` (mm)."""
-        radius = scene.surface.radius
+        radius = Quadric.surface_table(scene).radius
         return (1.0 if radius > 0 else -1.0), abs(radius)
 
-    def sag(self, scene, x, z) -> tuple[np.ndarray, np.ndarray]:
+    def sag(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Base height ``f`` (mm) and ``w = sqrt(R² - rho²)`` with ``rho`` clipped to ``|R|``."""
         s, a = self.signed_radius(scene)
         rho = np.minimum(self.rho(scene, x, z), a)
         w = np.sqrt((a - rho) * (a + rho))
         return -s * rho * rho / (a + w), w
 
-    def height(self, scene, x, z):
+    def height(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
         return self.sag(scene, x, z)[0]
 
-    def outside(self, scene, x, z):
-        return self.rho(scene, x, z) > abs(scene.surface.radius)
+    def outside(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        return self.rho(scene, x, z) > abs(self.surface_table(scene).radius)
 
-    def band_roots(self, scene, o, d, shift):
+    def band_roots(
+        self, scene: SceneView, o: np.ndarray, d: np.ndarray, shift: float
+    ) -> list[np.ndarray]:
         s, a = self.signed_radius(scene)
         y_centre = shift - s * a  # centre of the shifted sphere / circle
         oc = o - np.array([0.0, y_centre, 0.0])
@@ -69,11 +77,13 @@ class Quadric(SurfaceComponent):
         return list(circle_roots(oc[:, dims], d[:, dims], a))
 
     @staticmethod
-    def vertical_rays(t1, t2, vertical, inside):
+    def vertical_rays(
+        t1: np.ndarray, t2: np.ndarray, vertical: np.ndarray, inside: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Rays that do not move across the domain: all of it (inside) or none of it."""
         t1 = np.where(vertical, np.where(inside, -np.inf, np.nan), t1)
         t2 = np.where(vertical, np.where(inside, np.inf, np.nan), t2)
         return t1, t2
 
-    def uniform_radius(self, scene) -> dict[str, object]:
-        return {"u_surface_radius": scene.surface.radius}
+    def uniform_radius(self, scene: SceneView) -> dict[str, object]:
+        return {"u_surface_radius": self.surface_table(scene).radius}

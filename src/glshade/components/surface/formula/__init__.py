@@ -18,12 +18,14 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
-from glshade.components.base import SurfaceComponent
+from glshade.components.base import SceneView, SurfaceComponent, UniformContext
 from glshade.components.surface.freeform import (
     MARCH_GLSL,
     march_loop_iterations,
@@ -33,6 +35,7 @@ from glshade.errors import SceneError
 from glshade.params import Table, param
 
 if TYPE_CHECKING:  # the grammar is loaded by the first formula parsed
+    from glshade.components.camera.perspective.table import Camera
     from glshade.components.surface.formula.grammar import Formula as ParsedFormula
 
 #: Samples per side of the grid the bounds are taken on, and their safety factor.
@@ -44,7 +47,7 @@ MAX_HEIGHT_MM = 1e9
 MAX_CURVATURE = 1e9
 
 
-def check_formula(values: dict) -> None:
+def check_formula(values: dict[str, Any]) -> None:
     """A formula surface's expression and parameters parse (the error names the token)."""
     if values.get("kind") == "formula":
         parsed(values["expression"], values.get("parameters") or ())
@@ -77,8 +80,14 @@ def parsed(expression: str, parameters: tuple[tuple[str, float], ...]) -> Parsed
     return parse_formula(expression, dict(parameters))
 
 
-def formula_of(scene) -> ParsedFormula:
-    return parsed(scene.surface.expression, scene.surface.parameters)
+def formula_table(scene: SceneView) -> FormulaTable:
+    """The scene's surface table, as the formula reads it."""
+    return cast(FormulaTable, scene.surface)
+
+
+def formula_of(scene: SceneView) -> ParsedFormula:
+    surface = formula_table(scene)
+    return parsed(surface.expression, surface.parameters)
 
 
 class Formula(SurfaceComponent):
@@ -87,7 +96,7 @@ class Formula(SurfaceComponent):
     doc = "y = f(x, z) written as a formula of x and z (paper eq. 3)"
     table = FormulaTable
 
-    def features(self, scene):
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
         from glshade.components.surface.formula.printers import GLSL_FUNCTIONS
 
         formula = formula_of(scene)
@@ -97,13 +106,13 @@ class Formula(SurfaceComponent):
             "formula_parameters": tuple(name for name, _ in formula.parameters),
         }
 
-    def glsl(self, variables):
+    def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
         return (*MARCH_GLSL, "formula.glsl")
 
-    def loop_iterations(self, scene, solver):
+    def loop_iterations(self, scene: SceneView, solver: Any) -> int:
         return march_loop_iterations(scene, solver)
 
-    def uniforms(self, scene, context):
+    def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
         from glshade.components.surface.formula.functions import PARAMETER_PREFIX
 
         lo, hi, curvature = bounds(scene)
@@ -117,18 +126,21 @@ class Formula(SurfaceComponent):
             **march_uniforms(scene, context),
         }
 
-    def second_derivatives(self, scene):
+    def second_derivatives(self, scene: SceneView) -> tuple[float, float]:
         """``(f_zz, f_xx)`` at the origin, almost everywhere (0 on a kink); 0 where the
         formula has no finite value there."""
         fxx, _, fzz = (float(h(0.0, 0.0)) for h in formula_of(scene).hessian)
-        return tuple(v if math.isfinite(v) else 0.0 for v in (fzz, fxx))
+        fzz, fxx = (v if math.isfinite(v) else 0.0 for v in (fzz, fxx))
+        return fzz, fxx
 
-    def describe(self, scene):
-        text = scene.surface.expression
+    def describe(self, scene: SceneView) -> str:
+        text = formula_table(scene).expression
         return f"y = {text if len(text) <= 40 else text[:37] + '...'}"
 
     # ------------------------------------------------------------------ oracle
-    def band_roots(self, scene, o, d, shift):
+    def band_roots(
+        self, scene: SceneView, o: np.ndarray, d: np.ndarray, shift: float
+    ) -> list[np.ndarray]:
         lo, hi, _ = bounds(scene)
         with np.errstate(divide="ignore", invalid="ignore"):
             return [
@@ -136,34 +148,36 @@ class Formula(SurfaceComponent):
                 for level in (hi, lo)
             ]
 
-    def height(self, scene, x, z):
+    def height(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
         return formula_of(scene).numpy[0](x, z)
 
-    def outside(self, scene, x, z):
+    def outside(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
         return ~np.isfinite(self.height(scene, x, z))
 
-    def normal(self, scene, x, z, dx, dz):
+    def normal(
+        self, scene: SceneView, x: np.ndarray, z: np.ndarray, dx: np.ndarray, dz: np.ndarray
+    ) -> np.ndarray:
         _, fx, fz = formula_of(scene).numpy
         return np.stack(
             [-(fx(x, z) + dx), np.ones(np.broadcast(x, z).shape), -(fz(x, z) + dz)], axis=-1
         )
 
 
-def bounds(scene) -> tuple[float, float, float]:
+def bounds(scene: SceneView) -> tuple[float, float, float]:
     """``(lo, hi, K)``: ``f`` lies in ``[lo, hi]`` (mm) and ``|f''|`` along any horizontal
     unit direction is below ``K`` (1/mm) over the region the camera sees; a SceneError
     where the formula's values there are out of range (:func:`_check_values`)."""
     return _bounds(formula_of(scene), _seen_box(scene), scene.render.precision)
 
 
-def _seen_box(scene) -> tuple[float, float, float, float]:
+def _seen_box(scene: SceneView) -> tuple[float, float, float, float]:
     """``(x0, x1, z0, z1)`` (mm): where the image's border rays meet the plane y = 0, and
     the defect's centre, with a margin of 25 % and 2 mm."""
     return _box(scene.camera, scene.defect.x0, scene.defect.z0)
 
 
 @functools.lru_cache(maxsize=64)
-def _box(cam, x0: float, z0: float) -> tuple[float, float, float, float]:
+def _box(cam: Camera, x0: float, z0: float) -> tuple[float, float, float, float]:
     edge_rows = np.unique(np.linspace(0, cam.height - 1, 9).round().astype(int))
     edge_cols = np.unique(np.linspace(0, cam.width - 1, 9).round().astype(int))
     points = [np.array([x0, z0])]
@@ -231,7 +245,13 @@ def _gradient_jumps(fx: np.ndarray, fz: np.ndarray, dx: float, dz: float) -> np.
     return np.abs(0.5 * (fxx + fzz)) + np.hypot(0.5 * (fxx - fzz), mixed)
 
 
-def _check_values(formula: ParsedFormula, grid, values, box, precision: str) -> None:
+def _check_values(
+    formula: ParsedFormula,
+    grid: tuple[NDArray[np.float64], NDArray[np.float64]],
+    values: tuple[NDArray[np.float64], ...],
+    box: tuple[float, float, float, float],
+    precision: str,
+) -> None:
     """Refuse a formula with no finite value over the region the camera sees, an infinite
     one, one beyond :data:`MAX_HEIGHT_MM`, or, for fp32, one where a step of computing
     ``f``, ``f_x``, ``f_z`` overflows in single precision though float64 finds it finite
@@ -266,11 +286,11 @@ def _check_values(formula: ParsedFormula, grid, values, box, precision: str) -> 
         )
 
 
-def _at(xx: np.ndarray, zz: np.ndarray, where) -> str:
+def _at(xx: np.ndarray, zz: np.ndarray, where: tuple[np.intp, ...]) -> str:
     return f" at x = {xx[where]:.4g}, z = {zz[where]:.4g} mm"
 
 
-def _value_error(what: str, box, allowed: str) -> SceneError:
+def _value_error(what: str, box: tuple[float, float, float, float], allowed: str) -> SceneError:
     from glshade.components.surface.formula.grammar import FormulaError
 
     region = (

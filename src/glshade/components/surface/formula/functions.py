@@ -23,10 +23,10 @@ in, ``sqrt(x**2)`` is ``Abs(x)``) onto the same conventions.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 
 import sympy
-from sympy import Function, S
+from sympy import Basic, Function, S
 
 #: The uniform (and the SymPy symbol) of a formula's parameter ``name`` is this + name.
 PARAMETER_PREFIX = "u_surface_p_"
@@ -38,12 +38,12 @@ class RealAbs(Function):
     nargs = 1
 
     @classmethod
-    def eval(cls, u):
+    def eval(cls, u: Basic) -> Basic | None:
         if u.is_Number:
             return abs(u)
         return None
 
-    def fdiff(self, argindex=1):
+    def fdiff(self, argindex: int = 1) -> Basic:
         return RealSign(self.args[0])
 
 
@@ -53,22 +53,22 @@ class RealSign(Function):
     nargs = 1
 
     @classmethod
-    def eval(cls, u):
+    def eval(cls, u: Basic) -> Basic | None:
         if u.is_Number:
             return sympy.sign(u)
         return None
 
-    def fdiff(self, argindex=1):
+    def fdiff(self, argindex: int = 1) -> Basic:
         return S.Zero
 
 
-def _half_step(difference, side: int):
+def _half_step(difference: Basic, side: int) -> Basic:
     """``(1 + side * sign(difference)) / 2``: 1, 1/2 or 0, the share of a ``min``/``max``
     argument in its derivative."""
     return (1 + side * RealSign(difference)) / 2
 
 
-def _finite_numbers(*args) -> bool:
+def _finite_numbers(*args: Basic) -> bool:
     return all(arg.is_Number and arg.is_finite for arg in args)
 
 
@@ -78,12 +78,12 @@ class RealMin(Function):
     nargs = 2
 
     @classmethod
-    def eval(cls, a, b):
+    def eval(cls, a: Basic, b: Basic) -> Basic | None:
         if _finite_numbers(a, b):
             return min(a, b)
         return None
 
-    def fdiff(self, argindex=1):
+    def fdiff(self, argindex: int = 1) -> Basic:
         a, b = self.args
         return _half_step(a - b, -1 if argindex == 1 else 1)
 
@@ -94,17 +94,17 @@ class RealMax(Function):
     nargs = 2
 
     @classmethod
-    def eval(cls, a, b):
+    def eval(cls, a: Basic, b: Basic) -> Basic | None:
         if _finite_numbers(a, b):
             return max(a, b)
         return None
 
-    def fdiff(self, argindex=1):
+    def fdiff(self, argindex: int = 1) -> Basic:
         a, b = self.args
         return _half_step(a - b, 1 if argindex == 1 else -1)
 
 
-def real_min(*args):
+def real_min(*args: Basic) -> Basic:
     """``min`` of two or more arguments, as nested :class:`RealMin`."""
     result = args[0]
     for arg in args[1:]:
@@ -112,7 +112,7 @@ def real_min(*args):
     return result
 
 
-def real_max(*args):
+def real_max(*args: Basic) -> Basic:
     """``max`` of two or more arguments, as nested :class:`RealMax`."""
     result = args[0]
     for arg in args[1:]:
@@ -120,12 +120,15 @@ def real_max(*args):
     return result
 
 
-def distinct_nodes(expressions, operands=lambda node: node.args) -> list:
+def distinct_nodes(
+    expressions: Iterable[Basic],
+    operands: Callable[[Basic], Sequence[Basic]] = lambda node: node.args,
+) -> list[Basic]:
     """The distinct nodes of ``expressions`` (symbols and numbers included), each after
     its ``operands``: a walk of the DAG, not of the tree (a derivative's tree can repeat
     a subexpression exponentially often; its DAG holds it once). Iterative."""
-    done: set = set()
-    order: list = []
+    done: set[Basic] = set()
+    order: list[Basic] = []
     for expression in expressions:
         pending = [(expression, False)]
         while pending:
@@ -145,7 +148,7 @@ def distinct_nodes(expressions, operands=lambda node: node.args) -> list:
 _SYMPY_KINKS = (sympy.Abs, sympy.sign, sympy.Min, sympy.Max, sympy.Heaviside, sympy.DiracDelta)
 
 
-def almost_everywhere(expression):
+def almost_everywhere(expression: Basic) -> Basic:
     """``expression`` with SymPy's ``Abs``, ``sign``, ``Min``, ``Max`` replaced by the real
     classes here, ``Heaviside(t)`` by ``(1 + sign(t))/2`` and ``DiracDelta`` by 0 (the
     conventions of the module docstring). SymPy brings ``Abs`` in by itself:
@@ -153,7 +156,7 @@ def almost_everywhere(expression):
     order = distinct_nodes([expression])
     if not any(isinstance(node, _SYMPY_KINKS) for node in order):
         return expression
-    rebuilt: dict = {}
+    rebuilt: dict[Basic, Basic] = {}
     for node in order:
         args = tuple(rebuilt[arg] for arg in node.args)
         new = node.func(*args) if args != node.args else node
@@ -161,7 +164,7 @@ def almost_everywhere(expression):
     return rebuilt[expression]
 
 
-def _real_kink(node):
+def _real_kink(node: Basic) -> Basic:
     """One of SymPy's :data:`_SYMPY_KINKS` as this module writes it."""
     args = node.args
     if isinstance(node, sympy.DiracDelta):
@@ -207,7 +210,7 @@ NUMPY = {
 }
 
 
-def unprintable(nodes) -> str | None:
+def unprintable(nodes: Iterable[Basic]) -> str | None:
     """The name of the first of ``nodes`` whose class is outside :data:`PRINTABLE`, or
     of a number that is not finite; None when every node is printable."""
     for node in nodes:
@@ -218,7 +221,7 @@ def unprintable(nodes) -> str | None:
     return None
 
 
-def constant_value(expression) -> float:
+def constant_value(expression: Basic) -> float:
     """The value of a constant ``expression`` (no free symbols) in float64 arithmetic:
     ``inf`` where it overflows, NaN where it is not a real number or holds anything else
     than :data:`PRINTABLE` (never SymPy's arbitrary precision: ``exp(exp(exp(100)))``
@@ -242,7 +245,7 @@ _MATH: dict[type, Callable[..., float]] = {
 }
 
 
-def _value(e) -> float:
+def _value(e: Basic) -> float:
     if e.is_Rational:
         try:
             return float(e)
@@ -277,18 +280,18 @@ class TooLarge(Exception):
         self.work = work
 
 
-def derivative(expression, symbol, max_work: int):
+def derivative(expression: Basic, symbol: Basic, max_work: int) -> Basic:
     """``∂expression/∂symbol`` of a tree of :data:`PRINTABLE` nodes, by the rules of
     calculus and the almost-everywhere conventions of this module (never SymPy's
     ``diff``, whose assumption queries cost seconds on a polynomial of 300 terms). Each
     distinct node is differentiated once; a :class:`TooLarge` as soon as the operands of
     the sums and products built add up beyond ``max_work`` (the cost of building, and of
     evaluating, the result)."""
-    derivatives: dict[object, object] = {}
-    depends: dict[object, bool] = {}
+    derivatives: dict[Basic, Basic] = {}
+    depends: dict[Basic, bool] = {}
     work = [0]
 
-    def varies(node) -> bool:
+    def varies(node: Basic) -> bool:
         known = depends.get(node)
         if known is None:
             known = depends[node] = node == symbol or any(varies(arg) for arg in node.args)
@@ -299,7 +302,7 @@ def derivative(expression, symbol, max_work: int):
         if work[0] > max_work:
             raise TooLarge(work[0])
 
-    def added(terms) -> object:
+    def added(terms: Iterable[Basic]) -> Basic:
         """The sum of ``terms`` (products: their operands count), stopped at the limit."""
         kept = []
         for term in terms:
@@ -307,7 +310,7 @@ def derivative(expression, symbol, max_work: int):
             kept.append(term)
         return sympy.Add(*kept)
 
-    def d(node):
+    def d(node: Basic) -> Basic:
         if not varies(node):
             return S.Zero
         known = derivatives.get(node)
@@ -319,7 +322,12 @@ def derivative(expression, symbol, max_work: int):
     return d(expression)
 
 
-def _rule(node, d, varies, added):
+def _rule(
+    node: Basic,
+    d: Callable[[Basic], Basic],
+    varies: Callable[[Basic], bool],
+    added: Callable[[Iterable[Basic]], Basic],
+) -> Basic:
     """The derivative of one node from its arguments' (``d``; ``added``: a sum that
     stops at the size limit)."""
     args = node.args

@@ -32,15 +32,19 @@ import math
 import re
 import tokenize
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from glshade.errors import GlshadeError, SceneError, printable
 from glshade.params import MAX_TEXT
+
+if TYPE_CHECKING:  # SymPy is loaded by the first formula parsed
+    from sympy import Basic
 
 #: A parameter ``name`` of a formula is the uniform ``u_surface_p_<name>`` of its program.
 
@@ -186,7 +190,7 @@ class FormulaError(SceneError):
         field_name: str,
         what: str,
         column: int | None,
-        parameters,
+        parameters: Sequence[str],
         allowed: str | None = None,
     ) -> None:
         names = "".join(
@@ -208,7 +212,11 @@ class FormulaError(SceneError):
 
 
 def _refuse(
-    field_name: str, what: str, column: int | None, parameters, allowed: str | None = None
+    field_name: str,
+    what: str,
+    column: int | None,
+    parameters: Iterable[str],
+    allowed: str | None = None,
 ) -> FormulaError:
     return FormulaError(field_name, what, column, list(parameters), allowed)
 
@@ -243,7 +251,7 @@ def check_parameter_name(name: object, field_name: str = "surface.parameters") -
     return name
 
 
-def _check_characters(text: str, field_name: str, parameters) -> None:
+def _check_characters(text: str, field_name: str, parameters: Iterable[str]) -> None:
     """Refuse, at its column, the first character outside printable ASCII, tab and line
     break: a control character, and every look-alike (``ｘ``, which Python would read as
     ``x``, a Cyrillic ``х``, a no-break space)."""
@@ -255,7 +263,7 @@ def _check_characters(text: str, field_name: str, parameters) -> None:
             raise _refuse(field_name, what, column, parameters)
 
 
-def _power_tokens(text: str, field_name: str, parameters) -> tuple[str, list[int]]:
+def _power_tokens(text: str, field_name: str, parameters: Iterable[str]) -> tuple[str, list[int]]:
     """``text`` with each ``^`` token written ``**`` (a token-level rewrite, so ``^``
     keeps the precedence of a power), and for each character of the result the column of
     the user's text it came from. Comments, strings, line breaks, more than
@@ -374,17 +382,19 @@ class Formula:
         parameters bound: the oracle's evaluation of the same tree."""
         return self._functions(self.tree, *self.gradient)
 
-    def single_precision_overflow(self, x, z) -> tuple[str, np.ndarray, np.ndarray] | None:
+    def single_precision_overflow(
+        self, x: NDArray[np.float64], z: NDArray[np.float64]
+    ) -> tuple[str, np.ndarray, np.ndarray] | None:
         """Where an fp32 shader overflows computing ``f``, ``f_x``, ``f_z`` at ``(x, z)``:
         the first step (as SymPy writes it) whose value is finite but beyond
         :data:`MAX_MAGNITUDE`, its values and where; None where no step is."""
         from glshade.components.surface.formula.printers import first_beyond
 
-        inputs = [x, z, *(value for _, value in self.parameters)]
+        inputs: list[ArrayLike] = [x, z, *(value for _, value in self.parameters)]
         found = first_beyond(self.symbols, (self.tree, *self.gradient), inputs, MAX_MAGNITUDE)
         return None if found is None else (str(found[0]), found[1], found[2])
 
-    def _functions(self, *expressions) -> tuple[Callable, ...]:
+    def _functions(self, *expressions: Basic) -> tuple[Callable, ...]:
         from glshade.components.surface.formula.printers import numpy_function
 
         values = [value for _, value in self.parameters]
@@ -403,8 +413,10 @@ def _symbols(names: tuple[str, ...]) -> tuple[Any, ...]:
     )
 
 
-def _bound(compiled, values):
-    def evaluate(x, z):
+def _bound(
+    compiled: Callable[..., Any], values: Sequence[float]
+) -> Callable[[ArrayLike, ArrayLike], NDArray[np.float64]]:
+    def evaluate(x: ArrayLike, z: ArrayLike) -> NDArray[np.float64]:
         x, z = np.asarray(x, np.float64), np.asarray(z, np.float64)
         with np.errstate(all="ignore"):
             return np.broadcast_to(
@@ -458,7 +470,9 @@ def parse_formula(
     return Formula(text, tuple(params.items()), tree, gradient, second)
 
 
-def _derivative(expression, symbol, field_name: str, params, order: str):
+def _derivative(
+    expression: Basic, symbol: Basic, field_name: str, params: Iterable[str], order: str
+) -> Basic:
     """``∂expression/∂symbol`` (:func:`.functions.derivative`), or a refusal where it
     takes more than :data:`MAX_DERIVATIVE_WORK` operations to build."""
     from glshade.components.surface.formula.functions import (
@@ -481,7 +495,7 @@ def _derivative(expression, symbol, field_name: str, params, order: str):
         ) from None
 
 
-def _check_program(expressions, field_name: str, params) -> None:
+def _check_program(expressions: Iterable[Basic], field_name: str, params: Iterable[str]) -> None:
     """Refuse a formula whose shader code (``f``, ``f_x``, ``f_z``) has more than
     :data:`MAX_OPERATIONS` operations: the time the shader compiler takes grows with it."""
     from glshade.components.surface.formula.printers import operations
@@ -498,7 +512,7 @@ def _check_program(expressions, field_name: str, params) -> None:
         )
 
 
-def _check_tree(tree, field_name: str, params, where: str) -> None:
+def _check_tree(tree: Basic, field_name: str, params: Iterable[str], where: str) -> None:
     """Refuse a tree holding what is not a finite real number (``x/0``), anything the
     printers do not know, a constant beyond :data:`MAX_MAGNITUDE` or a power beyond
     :data:`MAX_POWER` (what the rebuilt tree and its derivatives fold to). Each distinct
@@ -532,7 +546,13 @@ def _check_tree(tree, field_name: str, params, where: str) -> None:
             )
 
 
-def _check_printable(trees, field_name: str, params, where: str, nodes=None) -> None:
+def _check_printable(
+    trees: Iterable[Basic],
+    field_name: str,
+    params: Iterable[str],
+    where: str,
+    nodes: list[Basic] | None = None,
+) -> None:
     """Refuse trees holding a node the printers do not know (what SymPy's simplification
     might bring in): nothing unmapped reaches the GLSL or the NumPy functions."""
     from glshade.components.surface.formula.functions import distinct_nodes, unprintable
@@ -615,7 +635,7 @@ class _Builder:
         column, text = self.span(node)
         return _refuse(self.field, what or repr(text[:20]), column, self.params)
 
-    def build(self, node: ast.AST, depth: int):
+    def build(self, node: ast.AST, depth: int) -> Basic:
         if depth > MAX_DEPTH:
             column, text = self.span(node)
             raise _refuse(
@@ -631,7 +651,7 @@ class _Builder:
             self.check_constant(node, result)
         return result
 
-    def check_constant(self, node: ast.AST, value) -> None:
+    def check_constant(self, node: ast.AST, value: Basic) -> None:
         """A constant part (no x, z or parameter) must be a finite real number within
         :data:`MAX_MAGNITUDE` (checked in float64, never SymPy's arbitrary precision)."""
         number = self.constant_value(value)
@@ -647,7 +667,9 @@ class _Builder:
             allowed = _RANGE
         raise _refuse(self.field, what, column, self.params, allowed)
 
-    def check_folded(self, node: ast.AST, operation, operands: list, what: str) -> None:
+    def check_folded(
+        self, node: ast.AST, operation: Callable[..., Basic], operands: list[Basic], what: str
+    ) -> None:
         """The constant operands of a chain (``1e30*x*1e30``), which SymPy folds into one
         number, within :data:`MAX_MAGNITUDE`."""
         constants = [operand for operand in operands if not operand.free_symbols]
@@ -666,7 +688,7 @@ class _Builder:
             _RANGE,
         )
 
-    def node(self, node: ast.AST, depth: int):
+    def node(self, node: ast.AST, depth: int) -> Basic:
         sp = self.sympy
         if isinstance(node, ast.Constant):
             return self.number(node)
@@ -693,7 +715,7 @@ class _Builder:
             raise self.refuse_operator(node)
         raise self.refuse(node)
 
-    def number(self, node: ast.Constant):
+    def number(self, node: ast.Constant) -> Basic:
         value = node.value
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.refuse(node)
@@ -705,7 +727,7 @@ class _Builder:
         sp = self.sympy
         return sp.Integer(value) if isinstance(value, int) else sp.Float(repr(value), 17)
 
-    def power(self, node: ast.BinOp, depth: int):
+    def power(self, node: ast.BinOp, depth: int) -> Basic:
         left, right = self.build(node.left, depth + 1), self.build(node.right, depth + 1)
         if not right.free_symbols and abs(self.constant_value(right)) > MAX_POWER:
             column, text = self.span(node.right)
@@ -720,7 +742,7 @@ class _Builder:
             right = self.sympy.Rational(int(2 * right), 2)
         return self.checked_powers(node, left**right)
 
-    def checked_powers(self, node: ast.AST, result):
+    def checked_powers(self, node: ast.AST, result: Basic) -> Basic:
         """``result``, unless SymPy folded powers of powers (``(x^64)^64``, ``x^64*x^64``)
         beyond :data:`MAX_POWER`."""
         for part in (result, *result.args) if result.is_Mul else (result,):
@@ -753,7 +775,7 @@ class _Builder:
         )
         return _refuse(self.field, f"the operator {token!r}", column, self.params)
 
-    def call(self, node: ast.Call, depth: int):
+    def call(self, node: ast.Call, depth: int) -> Basic:
         if not isinstance(node.func, ast.Name) or node.func.id not in FUNCTIONS:
             raise self.refuse(node.func, f"the function {ast.unparse(node.func)[:20]!r}")
         if node.keywords or any(isinstance(a, ast.Starred) for a in node.args):

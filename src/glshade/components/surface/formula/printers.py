@@ -15,10 +15,11 @@ from __future__ import annotations
 
 import functools
 import re
-from collections.abc import Callable, Iterable
-from typing import Any
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from glshade.components.surface.formula.functions import (
     NUMPY,
@@ -26,6 +27,9 @@ from glshade.components.surface.formula.functions import (
     distinct_nodes,
 )
 from glshade.errors import SceneError
+
+if TYPE_CHECKING:
+    from sympy import Basic
 
 #: GLSL the formula's statements call (``real``: float or double, the program's
 #: precision): ``b^n`` for ``1 <= n <= 127`` by squaring, exact in sign for a negative base.
@@ -92,7 +96,7 @@ def operations(expressions: Iterable[Any]) -> int:
     return total
 
 
-def _operands(node) -> tuple[Any, ...]:
+def _operands(node: Basic) -> tuple[Any, ...]:
     """What a node is computed from (a power's rational exponent is part of its
     operation)."""
     if node.is_Pow and node.exp.is_Rational:
@@ -101,7 +105,7 @@ def _operands(node) -> tuple[Any, ...]:
 
 
 # ---------------------------------------------------------------------------------- GLSL
-def glsl_body(expressions, precision: str, parameters: tuple[str, ...]) -> str:
+def glsl_body(expressions: Sequence[Basic], precision: str, parameters: tuple[str, ...]) -> str:
     """The body of ``real3 formula_values(real x, real z)``: one statement per distinct
     node of ``expressions`` (``f``, ``f_x``, ``f_z``), then ``return real3(f, f_x, f_z);``.
     Each line is checked to be such a statement holding only temporaries, ``x``, ``z``,
@@ -111,7 +115,7 @@ def glsl_body(expressions, precision: str, parameters: tuple[str, ...]) -> str:
     suffix = "LF" if precision == "fp64" else ""
     names: dict[Any, str] = {}
 
-    def text(node) -> str:
+    def text(node: Basic) -> str:
         if node in names:
             return names[node]
         if node.is_Symbol:
@@ -136,7 +140,7 @@ def _temporary(name: str) -> bool:
     return name[0] == "t" and name[1:].isdigit()
 
 
-def _glsl_operation(node, text: Callable[[Any], str], suffix: str) -> str:
+def _glsl_operation(node: Basic, text: Callable[[Any], str], suffix: str) -> str:
     """The GLSL expression of one node, its operands written by ``text``."""
     if node.is_Add:
         return _joined([text(a) for a in node.args], " + ")
@@ -162,7 +166,7 @@ def _joined(operands: list[str], operator: str) -> str:
     return f"({_joined(operands[:half], operator)}){operator}({_joined(operands[half:], operator)})"
 
 
-def _glsl_power(node, text: Callable[[Any], str], suffix: str) -> str:
+def _glsl_power(node: Basic, text: Callable[[Any], str], suffix: str) -> str:
     """An integer or half-integer power as products of the base (or of its square root),
     others as ``pow`` (single precision only)."""
     exponent = node.exp
@@ -186,7 +190,7 @@ def _no_double(what: str) -> SceneError:
 
 
 # --------------------------------------------------------------------------------- NumPy
-def numpy_function(symbols, expression) -> Callable[..., Any]:
+def numpy_function(symbols: Sequence[Basic], expression: Basic) -> Callable[..., Any]:
     """``expression`` as a NumPy function of float64 arrays for ``symbols``. ``abs min
     max`` and their ``sign`` are NumPy's ``abs minimum maximum sign``; a power other than
     an integer or half-integer one is NaN for a negative base, as GLSL's ``pow``."""
@@ -195,7 +199,10 @@ def numpy_function(symbols, expression) -> Callable[..., Any]:
 
 
 def first_beyond(
-    symbols, expressions, inputs, limit: float
+    symbols: Sequence[Basic],
+    expressions: Sequence[Basic],
+    inputs: Iterable[ArrayLike],
+    limit: float,
 ) -> tuple[Any, np.ndarray, np.ndarray] | None:
     """The first node of ``expressions``, in the shader's order of evaluation, whose
     float64 value at ``inputs`` (arrays for ``symbols``) is finite and beyond ``limit``
@@ -216,7 +223,7 @@ class _Program:
     order of :func:`postorder` (the GLSL statements' order), each from the slots of its
     operands (the ``symbols``' inputs, constants, earlier nodes)."""
 
-    def __init__(self, symbols, expressions) -> None:
+    def __init__(self, symbols: Sequence[Basic], expressions: Sequence[Basic]) -> None:
         self.slots: dict[Any, int] = {symbol: i for i, symbol in enumerate(symbols)}
         self.inputs = len(symbols)
         self.constants: list[float] = []
@@ -228,14 +235,14 @@ class _Program:
             self.steps.append((_numpy_operation(node), operands))
         self.results = [self.slot(e) for e in expressions]
 
-    def slot(self, node) -> int:
+    def slot(self, node: Basic) -> int:
         """The slot of ``node``; a number gets one of its own (negative), filled once."""
         if node not in self.slots:
             self.slots[node] = -1 - len(self.constants)
             self.constants.append(float(node))
         return self.slots[node]
 
-    def run(self, inputs) -> list[Any]:
+    def run(self, inputs: Iterable[ArrayLike]) -> list[Any]:
         """The inputs, then the value of every step."""
         values: list[Any] = [np.asarray(v, np.float64) for v in inputs]
         with np.errstate(all="ignore"):
@@ -253,7 +260,7 @@ class _Program:
         return values[self.inputs :]
 
 
-def _numpy_operation(node) -> Callable[..., Any]:
+def _numpy_operation(node: Basic) -> Callable[..., Any]:
     """The NumPy operation of one node."""
     if node.is_Add:
         return lambda *terms: _balanced(np.add, terms)
@@ -276,7 +283,7 @@ def _numpy_operation(node) -> Callable[..., Any]:
     return function
 
 
-def _balanced(operation, operands):
+def _balanced(operation: np.ufunc, operands: Sequence[Any]) -> Any:
     """``operands`` combined by ``operation`` in the order the GLSL is written
     (:func:`_joined`): left to right, long chains as a balanced tree of halves."""
     if len(operands) <= _BALANCE:
@@ -295,7 +302,7 @@ _NUMPY_FUNCTIONS: dict[str, Callable[..., Any]] = {
 }
 
 
-def _real_pow(base, exponent):
+def _real_pow(base: ArrayLike, exponent: ArrayLike) -> NDArray[Any]:
     """``base ** exponent`` as GLSL's ``pow``: undefined (NaN) for a negative base, even
     where the exponent happens to be a whole number."""
     result = np.power(base, exponent)

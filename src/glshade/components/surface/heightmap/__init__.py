@@ -28,12 +28,15 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Hashable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
-from glshade.components.base import SurfaceComponent
+from glshade.components.base import SceneView, SurfaceComponent, UniformContext
 from glshade.components.surface.freeform import (
     MARCH_GLSL,
     march_loop_iterations,
@@ -41,6 +44,10 @@ from glshade.components.surface.freeform import (
 )
 from glshade.errors import SceneError
 from glshade.params import Table, param
+
+if TYPE_CHECKING:  # the readers are loaded with the first map read
+    from glshade.components.surface.heightmap.accuracy import HeightMapKnob
+    from glshade.components.surface.heightmap.readers import HeightMap
 
 OUTSIDES = ("curtain", "flat")
 #: What becomes of unmeasured (NaN) samples: masked, or filled from the measured ones.
@@ -125,7 +132,7 @@ class Grid:
         ) * self.spacing[1]
 
 
-def check_heightmap(values: dict) -> None:
+def check_heightmap(values: dict[str, Any]) -> None:
     """A height-map surface names a readable map and, unless the file carries it, a spacing;
     ``scale`` is at least :data:`SCALE_RANGE_MM`'s low end in magnitude."""
     if values.get("kind") != "heightmap":
@@ -198,12 +205,25 @@ class HeightMapTable(Table):
     )  # fmt: skip
 
 
-def grid_of(scene) -> Grid:
-    s = scene.surface
-    return _grid(s.file, s.scale, s.spacing, s.origin, s.outside, s.fill)
+def heightmap_table(scene: SceneView) -> HeightMapTable:
+    """The scene's surface table, as the height map reads it."""
+    return cast(HeightMapTable, scene.surface)
 
 
-def _grid(file, scale, spacing, origin, outside, fill) -> Grid:
+def grid_of(scene: SceneView) -> Grid:
+    s = heightmap_table(scene)
+    file = cast(str, s.file)  # set: check_heightmap refuses a height map without one
+    return _grid(file, s.scale, s.spacing, s.origin, s.outside, s.fill)
+
+
+def _grid(
+    file: str,
+    scale: float,
+    spacing: tuple[float, float] | None,
+    origin: tuple[float, float] | None,
+    outside: str | None,
+    fill: str | None,
+) -> Grid:
     """The render-ready grid: the map's arrays (:func:`_surface_arrays`, cached per map and
     fill) placed by ``spacing`` and ``origin`` (cheap, built on every call)."""
     from glshade.components.surface.heightmap.readers import cached_height_map  # maps only
@@ -252,7 +272,7 @@ class _SurfaceArrays:
 
 
 @functools.lru_cache(maxsize=1)
-def _surface_arrays(height_map, fill: str) -> _SurfaceArrays:
+def _surface_arrays(height_map: HeightMap, fill: str) -> _SurfaceArrays:
     """The arrays of ``height_map`` filled as ``fill`` says (one map's kept: the memory
     budget is one map's; maps compare by identity). Every pass over the map works in row
     blocks: the only arrays of the map's size are the fill's, the hole cells, the texture
@@ -299,7 +319,7 @@ def check_harmonic_size(shape: tuple[int, int], unknowns: int, name: str) -> Non
         )
 
 
-def _row_blocks(rows: int, cols: int):
+def _row_blocks(rows: int, cols: int) -> Iterator[tuple[int, int]]:
     """(start, stop) of blocks of rows of about :data:`BLOCK_SAMPLES` samples."""
     step = max(1, BLOCK_SAMPLES // max(cols, 1))
     return ((start, min(start + step, rows)) for start in range(0, rows, step))
@@ -387,7 +407,7 @@ def hole_cells(unmeasured: np.ndarray) -> np.ndarray:
     return holes
 
 
-def map_bounds(heights: np.ndarray, spacing) -> tuple[float, float, float]:
+def map_bounds(heights: np.ndarray, spacing: tuple[float, float]) -> tuple[float, float, float]:
     """``(lo, hi, K)`` for the Catmull-Rom spline of ``heights``: it lies in [lo, hi] and
     ``|f''|`` along any horizontal unit direction is at most K (1/mm).
 
@@ -418,7 +438,9 @@ def difference_maxima(heights: np.ndarray) -> tuple[float, float, float, float, 
     return float(heights.min()), float(heights.max()), along_x, along_z, mixed
 
 
-def _bounds(differences, spacing) -> tuple[float, float, float]:
+def _bounds(
+    differences: tuple[float, float, float, float, float], spacing: tuple[float, float]
+) -> tuple[float, float, float]:
     """:func:`map_bounds` from :func:`difference_maxima` and the spacing (mm)."""
     lowest, highest, along_x, along_z, mixed = differences
     dx, dz = spacing
@@ -441,22 +463,22 @@ class HeightMapSurface(SurfaceComponent):
     doc = "a measured or sampled height map, bicubic (Catmull-Rom) between the samples"
     table = HeightMapTable
 
-    def features(self, scene):
-        features: dict = {"heightmap_outside": scene.surface.outside}
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
+        features: dict[str, Hashable] = {"heightmap_outside": heightmap_table(scene).outside}
         if grid_of(scene).holes.any():
             features["surface_holes"] = True  # the template asks base_measured(p)
         return features
 
-    def glsl(self, variables):
+    def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
         return (*MARCH_GLSL, "heightmap.glsl")
 
-    def textures(self, scene):
+    def textures(self, scene: SceneView) -> dict[str, np.ndarray]:
         return {"t_surface_heights": grid_of(scene).texture}
 
-    def loop_iterations(self, scene, solver):
+    def loop_iterations(self, scene: SceneView, solver: Any) -> int:
         return march_loop_iterations(scene, solver)
 
-    def uniforms(self, scene, context):
+    def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
         grid = grid_of(scene)
         rows, cols = grid.shape
         corner = (
@@ -475,32 +497,33 @@ class HeightMapSurface(SurfaceComponent):
             **march_uniforms(scene, context),
         }
 
-    def accuracy_knob(self):
+    def accuracy_knob(self) -> HeightMapKnob:
         # imported here: the knob is only run by `glshade accuracy`
         from glshade.components.surface.heightmap.accuracy import HeightMapKnob
 
         return HeightMapKnob()
 
-    def second_derivatives(self, scene):
+    def second_derivatives(self, scene: SceneView) -> tuple[float, float]:
         grid = grid_of(scene)
         h = 0.25 * min(grid.spacing)
         x = np.array([-h, 0.0, h])
         along_x = self.height(scene, x, np.zeros(3))
         along_z = self.height(scene, np.zeros(3), x)
         second = [(v[0] - 2 * v[1] + v[2]) / h**2 for v in (along_z, along_x)]
-        return tuple(0.0 if not math.isfinite(v) else float(v) for v in second)
+        along_zz, along_xx = (0.0 if not math.isfinite(v) else float(v) for v in second)
+        return along_zz, along_xx
 
-    def describe(self, scene):
+    def describe(self, scene: SceneView) -> str:
         grid = grid_of(scene)
         rows, cols = grid.shape
         return f"height map {grid.name} ({cols}x{rows}, {grid.spacing[0]:g} mm)"
 
-    def nan_fraction(self, scene) -> float:
+    def nan_fraction(self, scene: SceneView) -> float:
         """The share of the map's samples that the file leaves unmeasured (NaN), in [0, 1],
         whatever ``fill`` makes of them."""
         return grid_of(scene).nan_fraction
 
-    def coverage(self, scene) -> MapCoverage:
+    def coverage(self, scene: SceneView) -> MapCoverage:
         """How this map covers the scene's dent: a :class:`MapCoverage`.
 
         The dent's region is the ellipse within :data:`DENT_REACH_SIGMA` (3) standard
@@ -541,9 +564,11 @@ class HeightMapSurface(SurfaceComponent):
         return MapCoverage(grid.nan_fraction, near, at_edge)
 
     # ------------------------------------------------------------------ oracle
-    def domain(self, scene, o, d):
+    def domain(
+        self, scene: SceneView, o: np.ndarray, d: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         n = len(d)
-        if scene.surface.outside == "flat":
+        if heightmap_table(scene).outside == "flat":
             return np.full(n, -np.inf), np.full(n, np.inf)
         grid = grid_of(scene)
         t_in, t_out = np.full(n, -np.inf), np.full(n, np.inf)
@@ -561,19 +586,22 @@ class HeightMapSurface(SurfaceComponent):
         empty = ~(t_out >= t_in)
         return np.where(empty, np.nan, t_in), np.where(empty, np.nan, t_out)
 
-    def band_roots(self, scene, o, d, shift):
+    def band_roots(
+        self, scene: SceneView, o: np.ndarray, d: np.ndarray, shift: float
+    ) -> list[np.ndarray]:
         grid = grid_of(scene)
-        levels = (grid.hi, grid.lo, 0.0) if scene.surface.outside == "flat" else (grid.hi, grid.lo)
+        flat = heightmap_table(scene).outside == "flat"
+        levels = (grid.hi, grid.lo, 0.0) if flat else (grid.hi, grid.lo)
         with np.errstate(divide="ignore", invalid="ignore"):
             return [
                 np.where(d[:, 1] != 0, (level + shift - o[:, 1]) / d[:, 1], np.nan)
                 for level in levels
             ]
 
-    def height(self, scene, x, z):
+    def height(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
         return self._evaluate(scene, x, z)[0]
 
-    def measured(self, scene, x, z):
+    def measured(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
         """False in the holes: cells whose spline reads an unmeasured sample (``fill =
         "none"``); a hit there is a miss. The cell of (x, z) is found as the spline finds
         it (clamped to the map); beyond a ``flat`` map's edge the plane is measured."""
@@ -589,27 +617,31 @@ class HeightMapSurface(SurfaceComponent):
         i = np.clip(np.floor(u), 0, cols - 2).astype(np.int64)
         j = np.clip(np.floor(v), 0, rows - 2).astype(np.int64)
         measured = ~grid.holes[j, i] | ~finite
-        if scene.surface.outside == "flat":
+        if heightmap_table(scene).outside == "flat":
             measured |= ~self._inside(grid, x, z)
         return measured
 
-    def outside(self, scene, x, z):
-        if scene.surface.outside == "flat":
+    def outside(self, scene: SceneView, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        if heightmap_table(scene).outside == "flat":
             return np.zeros(np.broadcast(x, z).shape, dtype=bool)
         return ~self._inside(
             grid_of(scene), *np.broadcast_arrays(np.asarray(x, float), np.asarray(z, float))
         )
 
-    def normal(self, scene, x, z, dx, dz):
+    def normal(
+        self, scene: SceneView, x: np.ndarray, z: np.ndarray, dx: np.ndarray, dz: np.ndarray
+    ) -> np.ndarray:
         _, fx, fz = self._evaluate(scene, x, z)
         return np.stack([-(fx + dx), np.ones_like(fx), -(fz + dz)], axis=-1)
 
     @staticmethod
-    def _inside(grid: Grid, x, z):
+    def _inside(grid: Grid, x: np.ndarray, z: np.ndarray) -> NDArray[np.bool_]:
         (x0, z0), (x1, z1) = grid.corner, grid.far_corner
         return (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
 
-    def _evaluate(self, scene, x, z):
+    def _evaluate(
+        self, scene: SceneView, x: np.ndarray, z: np.ndarray
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """``(f, f_x, f_z)`` of the spline at (x, z) (mm, any shape): clipped to the map's
         edge for a curtain (the tracer stays in the domain), 0 beyond it for a flat."""
         grid = grid_of(scene)
@@ -620,13 +652,19 @@ class HeightMapSurface(SurfaceComponent):
             (z - grid.corner[1]) / grid.spacing[1],
         )
         fx, fz = fx / grid.spacing[0], fz / grid.spacing[1]
-        if scene.surface.outside == "flat":
+        if heightmap_table(scene).outside == "flat":
             inside = self._inside(grid, x, z)
             f, fx, fz = (np.where(inside, v, 0.0) for v in (f, fx, fz))
         return f, fx, fz
 
 
-def _cells_meet_ellipse(grid: Grid, cells: np.ndarray, centre, inverse, reach: float) -> bool:
+def _cells_meet_ellipse(
+    grid: Grid,
+    cells: np.ndarray,
+    centre: NDArray[np.float64],
+    inverse: NDArray[np.float64],
+    reach: float,
+) -> bool:
     """Whether any of the cells ``[j, i]`` (rectangles between samples) meets the ellipse
     ``(p - centre)^T inverse (p - centre) <= reach``: the centre lies in a cell, or the
     quadratic's minimum along one of a cell's four edges is within reach."""
@@ -680,7 +718,9 @@ def _weights(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return w, dw
 
 
-def catmull_rom(heights: np.ndarray, u: np.ndarray, v: np.ndarray):
+def catmull_rom(
+    heights: np.ndarray, u: np.ndarray, v: np.ndarray
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """The spline and its grid-unit gradient at grid coordinates (u = column, v = row),
     clamped to the map (edge samples repeated for the outer taps)."""
     rows, cols = heights.shape

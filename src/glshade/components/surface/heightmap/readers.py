@@ -53,15 +53,24 @@ import stat
 import struct
 import tokenize
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import BinaryIO
+from types import ModuleType
+from typing import TYPE_CHECKING, BinaryIO, cast
 
 import numpy as np
 
 from glshade.components.surface.heightmap import HEIGHT_LIMIT_MM, SPACING_RANGE_MM
 from glshade.errors import SceneError
 from glshade.logs import silenced
+
+if TYPE_CHECKING:  # the formats' libraries are loaded by the first map of each
+    from io import BufferedIOBase
+    from zipfile import ZipInfo
+
+    from tifffile import TiffPage
+    from x3pio import FileInfo
 
 FIELD = "surface.file"
 SUFFIXES = (".npy", ".x3p", ".tif", ".tiff", ".png")
@@ -104,6 +113,10 @@ _DAMAGED = (
 )
 #: How much of a compressed segment is read and inflated at a time (bytes).
 _PIECE = 1 << 20
+
+#: What a format's reader gives: the samples as stored and the spacing the file carries
+#: (mm, along x and along z), if any.
+_Read = tuple[np.ndarray, tuple[float, float] | None]
 
 
 @dataclass(frozen=True, eq=False)
@@ -341,7 +354,7 @@ def _scaled(heights: np.ndarray, scale: float, name: str, has_units: bool) -> np
 
 
 # ------------------------------------------------------------------ .npy
-def _npy(stream: BinaryIO, name: str, size: int):
+def _npy(stream: BinaryIO, name: str, size: int) -> _Read:
     fmt = np.lib.format
     version = fmt.read_magic(stream)  # the header first: refuse before loading anything
     read_header = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
@@ -361,7 +374,7 @@ def _npy(stream: BinaryIO, name: str, size: int):
 
 
 # ------------------------------------------------------------------ .x3p
-def _x3p(stream: BinaryIO, name: str, size: int):
+def _x3p(stream: BinaryIO, name: str, size: int) -> _Read:
     import zipfile
 
     import x3pio
@@ -400,7 +413,7 @@ def _x3p(stream: BinaryIO, name: str, size: int):
     return np.multiply(z, 1e3, dtype=np.float64), spacing
 
 
-def _check_zip_member(member, name: str) -> None:
+def _check_zip_member(member: ZipInfo, name: str) -> None:
     """A member's declared sizes must be ones its compression can give: stored, the same;
     deflated, at most :data:`DEFLATE_MAX_RATIO` times the compressed size and no more
     compressed bytes than a deflate stream of that size needs."""
@@ -429,7 +442,7 @@ def _check_zip_member(member, name: str) -> None:
         )
 
 
-def _check_x3p_description(description, name: str, x3pio) -> None:
+def _check_x3p_description(description: FileInfo, name: str, x3pio: ModuleType) -> None:
     if description.feature_type is not x3pio.FeatureType.SURFACE:
         kind = description.feature_type.name.lower().replace("_", "")
         raise SceneError(FIELD, f"an x3p surface on a regular grid ({name} holds a {kind})")
@@ -460,7 +473,7 @@ def _check_x3p_description(description, name: str, x3pio) -> None:
 _TIFF_DEFLATE = (8, 32946)
 
 
-def _tiff(stream: BinaryIO, name: str, size: int):
+def _tiff(stream: BinaryIO, name: str, size: int) -> _Read:
     import tifffile
 
     with silenced("tifffile"), tifffile.TiffFile(stream) as tif:  # the first page's tags first
@@ -488,7 +501,7 @@ def _tiff(stream: BinaryIO, name: str, size: int):
         return page.asarray(maxworkers=1), None
 
 
-def _tiff_segment_sizes(page, itemsize: int) -> list[tuple[int, int]]:
+def _tiff_segment_sizes(page: TiffPage, itemsize: int) -> list[tuple[int, int]]:
     """Each segment's (least, most) decoded bytes: a tile is always whole; a strip holds
     its rows, the last one its rows or a whole strip's."""
     width, length = page.imagewidth, page.imagelength
@@ -503,7 +516,9 @@ def _tiff_segment_sizes(page, itemsize: int) -> list[tuple[int, int]]:
     return sizes
 
 
-def _check_tiff_segments(page, stream: BinaryIO, name: str, size: int, itemsize: int) -> None:
+def _check_tiff_segments(
+    page: TiffPage, stream: BinaryIO, name: str, size: int, itemsize: int
+) -> None:
     """Every strip or tile lies in the file and decodes to the bytes its place in the
     image takes (deflate: inflated through a bounded stream and counted, never kept)."""
     compression = int(page.compression)
@@ -597,7 +612,7 @@ _ADAM7 = (
 )
 
 
-def _png(stream: BinaryIO, name: str, size: int):
+def _png(stream: BinaryIO, name: str, size: int) -> _Read:
     """The IHDR first (refuse before decoding); then the image data checked through a
     bounded stream, and OpenCV handed a PNG of IHDR, IDAT and IEND only, every CRC and
     filter byte checked: libpng has nothing left to warn about on stderr."""
@@ -644,7 +659,9 @@ def _png_rows(width: int, height: int, interlace: int) -> list[tuple[int, int, i
     return rows
 
 
-def _png_image_chunks(stream: BinaryIO, name: str, rows) -> list[tuple[int, int]]:
+def _png_image_chunks(
+    stream: BinaryIO, name: str, rows: Sequence[tuple[int, int, int]]
+) -> list[tuple[int, int]]:
     """(offset, length) of every IDAT chunk's data, checked: each CRC, and the data
     inflated through a bounded stream (at most the declared bytes and one more,
     :data:`_PIECE` at a time, never kept) to exactly the declared rows with valid filter
@@ -677,7 +694,15 @@ def _png_image_chunks(stream: BinaryIO, name: str, rows) -> list[tuple[int, int]
     return chunks
 
 
-def _inflate_png_chunk(stream, name, length, inflater, produced, expected, rows) -> int:
+def _inflate_png_chunk(
+    stream: BinaryIO,
+    name: str,
+    length: int,
+    inflater: zlib._Decompress,
+    produced: int,
+    expected: int,
+    rows: Sequence[tuple[int, int, int]],
+) -> int:
     """Inflate one IDAT chunk's data on from ``produced`` bytes, checking its CRC and the
     filter bytes of the rows it holds; the bytes produced so far."""
     crc = zlib.crc32(b"IDAT")
@@ -702,7 +727,7 @@ def _inflate_png_chunk(stream, name, length, inflater, produced, expected, rows)
     return produced
 
 
-def _filters_valid(piece: bytes, start: int, rows) -> bool:
+def _filters_valid(piece: bytes, start: int, rows: Sequence[tuple[int, int, int]]) -> bool:
     """Whether every row that starts within ``piece`` (bytes ``start`` on of the inflated
     data) starts with a filter type of 0 to 4."""
     data = np.frombuffer(piece, np.uint8)
@@ -715,7 +740,7 @@ def _filters_valid(piece: bytes, start: int, rows) -> bool:
     return True
 
 
-def _minimal_png(stream, head: bytes, chunks: list[tuple[int, int]]) -> np.ndarray:
+def _minimal_png(stream: BinaryIO, head: bytes, chunks: list[tuple[int, int]]) -> np.ndarray:
     """A PNG of the signature, the IHDR, the IDAT chunks in ``chunks`` (read again into
     one buffer, CRCs as checked) and IEND, as OpenCV's decoder takes it."""
     total = len(head) + sum(12 + length for _, length in chunks) + 12
@@ -724,7 +749,8 @@ def _minimal_png(stream, head: bytes, chunks: list[tuple[int, int]]) -> np.ndarr
     at = len(head)
     for offset, length in chunks:
         stream.seek(offset - 8)
-        stream.readinto(memoryview(buffer)[at : at + 12 + length])
+        # the file _open_regular opened: a buffered reader, which reads into a buffer
+        cast("BufferedIOBase", stream).readinto(memoryview(buffer)[at : at + 12 + length])
         at += 12 + length
     buffer[at:] = struct.pack(">I4sI", 0, b"IEND", zlib.crc32(b"IEND"))
     return np.frombuffer(buffer, np.uint8)
