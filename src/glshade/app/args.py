@@ -271,19 +271,28 @@ def settings_dest(declared: Param) -> str:
     return f"measure_{declared.key}"
 
 
-def add_settings_flags(p: argparse.ArgumentParser, method: str | None = None) -> None:
+def add_settings_flags(
+    p: argparse.ArgumentParser | argparse._ArgumentGroup,
+    method: str | None = None,
+    defaults: dict[str, Any] | None = None,
+) -> None:
     """The short flags the registered instruments' settings declare (only ``method``'s
-    when given); an unset flag takes its declared default."""
+    when given); an unset flag takes its declared default, or the command's own
+    (``defaults`` by key, said in the help instead)."""
+    from dataclasses import replace
+
     for item, declared in _settings_params(method):
         if declared.flag is None:
             continue
         unit = f" {declared.unit}" if declared.unit else ""
+        default = (defaults or {}).get(declared.key, declared.default)
+        shown = replace(declared, default=default).default_text()
         p.add_argument(
             declared.flag,
             dest=settings_dest(declared),
             metavar=declared.key.upper() if declared.value_type != "choice" else None,
             choices=declared.choices or None,
-            help=f"{declared.doc} ({item.name}; default {declared.default_text()}{unit})",
+            help=f"{declared.doc} ({item.name}; default {shown}{unit})",
         )
 
 

@@ -52,6 +52,15 @@ class StudyKind(ABC):
         """This study's own flags the command line set (refused by the other studies)."""
         return []
 
+    def plan_settings(self, args: argparse.Namespace) -> Any:
+        """The stripe metric's settings the plan's cases carry
+        (:attr:`~glshade.study.plan.StudyPlan.metric`): its defaults unless the study
+        is the stripe metric's own."""
+        from glshade.instruments.registry import instrument
+        from glshade.study.plan import PLAN_METHOD
+
+        return instrument(PLAN_METHOD).settings_type()
+
     @abstractmethod
     def prepared(self, args: argparse.Namespace, plan: StudyPlan, workers: str) -> Any:
         """Everything checked before ``--out`` is touched (bad input is one line): what

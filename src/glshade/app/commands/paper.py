@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from glshade.app.args import add_run_flags, instrument_settings, path_arg, quantity_list
+from glshade.app.args import add_run_flags, path_arg, quantity_list
 from glshade.app.studies import refuse_other_flags, study_kind, study_kinds
 from glshade.errors import GlshadeError
 
@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
     check_workers(args.threads)  # before --out is touched
     kind = study_kind(args.method)
     refuse_other_flags(args, kind)
-    metric = instrument_settings(args, study.PLAN_METHOD)
+    metric = kind.plan_settings(args)
     surfaces = tuple(part.strip() for part in args.surfaces.split(",") if part.strip())
     plan = study.StudyPlan(
         surfaces=surfaces,

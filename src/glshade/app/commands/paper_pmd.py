@@ -12,13 +12,20 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from glshade.app.args import param_type, warn
+from glshade.app.args import (
+    add_settings_flags,
+    instrument_settings,
+    param_type,
+    settings_flags_given,
+    warn,
+)
 from glshade.app.studies import StudyKind
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError
 from glshade.files import read_regular
 from glshade.oracle.advice import scene_warnings
 from glshade.process import reuse_freed_memory
+from glshade.study.pmd_plan import MODULATION_SHARE
 
 if TYPE_CHECKING:
     from glshade.study.plan import StudyPlan
@@ -46,12 +53,14 @@ CHAIN_FIELDS = {
 }
 
 
-#: The PMD-only flags that are not the chain's: flag -> destination.
-OTHER_FLAGS = {
-    "--periods": "periods",
-    "--modulation-share": "modulation_share",
-    "--heights": "heights",
-}
+#: The PMD-only flags that are neither the chain's nor the instrument's settings: flag ->
+#: destination.
+OTHER_FLAGS = {"--periods": "periods"}
+
+
+#: The study's own defaults of the instrument's settings (a stricter validity threshold
+#: than a single measurement's: the study's report compares cases at their edges).
+STUDY_SETTINGS = {"modulation_share": MODULATION_SHARE}
 
 
 def _dest(flag: str) -> str:
@@ -112,26 +121,15 @@ def add_pmd_paper_flags(p: argparse.ArgumentParser) -> None:
         "the finest is the shortest whole mm, at least 2, that spans 3 pixels at every theta "
         "(at 1024 px: 2 mm, 10 mm on the sphere), each period 8 times the one before",
     )
-    group.add_argument(
-        "--modulation-share",
-        dest=_dest("--modulation-share"),
-        type=float,
-        metavar="X",
-        help="a pixel is valid where every period's modulation is at least X times the "
-        "amplitude times the brightest pixel's response (default 0.3 in the study)",
-    )
-    group.add_argument(
-        "--heights",
-        dest=_dest("--heights"),
-        choices=("least-squares", "frankot-chellappa"),
-        help="how slopes are integrated into heights (default least-squares)",
-    )
+    add_settings_flags(group, PmdStudy.name, STUDY_SETTINGS)
 
 
 def pmd_flags_given(args: argparse.Namespace) -> list[str]:
-    """The station's flags the command line set."""
+    """The station's flags the command line set (its chain's, ``--periods`` and the
+    instrument's settings')."""
     flags = [*CHAIN_FLAGS, *OTHER_FLAGS]
-    return [flag for flag in flags if getattr(args, _dest(flag), None) is not None]
+    given = [flag for flag in flags if getattr(args, _dest(flag), None) is not None]
+    return given + settings_flags_given(args, PmdStudy.name)
 
 
 def _parse_periods(given: list[str] | None) -> tuple[tuple, tuple]:
@@ -154,8 +152,8 @@ def _parse_periods(given: list[str] | None) -> tuple[tuple, tuple]:
 
 def pmd_plan(args: argparse.Namespace, cases_plan):
     """The :class:`~glshade.study.pmd_plan.PmdStudyPlan` of the command line."""
-    from glshade.instruments.pmd.settings import PmdSettings
-    from glshade.study.pmd_plan import MODULATION_SHARE, PmdChain, PmdStudyPlan
+    from glshade.instruments.table import MeasureTable
+    from glshade.study.pmd_plan import PmdChain, PmdStudyPlan
 
     chain_values = {
         CHAIN_FIELDS[flag]: getattr(args, _dest(flag))
@@ -169,15 +167,8 @@ def pmd_plan(args: argparse.Namespace, cases_plan):
             f"--periods {unknown[0]}=...: not a surface of this study (its surfaces: "
             f"{', '.join(_label(s) for s in cases_plan.surfaces)})"
         )
-    share = getattr(args, _dest("--modulation-share"))
-    settings = {
-        "modulation_share": MODULATION_SHARE if share is None else share,
-        "heights": getattr(args, _dest("--heights")),
-    }
-    try:
-        settings_obj = PmdSettings(**{k: v for k, v in settings.items() if v is not None})
-    except GlshadeError as exc:
-        raise GlshadeError(f"--{str(exc).replace('_', '-')}") from None
+    study = MeasureTable(PmdStudy.name, True, dict(STUDY_SETTINGS))
+    settings_obj = instrument_settings(args, PmdStudy.name, "--method pmd", study)
     chain = PmdChain(**chain_values, periods=every, surface_periods=named)
     try:
         return PmdStudyPlan(cases_plan, chain, settings_obj)

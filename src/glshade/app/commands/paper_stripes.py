@@ -8,7 +8,13 @@ import functools
 import time
 from typing import Any
 
-from glshade.app.args import add_settings_flags, check_memory, settings_flags_given, warn
+from glshade.app.args import (
+    add_settings_flags,
+    check_memory,
+    instrument_settings,
+    settings_flags_given,
+    warn,
+)
 from glshade.app.studies import StudyKind
 from glshade.oracle.advice import scene_warnings
 from glshade.process import reuse_freed_memory
@@ -27,6 +33,9 @@ class StripeStudy(StudyKind):
 
     def flags_given(self, args: argparse.Namespace) -> list[str]:
         return settings_flags_given(args, self.name)
+
+    def plan_settings(self, args: argparse.Namespace) -> Any:
+        return instrument_settings(args, self.name)
 
     def prepared(self, args: argparse.Namespace, plan: StudyPlan, workers: str) -> None:
         """The memory budget of each surface's first case, and the scenes' warnings."""
