@@ -10,11 +10,11 @@ import venv
 from pathlib import Path
 
 
-def venv_with(package: Path, root: Path) -> Path:
+def venv_with(package: Path | tuple[Path, ...], root: Path) -> Path:
     """The python of a virtual environment made in ``root`` that sees this environment's
     packages (glshade, editable or not) and has ``package`` (a folder with a
-    pyproject.toml) installed by pip, built from a copy (setuptools leaves build/ and
-    *.egg-info beside the sources)."""
+    pyproject.toml, or several) installed by pip, each built from a copy (setuptools
+    leaves build/ and *.egg-info beside the sources)."""
     venv.EnvBuilder(with_pip=False).create(root)
     python = root / "bin" / "python"
     inner = subprocess.run(
@@ -24,11 +24,10 @@ def venv_with(package: Path, root: Path) -> Path:
     outer = [*site.getsitepackages(), site.getusersitepackages()]
     lines = [f"import site; site.addsitedir({path!r})" for path in outer if Path(path).is_dir()]
     (Path(inner) / "outer_environment.pth").write_text("\n".join(lines) + "\n")
-    source = shutil.copytree(package, root / "source")
+    packages = package if isinstance(package, tuple) else (package,)
+    sources = [str(shutil.copytree(each, root / "source" / each.name)) for each in packages]
     install = [python, "-m", "pip", "install", "--no-deps", "--no-build-isolation", "--no-index"]
-    done = subprocess.run(
-        [*install, "--quiet", str(source)], capture_output=True, text=True, cwd=root
-    )
+    done = subprocess.run([*install, "--quiet", *sources], capture_output=True, text=True, cwd=root)
     assert done.returncode == 0, done.stderr[-3000:]
     return python
 

@@ -3,8 +3,11 @@
 ``glshade.instruments`` entry point) is installed into a virtual environment that sees
 this one's packages, and is then used through every front end as glshade's own
 instruments are: ``measure --method``, a sweep (in one process and on a 2-worker Dask
-cluster: the same table), the optimiser's ``--metric`` and the snapshot plugin. The outer
-test process never installs it: it knows two instruments.
+cluster: the same table), the optimiser's ``--metric`` and the snapshot plugin. Beside
+it, ``tests/plugins/glshade_checkerboard``: an emitter whose pattern varies along both
+screen coordinates, one package too, rendered by the GL shader and the float64 oracle
+alike and measured by the instrument it names. The outer test process never installs
+them: it knows two instruments and glshade's own emitters.
 """
 
 from __future__ import annotations
@@ -18,13 +21,38 @@ from tests.plugin_venv import glshade_in, swept_here_and_on_dask, venv_with
 
 from glshade.instruments.registry import method_names
 
-PACKAGE = Path(__file__).parent / "plugins" / "glshade_brightness"
+PLUGINS = Path(__file__).parent / "plugins"
+PACKAGES = (PLUGINS / "glshade_brightness", PLUGINS / "glshade_checkerboard")
+
+#: The checkerboard rendered by the GL shader and by the float64 oracle, in the plug-ins'
+#: environment: the share of pixels they tell apart, the bright share, and the flips
+#: between neighbouring pixels along the image's rows and columns.
+BOARD = """
+import json
+import numpy as np
+from glshade.gpu.renderer import Renderer
+from glshade.oracle.renderer import OracleRenderer
+from glshade.scene import Scene
+scene = Scene().updated(emitter={"kind": "checkerboard", "cell": 20.0}, defect={"dmax": 0.0})
+scene = scene.with_size(64)
+with Renderer() as gl:
+    shaded = gl.render(scene).image.astype(np.float64)
+traced = OracleRenderer().render(scene).image
+seen = np.isfinite(shaded) & np.isfinite(traced)
+bright = traced > 0.5
+print(json.dumps({
+    "differ": float((np.abs(shaded - traced)[seen] > 0.5).mean()),
+    "bright": float(bright[seen].mean()),
+    "down": int(np.diff(bright, axis=0).sum()),
+    "across": int(np.diff(bright, axis=1).sum()),
+}))
+"""
 
 
 @pytest.fixture(scope="module")
 def plugin_python(tmp_path_factory) -> Path:
-    """The python of a fresh virtual environment with the plug-in package installed."""
-    return venv_with(PACKAGE, tmp_path_factory.mktemp("instrument-venv"))
+    """The python of a fresh virtual environment with the plug-in packages installed."""
+    return venv_with(PACKAGES, tmp_path_factory.mktemp("instrument-venv"))
 
 
 def test_measure_names_and_measures_the_third_instrument(plugin_python):
@@ -94,3 +122,21 @@ def test_the_snapshot_plugin_compares_its_numbers(plugin_python, tmp_path):
 
 def test_the_outer_process_knows_two_instruments():
     assert method_names() == ("paper", "pmd")
+
+
+def test_a_two_dimensional_emitter_is_one_package(plugin_python):
+    """The checkerboard fills the emitter slot from its own package: the shader and the
+    oracle agree on every pixel, its cells alternate down and across the image, and it is
+    measured by the instrument it names (the brightness change at a cell's edge)."""
+    board = subprocess.run(
+        [plugin_python, "-c", BOARD], capture_output=True, text=True, timeout=300
+    )
+    assert board.returncode == 0, board.stderr[-3000:]
+    found = json.loads(board.stdout)
+    assert found["differ"] == 0.0 and 0.3 < found["bright"] < 0.7
+    assert found["down"] > 0 and found["across"] > 0
+    done = glshade_in(plugin_python, "measure", "--set", "emitter.kind=checkerboard",
+                      "--set", "emitter.cell=3", "--size", "128", "--json")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    numbers = json.loads(done.stdout)
+    assert numbers["status"] == "ok" and numbers["changed_pixels"] > 0

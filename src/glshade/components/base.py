@@ -401,6 +401,12 @@ class EmitterComponent(Component):
     #: What one period of its pattern is called, in words ("stripe", "fringe").
     pattern_noun: ClassVar[str] = "stripe"
 
+    def features(self, scene: SceneView) -> dict[str, Hashable]:
+        """``cover_glass``: whether ``lib/emitter_plane.glsl`` refracts through a cover
+        glass (:meth:`cover_glass`; none by default), the one template variable the
+        shared plane needs."""
+        return {"cover_glass": self.cover_glass(scene) is not None}
+
     def coordinates(
         self, scene: SceneView, points: np.ndarray, directions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -27,9 +27,6 @@ class Stripes(EmitterComponent):
     doc = "a plane of Gaussian stripes facing the origin, opposite the camera"
     table = Emitter
 
-    def features(self, scene: SceneView) -> dict[str, Hashable]:
-        return {"cover_glass": False}
-
     def glsl(self, variables: Mapping[str, Hashable]) -> tuple[str, ...]:
         if "frames" in cast("tuple[str, ...]", variables["outputs"]):
             raise GlshadeError(no_sequence(self.name))
