@@ -61,6 +61,12 @@ class StudyKind(ABC):
 
         return instrument(PLAN_METHOD).settings_type()
 
+    def sweep_file(self, plan: StudyPlan, prepared: Any) -> dict[str, Any]:
+        """The study's cases as a sweep file (docs/sweeps.md): its grid, size and
+        ``[measure]`` table, so ``glshade sweep`` measures the same scenes with the same
+        settings (``glshade paper --as-sweep FILE``)."""
+        raise GlshadeError(f"--as-sweep: the {self.name} study has no sweep form")
+
     @abstractmethod
     def prepared(self, args: argparse.Namespace, plan: StudyPlan, workers: str) -> Any:
         """Everything checked before ``--out`` is touched (bad input is one line): what
@@ -110,6 +116,15 @@ def refuse_other_flags(args: argparse.Namespace, chosen: StudyKind) -> None:
                 f"{flag}: belongs to {instrument(other.name).title} (--method {other.name}), "
                 f"not to --method {chosen.name}"
             )
+
+
+def measure_table_of(method: str, settings: Any) -> dict[str, Any]:
+    """A sweep file's ``[measure]`` table of instrument ``method``'s ``settings``: the
+    method and every setting that is set (an unset one keeps its documented fallback)."""
+    from dataclasses import asdict
+
+    values = {key: value for key, value in asdict(settings).items() if value is not None}
+    return {"method": method, **values}
 
 
 def _plugin_points() -> list[tuple[str, str]]:

@@ -9,6 +9,7 @@ import math
 from dataclasses import asdict, dataclass, field
 from itertools import pairwise
 from pathlib import Path
+from typing import Any
 
 from glshade.components.camera.perspective.table import MIN_THETA_DEG
 from glshade.errors import GlshadeError
@@ -194,6 +195,36 @@ class StudyPlan:
             for v in self.sigma2s
             for d in self.dmaxs
         ]
+
+    def sweep_grid(self) -> dict[str, Any]:
+        """The plan as a sweep file's ``[grid]`` (docs/sweeps.md) over the paper's scene:
+        a linked ``surface`` axis (each surface with the paper's stripe period for it),
+        then θ, σ² and dmax, in the study's order, so the sweep's cases are the plan's.
+        A scene file's surface has no such entry (its case is its file's scene): refused
+        in one line."""
+        from glshade.scene.paper import PAPER_PERIOD_MM
+
+        files = [s for s in self.surfaces if is_scene_file(s)]
+        if files:
+            raise GlshadeError(
+                f"--as-sweep: {files[0]}: a scene file's cases are its own scene's (sweep "
+                "them with base = that file); only the paper's surfaces have a sweep form"
+            )
+        default_period = paper_scene().emitter.period
+        surfaces = [
+            {
+                "label": s,
+                "surface.kind": s,
+                "emitter.period": PAPER_PERIOD_MM.get(s, default_period),
+            }
+            for s in self.surfaces
+        ]
+        return {
+            "surface": surfaces,
+            "camera.theta_deg": list(self.thetas),
+            "defect.sigma2": list(self.sigma2s),
+            "defect.dmax": list(self.dmaxs),
+        }
 
     def to_dict(self) -> dict:
         data = asdict(self)

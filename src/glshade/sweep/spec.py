@@ -285,6 +285,42 @@ def case_id(scene: Scene, settings: Settings) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+# --------------------------------------------------------------------------- writing
+def sweep_toml(data: dict[str, Any]) -> str:
+    """A sweep file's text of ``data`` (top-level keys, ``[grid]``, ``[measure]``), each
+    axis on one line in the order given (a linked axis as a list of inline tables: the
+    order of the axes is the order of the cases, which a TOML writer's tables-last layout
+    would change)."""
+    lines = [
+        f"{_toml_key(k)} = {_toml_value(v)}" for k, v in data.items() if not isinstance(v, dict)
+    ]
+    for table, values in data.items():
+        if isinstance(values, dict):
+            lines += ["", f"[{table}]"]
+            lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in values.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _toml_key(key: str) -> str:
+    return key if key.replace("_", "").isalnum() else json.dumps(key)
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(float(value)) if isinstance(value, float) else str(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, dict):
+        return (
+            "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + " }"
+        )
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"a sweep file holds numbers, text, lists and tables, not {value!r}")
+
+
 # --------------------------------------------------------------------------- reading
 def load_spec(path: str | Path, size: int | None = None, *, yes: bool = True) -> SweepSpec:
     """Read and validate a sweep file; ``size`` overrides its ``size``; ``yes`` False

@@ -30,9 +30,31 @@ def add(sub: argparse._SubParsersAction) -> None:
         description=_PAPER_DESCRIPTION,
     )
     _add_output_flags(p)
+    p.add_argument(
+        "--as-sweep",
+        type=path_arg,
+        metavar="FILE",
+        help="write the study's cases as a sweep file (FILE.toml: its grid, size and "
+        "[measure] table) instead of running it: glshade sweep measures the same scenes "
+        "with the same settings, with any --method",
+    )
     _add_plan_flags(p)
     _add_run_flags(p)
     _add_method_flags(p)
+
+
+def _write_sweep(path: Path, data: dict, plan) -> int:
+    """The study's cases written as the sweep file ``path`` (nothing measured)."""
+    from glshade.files import atomic_write_bytes, check_output
+    from glshade.sweep.spec import sweep_toml
+
+    check_output(path, "--as-sweep", (".toml",))
+    atomic_write_bytes(path, sweep_toml(data).encode(), "--as-sweep")
+    print(
+        f"wrote {path}: the study's {len(plan.cases())} cases as a sweep (glshade sweep "
+        f"{path} measures them, in this process or on a Dask cluster)"
+    )
+    return 0
 
 
 def _add_method_flags(p: argparse.ArgumentParser) -> None:
@@ -148,6 +170,8 @@ def run(args: argparse.Namespace) -> int:
     study.check_size(plan, args.yes)  # before --out is touched, in both methods
     typed_workers, args.workers = args.workers, paper_workers(args.workers, plan, args.device)
     prepared = kind.prepared(args, plan, typed_workers)  # bad input refused before --out
+    if args.as_sweep is not None:
+        return _write_sweep(args.as_sweep, kind.sweep_file(plan, prepared), plan)
     with run_lock(args.out):
         return kind.run(args, plan, prepared)
 

@@ -19,7 +19,7 @@ from glshade.app.args import (
     settings_flags_given,
     warn,
 )
-from glshade.app.studies import StudyKind
+from glshade.app.studies import StudyKind, measure_table_of
 from glshade.components.registry import registry
 from glshade.errors import GlshadeError
 from glshade.files import read_regular
@@ -92,6 +92,26 @@ class PmdStudy(StudyKind):
 
             check_worker_count(args.pmd_workers, plan.size * plan.size, "pmd", in_process=True)
         return pmd_plan(args, plan)
+
+    def sweep_file(self, plan: StudyPlan, prepared: Any) -> dict[str, Any]:
+        """The stripe study's grid with each surface's fringe periods, the chain as axes
+        of one value (its columns in the table) and the station's settings."""
+        grid = plan.sweep_grid()
+        for entry in grid["surface"]:
+            entry["emitter.periods"] = list(prepared.coding(entry["label"]))
+        chain = prepared.chain
+        grid.update(
+            {
+                "emitter.shifts": [chain.shifts],
+                "sensor.full_well_e": [chain.full_well_e],
+                "sensor.read_noise_e": [chain.read_noise_e],
+                "sensor.bit_depth": [chain.bit_depth],
+                "sensor.seed": [chain.seed],
+                "render.supersample": [chain.supersample],
+            }
+        )
+        settings = measure_table_of(self.name, prepared.settings)
+        return {"size": plan.size, "grid": grid, "measure": settings}
 
     def run(self, args: argparse.Namespace, plan: StudyPlan, prepared: Any) -> int:
         from glshade.app.commands.paper_stripes import run_stripes

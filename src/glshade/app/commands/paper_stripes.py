@@ -15,7 +15,7 @@ from glshade.app.args import (
     settings_flags_given,
     warn,
 )
-from glshade.app.studies import StudyKind
+from glshade.app.studies import StudyKind, measure_table_of
 from glshade.oracle.advice import scene_warnings
 from glshade.process import reuse_freed_memory
 from glshade.study.plan import StudyPlan
@@ -55,6 +55,13 @@ class StripeStudy(StudyKind):
             for dmax in plan.dmaxs
             for line in scene_warnings(plan.scene(plan.surfaces[0], first_theta, sigma2, dmax))
         )
+
+    def sweep_file(self, plan: StudyPlan, prepared: Any) -> dict[str, Any]:
+        return {
+            "size": plan.size,
+            "grid": plan.sweep_grid(),
+            "measure": measure_table_of(self.name, plan.metric),
+        }
 
     def run(self, args: argparse.Namespace, plan: StudyPlan, prepared: Any) -> int:
         return run_stripes(args, plan)
