@@ -7,13 +7,12 @@ measures the same scenes to the same numbers, column for column."""
 from __future__ import annotations
 
 import csv
+import tomllib
 
 import pytest
 
 from glshade.app.cli import main
 from glshade.sweep.spec import load_spec
-
-pytestmark = pytest.mark.gl
 
 PLAN = ["--surfaces", "flat,sphere", "--thetas", "45,15", "--sigma2s", "4", "--dmaxs",
         "0.005", "--size", "48", "--no-progress"]  # fmt: skip
@@ -24,6 +23,7 @@ def _rows(path) -> list[dict[str, str]]:
         return list(csv.DictReader(fh))
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("method, table", [("paper", "results.csv"), ("pmd", "pmd_results.csv")])
 def test_the_studys_cases_swept_give_its_numbers(tmp_path, capsys, method, table):
     sweep_file, study, swept = tmp_path / "study.toml", tmp_path / "study", tmp_path / "swept"
@@ -51,3 +51,24 @@ def test_a_scene_file_surface_has_no_sweep_form(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "only the paper's surfaces have a sweep form" in err
     assert not (tmp_path / "s.toml").exists()
+
+
+@pytest.mark.parametrize(
+    "data",
+    [
+        {"size": 48, "grid": {"camera.theta_deg": [45.0, 1e-07], "defect.dmax": [0.005]}},
+        {
+            "grid": {"surface": [{"label": "σ", "surface.kind": "flat", "emitter.periods": [2.0]}]},
+            "measure": {"method": "paper", "otsu": False, "a-b": 1, "level_from": "auto"},
+        },
+    ],
+)
+def test_a_sweep_file_reads_back_as_written(data):
+    from glshade.sweep.spec import sweep_toml
+
+    text = sweep_toml(data)
+    assert tomllib.loads(text) == data
+    grid = text[text.index("[grid]") :].splitlines()[1:]
+    assert [line.split(" = ")[0].strip('"') for line in grid if " = " in line][
+        : len(data["grid"])
+    ] == [*data["grid"]]  # each axis on one line, in the order given

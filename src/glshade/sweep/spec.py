@@ -302,7 +302,10 @@ def sweep_toml(data: dict[str, Any]) -> str:
 
 
 def _toml_key(key: str) -> str:
-    return key if key.replace("_", "").isalnum() else json.dumps(key)
+    """A bare key where TOML allows one (ASCII letters, digits, ``_`` and ``-``), else
+    quoted."""
+    bare = key.replace("_", "").replace("-", "")
+    return key if bare.isascii() and bare.isalnum() else json.dumps(key)
 
 
 def _toml_value(value: Any) -> str:

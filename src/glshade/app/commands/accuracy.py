@@ -27,23 +27,27 @@ def add(sub: argparse._SubParsersAction) -> None:
         type=path_arg,
         default=Path("accuracy"),
         metavar="DIR",
-        help="output directory (default accuracy)",
+        help="output directory (default %(default)s)",
     )
     p.add_argument(
-        "--repeats", type=int, default=5, metavar="K", help="timed repeats per setting (default 5)"
+        "--repeats",
+        type=int,
+        default=5,
+        metavar="K",
+        help="timed repeats per setting (default %(default)s)",
     )
     p.add_argument(
         "--size",
         type=int,
         default=256,
         metavar="N",
-        help="pixels across for the per-frame knobs (default 256)",
+        help="pixels across for the per-frame knobs (default %(default)s)",
     )
     p.add_argument(
         "--scenes",
         default="flat,cylinder,sphere",
         metavar="LIST",
-        help="surface kinds of the knobs' paper scenes (default flat,cylinder,sphere)",
+        help="surface kinds of the knobs' paper scenes (default %(default)s)",
     )
 
 

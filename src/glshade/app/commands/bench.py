@@ -17,11 +17,15 @@ def add(sub: argparse._SubParsersAction) -> None:
         "and megapixels per second for the fp32 and fp64 shaders and the NumPy fp64 reference.",
     )
     p.add_argument(
-        "--size", type=int, default=1024, metavar="N", help="pixels across (default 1024)"
+        "--size", type=int, default=1024, metavar="N", help="pixels across (default %(default)s)"
     )
     p.add_argument("--theta", type=float, default=45.0, metavar="DEG")
     p.add_argument(
-        "--repeats", type=int, default=9, metavar="K", help="frames timed per shader (default 9)"
+        "--repeats",
+        type=int,
+        default=9,
+        metavar="K",
+        help="frames timed per shader (default %(default)s)",
     )
     p.add_argument(
         "--reference-rows", type=int, metavar="R", help="trace only R rows with NumPy and scale"

@@ -28,9 +28,11 @@ def add(sub: argparse._SubParsersAction) -> None:
         type=path_arg,
         default=Path("paper_study"),
         metavar="DIR",
-        help="output directory (default paper_study)",
+        help="output directory (default %(default)s)",
     )
-    p.add_argument("--size", type=int, default=512, metavar="N", help="pixels across (default 512)")
+    p.add_argument(
+        "--size", type=int, default=512, metavar="N", help="pixels across (default %(default)s)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

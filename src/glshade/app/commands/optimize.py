@@ -64,7 +64,7 @@ def add(sub: argparse._SubParsersAction) -> None:
         type=int,
         default=3,
         metavar="N",
-        help="values per family range (default 3)",
+        help="values per family range (default %(default)s)",
     )
     p.add_argument(
         "--metric",
@@ -86,7 +86,7 @@ def add(sub: argparse._SubParsersAction) -> None:
         type=int,
         default=30,
         metavar="K",
-        help="most refinement evaluations (default 30; 0: none)",
+        help="most refinement evaluations (default %(default)s; 0: none)",
     )
     p.add_argument(
         "--plot", type=path_arg, metavar="PNG", help="write the objective's curve or map"

@@ -88,12 +88,19 @@ def _add_output_flags(p: argparse.ArgumentParser) -> None:
         type=path_arg,
         default=Path("paper_study"),
         metavar="DIR",
-        help="output directory (default paper_study)",
+        help="output directory (default %(default)s)",
     )
+
+
+def _listed(values: tuple[float, ...]) -> str:
+    """Table 1's values as a list flag takes them."""
+    return ",".join(f"{value:g}" for value in values)
 
 
 def _add_plan_flags(p: argparse.ArgumentParser) -> None:
     """``glshade paper``'s plan: the surfaces, the axes of Table 1 and the image size."""
+    from glshade.study.plan import PAPER_DMAXS, PAPER_SIGMA2S, PAPER_THETAS
+
     p.add_argument(
         "--surfaces",
         default="flat,cylinder,sphere",
@@ -104,26 +111,30 @@ def _add_plan_flags(p: argparse.ArgumentParser) -> None:
         "--thetas",
         type=quantity_list("camera.theta_deg"),
         metavar="LIST",
-        help="camera elevations, degrees, strictly decreasing (default 85,75,…,5)",
+        help="camera elevations, degrees, strictly decreasing (default "
+        + _listed(PAPER_THETAS)
+        + ")",
     )
     p.add_argument(
         "--sigma2s",
         type=quantity_list("defect.sigma2"),
         metavar="LIST",
-        help="defect variances, mm² or with a unit (default 1,4,9,16)",
+        help="defect variances, mm² or with a unit (default " + _listed(PAPER_SIGMA2S) + ")",
     )
     p.add_argument(
         "--dmaxs",
         type=quantity_list("defect.dmax"),
         metavar="LIST",
-        help="defect depths, mm or with a unit: 0.003,0.005 or 3um,5um (the default)",
+        help="defect depths, mm or with a unit: 0.003,0.005 or 3um,5um (default "
+        + ",".join(f"{dmax * 1e3:g}um" for dmax in PAPER_DMAXS)
+        + ")",
     )
     p.add_argument(
         "--size",
         type=int,
         default=1024,
         metavar="N",
-        help="pixels across, the paper's field of view (default 1024)",
+        help="pixels across, the paper's field of view (default %(default)s)",
     )
 
 

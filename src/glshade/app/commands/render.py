@@ -36,7 +36,7 @@ def add(sub: argparse._SubParsersAction) -> None:
         "--output",
         type=path_arg,
         default=Path("render.png"),
-        help="image, PNG or TIFF by its extension (default render.png); lossy formats are refused",
+        help="image, PNG or TIFF by its extension (default %(default)s); lossy formats are refused",
     )
     p.add_argument(
         "--bits",
