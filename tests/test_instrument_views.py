@@ -193,3 +193,26 @@ def test_glshade_offers_the_views_it_always_did():
     offer = instrument("pmd").views()
     assert offer is not None and offer.label == "PMD" and offer.size == 256
     assert [v.label for v in offer.views] == ["phase", "modulation", "error", "slope"]
+
+
+def test_a_scene_files_measure_table_sets_the_views_settings():
+    """``glshade view`` of a file with ``[measure]``: an instrument view is measured with
+    the table's settings where the table is that instrument's, else with its defaults;
+    the stripe views take the table where it is the stripe metric's."""
+    from glshade.instruments.table import MeasureTable
+
+    for table, gain in ((MeasureTable("lamp", True, {"gain": 3.0}), 3.0),
+                        (MeasureTable("paper", True, {"threshold": 0.7}), 2.0)):  # fmt: skip
+        lamp = _Lamp()
+        found = Instruments({"paper": instrument("paper"), "lamp": lamp})
+        model = ViewerModel(paper_scene().with_size(32), view="lamp-level", instruments=found,
+                            make_renderer=_NoRenderer, measure_table=table)  # fmt: skip
+        size = 32
+        uv = np.zeros((size, size, 2), np.float32)
+        model.uv1, model.v1 = uv, uv[..., 1]
+        model.start_metrics()
+        model.wait_for_metrics()
+        (_, _, settings), = lamp.calls  # fmt: skip
+        assert settings == _Settings(gain=gain)
+        assert model.settings.threshold == (0.7 if table.method == "paper" else 0.5)
+        model.close()

@@ -61,12 +61,13 @@ method = "pmd"
 heights = "frankot-chellappa"
 ```
 
-`glshade measure` and `glshade optimize` start from it, and a sweep from its base file's;
+`glshade measure`, `glshade optimize` and the viewer's instrument views (`glshade view`)
+start from it, and a sweep from its base file's;
 the command line's flags and `--set measure.KEY=VALUE`, or the sweep file's own
 `[measure]`, override it key by key, and `--method` another instrument than the table's
 measures with that instrument's own settings (a warning says so). The table is the
 file's, not the scene's: the scene, its case id and `--save-scene` are the same without
-it, and `glshade render` and `view` do not read it.
+it, and `glshade render` (which measures nothing) does not read it.
 
 ## Units
 

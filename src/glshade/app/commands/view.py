@@ -64,6 +64,11 @@ def run(args: argparse.Namespace) -> int:
     from glshade.app import viewer
 
     scene = Scene.load(args.scene) if args.scene is not None else paper_scene()
+    table = None
+    if args.scene is not None:  # how the file says its scene is measured: the views' settings
+        from glshade.instruments.table import file_measure_table
+
+        table = file_measure_table(args.scene, scene.active.emitter.measured_by)
     scene, extra = viewer.parse_sets(args.set, scene, args.size, default_size=VIEW_SIZE)
     if args.frames is not None and args.frames < 1:
         raise GlshadeError(f"--frames: must be an integer >= 1, got {args.frames}")
@@ -83,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
         benchmark=args.benchmark,
         panel=not args.no_panel,
         pmd_size=int(extra["pmd_size"]) if "pmd_size" in extra else None,
+        measure=table,
     )
     stats = viewer.run(options)
     if args.benchmark and stats["seconds"] > 0:

@@ -25,6 +25,7 @@ from glshade.scene import Scene
 
 if TYPE_CHECKING:
     from glshade.instruments.registry import Instruments
+    from glshade.instruments.table import MeasureTable
     from glshade.rendering import Renderer
 
 #: The views the viewer computes itself from its traces: the camera image, its
@@ -154,13 +155,19 @@ def first_views(offered: dict[str, OfferedView]) -> list[OfferedView]:
 class InstrumentCases:
     """The instrument views' side of the viewer: the ``last`` case its station finished
     (or the refusal of its scene), the ``job`` in flight, and how many cases were
-    ``taken`` (a new one changes the picture). One job at a time, never queued up."""
+    ``taken`` (a new one changes the picture). One job at a time, never queued up.
+    ``table``: the scene file's ``[measure]`` (its settings where it is the instrument's)."""
 
-    def __init__(self, make_renderer: Callable[[], Renderer] | None = None) -> None:
+    def __init__(
+        self,
+        make_renderer: Callable[[], Renderer] | None = None,
+        table: MeasureTable | None = None,
+    ) -> None:
         self.last = InstrumentCase()
         self.job: Future | None = None
         self.taken = 0
         self._make_renderer = make_renderer
+        self._table = table
         self._station: Station | None = None
 
     def of(self, offered: OfferedView | None) -> InstrumentCase:
@@ -187,7 +194,7 @@ class InstrumentCases:
         if measured == last.scene:
             return
         if self._station is None:
-            self._station = Station(self._make_renderer)
+            self._station = Station(self._make_renderer, self._table)
         self.job = self._station.submit(offered, measured)
 
     def collect(self) -> bool:
@@ -207,11 +214,18 @@ class InstrumentCases:
 class Station:
     """Measures instrument views' cases in one thread of its own, with a renderer made
     there on first use (default: its own headless GL context), each through its
-    instrument's measurer (its offer's, made once, or :meth:`Instrument.measure`)."""
+    instrument's measurer (its offer's, made once, or :meth:`Instrument.measure`) with
+    its settings: the scene file's ``table`` where it is that instrument's, else the
+    defaults."""
 
-    def __init__(self, make_renderer: Callable[[], Renderer] | None = None) -> None:
+    def __init__(
+        self,
+        make_renderer: Callable[[], Renderer] | None = None,
+        table: MeasureTable | None = None,
+    ) -> None:
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="glshade-instrument")
         self._make_renderer = make_renderer
+        self._table = table
         self._renderer: Renderer | None = None
         self._measurers: dict[str, Callable[[Renderer, Scene], Any]] = {}
 
@@ -240,7 +254,7 @@ class Station:
     def _measurer(self, offered: OfferedView) -> Callable[[Renderer, Scene], Any]:
         instrument, name = offered.instrument, offered.instrument.name
         if name not in self._measurers:
-            settings = instrument.settings()
+            settings = instrument.settings(**(self._table.for_method(name) if self._table else {}))
             make = offered.offer.measurer
             self._measurers[name] = (
                 make(settings)

@@ -8,7 +8,7 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import wait as wait_for
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -35,6 +35,7 @@ from glshade.scene import PAPER_SURFACES, Scene, paper_scene
 
 if TYPE_CHECKING:
     from glshade.instruments.registry import Instruments
+    from glshade.instruments.table import MeasureTable
     from glshade.rendering import Renderer
 
 
@@ -133,6 +134,7 @@ class ViewerModel:
     instruments: Instruments | None = None  # whose views it offers (None: the registry's)
     make_renderer: Callable[[], Renderer] | None = None  # the station's (None: headless GL)
     case_size: int | None = None  # an instrument view's case's pixels across (at most)
+    measure_table: MeasureTable | None = None  # the scene file's [measure]: its settings
     cases: InstrumentCases = field(init=False)  # the instrument views' cases
     _baseline: _Once | None = None
     _pool: ThreadPoolExecutor | None = None
@@ -142,7 +144,12 @@ class ViewerModel:
     _offered: dict[str, OfferedView] | None = None
 
     def __post_init__(self) -> None:
-        self.cases = InstrumentCases(self.make_renderer)
+        self.cases = InstrumentCases(self.make_renderer, self.measure_table)
+        if self.measure_table is not None:  # the stripe views' settings, where it has them
+            from glshade.instruments.registry import instruments
+
+            stripes = (self.instruments or instruments()).of_settings(self.settings).name
+            self.settings = replace(self.settings, **self.measure_table.for_method(stripes))
 
     # ---------------------------------------------------------------- edits
     def set(self, name: str, value, slider: bool = False) -> bool:
@@ -466,7 +473,7 @@ class FrameSchedule:
 
 @dataclass
 class ViewerOptions:
-    """What ``glshade view`` was asked for."""
+    """What ``glshade view`` was asked for (``measure``: the scene file's ``[measure]``)."""
 
     scene: Scene
     view: str = "image"
@@ -477,3 +484,4 @@ class ViewerOptions:
     panel: bool = True
     out_dir: Path = Path(".")
     pmd_size: int | None = None  # --set pmd_size: an instrument view's case size
+    measure: MeasureTable | None = None

@@ -68,6 +68,7 @@ class ViewerWindow(mglw.WindowConfig):
             view=self.options.view,
             animate=self.options.animate,
             case_size=self.options.pmd_size,
+            measure_table=self.options.measure,
         )
         self.renderer = Renderer(GLContext.wrap(self.ctx))
         self._programs: dict = {}  # the display pass, per the emitter's features
