@@ -299,3 +299,29 @@ def test_a_moved_number_says_when_its_status_makes_it_unreadable():
     moved = {c.name: c for c in number_changes(pmd_before, pmd_now, DEFAULT) if c.moved}
     assert moved["pmd_shift_mm"].unreadable == "noise"  # the dent's number
     assert moved["decode_rms_mm"].unreadable == ""  # the station's own stays readable
+
+
+def test_a_scene_files_measure_table_sets_the_snapshots_settings(_session_renderer):
+    """A snapshot of a scene file measures each instrument with the file's ``[measure]``
+    settings where the table is its own (here the stripe metric's threshold), as
+    ``glshade measure`` of that file does; another instrument keeps its defaults."""
+    import glshade
+    from glshade.instruments.record import Measurement
+    from glshade.instruments.table import MeasureTable
+    from glshade.metrics.visibility import MetricSettings
+    from glshade.scene import paper_scene
+    from glshade.snapshot.station import measured_numbers
+
+    scene = paper_scene("flat", 45.0, 4.0, 0.005).with_size(256)
+    table = MeasureTable("paper", True, {"threshold": 0.7})
+    numbers = measured_numbers(_session_renderer, scene, table)["paper"]
+    alone = glshade.measure(
+        scene, renderer=_session_renderer, settings=MetricSettings(threshold=0.7)
+    )
+    expected = Measurement.of(scene, alone).row(("measured",))
+    assert numbers == expected
+    assert numbers != measured_numbers(_session_renderer, scene)["paper"]  # it mattered
+    other = MeasureTable("pmd", True, {"heights": "frankot-chellappa"})
+    assert measured_numbers(_session_renderer, scene, other) == measured_numbers(
+        _session_renderer, scene
+    )

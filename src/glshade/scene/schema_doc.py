@@ -61,8 +61,9 @@ method = "pmd"
 heights = "frankot-chellappa"
 ```
 
-`glshade measure`, `glshade optimize` and the viewer's instrument views (`glshade view`)
-start from it, and a sweep from its base file's;
+`glshade measure`, `glshade optimize`, the viewer's instrument views (`glshade view`) and
+a snapshot test of the file (`glshade_snapshot.check("panel.toml")`) start from it, and a
+sweep from its base file's;
 the command line's flags and `--set measure.KEY=VALUE`, or the sweep file's own
 `[measure]`, override it key by key, and `--method` another instrument than the table's
 measures with that instrument's own settings (a warning says so). The table is the

@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 if TYPE_CHECKING:
+    from glshade.instruments.table import MeasureTable
     from glshade.scene import Scene
     from glshade.snapshot.baseline import Baseline
     from glshade.snapshot.compare import Comparison
@@ -299,9 +300,9 @@ class Snapshots:
 
         name = stored.check_name(self._name(name))
         tolerances = self._tolerances(overrides)
-        scene = self._scene(scene)
+        scene, table = self._scene(scene)
         self._claim(name)
-        shot = self._station.shoot(scene)
+        shot = self._station.shoot(scene, table)
         directory = self._state.directory
         scene_file = _plain(scene.to_file_dict(directory, climb=True))
         if self._state.update:
@@ -340,21 +341,24 @@ class Snapshots:
             tolerances = tolerances.with_overrides(marker.kwargs, f"@pytest.mark.{MARKER}")
         return tolerances.with_overrides(overrides, "check()")
 
-    def _scene(self, scene: Any) -> Scene:
+    def _scene(self, scene: Any) -> tuple[Scene, MeasureTable | None]:
+        """The scene checked, and its file's ``[measure]`` (None for a Scene given)."""
         from glshade.errors import GlshadeError
+        from glshade.instruments.table import file_measure_table
         from glshade.scene import Scene
 
         if isinstance(scene, (str, os.PathLike)):
             path = Path(scene)
             if not path.is_absolute():
                 path = Path(self._request.path).parent / path
-            return Scene.load(path)
+            loaded = Scene.load(path)
+            return loaded, file_measure_table(path, loaded.active.emitter.measured_by)
         if not isinstance(scene, Scene):
             raise GlshadeError(
                 f"check(): scene must be a glshade Scene or a scene file's path, got "
                 f"{type(scene).__name__}"
             )
-        return scene
+        return scene, None
 
     def _claim(self, name: str) -> None:
         from glshade.errors import GlshadeError

@@ -18,6 +18,7 @@ from glshade.errors import ContextError, GlshadeError
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
+    from glshade.instruments.table import MeasureTable
     from glshade.rendering import Renderer
 
 #: How a session picks its renderer: ``auto`` the GL renderer, or the oracle where no
@@ -55,11 +56,13 @@ class Station:
     def release(self) -> None:
         self.renderer.release()
 
-    def shoot(self, scene: Scene) -> Shot:
-        """Render ``scene``'s image and measure its numbers."""
+    def shoot(self, scene: Scene, table: MeasureTable | None = None) -> Shot:
+        """Render ``scene``'s image and measure its numbers (``table``: its scene file's
+        ``[measure]``, :func:`measured_numbers`)."""
         image = self.renderer.render(scene, ("image",), develop=False).output("image")
         step = float(scene.active.emitter.radiance_step(scene))
-        return Shot(np.asarray(image, np.float64), measured_numbers(self.renderer, scene), step)
+        numbers = measured_numbers(self.renderer, scene, table)
+        return Shot(np.asarray(image, np.float64), numbers, step)
 
 
 def open_station(choice: str = "auto") -> Station:
@@ -90,17 +93,21 @@ def _oracle_station(fallback: str) -> Station:
     return Station(oracle, oracle.renderer_string, fallback)
 
 
-def measured_numbers(renderer: Renderer, scene: Scene) -> dict[str, dict[str, Any]]:
+def measured_numbers(
+    renderer: Renderer, scene: Scene, table: MeasureTable | None = None
+) -> dict[str, dict[str, Any]]:
     """Per instrument, the measured columns of ``scene``'s record on ``renderer``: every
     registered instrument that measures any scene (the paper's stripe metric, on the
-    scene's screen), and the one the scene's emitter is measured by."""
+    scene's screen), and the one the scene's emitter is measured by; each with its
+    settings in ``table`` (a scene file's ``[measure]``) where the table is its own."""
     from glshade.instruments.registry import instruments
 
     numbers = {}
     for name, chosen in instruments().by_name.items():
         if not (chosen.always_snapshot or scene.active.emitter.measured_by == name):
             continue
-        shown, settings = chosen.prepared(scene), chosen.settings()
+        values = table.for_method(name) if table is not None else {}
+        shown, settings = chosen.prepared(scene), chosen.settings(**values)
         chosen.check_case(shown, settings)
         result = chosen.measure(renderer, shown, settings)
         numbers[name] = chosen.record(shown, result).row(("measured",))
