@@ -91,3 +91,16 @@ def test_a_sweep_starts_from_its_base_files_table(tmp_path, files):
     assert load_spec(sweep).settings.threshold == 0.3
     sweep.write_text(sweep.read_text().replace("threshold = 0.3", 'method = "pmd"'))
     assert load_spec(sweep).settings == PmdSettings()  # the base's table is the stripes'
+
+
+def test_a_study_says_it_does_not_read_a_surface_files_table(tmp_path, capsys):
+    """A study measures every case with its own settings: a free-form surface's file
+    whose ``[measure]`` sets something is said not to be read (before anything runs)."""
+    panel = tmp_path / "panel.toml"
+    panel.write_text('[surface]\nkind = "formula"\nexpression = "0.001 * x * z"\n')
+    argv = ["paper", "--surfaces", f"flat,{panel}", "--as-sweep", str(tmp_path / "s.toml")]
+    assert main(argv) == 2  # (a scene file has no sweep form: nothing runs)
+    assert "its [measure] is not read" not in capsys.readouterr().err
+    panel.write_text(panel.read_text() + "[measure]\nthreshold = 0.7\n")
+    assert main(argv) == 2
+    assert f"{panel}: its [measure] is not read by the study" in capsys.readouterr().err

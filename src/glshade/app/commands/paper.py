@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from glshade.app.args import add_run_flags, path_arg, quantity_list
+from glshade.app.args import add_run_flags, path_arg, quantity_list, warn
 from glshade.app.studies import refuse_other_flags, study_kind, study_kinds
 from glshade.errors import GlshadeError
 
@@ -179,12 +179,32 @@ def run(args: argparse.Namespace) -> int:
         metric=metric,
     )
     study.check_size(plan, args.yes)  # before --out is touched, in both methods
+    warn(_unread_tables(plan))
     typed_workers, args.workers = args.workers, paper_workers(args.workers, plan, args.device)
     prepared = kind.prepared(args, plan, typed_workers)  # bad input refused before --out
     if args.as_sweep is not None:
         return _write_sweep(args.as_sweep, kind.sweep_file(plan, prepared), plan)
     with run_lock(args.out):
         return kind.run(args, plan, prepared)
+
+
+def _unread_tables(plan) -> list[str]:
+    """A warning for each scene file among the surfaces whose ``[measure]`` sets
+    something: a study measures every case with its own settings (its flags)."""
+    from glshade.instruments.table import file_measure_table
+    from glshade.study.plan import case_scene, is_scene_file
+
+    lines = []
+    for surface in plan.surfaces:
+        if is_scene_file(surface):
+            scene = case_scene(surface)
+            table = file_measure_table(Path(surface), scene.active.emitter.measured_by)
+            if table.named or table.values:
+                lines.append(
+                    f"{surface}: its [measure] is not read by the study (every case is "
+                    "measured with the study's settings: its flags)"
+                )
+    return lines
 
 
 #: ``--workers auto`` starts worker processes for a study of at least this many pixels to
