@@ -21,6 +21,7 @@ import time
 
 from glshade.gpu.renderer import Renderer
 from glshade.instruments.pmd.baseline import pmd_baseline
+from glshade.instruments.pmd.model import station_model
 from glshade.instruments.pmd.settings import PmdSettings
 from glshade.instruments.pmd.station import measure_pmd_scene
 from glshade.scene import Scene, paper_scene
@@ -74,7 +75,7 @@ def case_stages(renderer: Renderer, scene: Scene) -> dict[str, float]:
     scene = scene.updated(sensor={"full_well_e": 10000.0})
     measure_pmd_scene(renderer, scene.with_size(64))  # warm-up
     start = time.perf_counter()
-    baseline = pmd_baseline(renderer, scene, PmdSettings())
+    baseline = pmd_baseline(renderer, station_model(scene), PmdSettings())
     base_s = time.perf_counter() - start
     result = measure_pmd_scene(renderer, scene, PmdSettings(), baseline)
     total = time.perf_counter() - start

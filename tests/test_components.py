@@ -96,6 +96,14 @@ def sample_response() -> str:
 
 #: Values other than the default for parameters that read a file of another kind.
 OTHER_FILES = {"emitter.response_file": sample_response}
+#: Parameters that only mean something with others set (a pose's keys with their mode).
+COMPANIONS = {
+    "camera.position": (("camera.pose", "look_at"),),
+    "camera.rvec": (("camera.pose", "extrinsics"), ("camera.tvec", (0.0, 0.0, 200.0))),
+    "camera.tvec": (("camera.pose", "extrinsics"), ("camera.rvec", (0.0, 3.0, 0.0))),
+    "camera.pose": (),
+    "emitter.centre": (("emitter.pose", "placed"),),
+}
 #: Values for parameters that have no usable default (a height map's file and spacing).
 NEEDS_VALUE = {"surface.file": sample_map, "surface.spacing": lambda: (0.5, 0.5)}
 
@@ -198,6 +206,8 @@ def _other_value(param):
     choices = registry().choices(param) or param.choices
     if param.value_type == "choice":
         return next(c for c in choices if c != param.default)
+    if param.path == "camera.intrinsics":  # a camera matrix: fx, fy > 0
+        return (4800.0, 5100.0, 500.0, 530.0)
     if param.value_type == "integer":
         return param.default + 4 if param.path == "sensor.bit_depth" else param.default + 1
     if param.value_type == "pair":
@@ -241,13 +251,14 @@ def check_round_trip(component, tmp_path) -> None:
     base = scenes_for(component)["paper"]
     for param in component.params:
         value = getattr(base, param.table).clamp(param.key, _other_value(param))
-        scene = base.with_value(param.path, value)
+        companions = COMPANIONS.get(param.path, ())
+        scene = base.with_values([*companions, (param.path, value)])
         assert scene.value(param.path) == value
         path = tmp_path / f"{param.table}-{param.key}.toml"
         scene.save(path)
         assert Scene.load(path) == scene, param.path
         parsed_path, parsed = args.parse_setting(f"{param.path}={_as_text(value)}")
-        assert base.with_value(parsed_path, parsed) == scene, param.path
+        assert base.with_values([*companions, (parsed_path, parsed)]) == scene, param.path
 
 
 def _unique_lines() -> dict[str, set[str]]:

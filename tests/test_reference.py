@@ -144,7 +144,7 @@ def test_flat_uv_equals_mirror_image_construction():
     for theta in (45.0, 12.0):
         scene = paper_scene("flat", theta_deg=theta, dmax=0.0).with_size(32)
         frame = ref.trace(scene)
-        c = scene.camera.position()
+        c = scene.camera.world_pose().position
         d = _spec_directions(scene.camera)
         p = c + (-c[1] / d[..., 1])[..., None] * d
         mirrored = c * np.array([1.0, -1.0, 1.0])

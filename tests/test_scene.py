@@ -33,7 +33,7 @@ def test_paper_scene_matches_the_paper():
 
 def test_geometry_follows_spec():
     s = paper_scene(theta_deg=30.0)
-    c = s.camera.position()
+    c = s.camera.world_pose().position
     assert c == pytest.approx(175.6 * __import__("numpy").array([0, 0.5, math.sqrt(3) / 2]))
     forward, right, up = s.camera.basis()
     assert right == pytest.approx([1, 0, 0])
@@ -55,12 +55,16 @@ def test_the_rig_pose_agrees_with_a_look_at_matrix():
     for azimuth in (0.0, 30.0, -120.0):
         cam = Camera(theta_deg=20.0, azimuth_deg=azimuth)
         forward, right, up = cam.basis()
-        view = np.asarray(pyrr.matrix44.create_look_at(cam.position(), np.zeros(3), [0, 1, 0]))
+        view = np.asarray(
+            pyrr.matrix44.create_look_at(cam.world_pose().position, np.zeros(3), [0, 1, 0])
+        )
         np.testing.assert_allclose(view[:3, 0], right, atol=1e-12)
         np.testing.assert_allclose(view[:3, 1], up, atol=1e-12)
         np.testing.assert_allclose(view[:3, 2], -forward, atol=1e-12)
         # the principal point maps to the camera origin, the gazing point onto the axis
-        np.testing.assert_allclose(np.append(cam.position(), 1.0) @ view, [0, 0, 0, 1], atol=1e-9)
+        np.testing.assert_allclose(
+            np.append(cam.world_pose().position, 1.0) @ view, [0, 0, 0, 1], atol=1e-9
+        )
         gaze = (np.array([0.0, 0.0, 0.0, 1.0]) @ view)[:3]
         np.testing.assert_allclose(gaze, [0, 0, -cam.distance], atol=1e-9)
 

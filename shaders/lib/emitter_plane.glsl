@@ -1,11 +1,12 @@
-// The emitter's plane, facing the origin in the camera's mirror position. The plane is
-// E + u e_u + v e_v with E = -De n_E, so for a point P (world) (E - P).n_E = -De - P.n_E and
-// (P - E).e_u = P.e_u (E.e_u = E.e_v = 0): no 256 mm quantity is ever subtracted from another.
+// The emitter's plane, facing the part. The plane is E + u e_u + v e_v with
+// E = -De n_E + cu e_u + cv e_v (the rig's screen: cu = cv = 0), so for a point P
+// (E - P).n_E = -De - P.n_E and (P - E).e_u = P.e_u - cu: no 256 mm quantity is ever
+// subtracted from another.
 uniform real3 u_emitter_normal;   // n_E, unit, faces the origin
 uniform real3 u_emitter_eu;       // e_u
 uniform real3 u_emitter_ev;       // e_v
-uniform real u_emitter_dist;      // De, mm
-uniform real3 u_emitter_offset;   // (O.e_u, O.e_v, O.n_E) of the local origin O, mm
+uniform real u_emitter_dist;      // De: the plane's distance from the frame's origin, mm
+uniform real3 u_emitter_offset;   // (O.e_u - cu, O.e_v - cv, O.n_E) of the local origin O, mm
 uniform real2 u_emitter_half;     // half extents in u and v, mm
 
 {$ if cover_glass $}

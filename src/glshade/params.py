@@ -66,7 +66,8 @@ class Param:
     does not say it (a signed radius); ``stored``: False for a shorthand that sets other
     parameters (``defect.sigma2``) and is not a field of its table; ``plausible_max``: a
     magnitude beyond which the value is accepted but warned about (``plausible_why``
-    says why), the usual sign of a value typed in the wrong unit.
+    says why), the usual sign of a value typed in the wrong unit; ``quiet``: a scene file
+    lists it only where it differs from its default (a pose key a rig scene never sets).
     """
 
     path: str
@@ -88,6 +89,7 @@ class Param:
     plausible_why: str = ""
     size: int = 0
     keywords: tuple[str, ...] = ()
+    quiet: bool = False
 
     def __post_init__(self) -> None:
         if (

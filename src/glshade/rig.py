@@ -20,9 +20,11 @@ Everything is float64 NumPy; the matrices are pyrr's (column-vector convention:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+from glshade.poses import Placement
 
 #: The elevation the orbit keeps the camera within (degrees above the surface).
 ORBIT_THETA_DEG = (0.5, 89.5)
@@ -40,12 +42,28 @@ def rig_rotation(azimuth_rad: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class CameraPose:
-    """The camera's principal point (mm) and unit axes, float64 (3,) each."""
+    """The camera's principal point (mm) and unit axes, float64 (3,) each; ``target`` the
+    point of its optical axis it aims at and ``distance`` (mm) the principal point's
+    distance from it (``position = target - distance forward``): the shader forms each
+    ray's origin from these two, so no principal-point-sized number is ever subtracted
+    from another (the rig: the origin, ``camera.distance``)."""
 
     position: np.ndarray
     forward: np.ndarray
     right: np.ndarray
     up: np.ndarray
+    target: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    distance: float = 0.0
+
+    def in_frame(self, frame: Placement) -> CameraPose:
+        """The same pose in the local frame of ``frame`` (itself for the identity)."""
+        if frame.is_identity:
+            return self
+        points, vectors = frame.to_local_points, frame.to_local_vectors
+        return CameraPose(
+            points(self.position), vectors(self.forward), vectors(self.right),
+            vectors(self.up), points(self.target), self.distance,
+        )  # fmt: skip
 
 
 def camera_pose(theta_rad: float, azimuth_rad: float, distance_mm: float) -> CameraPose:
@@ -56,18 +74,43 @@ def camera_pose(theta_rad: float, azimuth_rad: float, distance_mm: float) -> Cam
     position = turn @ (distance_mm * np.array([0.0, sin_t, cos_t]))
     forward = turn @ -np.array([0.0, sin_t, cos_t])
     up = turn @ np.array([0.0, cos_t, -sin_t])
-    return CameraPose(position, forward, np.cross(forward, up), up)
+    return CameraPose(position, forward, np.cross(forward, up), up, np.zeros(3), distance_mm)
 
 
 @dataclass(frozen=True)
 class EmitterPlane:
-    """The emitter's plane in world coordinates (float64): centre, unit normal (facing
-    the origin) and in-plane axes ``e_u``, ``e_v``."""
+    """The emitter's plane (float64): centre, unit normal (towards the viewer) and
+    in-plane axes ``e_u``, ``e_v`` (``e_u x e_v = normal``); ``distance`` (mm) the plane's
+    signed distance from the frame's origin (``x . normal = -distance`` on it) and
+    ``offset_uv`` (mm) the centre's own ``(u, v)`` from the origin's foot: the shader finds
+    a ray's screen point from these without subtracting the centre (the rig's screen:
+    ``emitter.distance`` and ``(0, 0)``)."""
 
     centre: np.ndarray
     normal: np.ndarray
     e_u: np.ndarray
     e_v: np.ndarray
+    distance: float = 0.0
+    offset_uv: tuple[float, float] = (0.0, 0.0)
+
+    def in_frame(self, frame: Placement) -> EmitterPlane:
+        """The same plane in the local frame of ``frame`` (itself for the identity)."""
+        if frame.is_identity:
+            return self
+        return placed_plane(
+            frame.to_local_points(self.centre), frame.to_local_vectors(self.normal),
+            frame.to_local_vectors(self.e_u), frame.to_local_vectors(self.e_v),
+        )  # fmt: skip
+
+
+def placed_plane(
+    centre: np.ndarray, normal: np.ndarray, e_u: np.ndarray, e_v: np.ndarray
+) -> EmitterPlane:
+    """A plane through ``centre`` with its axes, its distance and offset worked out."""
+    distance = -float(centre @ normal)
+    return EmitterPlane(
+        centre, normal, e_u, e_v, distance, (float(centre @ e_u), float(centre @ e_v))
+    )
 
 
 def emitter_plane(theta_rad: float, azimuth_rad: float, distance_mm: float) -> EmitterPlane:
@@ -80,7 +123,25 @@ def emitter_plane(theta_rad: float, azimuth_rad: float, distance_mm: float) -> E
         normal=-direction,
         e_u=turn @ np.array([1.0, 0.0, 0.0]),
         e_v=turn @ np.array([0.0, cos_t, sin_t]),
+        distance=distance_mm,
     )
+
+
+@dataclass(frozen=True)
+class Gaze:
+    """The station's geometry at its gaze point, as the paper's closed forms read it:
+    the elevation ``theta_rad`` of the camera above the part's tangent plane there, the
+    azimuth ``azimuth_rad`` of the plane of incidence about the part's normal (``+z``
+    towards ``+x``), the camera's distance ``camera_mm`` from it, the screen's distance
+    ``screen_mm`` along the reflected line of sight, and the sensor's pitch ``pitch_mm``.
+    For the rig they are ``camera.theta_deg``, ``azimuth_deg``, ``distance``,
+    ``emitter.distance`` and ``pixel_pitch`` themselves."""
+
+    theta_rad: float
+    azimuth_rad: float
+    camera_mm: float
+    screen_mm: float
+    pitch_mm: float
 
 
 def orbit(

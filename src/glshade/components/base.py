@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 import numpy as np
 
 from glshade.params import Param, Table, declared_params
-from glshade.rig import EmitterPlane
+from glshade.rig import CameraPose, EmitterPlane, Gaze
 
 if TYPE_CHECKING:  # the scene's tables, as the components that own them declare them
     from glshade.components.accuracy import AccuracyKnob
@@ -108,6 +108,9 @@ class SceneView(Protocol):
     def active(self) -> Active: ...
 
     def emitter_plane(self) -> EmitterPlane: ...
+    def camera_pose(self) -> CameraPose: ...
+    @property
+    def gaze(self) -> Gaze: ...
 
     def local_origin(self) -> np.ndarray: ...
 
@@ -572,7 +575,7 @@ class FresnelComponent(Component):
 
     def dimming(self, scene: SceneView) -> str | None:
         """The reflectance at the gaze point (incidence ``90° - θ``), where below 1."""
-        cos_i = np.array([np.sin(scene.camera.theta_rad)])
+        cos_i = np.array([np.sin(scene.gaze.theta_rad)])
         share = float(np.asarray(self.reflectance(scene, cos_i)).reshape(-1)[0])
         if share >= 0.999:
             return None
@@ -583,6 +586,13 @@ class SensorComponent(Component):
     """What the camera's sensor makes of the radiance (NumPy only: :meth:`develop`)."""
 
     slot = "sensor"
+
+
+class PartComponent(Component):
+    """Where the part stands in the world (NumPy only: the scene reads its table's
+    placement)."""
+
+    slot = "part"
 
 
 # ------------------------------------------------------------------ a scene's components

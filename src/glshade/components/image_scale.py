@@ -36,16 +36,15 @@ def base_curvatures(scene: Any) -> tuple[float, float]:
     surfaces' mixed derivative at the gaze point is 0 for the analytic kinds; a free-form
     surface's is neglected here)."""
     f_zz, f_xx = scene.active.surface.second_derivatives(scene)
-    c2, s2 = math.cos(scene.camera.azimuth_rad) ** 2, math.sin(scene.camera.azimuth_rad) ** 2
+    c2, s2 = math.cos(scene.gaze.azimuth_rad) ** 2, math.sin(scene.gaze.azimuth_rad) ** 2
     return f_zz * c2 + f_xx * s2, f_xx * c2 + f_zz * s2
 
 
 def magnification(scene: Any) -> float:
     """``m``: the stripe scale at the gaze point relative to a flat mirror (1 on the flat
     plate; <= 0 where a concave base focuses the emitter: no finite scale)."""
-    cam = scene.camera
-    dc, de = cam.distance, scene.emitter.distance
-    lever = 2.0 * dc * de / ((dc + de) * math.sin(cam.theta_rad))
+    dc, de = scene.gaze.camera_mm, scene.gaze.screen_mm
+    lever = 2.0 * dc * de / ((dc + de) * math.sin(scene.gaze.theta_rad))
     return 1.0 - lever * base_curvatures(scene)[0]
 
 
@@ -56,7 +55,7 @@ def emitter_mm_per_row(scene: Any) -> float:
     m = magnification(scene)
     if not m > 0.0:
         return math.nan
-    return (cam.distance + scene.emitter.distance) * cam.pixel_pitch / cam.focal * m
+    return (scene.gaze.camera_mm + scene.gaze.screen_mm) * scene.gaze.pitch_mm / cam.focal * m
 
 
 def period_px(scene: Any, period_mm: float) -> float:

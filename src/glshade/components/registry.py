@@ -48,7 +48,7 @@ from glshade.params import Param, Table, TableCheck
 #: The entry-point group of components (built-in and third-party).
 ENTRY_POINT_GROUP = "glshade.components"
 #: The scene's tables, in the order scene files list them.
-TABLES: tuple[str, ...] = ("camera", "emitter", "surface", "defect", "render", "sensor")
+TABLES: tuple[str, ...] = ("camera", "emitter", "surface", "defect", "render", "sensor", "part")
 
 #: The slots, in the order their GLSL is composed.
 SLOTS: tuple[Slot, ...] = (
@@ -67,6 +67,7 @@ SLOTS: tuple[Slot, ...] = (
          "how much it reflects, by the angle of incidence", "fresnel.glsl"),
     Slot("sensor", "sensor", None, False,
          "what the camera's sensor makes of the radiance (noise, quantisation)"),
+    Slot("part", "part", None, False, "where the part (its surface and dent) stands in the world"),
 )  # fmt: skip
 
 

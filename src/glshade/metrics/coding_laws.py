@@ -45,9 +45,9 @@ def footprint_mm(scene: Any, direction: str) -> float:
     if direction == "v":
         return emitter_mm_per_row(scene)
     cam = scene.camera
-    dc, de = cam.distance, scene.emitter.distance
-    m = 1.0 - 2.0 * base_curvatures(scene)[1] * math.sin(cam.theta_rad) * dc * de / (dc + de)
-    return (dc + de) * cam.pixel_pitch / cam.focal * m if m > 0.0 else math.nan
+    dc, de = scene.gaze.camera_mm, scene.gaze.screen_mm
+    m = 1.0 - 2.0 * base_curvatures(scene)[1] * math.sin(scene.gaze.theta_rad) * dc * de / (dc + de)
+    return (dc + de) * scene.gaze.pitch_mm / cam.focal * m if m > 0.0 else math.nan
 
 
 def blur_mm(scene: Any, direction: str) -> float:
@@ -57,9 +57,9 @@ def blur_mm(scene: Any, direction: str) -> float:
     cam = scene.camera
     if cam.f_number <= 0.0:
         return 0.0
-    focus = cam.focus_distance if cam.focus_distance is not None else cam.distance
-    image = cam.distance + scene.emitter.distance
-    flat = (cam.distance + scene.emitter.distance) * cam.pixel_pitch / cam.focal
+    focus = cam.focus_distance if cam.focus_distance is not None else scene.gaze.camera_mm
+    image = scene.gaze.camera_mm + scene.gaze.screen_mm
+    flat = (scene.gaze.camera_mm + scene.gaze.screen_mm) * scene.gaze.pitch_mm / cam.focal
     scale = footprint_mm(scene, direction) / flat
     return cam.focal / cam.f_number * abs(image - focus) / focus * scale
 

@@ -79,7 +79,7 @@ def rig_inverse_covariance(scene: Scene) -> tuple[float, float]:
     """``(Σ⁻¹)`` of the defect across and along the rig's plane of incidence (1/mm²):
     ``(x, z)`` at azimuth 0, turned by ``camera.azimuth_deg``."""
     a, b, c = scene.defect.inverse_covariance()
-    sin_p, cos_p = math.sin(scene.camera.azimuth_rad), math.cos(scene.camera.azimuth_rad)
+    sin_p, cos_p = math.sin(scene.gaze.azimuth_rad), math.cos(scene.gaze.azimuth_rad)
     along = a * sin_p * sin_p + 2.0 * b * sin_p * cos_p + c * cos_p * cos_p
     across = a * cos_p * cos_p - 2.0 * b * sin_p * cos_p + c * sin_p * sin_p
     return across, along
@@ -88,9 +88,9 @@ def rig_inverse_covariance(scene: Scene) -> tuple[float, float]:
 def laws(scene: Scene) -> Laws:
     """The closed forms of docs/physics.md (and the fold cap) for ``scene``."""
     cam, defect = scene.camera, scene.defect
-    dc, de = cam.distance, scene.emitter.distance
-    sin_t, cos_t = math.sin(cam.theta_rad), math.cos(cam.theta_rad)
-    delta = cam.pixel_pitch / cam.focal
+    dc, de = scene.gaze.camera_mm, scene.gaze.screen_mm
+    sin_t, cos_t = math.sin(scene.gaze.theta_rad), math.cos(scene.gaze.theta_rad)
+    delta = scene.gaze.pitch_mm / cam.focal
     lever = 2.0 * dc * de / ((dc + de) * sin_t)  # mm: curvature -> fold ratio
     tangential, sagittal = base_curvatures(scene)
     m = magnification(scene)  # 1 - lever κ_t (components/image_scale.py)
@@ -225,8 +225,8 @@ def flat_pmd_shift_mm(scene: Scene) -> float:
 
 def _flat_shift(scene: Scene, sigma: float) -> float:
     slope = abs(scene.defect.dmax) * math.exp(-0.5) / sigma
-    de = scene.emitter.distance
-    return 2.0 * slope * (de + sigma * math.cos(scene.camera.theta_rad))
+    de = scene.gaze.screen_mm
+    return 2.0 * slope * (de + sigma * math.cos(scene.gaze.theta_rad))
 
 
 def curved_base_factor(scene: Scene, sigma: float) -> float:
@@ -245,8 +245,8 @@ def curved_base_factor(scene: Scene, sigma: float) -> float:
 
     1 exactly for ``κ_t = 0``; NaN where neither flank is seen above its horizon."""
     tangential = base_curvatures(scene)[0]
-    theta = scene.camera.theta_rad
-    dc, de = scene.camera.distance, scene.emitter.distance
+    theta = scene.gaze.theta_rad
+    dc, de = scene.gaze.camera_mm, scene.gaze.screen_mm
     far = de + sigma * math.cos(theta)
     stretch = math.cos(2.0 * tangential * sigma) ** 2
     best = -math.inf
@@ -279,8 +279,8 @@ def pmd_shift_law_check(scene: Scene) -> LawCheck:
     points the dent's faint tail swings by more than its flank's slope does, and the
     largest shift need not be the flank's the law describes (docs/physics.md)."""
     sigma_z = 1.0 / math.sqrt(rig_inverse_covariance(scene)[1])
-    theta = scene.camera.theta_rad
-    turn = base_curvatures(scene)[0] - math.sin(theta) / scene.camera.distance
+    theta = scene.gaze.theta_rad
+    turn = base_curvatures(scene)[0] - math.sin(theta) / scene.gaze.camera_mm
     reach = WINDOW_SIGMAS * sigma_z
     lowest = theta - reach * abs(turn)
     if lowest > 0.0:

@@ -114,15 +114,16 @@ def dent_window(scene: Scene, shape: tuple[int, int]) -> np.ndarray:
     x = np.concatenate([[defect.x0], defect.x0 + ring[0]])
     z = np.concatenate([[defect.z0], defect.z0 + ring[1]])
     y = np.asarray(scene.active.surface.height(scene, x, z), np.float64)
-    pose = cam.pose()
+    pose = scene.camera_pose()
     d = np.stack([x, y, z], axis=-1) - pose.position
     depth = d @ pose.forward
     mask = np.zeros(shape, bool)
     if not np.all(depth > 0):
         return mask
-    sx = cam.focal * (d @ pose.right) / depth / cam.pixel_pitch
-    sy = cam.focal * (d @ pose.up) / depth / cam.pixel_pitch
-    cols, rows = sx + cam.width / 2.0 - 0.5, cam.height / 2.0 - 0.5 - sy
+    (pitch_x, pitch_y), (cx, cy) = cam.pitch_xy, cam.centre_px
+    sx = cam.focal * (d @ pose.right) / depth / pitch_x
+    sy = cam.focal * (d @ pose.up) / depth / pitch_y
+    cols, rows = sx + cx - 0.5, cy - 0.5 - sy
     pad_c = 3.0 + 0.1 * (cols.max() - cols.min())
     pad_r = 3.0 + 0.1 * (rows.max() - rows.min())
     r0, r1 = math.floor(rows.min() - pad_r), math.ceil(rows.max() + pad_r)

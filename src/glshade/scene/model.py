@@ -31,13 +31,15 @@ from glshade.components.defect.gaussian.table import Defect
 from glshade.components.emitter.stripes.table import Emitter as StripesTable
 from glshade.components.emitter.table import EmitterTable
 from glshade.components.image_scale import auto_period_mm
+from glshade.components.part.rigid.table import Part
 from glshade.components.registry import registry
 from glshade.components.render.table import RenderTable
 from glshade.components.sensor.linear.table import Sensor
 from glshade.components.surface.table import SurfaceTable
 from glshade.errors import GlshadeError, SceneError
 from glshade.params import Table
-from glshade.rig import EmitterPlane, emitter_plane
+from glshade.rig import CameraPose, EmitterPlane, Gaze
+from glshade.scene.station import Station, gaze_of, station_of
 
 #: The tables a scene file always lists (a table that switches something on by its
 #: presence, ``[sensor]``, is written only when on).
@@ -92,6 +94,7 @@ TABLE_CLASSES: dict[str, type[Table]] = {
     "defect": Defect,
     "render": RenderSettings,
     "sensor": Sensor,
+    "part": Part,
 }
 
 
@@ -110,6 +113,12 @@ class Scene:
     defect: Defect = field(default_factory=Defect)
     render: RenderSettings = field(default_factory=RenderSettings)
     sensor: Sensor = field(default_factory=Sensor)
+    part: Part = field(default_factory=Part)
+    #: What the station believes of itself where it differs from the truth: ``(dotted
+    #: path, value)`` pairs, sorted (``[calibration]`` of a scene file). The frames are
+    #: rendered from the scene; an instrument that reconstructs geometry (slopes,
+    #: heights) uses :meth:`believed`.
+    calibration: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
         if self.emitter.period == "auto" or self.emitter.period_auto:
@@ -134,10 +143,43 @@ class Scene:
 
     # ----------------------------------------------------------------- geometry
     def emitter_plane(self) -> EmitterPlane:
-        """The emitter's plane (:func:`glshade.rig.emitter_plane`): in the camera's mirror
-        position, turned with it by the rig's azimuth."""
-        cam = self.camera
-        return emitter_plane(cam.theta_rad, cam.azimuth_rad, self.emitter.distance)
+        """The screen's plane in the part's frame (the frame the renderer, the oracle and
+        the instruments work in; :mod:`glshade.scene.station`)."""
+        return self.station.screen.in_frame(self.station.part)
+
+    def camera_pose(self) -> CameraPose:
+        """The camera's pose in the part's frame."""
+        return self.station.camera.in_frame(self.station.part)
+
+    @cached_property
+    def gaze(self) -> Gaze:
+        """The station's geometry at its gaze point as the closed forms read it
+        (:class:`~glshade.scene.station.Gaze`; the rig's own numbers for the rig)."""
+        return gaze_of(self)
+
+    @cached_property
+    def station(self) -> Station:
+        """The camera, the screen and the part, posed in the world frame."""
+        return station_of(self)
+
+    def believed(self) -> Scene:
+        """The station as it believes itself to be: the scene with its ``calibration``
+        values (itself where it has none)."""
+        if not self.calibration:
+            return self
+        return replace(self.with_values(self.calibration), calibration=())
+
+    def with_calibration(self, pairs: Any) -> Scene:
+        """A copy believing ``pairs`` (``(dotted path, value)``; an empty list: belief =
+        truth), each checked as the scene would check it; a bad one raises a
+        :class:`SceneError` naming ``calibration.<path>``."""
+        believed = tuple(sorted(dict((str(p), _frozen(v)) for p, v in pairs).items()))
+        scene = replace(self, calibration=believed)
+        try:
+            scene.believed()
+        except SceneError as exc:
+            raise SceneError(f"{CALIBRATION_TABLE}.{exc.field}", exc.allowed, exc.got) from None
+        return scene
 
     def title(self) -> str:
         """The case in a few words, as figure titles name it (depth in µm)."""
@@ -178,6 +220,14 @@ class Scene:
         table's others."""
         tables: dict[str, dict[str, Any]] = {}
         for path, value in pairs:
+            indexed = _indexed(path)
+            if indexed is not None:
+                whole, index = indexed
+                given = tables.get(whole.table, {}).get(whole.key, self.value(whole.path))
+                tables.setdefault(whole.table, {})[whole.key] = _with_component(
+                    whole, given, index, value
+                )
+                continue
             entry = registry().entry(path)
             if entry is not None:
                 param, name = entry
@@ -194,6 +244,11 @@ class Scene:
     def value(self, path: str) -> Any:
         """A parameter's value by its dotted path (``defect.sigma2`` of an anisotropic
         defect: None; an entry of a table, ``surface.parameters.a``, that it lacks: None)."""
+        indexed = _indexed(path)
+        if indexed is not None:
+            whole, index = indexed
+            vector = self.value(whole.path)
+            return None if vector is None else vector[index]
         entry = registry().entry(path)
         if entry is not None:
             return dict(self.value(entry[0].path) or ()).get(entry[1])
@@ -239,10 +294,16 @@ class Scene:
         """The TOML layout of a scene file: per table, the parameters of the components in
         use (and any other that differs from its default); unset values are left out and
         an isotropic defect is written as ``sigma2``."""
-        tables = {table: _file_values(self, table) for table in TABLE_CLASSES}
-        return {
+        tables: dict[str, Any] = {table: _file_values(self, table) for table in TABLE_CLASSES}
+        written = {
             table: values for table, values in tables.items() if values or table in ALWAYS_WRITTEN
         }
+        if self.calibration:
+            written[CALIBRATION_TABLE] = {
+                path: list(value) if isinstance(value, tuple) else value
+                for path, value in self.calibration
+            }
+        return written
 
     def to_file_dict(
         self, folder: str | os.PathLike[str], climb: bool = False
@@ -264,7 +325,7 @@ class Scene:
             raise SceneError("scene", "a table of tables (" + ", ".join(TABLE_CLASSES) + ")", data)
         parts: dict[str, Any] = {}
         for table, values in data.items():
-            if table == MEASURE_TABLE:
+            if table in (MEASURE_TABLE, CALIBRATION_TABLE):
                 continue
             if table not in TABLE_CLASSES:
                 raise SceneError(
@@ -274,7 +335,10 @@ class Scene:
                 raise SceneError(table, "a table of keys", values)
             read = _read_file(table, _resolve_paths(table, dict(values), base))
             parts[table] = TABLE_CLASSES[table](**read)
-        return cls(**parts)
+        scene = cls(**parts)
+        if CALIBRATION_TABLE in data:
+            scene = scene.with_calibration(_calibration_pairs(data[CALIBRATION_TABLE]))
+        return scene
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Scene:
@@ -296,6 +360,62 @@ class Scene:
 #: A scene file's table that says how its scene is measured (the instrument and its
 #: settings), read by :func:`glshade.instruments.table.file_measure_table`.
 MEASURE_TABLE = "measure"
+#: A scene file's table of what the station believes of itself where it differs from the
+#: truth (``[calibration]``: dotted paths, or tables of the scene's tables).
+CALIBRATION_TABLE = "calibration"
+
+
+def _calibration_pairs(table: Any, prefix: str = "") -> list[tuple[str, Any]]:
+    """``[calibration]``'s entries as ``(dotted path, value)``: ``camera.focal = 25.1``
+    and ``[calibration.camera] focal = 25.1`` say the same."""
+    if not isinstance(table, dict):
+        raise SceneError(CALIBRATION_TABLE, "a table of dotted parameter paths = values", table)
+    pairs: list[tuple[str, Any]] = []
+    for key, value in table.items():
+        path = f"{prefix}{key}"
+        if isinstance(value, dict):
+            pairs += _calibration_pairs(value, path + ".")
+        else:
+            pairs.append((path, value))
+    return pairs
+
+
+def _frozen(value: Any) -> Any:
+    return tuple(value) if isinstance(value, list) else value
+
+
+def _indexed(path: str) -> tuple[Any, int] | None:
+    """``(declaration, index)`` of a vector's component path ``table.key[i]``; None for
+    any other path. An index outside the vector, or on a parameter that is not a vector,
+    is a :class:`SceneError` naming the path."""
+    if not path.endswith("]") or "[" not in path:
+        return None
+    whole, _, rest = path.partition("[")
+    param = registry().param(whole)
+    size = param.size if param.value_type == "vector" else 0
+    text = rest[:-1]
+    if not size or not text.isdigit() or int(text) >= size:
+        allowed = f"{whole}[0] to {whole}[{size - 1}]" if size else "a vector parameter's component"
+        raise SceneError(path, allowed)
+    return param, int(text)
+
+
+def _with_component(param: Any, given: Any, index: int, value: Any) -> tuple[Any, ...]:
+    """The vector ``given`` with component ``index`` set to ``value`` (an unset vector is
+    refused: there are no other components to keep)."""
+    if given is None:
+        raise SceneError(param.path, f"set as a whole before {param.path}[{index}] is set")
+    from glshade.units import parse_quantity
+
+    number = (
+        parse_quantity(value, param.unit, f"{param.path}[{index}]")
+        if isinstance(value, str)
+        else value
+    )
+    items = list(given)
+    items[index] = number
+    return tuple(items)
+
 
 #: A scene file is a few hundred bytes; anything beyond this is not one.
 MAX_SCENE_FILE_BYTES = 1 << 20
@@ -455,6 +575,8 @@ def _file_values(scene: Scene, table: str, everything: bool = False) -> dict[str
             owner in active for owner in reg.owners(param)
         )
         if value is None or not (everything or in_use or value != param.default):
+            continue
+        if param.quiet and not everything and value == param.default:
             continue
         values[param.key] = (
             list(value)

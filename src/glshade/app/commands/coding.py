@@ -234,7 +234,7 @@ def _resolved_line(report) -> str:
 
 def _coding_lines(report) -> list[str]:
     rec, settings = report.recommended, report.settings
-    de = report.scene.emitter.distance
+    de = report.scene.gaze.screen_mm
     target = settings.target_noise_mm
     aim = f"a noise of {target:g} mm" if target is not None else "the scene's shifts"
     lines = [f"Recommended coding (for {aim}; margin {settings.margin_sigmas:g} σ)"]

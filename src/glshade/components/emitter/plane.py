@@ -12,15 +12,15 @@ from numpy.typing import NDArray
 
 def uniforms(scene: Any, context: Any) -> dict[str, object]:
     """The plane's uniforms, in the local frame of ``context.origin``."""
-    em, plane, origin = scene.emitter, scene.emitter_plane(), context.origin
+    em, plane, origin = scene.emitter, scene.emitter_plane(), np.asarray(context.origin)
     return {
         "u_emitter_normal": tuple(plane.normal),
         "u_emitter_eu": tuple(plane.e_u),
         "u_emitter_ev": tuple(plane.e_v),
-        "u_emitter_dist": em.distance,
+        "u_emitter_dist": plane.distance,
         "u_emitter_offset": (
-            float(origin @ plane.e_u),
-            float(origin @ plane.e_v),
+            float(origin @ plane.e_u) - plane.offset_uv[0],
+            float(origin @ plane.e_v) - plane.offset_uv[1],
             float(origin @ plane.normal),
         ),
         "u_emitter_half": em.half_size,

@@ -145,7 +145,7 @@ def probe_periods(scene: Scene, settings: CodingSettings) -> np.ndarray:
     widths = [footprint_mm(scene, d) for d in fringes_of(scene).directions]
     finite = [w for w in widths if math.isfinite(w)]
     cam = scene.camera
-    flat = (cam.distance + scene.emitter.distance) * cam.pixel_pitch / cam.focal
+    flat = (scene.gaze.camera_mm + scene.gaze.screen_mm) * scene.gaze.pitch_mm / cam.focal
     lo = min(finite) if finite else flat
     return np.geomspace(lo, coarsest_period_mm(scene), settings.candidates)
 
@@ -714,7 +714,7 @@ def within_budget(
 def ranges(scene: Scene, probe: Probe, plan: CodingPlan) -> Ranges:
     """The :class:`Ranges` of ``scene`` with the coding ``plan``."""
     em = fringes_of(scene)
-    de = scene.emitter.distance
+    de = scene.gaze.screen_mm
     shift = pmd_shift_mm(scene)
     law = pmd_shift_law_check(scene)
     screen = {d: 2.0 * em.half_size[coded_axis(d)] for d in probe.directions}

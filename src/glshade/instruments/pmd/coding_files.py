@@ -44,7 +44,7 @@ def summary(report: CodingReport) -> dict[str, Any]:
     """The report's numbers as one JSON-ready dict (NaN as None)."""
     probe, cam = report.probe, report.scene.camera
     rec, rng = report.recommended, report.ranges
-    de = report.scene.emitter.distance
+    de = report.scene.gaze.screen_mm
     return {
         "scene": report.scene.title(),
         "size": [cam.width, cam.height],

@@ -60,7 +60,7 @@ def station_model(scene: Scene) -> StationModel:
     (:func:`~glshade.instruments.pmd.settings.check_scene`)."""
     check_scene(scene)
     window = dent_window(scene, (scene.camera.height, scene.camera.width))
-    screen, camera, pose = scene.emitter_plane(), scene.camera, scene.camera.pose()
+    screen, camera, pose = scene.emitter_plane(), scene.camera, scene.camera_pose()
     coding = fringes_of(scene)
     axes = tuple(DIRECTIONS.index(d) ^ 1 for d in coding.directions)
     sensor = scene.sensor if scene.active.records(scene) else None

@@ -108,8 +108,9 @@ def project(model: StationModel, points: np.ndarray) -> tuple[np.ndarray, np.nda
         y = np.where(depth > 0, -(d @ pose.up) / depth, np.nan)
     if any(cam.distortion):
         x, y = distort(cam.distortion, x, y)
-    cols = x * cam.focal / cam.pixel_pitch + cam.width / 2.0 - 0.5
-    rows = y * cam.focal / cam.pixel_pitch + cam.height / 2.0 - 0.5
+    (pitch_x, pitch_y), (cx, cy) = cam.pitch_xy, cam.centre_px
+    cols = x * cam.focal / pitch_x + cx - 0.5
+    rows = y * cam.focal / pitch_y + cy - 0.5
     return rows, cols
 
 

@@ -59,7 +59,7 @@ class Perspective(CameraComponent):
         cam = scene.camera
         if cam.f_number <= 0.0:
             return 0.0
-        so, sf = cam.distance + scene.emitter.distance, focus_distance(cam)
+        so, sf = scene.gaze.camera_mm + scene.gaze.screen_mm, focus_distance(cam)
         return 2.0 * aperture_radius(cam) * abs(so - sf) / sf
 
     def warnings(self, scene: SceneView) -> tuple[str, ...]:
@@ -71,7 +71,7 @@ class Perspective(CameraComponent):
             return ()
         cam = scene.camera
         sharp = cam.f_number * blur / (0.5 * period)
-        stripes = cam.distance + scene.emitter.distance
+        stripes = scene.gaze.camera_mm + scene.gaze.screen_mm
         return (
             f"camera.f_number = {cam.f_number:g}: the lens blurs each emitter point over "
             f"{blur:.3g} mm, more than half the {period:g} mm stripe period, so the stripes "
@@ -95,16 +95,16 @@ class Perspective(CameraComponent):
 
     def uniforms(self, scene: SceneView, context: UniformContext) -> dict[str, object]:
         cam = scene.camera
-        pose = cam.pose()
+        pose = scene.camera_pose()
         values: dict[str, object] = {
-            "u_camera_dist": cam.distance,
-            "u_camera_local_origin": tuple(context.origin),
+            "u_camera_dist": pose.distance,
+            "u_camera_local_origin": tuple(np.asarray(context.origin) - pose.target),
             "u_camera_forward": tuple(pose.forward),
             "u_camera_right": tuple(pose.right),
             "u_camera_up": tuple(pose.up),
             "u_camera_focal": cam.focal,
-            "u_camera_pitch": cam.pixel_pitch,
-            "u_camera_size": (cam.width, cam.height),
+            "u_camera_pitch": cam.pitch_xy,
+            "u_camera_centre": cam.centre_px,
         }
         if context.variables["aperture"]:
             values.update(
@@ -135,7 +135,7 @@ class Perspective(CameraComponent):
     ) -> tuple[np.ndarray, np.ndarray]:
         """The chief (pinhole) rays: :meth:`Camera.pixel_rays
         <glshade.components.camera.perspective.table.Camera.pixel_rays>`."""
-        return scene.camera.pixel_rays(rows, cols, supersample)
+        return scene.camera.pixel_rays(rows, cols, supersample, pose=scene.camera_pose())
 
     def sample_rays(
         self,
@@ -152,7 +152,8 @@ class Perspective(CameraComponent):
         origin, chief = self.pixel_rays(scene, rows, cols, supersample)
         h, w = chief.shape[:2]
         chief = chief.reshape(h, w, supersample * supersample, 3)
-        forward, right, up = camera.basis()
+        pose = scene.camera_pose()
+        forward, right, up = pose.forward, pose.right, pose.up
         disc = aperture_points(camera.aperture_samples) * aperture_radius(camera)  # (K, 2) mm
         lens = origin + disc[:, :1] * right + disc[:, 1:] * up  # (K, 3)
         focus = origin + (focus_distance(camera) / (chief @ forward))[..., None] * chief

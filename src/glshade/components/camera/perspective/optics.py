@@ -16,7 +16,7 @@ from glshade.errors import SceneError
 
 class Lens(Protocol):
     """What the lens's closed forms read of a camera table (mm; ``focus_distance`` None:
-    the camera's distance)."""
+    the distance from the principal point to the point the camera aims at)."""
 
     @property
     def focal(self) -> float: ...
@@ -25,7 +25,7 @@ class Lens(Protocol):
     @property
     def focus_distance(self) -> float | None: ...
     @property
-    def distance(self) -> float: ...
+    def aim_distance(self) -> float: ...
 
 
 #: Newton iterations of the distortion's inversion (quadratic convergence: 6 reach fp64
@@ -118,9 +118,14 @@ def distortion_fold(
 def check_distortion(values: dict[str, Any]) -> None:
     """A camera table's distortion does not fold inside its sensor."""
     coeffs = values["distortion"]
-    half = sensor_half_extent(
-        values["width"], values["height"], values["pixel_pitch"], values["focal"]
-    )
+    if values.get("intrinsics") is not None:
+        fx, fy, cx, cy = values["intrinsics"]
+        w, h = values["width"], values["height"]
+        half = (max(cx + 0.5, w - cx - 0.5) / fx, max(cy + 0.5, h - cy - 0.5) / fy)
+    else:
+        half = sensor_half_extent(
+            values["width"], values["height"], values["pixel_pitch"], values["focal"]
+        )
     where = distortion_fold(coeffs, *half)
     if where is not None:
         angle = math.degrees(math.atan(where))
@@ -140,7 +145,7 @@ def aperture_radius(camera: Lens) -> float:
 
 def focus_distance(camera: Lens) -> float:
     """The plane in focus (mm along the optical axis): ``focus_distance`` or the camera distance."""
-    return camera.focus_distance if camera.focus_distance is not None else camera.distance
+    return camera.focus_distance if camera.focus_distance is not None else camera.aim_distance
 
 
 def aperture_points(count: int) -> NDArray[np.float64]:

@@ -6,15 +6,15 @@ int camera_samples() {
 
 {$ endif $}
 // Ray k of sensor position (col, row) in pixels (row 0 at the top).
-// The chief ray is re-originated at its closest approach to the gazing point, written
+// The chief ray is re-originated at its closest approach to the aim point T, written
 // without the 175 mm principal point: with s the sensor offset and L^2 = F^2 + |s|^2,
-//   d = (F f + s) / L,   o = C + (Dc F / L) d = Dc (F s - |s|^2 f) / L^2.
+//   d = (F f + s) / L,   o = C + (Dc F / L) d = T + Dc (F s - |s|^2 f) / L^2.
 // o is formed from millimetre-sized sensor quantities, so its rounding error is a few
 // ulp of |o| (near the dent: of a few mm) instead of a few ulp of 175 mm; at grazing
 // views that error is stretched by 1/sin(theta) along the surface.
 Ray camera_ray(real col, real row, int k) {
-    real sx = (col - real(u_camera_size.x) * 0.5) * u_camera_pitch;
-    real sy = (real(u_camera_size.y) * 0.5 - row) * u_camera_pitch;
+    real sx = (col - u_camera_centre.x) * u_camera_pitch.x;
+    real sy = (u_camera_centre.y - row) * u_camera_pitch.y;
 {$ if distortion $}
     real2 ideal = undistort(real2(sx, -sy) / u_camera_focal) * u_camera_focal;
     sx = ideal.x;

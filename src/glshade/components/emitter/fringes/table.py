@@ -107,6 +107,13 @@ class FringesTable(Table):
 
     distance: float = _shared("distance")
     half_size: tuple[float, float] = _shared("half_size")
+    pose: str = _shared("pose")
+    centre: tuple[float, float, float] | None = _shared("centre")
+    look_at: tuple[float, float, float] = _shared("look_at")
+    up: tuple[float, float, float] = _shared("up")
+    yaw_deg: float = _shared("yaw_deg")
+    pitch_deg: float = _shared("pitch_deg")
+    roll_deg: float = _shared("roll_deg")
     # the coding's parameters, declared by the codec (glshade.components.emitter.fringes.codec)
     periods: tuple[float, ...] = _declared(PERIODS)
     shifts: int = _declared(SHIFTS)

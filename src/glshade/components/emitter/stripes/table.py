@@ -26,6 +26,8 @@ HALF_WIDTH_STEPS = 60
 #: Half the spacing of float64 numbers, relative: adding less than ``2**-54`` of a number
 #: to it leaves it unchanged.
 _HALF_ULP = 2.0**-54
+#: How the screen is placed (``emitter.pose``).
+SCREEN_POSES = ("mirrored", "placed")
 
 
 def silent_beyond(reach: int, scale: float) -> int:
@@ -93,6 +95,46 @@ class Emitter(Table):
     half_size: tuple[float, float] = param(
         "emitter.half_size", "mm", (150.0, 150.0), "half extents in u and v", value_type="pair"
     )
+    pose: str = param(
+        "emitter.pose", "", "mirrored",
+        'how the screen is placed: "mirrored" (centred on the camera\'s line of sight '
+        "reflected at the point it aims at, emitter.distance from it and facing it: the "
+        'paper\'s rig) or "placed" (centred at emitter.centre, facing emitter.look_at, '
+        "emitter.up its v direction); emitter.yaw_deg, pitch_deg and roll_deg turn it "
+        "further about its own axes (u, v, normal)",
+        value_type="choice", choices=SCREEN_POSES, flag="--screen-pose", quiet=True,
+    )  # fmt: skip
+    centre: tuple[float, float, float] | None = param(
+        "emitter.centre", "mm", None,
+        'the screen\'s centre in the world frame (emitter.pose = "placed"; unset: the rig\'s '
+        "mirror position)",
+        value_type="vector", size=3,
+    )  # fmt: skip
+    look_at: tuple[float, float, float] = param(
+        "emitter.look_at", "mm", (0.0, 0.0, 0.0),
+        'the point the screen\'s normal aims at (emitter.pose = "placed")',
+        value_type="vector", size=3, quiet=True,
+    )  # fmt: skip
+    up: tuple[float, float, float] = param(
+        "emitter.up", "", (0.0, 1.0, 0.0),
+        'the direction the screen\'s v axis leans to (emitter.pose = "placed"; not along '
+        "its normal)",
+        value_type="vector", size=3, quiet=True,
+    )  # fmt: skip
+    yaw_deg: float = param(
+        "emitter.yaw_deg", "deg", 0.0,
+        "turn of the screen about its own v axis after it is placed (then pitch_deg about "
+        "u, roll_deg about its normal; right-handed)",
+        lo=-180.0, hi=180.0, closed=True, quiet=True,
+    )  # fmt: skip
+    pitch_deg: float = param(
+        "emitter.pitch_deg", "deg", 0.0, "turn of the screen about its own u axis",
+        lo=-180.0, hi=180.0, closed=True, quiet=True,
+    )  # fmt: skip
+    roll_deg: float = param(
+        "emitter.roll_deg", "deg", 0.0, "turn of the screen about its own normal",
+        lo=-180.0, hi=180.0, closed=True, quiet=True,
+    )  # fmt: skip
     #: True when ``period`` was worked out from ``"auto"`` by the scene (not a parameter).
     period_auto: bool = field(default=False, compare=True)
 
