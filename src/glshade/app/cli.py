@@ -28,6 +28,7 @@ from glshade.app.commands import (
     optimize,
     paper,
     render,
+    station,
     sweep,
     view,
 )
@@ -63,6 +64,7 @@ COMMANDS: dict[str, Command] = {
     "sweep": sweep,
     "optimize": optimize,
     "coding": coding,
+    "station": station,
 }
 
 
