@@ -11,8 +11,8 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.errors import GlshadeError
+from glshade.oracle.station_report import SCREEN_MM, SCREEN_PIXELS, sensor_slice, station_report
 from glshade.scene import Scene
-from glshade.scene.station_report import SCREEN_MM, SCREEN_PIXELS, sensor_slice, station_report
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

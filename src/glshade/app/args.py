@@ -427,7 +427,24 @@ def scene_from_args(args: argparse.Namespace) -> Scene:
     read_settings(scene_settings(args), scene, tables, typed)
     scene = sized(scene, args.size, tables, typed)
     with named_as_typed(typed):
-        return scene.updated(**tables) if tables else scene
+        scene = scene.updated(**tables) if tables else scene
+    check_station(scene)
+    return scene
+
+
+#: Pixels across of the grid a posed station's screen is looked for on.
+STATION_CHECK_GRID = 16
+
+
+def check_station(scene: Scene) -> None:
+    """A station that is not the paper's rig shows its screen to the camera, from the
+    front: else one line says which (a rig scene is not checked, so its numbers, an
+    unresolved case included, stay what they were)."""
+    from glshade.oracle.station_report import refuse_unseen, trace_grid
+    from glshade.scene.station import is_rig
+
+    if not is_rig(scene):
+        refuse_unseen(scene, trace_grid(scene, STATION_CHECK_GRID))
 
 
 def sized(

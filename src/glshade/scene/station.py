@@ -56,7 +56,9 @@ def screen_plane(scene: Any, part: Placement) -> EmitterPlane:
             normal, right, up, _ = look_at_axes(centre, np.asarray(em.look_at), np.asarray(em.up))
         except ValueError as exc:
             raise SceneError(
-                "emitter.centre", f"a screen pose that can be built ({exc})", list(centre)
+                "emitter.centre",
+                f"a screen pose that can be built ({exc})",
+                [float(x) for x in centre],
             ) from None
         e_u, e_v = -right, up
         plane = placed_plane(centre, normal, e_u, e_v)

@@ -28,8 +28,8 @@ from glshade.components.registry import registry
 if TYPE_CHECKING:
     from mpl_toolkits.mplot3d import Axes3D
 
+    from glshade.oracle.station_report import StationReport
     from glshade.scene import Scene
-    from glshade.scene.station_report import StationReport
 
 #: Camera pixels along each side of the sensor whose rays the picture draws.
 BUNDLE_GRID = 12
@@ -79,7 +79,7 @@ def add(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from glshade.files import atomic_write_bytes
-    from glshade.scene.station_report import station_report
+    from glshade.oracle.station_report import station_report
 
     scene = scene_from_args(args)
     check_outputs(args, scene, [("-o", args.out, (".png",))])
@@ -145,7 +145,7 @@ def ray_segments(scene: Scene, reach: float) -> tuple[list[np.ndarray], list[np.
     """The bundle of :data:`BUNDLE_GRID`² camera rays that hit the part, each camera → hit
     → screen's plane (world mm): those that land on the screen and those that do not (drawn
     ``reach`` mm past the hit where the plane is farther or never reached)."""
-    from glshade.scene.station_report import trace_grid
+    from glshade.oracle.station_report import trace_grid
 
     traced, part = trace_grid(scene, BUNDLE_GRID), scene.station.part
     origin = part.to_world_points(traced.origin)
