@@ -8,8 +8,10 @@ float64 oracle for layouts the rig cannot express (uv within the stated toleranc
 
 from __future__ import annotations
 
+import csv
 import json
 import math
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -266,3 +268,56 @@ def test_the_sofast_station_is_seen_at_near_normal_incidence():
     gaze = sofast("fp32").gaze
     assert 85.0 < math.degrees(gaze.theta_rad) < 89.0
     assert gaze.camera_mm == pytest.approx(10018.0, rel=1e-4)
+
+
+# --------------------------------------------------------------------------- the viewer
+def test_a_drag_orbits_a_look_at_camera_about_its_aim_point():
+    from glshade.rig import orbit_position
+
+    target = np.array([5.0, 1.0, -3.0])
+    position = target + 100.0 * np.array([0.0, math.sin(0.5), math.cos(0.5)])
+    np.testing.assert_allclose(orbit_position(position, target, 0.0, 0.0), position, atol=1e-12)
+    raised = orbit_position(position, target, 0.0, -40.0)  # up: 10 degrees higher
+    assert np.linalg.norm(raised - target) == pytest.approx(100.0)
+    assert math.degrees(math.asin((raised - target)[1] / 100.0)) == pytest.approx(
+        math.degrees(0.5) + 10.0
+    )
+    turned = orbit_position(position, target, 40.0, 0.0)  # right: the azimuth turns +10
+    assert math.degrees(math.atan2(*(turned - target)[[0, 2]])) == pytest.approx(10.0)
+
+
+# --------------------------------------------------------------------------- sweeps, optimiser
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+@pytest.mark.gl
+def test_a_posed_station_sweeps_over_a_position_component_and_a_yaw(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["sweep", str(EXAMPLES / "overhead_sweep.toml"), "--out", str(out)]) == 0
+    rows = list(csv.DictReader((out / "results.csv").open()))
+    assert [(r["camera.position[1]"], r["camera.yaw_deg"]) for r in rows][:4] == [
+        ("120.0", "-2.0"), ("120.0", "0.0"), ("120.0", "2.0"), ("140.0", "-2.0"),
+    ]  # fmt: skip
+    measured = [r for r in rows if r["status"] == "ok"]
+    assert len(measured) >= 6
+    assert all(float(r["pmd_depth_um"]) == pytest.approx(5.0, rel=0.05) for r in measured)
+    # the station measures what its layout shows: raising the camera shrinks the shift
+    shift = {
+        r["camera.position[1]"]: float(r["pmd_shift_mm"])
+        for r in rows
+        if r["camera.yaw_deg"] == "0.0"
+    }
+    assert shift["120.0"] > shift["140.0"] > shift["160.0"]
+    capsys.readouterr()
+
+
+@pytest.mark.gl
+def test_the_optimiser_moves_a_posed_camera(tmp_path, capsys):
+    argv = [
+        "optimize", str(EXAMPLES / "overhead_station.toml"), "--over",
+        "camera.position[1]=110..200", "--metric", "continuous", "--grid", "3", "--refine", "3",
+        "--size", "48", "--json", "--yes",
+    ]  # fmt: skip
+    assert main(argv) == 0
+    answer = json.loads(capsys.readouterr().out)
+    assert 110.0 <= answer["optimum"]["camera.position[1]"] <= 200.0

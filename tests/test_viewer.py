@@ -806,3 +806,21 @@ def test_the_readout_marks_numbers_it_cannot_read():
     assert lines[-1] == "status: unresolved: the 2 mm stripes span 0.3 px per period"
     edge = readout_lines(Readout(deflection_px=3.0, status="edge", status_reason="border"))
     assert "[edge: not measurable]" in edge[3]
+
+
+@needs_display
+def test_a_posed_station_shows_as_the_batch_renderer_does(tmp_path):
+    scene = paper_scene("sphere", 45.0, 4.0, 0.005).updated(
+        camera={"pose": "look_at", "position": [60.0, 140.0, 110.0]},
+        emitter={"pose": "placed", "centre": [-40.0, 300.0, -120.0]},
+    )
+    scene.save(tmp_path / "posed.toml")
+    path = tmp_path / "posed.png"
+    result = view(
+        str(tmp_path / "posed.toml"), "--size", "256", "--frames", "6", "--screenshot", str(path)
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    shown = read_png(path)[:256, :256, 0].astype(np.float64) / 255.0
+    offscreen = np.clip(render(scene.with_size(256)).image, 0, 1)
+    assert shown.std() > 0.1
+    assert np.abs(shown - offscreen).mean() < 2 / 255 and np.abs(shown - offscreen).max() <= 4 / 255

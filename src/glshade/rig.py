@@ -154,3 +154,19 @@ def orbit(
     theta = min(hi, max(lo, theta_deg - dy_px * deg_per_px))
     azimuth = (azimuth_deg + dx_px * deg_per_px + 180.0) % 360.0 - 180.0
     return theta, (180.0 if azimuth == -180.0 else azimuth)
+
+
+def orbit_position(
+    position: np.ndarray, target: np.ndarray, dx_px: float, dy_px: float, deg_per_px: float = 0.25
+) -> np.ndarray:
+    """A posed camera's principal point after a mouse drag: it orbits ``target`` at its
+    distance, its elevation above the plane through ``target`` (``+y`` up) and its azimuth
+    about ``+y`` changed as :func:`orbit` changes the rig's (float64 (3,), mm)."""
+    offset = np.asarray(position, np.float64) - np.asarray(target, np.float64)
+    distance = float(np.linalg.norm(offset))
+    theta = math.degrees(math.asin(max(-1.0, min(1.0, offset[1] / distance))))
+    azimuth = math.degrees(math.atan2(offset[0], offset[2]))
+    theta, azimuth = orbit(theta, azimuth, dx_px, dy_px, deg_per_px)
+    t, a = math.radians(theta), math.radians(azimuth)
+    along = np.array([math.cos(t) * math.sin(a), math.sin(t), math.cos(t) * math.cos(a)])
+    return np.asarray(target, np.float64) + distance * along

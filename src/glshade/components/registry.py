@@ -189,7 +189,11 @@ class Registry:
         return self._schema[table]
 
     def param(self, path: str) -> Param:
-        """The declaration of ``table.key``; a SceneError naming the known ones if none."""
+        """The declaration of ``table.key``; a SceneError naming the known ones if none.
+        ``table.key[i]``, a component of a vector parameter (``camera.position[1]``), is
+        declared as one number in the vector's unit."""
+        if path.endswith("]") and "[" in path:
+            return self.component(path)
         for param in self.params():
             if param.path == path:
                 return param
@@ -200,6 +204,21 @@ class Registry:
             )
         keys = ", ".join(p.key for p in self.table_params(table))
         raise SceneError(path, f"one of the keys {keys} (unknown key)")
+
+    def component(self, path: str) -> Param:
+        """The declaration of component ``i`` of the vector ``table.key[i]``."""
+        whole, _, rest = path.partition("[")
+        vector = self.param(whole)
+        index = rest[:-1]
+        size = vector.size if vector.value_type == "vector" else 0
+        if not size or not index.isdigit() or int(index) >= size:
+            allowed = f"{whole}[0] to {whole}[{size - 1}]" if size else "a vector's component"
+            raise SceneError(path, allowed)
+        default = None if vector.default is None else vector.default[int(index)]
+        return dataclasses.replace(
+            vector, path=path, value_type="real", default=default, size=0, flag=None,
+            control=None, allowed_text=None, role="uniform",
+        )  # fmt: skip
 
     def entry(self, path: str) -> tuple[Param, str] | None:
         """A named entry of a parameter that holds a table of named numbers

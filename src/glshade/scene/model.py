@@ -17,6 +17,7 @@ round-trip. A scene resolves once which component fills each slot (:attr:`Scene.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
@@ -39,7 +40,7 @@ from glshade.components.surface.table import SurfaceTable
 from glshade.errors import GlshadeError, SceneError
 from glshade.params import Table
 from glshade.rig import CameraPose, EmitterPlane, Gaze
-from glshade.scene.station import Station, gaze_of, station_of
+from glshade.scene.station import Station, gaze_of, is_rig, station_of
 
 #: The tables a scene file always lists (a table that switches something on by its
 #: presence, ``[sensor]``, is written only when on).
@@ -189,7 +190,11 @@ class Scene:
         else:
             shape = f"Σ ({d.sigma_x2:g}, {d.sigma_z2:g}, {d.sigma_xz:g}) mm²"
         base = self.active.surface.describe(self)
-        return f"{base}, θ {self.camera.theta_deg:g}°, {shape}, dmax {d.dmax * 1000:g} µm"
+        if is_rig(self):
+            seen = f"θ {self.camera.theta_deg:g}°"
+        else:  # a posed station: the camera's elevation seen from its gaze point
+            seen = f"posed, θ {math.degrees(self.gaze.theta_rad):.3g}° at the gaze point"
+        return f"{base}, {seen}, {shape}, dmax {d.dmax * 1000:g} µm"
 
     def local_origin(self) -> np.ndarray:
         """The centre of the local frame every shader computes in: the defect's centre
@@ -385,19 +390,13 @@ def _frozen(value: Any) -> Any:
 
 
 def _indexed(path: str) -> tuple[Any, int] | None:
-    """``(declaration, index)`` of a vector's component path ``table.key[i]``; None for
-    any other path. An index outside the vector, or on a parameter that is not a vector,
-    is a :class:`SceneError` naming the path."""
+    """``(declaration of the whole vector, index)`` of a component path ``table.key[i]``
+    (checked by :meth:`Registry.component`); None for any other path."""
     if not path.endswith("]") or "[" not in path:
         return None
+    registry().component(path)  # a SceneError naming the path where it is no component
     whole, _, rest = path.partition("[")
-    param = registry().param(whole)
-    size = param.size if param.value_type == "vector" else 0
-    text = rest[:-1]
-    if not size or not text.isdigit() or int(text) >= size:
-        allowed = f"{whole}[0] to {whole}[{size - 1}]" if size else "a vector parameter's component"
-        raise SceneError(path, allowed)
-    return param, int(text)
+    return registry().param(whole), int(rest[:-1])
 
 
 def _with_component(param: Any, given: Any, index: int, value: Any) -> tuple[Any, ...]:

@@ -30,7 +30,7 @@ from glshade.files import refuse_link, write_png
 from glshade.gpu.compose import compose_display, display_features, display_uniforms
 from glshade.gpu.context import GLContext, set_uniform
 from glshade.gpu.renderer import Renderer
-from glshade.rig import orbit
+from glshade.rig import orbit, orbit_position
 
 #: Copies the kept picture into the window, texel for texel (the same pixels as the
 #: display pass drew, at the same place).
@@ -323,11 +323,23 @@ class ViewerWindow(mglw.WindowConfig):
 
     def orbit(self, dx: float, dy: float) -> None:
         """A drag over the image orbits the rig: up raises the camera, right turns the
-        camera and the emitter about the surface normal (:func:`glshade.rig.orbit`)."""
+        camera and the emitter about the surface normal (:func:`glshade.rig.orbit`). A
+        look-at camera orbits the point it aims at (:func:`glshade.rig.orbit_position`);
+        a camera placed by OpenCV's extrinsics turns its view (yaw and pitch)."""
         cam = self.model.scene.camera
-        theta, azimuth = orbit(cam.theta_deg, cam.azimuth_deg, dx, dy)
-        self.model.set_value("camera.theta_deg", theta)
-        self.model.set_value("camera.azimuth_deg", azimuth)
+        if cam.pose == "look_at":
+            pose = cam.world_pose()
+            moved = orbit_position(pose.position, pose.target, dx, dy)
+            self.model.set_value("camera.position", tuple(float(x) for x in moved))
+        elif cam.pose == "extrinsics":
+            yaw = max(-180.0, min(180.0, cam.yaw_deg - 0.25 * dx))
+            pitch = max(-180.0, min(180.0, cam.pitch_deg - 0.25 * dy))
+            self.model.set_value("camera.yaw_deg", yaw)
+            self.model.set_value("camera.pitch_deg", pitch)
+        else:
+            theta, azimuth = orbit(cam.theta_deg, cam.azimuth_deg, dx, dy)
+            self.model.set_value("camera.theta_deg", theta)
+            self.model.set_value("camera.azimuth_deg", azimuth)
 
     def on_mouse_scroll_event(self, x_offset, y_offset):
         self.schedule.poke()
