@@ -214,12 +214,15 @@ def geometry_key(scene: Scene) -> Scene:
 def panel_params(scene: Scene) -> list[Param]:
     """The parameters the panel shows for ``scene``: the selectors, and the parameters of
     the components in use that have a control or are a text (a formula, a file path), in
-    the schema's order."""
+    the schema's order. A quiet one (a pose's mode) only where the scene changes it: the
+    rig's panel stays the rig's."""
     reg = registry()
     active = set(reg.active(scene))
     shown = []
     for param in reg.params():
         if param.control is None and param.value_type not in ("choice", "text", "path"):
+            continue
+        if param.quiet and scene.value(param.path) == param.default:
             continue
         if reg.choices(param) is not None or any(owner in active for owner in reg.owners(param)):
             shown.append(param)
