@@ -23,6 +23,7 @@ from glshade.oracle.renderer import OracleRenderer
 from glshade.poses import Placement, look_at_axes, rotation_ypr, to_extrinsics
 from glshade.scene import Scene, paper_scene
 
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 #: GL fp32 uv against the fp64 oracle (mm): the project's bound for any station.
 UV_FP32_MM = 2e-3
 #: GL fp64 uv against the oracle (mm) at 10 m.
@@ -237,21 +238,10 @@ def overhead(precision: str, size: int = 40) -> Scene:
 
 
 def sofast(precision: str, size: int = 40) -> Scene:
-    """A SOFAST-like station: a camera beside a screen of 8.7 m x 3.5 m, 10 m above a
-    large concave facet at near-normal incidence."""
-    return paper_scene("flat", 45.0, 2500.0, 0.005).updated(
-        camera={
-            "pose": "look_at", "position": [0.0, 10000.0, 600.0], "look_at": [0.0, 0.0, 0.0],
-            "up": [0.0, 0.0, -1.0], "focal": 8.0, "pixel_pitch": 0.005, "width": 400,
-            "height": 400,
-        },
-        emitter={
-            "pose": "placed", "centre": [0.0, 10000.0, -1500.0], "look_at": [0.0, 0.0, 0.0],
-            "up": [0.0, 0.0, -1.0], "half_size": [4350.0, 1750.0], "period": 200.0,
-        },
-        surface={"kind": "sphere", "radius": -200000.0},
-        render={"precision": precision},
-    ).with_size(size)  # fmt: skip
+    """The SOFAST-like station of examples/: a camera beside a screen of 8.7 m x 3.5 m, 10 m
+    above a large concave facet at near-normal incidence."""
+    scene = Scene.load(EXAMPLES / "sofast_like_station.toml")
+    return scene.updated(render={"precision": precision}).with_size(size)
 
 
 @pytest.mark.parametrize("build", [overhead, sofast], ids=["overhead", "sofast"])
@@ -287,9 +277,6 @@ def test_a_drag_orbits_a_look_at_camera_about_its_aim_point():
 
 
 # --------------------------------------------------------------------------- sweeps, optimiser
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-
-
 @pytest.mark.gl
 def test_a_posed_station_sweeps_over_a_position_component_and_a_yaw(tmp_path, capsys):
     out = tmp_path / "out"
@@ -321,3 +308,20 @@ def test_the_optimiser_moves_a_posed_camera(tmp_path, capsys):
     assert main(argv) == 0
     answer = json.loads(capsys.readouterr().out)
     assert 110.0 <= answer["optimum"]["camera.position[1]"] <= 200.0
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("method, precision", [("paper", "fp32"), ("pmd", "fp32"), ("pmd", "fp64")])
+def test_the_sofast_station_measures_with_both_instruments(capsys, method, precision):
+    argv = ["measure", str(EXAMPLES / "sofast_like_station.toml"), "--method", method,
+            "--size", "96", "--precision", precision, "--json"]  # fmt: skip
+    if method == "paper":  # stripes a metre apart, seen in steps of 25 mm
+        argv += ["--emitter", "stripes", "--period", "1000", "--step", "25"]
+    assert main(argv) == 0
+    answer = json.loads(capsys.readouterr().out)
+    assert answer["status"] == "ok"
+    if method == "pmd":  # the dent's steepest slope, dmax e^-1/2 / sigma = 607 urad
+        assert answer["pmd_slope_urad"] == pytest.approx(607.0, rel=0.05)
+        assert answer["pmd_depth_um"] == pytest.approx(50.0, rel=0.1)
+    else:  # the stripes' shift as the closed form reads the station's gaze geometry
+        assert answer["deflection_px"] == pytest.approx(answer["deflection_law_px"], rel=0.15)
