@@ -325,3 +325,29 @@ def test_the_sofast_station_measures_with_both_instruments(capsys, method, preci
         assert answer["pmd_depth_um"] == pytest.approx(50.0, rel=0.1)
     else:  # the stripes' shift as the closed form reads the station's gaze geometry
         assert answer["deflection_px"] == pytest.approx(answer["deflection_law_px"], rel=0.15)
+
+
+# --------------------------------------------------------------------------- refusals
+@pytest.mark.parametrize(
+    "emitter, words",
+    [
+        ({"pose": "placed", "centre": [0.0, 181.0, -181.0], "look_at": [0.0, 400.0, -400.0]},
+         "the screen is seen from behind"),
+        ({"pose": "placed", "centre": [0.0, 181.0, 400.0]}, "no camera pixel sees the screen"),
+    ],
+    ids=["behind", "unseen"],
+)  # fmt: skip
+def test_a_station_that_shows_no_screen_is_refused_in_one_line(tmp_path, capsys, emitter, words):
+    scene = Scene().updated(camera={"pose": "look_at"}, emitter=emitter).with_size(32)
+    scene.save(tmp_path / "station.toml")
+    (tmp_path / "sweep.toml").write_text(
+        'base = "station.toml"\nsize = 32\n[grid]\n"camera.focal" = [25.0, 26.0]\n'
+    )
+    for argv in (
+        ["measure", str(tmp_path / "station.toml"), "--json"],
+        ["sweep", str(tmp_path / "sweep.toml"), "--out", str(tmp_path / "out")],
+    ):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and words in err[0], err
+    assert not (tmp_path / "out").exists()

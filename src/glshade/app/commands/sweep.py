@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from glshade.app.args import check_memory, path_arg, warn
+from glshade.app.args import check_memory, check_station, path_arg, warn
 from glshade.app.commands.distribution import add_distribution_flags, distribution_of
 from glshade.oracle.advice import scene_warnings
 
@@ -61,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
         pooled=not (distribution.workers or distribution.scheduler),
     )
     warn(scene_warnings(first[0].scene))
+    check_station(first[0].scene)  # a posed station that shows no screen: one line
     reuse_freed_memory()
     result = run_sweep(
         spec,
