@@ -171,6 +171,7 @@ def test_features_come_from_scene_values():
         "diffuse": False,
         "fresnel": False,
         "cover_glass": False,
+        "screen_sag": False,
     }
     assert f.outputs == ("image", "uv")
     # theta, phase, sigma2, dmax (non-zero) are uniforms: same features

@@ -406,9 +406,14 @@ class EmitterComponent(Component):
 
     def features(self, scene: SceneView) -> dict[str, Hashable]:
         """``cover_glass``: whether ``lib/emitter_plane.glsl`` refracts through a cover
-        glass (:meth:`cover_glass`; none by default), the one template variable the
-        shared plane needs."""
-        return {"cover_glass": self.cover_glass(scene) is not None}
+        glass (:meth:`cover_glass`; none by default), and ``screen_sag``: whether the
+        screen sags (``emitter.sag``), the template variables the shared plane needs."""
+        from glshade.components.emitter.plane import sag_of
+
+        return {
+            "cover_glass": self.cover_glass(scene) is not None,
+            "screen_sag": sag_of(scene) is not None,
+        }
 
     def coordinates(
         self, scene: SceneView, points: np.ndarray, directions: np.ndarray

@@ -9,11 +9,78 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+#: Newton steps that take a ray's hit from the plane onto a sagging screen (the GLSL's
+#: ``emitter_sag_hit`` takes as many; :func:`sag_distance`).
+SAG_STEPS = 3
+
+
+def sag_of(scene: Any) -> tuple[float, float, float] | None:
+    """The screen's sag ``(bow_u, bow_v, twist)`` (mm, ``emitter.sag``), None for a flat
+    screen (the ``screen_sag`` feature: its GLSL is absent then)."""
+    sag = getattr(scene.emitter, "sag", None)
+    if sag is None or not any(sag):
+        return None
+    bow_u, bow_v, twist = (float(c) for c in sag)
+    return bow_u, bow_v, twist
+
+
+def sag_coefficients(
+    sag: tuple[float, float, float], half_size: tuple[float, float]
+) -> tuple[float, float, float]:
+    """``(a, b, c)`` (1/mm) of ``w(u, v) = a u² + b v² + c u v``: ``bow_u / half_u²``,
+    ``bow_v / half_v²``, ``twist / (half_u half_v)`` (the uniform ``u_emitter_sag``)."""
+    hu, hv = half_size
+    return sag[0] / (hu * hu), sag[1] / (hv * hv), sag[2] / (hu * hv)
+
+
+def sag_height(coefficients: tuple[float, float, float], u: Any, v: Any) -> Any:
+    """``w(u, v)`` (mm, towards the viewer) of the sag's ``coefficients``."""
+    a, b, c = coefficients
+    return u * (a * u + c * v) + b * v * v
+
+
+def sag_gradient(coefficients: tuple[float, float, float], u: Any, v: Any) -> tuple[Any, Any]:
+    """``(∂w/∂u, ∂w/∂v)`` of the sag's ``coefficients``."""
+    a, b, c = coefficients
+    return 2.0 * a * u + c * v, 2.0 * b * v + c * u
+
+
+def sag_distance(
+    coefficients: tuple[float, float, float],
+    foot: tuple[Any, Any],
+    along: tuple[Any, Any],
+    facing: Any,
+    gap: Any,
+    distance: Any,
+) -> Any:
+    """The ray parameter where rays ``p + d r`` meet the plane ``gap`` ahead of them raised
+    by the sag, from their plane hit ``distance`` (``= gap / facing``; ``gap`` is the level's
+    height minus the point's, along the plane's normal): :data:`SAG_STEPS` Newton steps on
+    ``f(d) = d (r·n) - gap - w(foot + d along)``, ``along = (r·e_u, r·e_v)``, ``foot`` the
+    point's own ``(u, v)``, ``facing = r·n``.
+
+    Convergence: from the plane the error is ``|w| / |r·n|`` and each step squares it,
+    ``|e_{k+1}| ≈ (along·H·along / 2 |f'|) e_k²`` (``H`` the sag's Hessian, ``f' = r·n -
+    ∇w·along``). Measured on rays 250 mm from a 150 mm half-size screen: a 1 mm bow leaves
+    2e-4 mm after one step and < 1e-11 mm after two, up to 60° from the normal; the
+    largest sag allowed (15 mm) leaves < 1e-11 mm after three within 45° of the normal,
+    1e-6 mm at 60°."""
+    u0, v0 = foot
+    au, av = along
+    d = distance
+    for _ in range(SAG_STEPS):
+        u, v = u0 + d * au, v0 + d * av
+        wu, wv = sag_gradient(coefficients, u, v)
+        f = d * facing - gap - sag_height(coefficients, u, v)
+        d = d - f / (facing - (wu * au + wv * av))
+    return d
+
 
 def uniforms(scene: Any, context: Any) -> dict[str, object]:
-    """The plane's uniforms, in the local frame of ``context.origin``."""
+    """The plane's uniforms, in the local frame of ``context.origin`` (and where the screen
+    sags, ``u_emitter_sag``: :func:`sag_coefficients`)."""
     em, plane, origin = scene.emitter, scene.emitter_plane(), np.asarray(context.origin)
-    return {
+    values: dict[str, object] = {
         "u_emitter_normal": tuple(plane.normal),
         "u_emitter_eu": tuple(plane.e_u),
         "u_emitter_ev": tuple(plane.e_v),
@@ -25,6 +92,10 @@ def uniforms(scene: Any, context: Any) -> dict[str, object]:
         ),
         "u_emitter_half": em.half_size,
     }
+    sag = sag_of(scene)
+    if sag is not None:
+        values["u_emitter_sag"] = sag_coefficients(sag, em.half_size)
+    return values
 
 
 def coordinates(
@@ -38,6 +109,11 @@ def coordinates(
     front of the emitting layer: the ray meets its front face ``thickness`` nearer the
     origin, refracts (``sin r = sin i / n``) and meets the layer ``t tan r`` from there along
     its plane of incidence.
+
+    A sagging screen (``emitter.sag``, :func:`sag_of`): the ray meets the surface ``plane +
+    w(u, v) n`` (its front face ``plane + (thickness + w) n`` under a cover glass, which
+    then refracts as a flat glass would), found from the plane's hit by
+    :func:`sag_distance`; ``(u, v)`` is the hit's foot on the plane.
     """
     plane = scene.emitter_plane()
     p = np.asarray(points, np.float64)
@@ -47,8 +123,15 @@ def coordinates(
     denom = r @ plane.normal
     rel = p - plane.centre
     thickness = glass[0] if glass is not None else 0.0
+    sag = sag_of(scene)
     with np.errstate(divide="ignore", invalid="ignore"):
         t_e = (thickness - rel @ plane.normal) / denom
+        if sag is not None:
+            coefficients = sag_coefficients(sag, scene.emitter.half_size)
+            foot = (rel @ plane.e_u, rel @ plane.e_v)
+            lean = (r @ plane.e_u, r @ plane.e_v)
+            gap = thickness - rel @ plane.normal
+            t_e = sag_distance(coefficients, foot, lean, denom, gap, t_e)
         q = rel + t_e[..., None] * r
     u = q @ plane.e_u
     v = q @ plane.e_v

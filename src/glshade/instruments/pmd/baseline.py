@@ -97,9 +97,10 @@ def pmd_baseline(
     renderer: Renderer, model: StationModel, settings: PmdSettings = PmdSettings()
 ) -> PmdBaseline:
     """The defect-free analysis of the geometry of ``model``
-    (:func:`~glshade.instruments.pmd.model.station_model`): its nominal part's fringe
-    sequence captured and decoded, twice where a sensor adds noise."""
-    shot = capture(renderer, model.part)
+    (:func:`~glshade.instruments.pmd.model.station_model`): the defect-free scene's fringe
+    sequence captured as it is (``model.truth``) and decoded, twice where a sensor adds
+    noise; the nominal geometry the station believes (``model.part``)."""
+    shot = capture(renderer, model.truth)
     start = time.perf_counter()
     seen = seen_pixels(shot.uv)
     coding, peak = model.coding, shot.peak_response

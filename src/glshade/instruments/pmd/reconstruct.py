@@ -12,7 +12,7 @@ import numpy as np
 
 from glshade.errors import GlshadeError
 from glshade.instruments.pmd import decode as pmd
-from glshade.instruments.pmd.model import StationModel, screen_points
+from glshade.instruments.pmd.model import StationModel, aimed_points
 from glshade.instruments.pmd.settings import PmdSettings
 
 if TYPE_CHECKING:
@@ -33,7 +33,8 @@ class Nominal:
 
 def nominal_geometry(renderer: Renderer, model: StationModel) -> Nominal:
     """Each pixel's point on the model's nominal part along its chief (pinhole) ray, and
-    the surface's unit normal there (the surface component's float64 oracle)."""
+    the surface's unit normal there (the surface component's float64 oracle): the
+    believed camera's rays onto the believed part (the station's CAD model)."""
     chief = model.part.updated(camera={"f_number": 0.0}, render={"supersample": 1})
     distance = renderer.render(chief, ("distance",)).output("distance").astype(np.float64)
     origin, directions = chief.active.camera.pixel_rays(chief)
@@ -50,13 +51,15 @@ def nominal_geometry(renderer: Renderer, model: StationModel) -> Nominal:
 
 def slope_map(model: StationModel, nominal: Nominal, decoded_uv: np.ndarray) -> np.ndarray:
     """The measured slope deviation ``(∂d/∂x, ∂d/∂z)`` (H, W, 2), rad: the normal that
-    bisects the directions to the camera and to the decoded screen point, against the
-    nominal normal. A sequence coding one direction leaves the other coordinate at the
-    nominal surface's (the exact map of the defect-free scene is not known to a station:
-    the missing coordinate is taken from the nominal mirror, so only one slope is
-    measured)."""
+    bisects the directions to the camera and to the decoded screen point (where the
+    station believes it: its screen's plane and sag, and through its believed cover glass
+    the point the ray leaves towards, :func:`~glshade.instruments.pmd.model.aimed_points`),
+    against the nominal normal. A sequence coding one direction leaves the other
+    coordinate at the nominal surface's (the exact map of the defect-free scene is not
+    known to a station: the missing coordinate is taken from the nominal mirror, so only
+    one slope is measured)."""
     measured = pmd.normals_from_points(
-        nominal.points, nominal.camera, screen_points(model, decoded_uv)
+        nominal.points, nominal.camera, aimed_points(model, nominal.points, decoded_uv)
     )
     gx, gz = pmd.slope_deviation(measured, nominal.normals)
     return np.stack([gx, gz], axis=-1)

@@ -41,6 +41,7 @@ class Fringes(EmitterComponent):
         em = self.frame(scene)
         return {
             "cover_glass": em.glass_thickness > 0.0,
+            "screen_sag": plane.sag_of(scene) is not None,
             "fringe_pixels": em.pixel_pitch > 0.0,
             "fringe_response": "curve" if em.response_file is not None else "gamma",
         }

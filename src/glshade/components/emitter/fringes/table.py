@@ -38,6 +38,7 @@ from glshade.components.emitter.fringes.codec import (
 )
 from glshade.components.emitter.fringes.screen import ScreenResponse
 from glshade.components.emitter.stripes.table import Emitter as StripesTable
+from glshade.components.emitter.stripes.table import check_sag
 from glshade.errors import SceneError
 from glshade.params import PARAM_KEY, Control, Param, Table, param
 
@@ -54,8 +55,8 @@ __all__ = [
 
 
 def _shared(name: str) -> Any:
-    """The stripes' declaration of the screen's geometry (``distance``, ``half_size``):
-    the same parameter, shared by every emitter on that plane."""
+    """The stripes' declaration of the screen's geometry (``distance``, ``half_size``, its
+    pose and its ``sag``): the same parameter, shared by every emitter on that plane."""
     item = next(f for f in fields(StripesTable) if f.name == name)
     return field(default=item.default, metadata={PARAM_KEY: item.metadata[PARAM_KEY]})
 
@@ -103,7 +104,7 @@ class FringesTable(Table):
     validated) with it."""
 
     table = "emitter"
-    table_checks = (_check,)
+    table_checks = (_check, check_sag)
 
     distance: float = _shared("distance")
     half_size: tuple[float, float] = _shared("half_size")
@@ -114,6 +115,7 @@ class FringesTable(Table):
     yaw_deg: float = _shared("yaw_deg")
     pitch_deg: float = _shared("pitch_deg")
     roll_deg: float = _shared("roll_deg")
+    sag: tuple[float, float, float] = _shared("sag")
     # the coding's parameters, declared by the codec (glshade.components.emitter.fringes.codec)
     periods: tuple[float, ...] = _declared(PERIODS)
     shifts: int = _declared(SHIFTS)

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from glshade.components.emitter.table import MAX_STRIPE_PERIOD_MM, MIN_PERIOD_MM
+from glshade.errors import SceneError
 from glshade.params import Control, Table, param
 
 #: FWHM of one stripe = half a period  =>  sigma = period / (4 sqrt(2 ln 2)).
@@ -26,6 +27,8 @@ HALF_WIDTH_STEPS = 60
 #: Half the spacing of float64 numbers, relative: adding less than ``2**-54`` of a number
 #: to it leaves it unchanged.
 _HALF_ULP = 2.0**-54
+#: The largest sag (``|bow_u| + |bow_v| + |twist|``) as a share of the smaller half size.
+MAX_SAG_SHARE = 0.1
 #: How the screen is placed (``emitter.pose``).
 SCREEN_POSES = ("mirrored", "placed")
 
@@ -59,6 +62,24 @@ def reduced_phase(phase_mm: float, period_mm: float) -> float:
     return math.remainder(phase_mm, period_mm)
 
 
+def check_sag(values: dict[str, Any]) -> None:
+    """A low-order sag, small against the screen: ``|bow_u| + |bow_v| + |twist|`` at most
+    :data:`MAX_SAG_SHARE` of the smaller half size ``h``: its slope stays below ``2
+    MAX_SAG_SHARE`` (``|∇w| <= (2 |bow| + |twist|) / h``), where the hit's Newton steps
+    converge (:func:`glshade.components.emitter.plane.sag_distance`)."""
+    sag, half = values.get("sag"), values.get("half_size")
+    if sag is None or half is None:
+        return
+    limit = MAX_SAG_SHARE * min(half)
+    if sum(abs(c) for c in sag) > limit:
+        raise SceneError(
+            "emitter.sag",
+            f"[bow_u, bow_v, twist] with |bow_u| + |bow_v| + |twist| <= {limit:g} mm "
+            f"({MAX_SAG_SHARE:g} of the smaller half size)",
+            list(sag),
+        )
+
+
 @dataclass(frozen=True)
 class Emitter(Table):
     """The stripe emitter (mm): ``distance`` from the origin, ``period``, ``stripe_sigma``
@@ -71,6 +92,7 @@ class Emitter(Table):
     """
 
     table = "emitter"
+    table_checks = (check_sag,)
 
     distance: float = param(
         "emitter.distance", "mm", 256.0, "origin to the emitter's centre", lo=0.0
@@ -134,6 +156,17 @@ class Emitter(Table):
     roll_deg: float = param(
         "emitter.roll_deg", "deg", 0.0, "turn of the screen about its own normal",
         lo=-180.0, hi=180.0, closed=True, quiet=True,
+    )  # fmt: skip
+    sag: tuple[float, float, float] = param(
+        "emitter.sag", "mm", (0.0, 0.0, 0.0),
+        "the screen's shape, a low-order sag [bow_u, bow_v, twist]: its emitting surface is "
+        "displaced along its normal (towards the viewer positive) by w(u, v) = bow_u s² + "
+        "bow_v t² + twist s t, s = u / half_u, t = v / half_v (so bow_u is the rise at the "
+        "u edges over the centre); a screen point (u, v) is its foot on the plane. A cover "
+        "glass follows the bent layer, its front face w + glass_thickness above the plane "
+        f"(refracted as a flat glass). The three magnitudes add up to at most {MAX_SAG_SHARE:g} "
+        "of the smaller half size; [0, 0, 0]: a flat screen",
+        value_type="vector", size=3, role="feature", quiet=True,
     )  # fmt: skip
     #: True when ``period`` was worked out from ``"auto"`` by the scene (not a parameter).
     period_auto: bool = field(default=False, compare=True)

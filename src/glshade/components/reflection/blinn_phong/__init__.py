@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from glshade.components.base import ReflectionComponent, SceneView, UniformContext
+from glshade.components.emitter.plane import sag_coefficients, sag_distance, sag_of
 from glshade.components.reflection import finish
 from glshade.components.reflection.kernels import lobe_frame
 from glshade.errors import SceneError
@@ -192,8 +193,14 @@ def _lobe_samples(
     rel = p - plane.centre
     glass = scene.active.emitter.cover_glass(scene)
     thickness = glass[0] if glass is not None else 0.0
+    sag = sag_of(scene)
     with np.errstate(divide="ignore", invalid="ignore"):
         t_e = (thickness - rel @ plane.normal)[:, None, None] / l_n
+        if sag is not None:  # onto the sagging screen (the plane's sag_distance)
+            foot = ((rel @ plane.e_u)[:, None, None], (rel @ plane.e_v)[:, None, None])
+            gap = (thickness - rel @ plane.normal)[:, None, None]
+            coefficients = sag_coefficients(sag, scene.emitter.half_size)
+            t_e = sag_distance(coefficients, foot, (l_u, l_v), l_n, gap, t_e)
         v = (rel @ plane.e_v)[:, None, None] + t_e * l_v
         u = (rel @ plane.e_u)[:, None, None] + t_e * l_u
         if glass is not None:  # through the cover glass to the emitting layer (l is unit)
