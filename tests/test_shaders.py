@@ -157,6 +157,7 @@ def test_features_come_from_scene_values():
         "reflection": "mirror",
         "fresnel": "none",
         "sensor": "linear",
+        "part": "rigid",
     }
     assert dict(f.variables) == {
         "cylinder_axis": "z",

@@ -356,7 +356,8 @@ def dent_sampling(
     empty where there is a number)."""
     em = scene.emitter
     pitch = float(getattr(em, "pixel_pitch", 0.0) or 0.0)
-    pixels = getattr(em, "kind", None) == "fringes" and pitch > 0.0
+    shows_pixels = any(p.path == "emitter.pixel_pitch" for p in scene.active.emitter.params)
+    pixels = shows_pixels and pitch > 0.0
     unit = SCREEN_PIXELS if pixels else SCREEN_MM
     row, col = image_point(scene, dent.point)
     cam = scene.camera
