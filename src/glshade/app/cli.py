@@ -21,6 +21,7 @@ from glshade.app.args import EXIT_USAGE, Parser, check_run_settings, one_line
 from glshade.app.commands import (
     accuracy,
     bench,
+    budget,
     coding,
     finding3,
     info,
@@ -64,6 +65,7 @@ COMMANDS: dict[str, Command] = {
     "sweep": sweep,
     "optimize": optimize,
     "coding": coding,
+    "budget": budget,
     "station": station,
 }
 
