@@ -8,26 +8,7 @@
 # .whl/ and libEGL's packages in .gl/ (see the device tool's notes) are installed first.
 #     OUT=/tmp/gpu bash benchmarks/gpu_suite.sh
 set -uo pipefail
-OUT=${OUT:-/tmp/gpu_suite}
-mkdir -p "$OUT"
-if [ -d .gl ]; then for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig; fi
-if [ -d .whl ]; then
-    python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
-        --target /tmp/site .whl/*.whl || exit 1
-    export PYTHONPATH=/tmp/site:$PWD/src
-fi
-export PYTHONUNBUFFERED=1 GLSHADE_MEMORY_BUDGET_MB=32768  # a 128 GiB machine: 15 threads, 8 workers
-step() { echo; echo "== $*"; }
-run() { timeout "$1" "${@:2}" || echo "(step ended with status $?)"; }
-
-step machine
-nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader
-echo "cores: $(nproc)"; python3 --version
-if ! python3 -m glshade info; then
-    export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
-    python3 -m glshade info || exit 1
-fi
-
+source "$(dirname "$0")/gpu_setup.sh"
 step "renderer core: glshade bench (1024², 2048²)"
 run 90 python3 -m glshade bench --size 1024 --repeats 9 --reference-rows 32
 run 90 python3 -m glshade bench --size 2048 --repeats 5 --reference-rows 16
