@@ -26,7 +26,9 @@ Everything is float64 NumPy.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -35,14 +37,23 @@ import numpy as np
 MIN_UP_SINE = 1e-9
 
 
+def pyrr_module() -> Any:
+    """pyrr, imported on first use. Its source has an invalid escape sequence in a
+    docstring, which Python 3.12 reports as a SyntaxWarning where it compiles the module
+    itself (an install without byte-code): a dependency's note, kept off the user's screen."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SyntaxWarning)
+        import pyrr
+    return pyrr
+
+
 def rotation_ypr(yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
     """``Ry(yaw) Rx(pitch) Rz(roll)``, float64 3x3, each right-handed about the device's
     own axis (intrinsic y, x', z''); exactly the identity when all three are 0."""
     turn = np.eye(3)
     if yaw_deg == 0.0 and pitch_deg == 0.0 and roll_deg == 0.0:
         return turn
-    import pyrr
-
+    pyrr = pyrr_module()
     for make, angle in (
         (pyrr.matrix33.create_from_y_rotation, yaw_deg),
         (pyrr.matrix33.create_from_x_rotation, pitch_deg),

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from glshade.poses import Placement
+from glshade.poses import Placement, pyrr_module
 
 #: The elevation the orbit keeps the camera within (degrees above the surface).
 ORBIT_THETA_DEG = (0.5, 89.5)
@@ -35,7 +35,7 @@ def rig_rotation(azimuth_rad: float) -> np.ndarray:
     identity at 0."""
     if azimuth_rad == 0.0:
         return np.eye(3)
-    import pyrr  # only a turned rig needs it: most scenes never load it
+    pyrr = pyrr_module()  # only a turned rig needs it: most scenes never load it
 
     return np.asarray(pyrr.matrix33.create_from_y_rotation(azimuth_rad), dtype=np.float64)
 
