@@ -15,7 +15,8 @@ from glshade.instruments.pmd.settings import PmdSettings
 from glshade.measure.executors import Distribution
 from glshade.poses import to_extrinsics
 from glshade.scene import Scene
-from glshade.uncertainty.closed_forms import closed_form_checks, flat_sensitivity
+from glshade.uncertainty.checks import closed_form_checks
+from glshade.uncertainty.closed_forms import flat_sensitivity
 from glshade.uncertainty.run import run_budget, truth_of
 from glshade.uncertainty.spec import budget_from_dict
 

@@ -165,7 +165,7 @@ def _run(argv: list[str], verbose: bool, interrupts: InterruptWatch | None) -> i
 
 
 def _interrupted(args: argparse.Namespace | None) -> int:
-    resumable = args is not None and args.command in ("paper", "sweep")
+    resumable = args is not None and args.command in ("paper", "sweep", "budget")
     hint = " (finished cases are saved: rerun the same command to resume)" if resumable else ""
     print(f"glshade: interrupted{hint}", file=sys.stderr)
     return EXIT_INTERRUPTED

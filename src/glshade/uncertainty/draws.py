@@ -225,3 +225,9 @@ def _number(value: float | None) -> float | None:
         return None
     value = float(value)
     return value if math.isfinite(value) else None
+
+
+def rms(values: list[float | None]) -> float:
+    """The root mean square of the numbers that are there (NaN for none)."""
+    found = [float(v) for v in values if v is not None]
+    return math.sqrt(sum(v * v for v in found) / len(found)) if found else math.nan

@@ -23,11 +23,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from glshade.files import atomic_write_bytes
-from glshade.uncertainty.draws import TOTAL
+from glshade.uncertainty.draws import TOTAL, rms
 
 if TYPE_CHECKING:
-    from glshade.uncertainty.closed_forms import ClosedFormCheck
-    from glshade.uncertainty.run import BudgetRun
+    from glshade.uncertainty.checks import ClosedFormCheck
+    from glshade.uncertainty.result import BudgetRun
 
 #: The numbers a row of the table holds: (record key, column heading, unit, digits).
 NUMBERS = (
@@ -61,12 +61,6 @@ class Row:
     used: int
     not_ok: int
     no_fit: int = 0
-
-
-def rms(values: list[float | None]) -> float:
-    """The root mean square of the numbers that are there (NaN for none)."""
-    found = [float(v) for v in values if v is not None]
-    return math.sqrt(sum(v * v for v in found) / len(found)) if found else math.nan
 
 
 def budget_rows(run: BudgetRun) -> list[Row]:
@@ -320,12 +314,12 @@ def figure_bytes(run: BudgetRun, rows: list[Row]) -> bytes:
 def write_outputs(run: BudgetRun) -> list[Row]:
     """budget.csv, budget.md, budget.png and draws.csv in the run's folder, each atomically;
     the rows."""
-    from glshade.uncertainty.closed_forms import closed_form_checks
+    from glshade.uncertainty.checks import closed_form_checks
 
     rows = budget_rows(run)
     checks = closed_form_checks(run)
     folder = run.out_dir
-    from glshade.uncertainty.run import CSV, DRAWS_CSV, FIGURE, MARKDOWN
+    from glshade.uncertainty.result import CSV, DRAWS_CSV, FIGURE, MARKDOWN
 
     atomic_write_bytes(folder / CSV, csv_bytes(rows), "--out", within=folder)
     atomic_write_bytes(folder / DRAWS_CSV, draws_csv_bytes(run), "--out", within=folder)

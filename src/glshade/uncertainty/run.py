@@ -22,7 +22,6 @@ import functools
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -36,13 +35,13 @@ from glshade.uncertainty.draws import (
     DRAW_NUMBERS,
     REFERENCE_KEY,
     REFERENCE_NUMBERS,
-    Draw,
     Reference,
     draw_cases,
     draw_numbers,
     plan_draws,
     reference_of,
 )
+from glshade.uncertainty.result import CSV, DRAWS_CSV, FIGURE, MARKDOWN, BudgetRun
 from glshade.uncertainty.spec import BudgetSpec
 
 if TYPE_CHECKING:
@@ -50,10 +49,6 @@ if TYPE_CHECKING:
 
 #: A budget's files in its output folder.
 MANIFEST = "budget.json"
-CSV = "budget.csv"
-MARKDOWN = "budget.md"
-FIGURE = "budget.png"
-DRAWS_CSV = "draws.csv"
 
 
 def _another_budget(stored: dict, wanted: dict) -> str:
@@ -81,23 +76,6 @@ BUDGET = store.Layout(
     comparable=("glshade_version", "scene", "settings"),
     command="glshade budget",
 )
-
-
-@dataclass
-class BudgetRun:
-    """What a run did: the truth ``scene`` measured, the ``spec``, the reference's record
-    and every draw's (by the plan's order: :attr:`draws`, :attr:`records`), how many were
-    measured now and found done, in ``seconds``, written to ``out_dir``."""
-
-    scene: Scene
-    spec: BudgetSpec
-    reference: dict[str, Any]
-    draws: list[Draw]
-    records: list[dict[str, Any]]
-    computed: int
-    skipped: int
-    seconds: float
-    out_dir: Path
 
 
 def truth_of(scene: Scene) -> Scene:

@@ -88,7 +88,7 @@ def add(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from glshade.oracle.advice import scene_warnings
     from glshade.process import reuse_freed_memory
-    from glshade.uncertainty.closed_forms import closed_form_checks
+    from glshade.uncertainty.checks import closed_form_checks
     from glshade.uncertainty.report import (
         budget_rows,
         closed_form_lines,
