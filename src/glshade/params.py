@@ -405,6 +405,18 @@ def param(path: str, unit: str, default: Any, doc: str, **options: Any) -> Any:
     return field(default=declared.default, metadata={PARAM_KEY: declared})
 
 
+def turn_param(path: str, doc: str) -> Any:
+    """A pose's turn about one of its own axes (degrees, in [-180, 180], default 0; quiet:
+    scene files list it only where it is not 0)."""
+    return param(path, "deg", 0.0, doc, lo=-180.0, hi=180.0, closed=True, quiet=True)
+
+
+def point_param(path: str, default: tuple[float, float, float], doc: str, unit: str = "mm") -> Any:
+    """A pose's point or direction: three numbers (quiet: listed only where it is not the
+    default)."""
+    return param(path, unit, default, doc, value_type="vector", size=3, quiet=True)
+
+
 def declared_params(table_class: type) -> tuple[Param, ...]:
     """The declarations of a table dataclass's fields, in field order (shared fields, from
     a common base class, are the same :class:`Param` objects)."""

@@ -31,9 +31,10 @@ class Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"glshade: error: {one_line(message)} (see '{self.prog} --help')\n")
 
 
-def add_scene_flags(p: argparse.ArgumentParser) -> None:
+def add_scene_flags(p: argparse.ArgumentParser, device: bool = True) -> None:
     """The scene file and the flags that override it (render and measure): a short flag
-    for each parameter that declares one, ``--set PATH=VALUE`` for any parameter."""
+    for each parameter that declares one, ``--set PATH=VALUE`` for any parameter;
+    ``device``: ``--device`` too (a command that renders)."""
     p.add_argument("scene", nargs="?", type=path_arg, help="scene file (TOML)")
     for param in registry().params():
         if param.flag is not None:
@@ -50,7 +51,8 @@ def add_scene_flags(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--size", type=int, metavar="N", help=SIZE_HELP)
     add_save_scene(p)
-    add_run_flags(p, ("device",))
+    if device:
+        add_run_flags(p, ("device",))
 
 
 def add_run_flags(

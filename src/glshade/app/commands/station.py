@@ -14,16 +14,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from glshade.app.args import (
-    SIZE_HELP,
-    add_save_scene,
+    add_scene_flags,
     check_outputs,
-    flag_dest,
-    flag_options,
     path_arg,
     save_scene,
     scene_from_args,
 )
-from glshade.components.registry import registry
 
 if TYPE_CHECKING:
     from mpl_toolkits.mplot3d import Axes3D
@@ -52,19 +48,7 @@ def add(sub: argparse._SubParsersAction) -> None:
         "and the screen per camera pixel (docs/stations.md). A scene whose screen no camera "
         "pixel sees, or sees from behind, is refused. Without a scene file: the paper's rig.",
     )
-    p.add_argument("scene", nargs="?", type=path_arg, help="scene file (TOML)")
-    for param in registry().params():
-        if param.flag is not None:
-            p.add_argument(param.flag, dest=flag_dest(param), **flag_options(param))
-    p.add_argument(
-        "--set",
-        dest="settings",
-        action="append",
-        default=[],
-        metavar="PATH=VALUE",
-        help="set any scene parameter by its dotted path, e.g. --set emitter.pose=placed",
-    )
-    p.add_argument("--size", type=int, metavar="N", help=SIZE_HELP)
+    add_scene_flags(p, device=False)
     p.add_argument(
         "-o",
         "--out",
@@ -74,7 +58,6 @@ def add(sub: argparse._SubParsersAction) -> None:
         help="the picture, a PNG (default %(default)s)",
     )
     p.add_argument("--json", action="store_true", help="print the numbers as JSON")
-    add_save_scene(p)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from glshade.components.camera.perspective.optics import check_distortion, undistort
 from glshade.errors import SceneError
-from glshade.params import Control, Table, param
+from glshade.params import Control, Table, param, point_param, turn_param
 from glshade.poses import extrinsics_axes, look_at_axes, turned
 from glshade.rig import CameraPose, camera_pose, rig_rotation
 
@@ -167,34 +167,32 @@ class Camera(Table):
         "rig's, from camera.theta_deg, azimuth_deg and distance)",
         value_type="vector", size=3,
     )  # fmt: skip
-    look_at: tuple[float, float, float] = param(
-        "camera.look_at", "mm", (0.0, 0.0, 0.0),
+    look_at: tuple[float, float, float] = point_param(
+        "camera.look_at",
+        (0.0, 0.0, 0.0),
         'the point the optical axis aims at (camera.pose = "look_at")',
-        value_type="vector", size=3, quiet=True,
-    )  # fmt: skip
-    up: tuple[float, float, float] = param(
-        "camera.up", "", (0.0, 1.0, 0.0),
+    )
+    up: tuple[float, float, float] = point_param(
+        "camera.up",
+        (0.0, 1.0, 0.0),
         'the direction the image\'s up leans to (camera.pose = "look_at"; any length, not '
         "along the line of sight)",
-        value_type="vector", size=3, quiet=True,
-    )  # fmt: skip
-    yaw_deg: float = param(
-        "camera.yaw_deg", "deg", 0.0,
+        unit="",
+    )
+    yaw_deg: float = turn_param(
+        "camera.yaw_deg",
         "turn of the camera about its own image-up axis after it is placed (positive: its "
         "view turns left); with pitch_deg and roll_deg, in that order",
-        lo=-180.0, hi=180.0, closed=True, quiet=True,
-    )  # fmt: skip
-    pitch_deg: float = param(
-        "camera.pitch_deg", "deg", 0.0,
+    )
+    pitch_deg: float = turn_param(
+        "camera.pitch_deg",
         "turn of the camera about its own image-right axis (positive: its view rises)",
-        lo=-180.0, hi=180.0, closed=True, quiet=True,
-    )  # fmt: skip
-    roll_deg: float = param(
-        "camera.roll_deg", "deg", 0.0,
+    )
+    roll_deg: float = turn_param(
+        "camera.roll_deg",
         "turn of the camera about its optical axis (positive: the image turns "
         "counter-clockwise as the camera sees it)",
-        lo=-180.0, hi=180.0, closed=True, quiet=True,
-    )  # fmt: skip
+    )
     rvec: tuple[float, float, float] | None = param(
         "camera.rvec", "rad", None,
         'OpenCV\'s world-to-camera rotation as a Rodrigues vector (camera.pose = "extrinsics")',

@@ -15,7 +15,7 @@ import numpy as np
 
 from glshade.components.emitter.table import MAX_STRIPE_PERIOD_MM, MIN_PERIOD_MM
 from glshade.errors import SceneError
-from glshade.params import Control, Table, param
+from glshade.params import Control, Table, param, point_param, turn_param
 
 #: FWHM of one stripe = half a period  =>  sigma = period / (4 sqrt(2 ln 2)).
 STRIPE_SIGMA_PER_PERIOD = 1.0 / (4.0 * math.sqrt(2.0 * math.log(2.0)))
@@ -132,31 +132,31 @@ class Emitter(Table):
         "mirror position)",
         value_type="vector", size=3,
     )  # fmt: skip
-    look_at: tuple[float, float, float] = param(
-        "emitter.look_at", "mm", (0.0, 0.0, 0.0),
+    look_at: tuple[float, float, float] = point_param(
+        "emitter.look_at",
+        (0.0, 0.0, 0.0),
         'the point the screen\'s normal aims at (emitter.pose = "placed")',
-        value_type="vector", size=3, quiet=True,
-    )  # fmt: skip
-    up: tuple[float, float, float] = param(
-        "emitter.up", "", (0.0, 1.0, 0.0),
+    )
+    up: tuple[float, float, float] = point_param(
+        "emitter.up",
+        (0.0, 1.0, 0.0),
         'the direction the screen\'s v axis leans to (emitter.pose = "placed"; not along '
         "its normal)",
-        value_type="vector", size=3, quiet=True,
-    )  # fmt: skip
-    yaw_deg: float = param(
-        "emitter.yaw_deg", "deg", 0.0,
+        unit="",
+    )
+    yaw_deg: float = turn_param(
+        "emitter.yaw_deg",
         "turn of the screen about its own v axis after it is placed (then pitch_deg about "
         "u, roll_deg about its normal; right-handed)",
-        lo=-180.0, hi=180.0, closed=True, quiet=True,
-    )  # fmt: skip
-    pitch_deg: float = param(
-        "emitter.pitch_deg", "deg", 0.0, "turn of the screen about its own u axis",
-        lo=-180.0, hi=180.0, closed=True, quiet=True,
-    )  # fmt: skip
-    roll_deg: float = param(
-        "emitter.roll_deg", "deg", 0.0, "turn of the screen about its own normal",
-        lo=-180.0, hi=180.0, closed=True, quiet=True,
-    )  # fmt: skip
+    )
+    pitch_deg: float = turn_param(
+        "emitter.pitch_deg",
+        "turn of the screen about its own u axis",
+    )
+    roll_deg: float = turn_param(
+        "emitter.roll_deg",
+        "turn of the screen about its own normal",
+    )
     sag: tuple[float, float, float] = param(
         "emitter.sag", "mm", (0.0, 0.0, 0.0),
         "the screen's shape, a low-order sag [bow_u, bow_v, twist]: its emitting surface is "

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glshade.params import Table, param
+from glshade.params import Table, param, turn_param
 from glshade.poses import Placement, rotation_ypr
 
 
@@ -23,23 +23,20 @@ class Part(Table):
         "the part's origin (the surface's apex, where its x and z are 0) in the world frame",
         value_type="vector", size=3, quiet=True,
     )  # fmt: skip
-    yaw_deg: float = param(
-        "part.yaw_deg", "deg", 0.0,
+    yaw_deg: float = turn_param(
+        "part.yaw_deg",
         "turn of the part about its own normal (+y): its x axis turns away from +x towards -z",
-        lo=-180.0, hi=180.0, closed=True, quiet=True,
-    )  # fmt: skip
-    pitch_deg: float = param(
-        "part.pitch_deg", "deg", 0.0,
+    )
+    pitch_deg: float = turn_param(
+        "part.pitch_deg",
         "tilt of the part about its own x axis (positive: its normal leans towards +z, its "
         "+z edge dips)",
-        lo=-180.0, hi=180.0, closed=True, quiet=True,
-    )  # fmt: skip
-    roll_deg: float = param(
-        "part.roll_deg", "deg", 0.0,
+    )
+    roll_deg: float = turn_param(
+        "part.roll_deg",
         "tilt of the part about its own z axis (positive: its +x edge rises, its normal "
         "leans towards -x)",
-        lo=-180.0, hi=180.0, closed=True, quiet=True,
-    )  # fmt: skip
+    )
 
     def placement(self) -> Placement:
         """The part's frame in the world: ``world = position + axes local``."""
