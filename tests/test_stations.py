@@ -167,8 +167,14 @@ def test_a_mode_key_of_another_mode_is_refused_in_one_line():
         Scene().updated(camera={"position": [0.0, 100.0, 100.0]})
     with pytest.raises(SceneError, match=r"camera.rvec: must be a list of 3"):
         Scene().updated(camera={"pose": "extrinsics"})
-    with pytest.raises(SceneError, match=r"camera.position: .*parallel"):
+    with pytest.raises(SceneError, match=r"camera.up: .*parallel"):  # looking straight down
         Scene().updated(camera={"pose": "look_at", "position": [0.0, 100.0, 0.0]})
+    with pytest.raises(SceneError, match=r"camera.position: .*coincide"):
+        Scene().updated(camera={"pose": "look_at", "position": [0.0, 0.0, 0.0]})
+    with pytest.raises(SceneError, match=r"camera.up: .*parallel"):
+        Scene().updated(camera={"pose": "look_at", "up": [0.0, 0.0, 0.0]})
+    with pytest.raises(SceneError, match=r"emitter.up: .*parallel"):
+        Scene().updated(emitter={"pose": "placed", "up": [0.0, 0.0, 0.0]}).station
 
 
 def test_a_vector_component_is_a_path_of_its_own():

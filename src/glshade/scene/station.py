@@ -55,10 +55,11 @@ def screen_plane(scene: Any, part: Placement) -> EmitterPlane:
         try:
             normal, right, up, _ = look_at_axes(centre, np.asarray(em.look_at), np.asarray(em.up))
         except ValueError as exc:
+            on_up = "up vector" in str(exc)
             raise SceneError(
-                "emitter.centre",
+                "emitter.up" if on_up else "emitter.centre",
                 f"a screen pose that can be built ({exc})",
-                [float(x) for x in centre],
+                [float(x) for x in (em.up if on_up else centre)],
             ) from None
         e_u, e_v = -right, up
         plane = placed_plane(centre, normal, e_u, e_v)

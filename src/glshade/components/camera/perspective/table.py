@@ -61,18 +61,24 @@ def check_pose(values: dict[str, Any]) -> None:
                 f'"{wants}" where camera.{key} is given (it is ignored otherwise)',
                 mode,
             )
-    if mode == "look_at" and values["position"] is not None:
+    if mode == "look_at":
+        given = values["position"]
+        eye = (
+            camera_pose(math.radians(values["theta_deg"]), math.radians(values["azimuth_deg"]),
+                        values["distance"]).position
+            if given is None
+            else np.asarray(given, np.float64)
+        )  # fmt: skip
         try:
-            look_at_axes(
-                np.asarray(values["position"]),
-                np.asarray(values["look_at"]),
-                np.asarray(values["up"]),
-            )
+            look_at_axes(eye, np.asarray(values["look_at"]), np.asarray(values["up"]))
         except ValueError as exc:
+            key = (
+                "up" if "up vector" in str(exc) else "position" if given is not None else "look_at"
+            )
             raise SceneError(
-                "camera.position",
+                f"camera.{key}",
                 f"a camera pose that can be built ({exc})",
-                list(values["position"]),
+                [float(x) for x in values[key]],
             ) from None
     if values["intrinsics"] is not None:
         fx, fy, _, _ = values["intrinsics"]
