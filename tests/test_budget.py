@@ -1,10 +1,13 @@
 """``glshade budget`` (docs/budget.md): the budget's contributions on a flat mirror agree
-with the closed forms of a screen-distance and a camera-position error, the closed forms
-reduce to the formulas the docs derive, bad input is one line with nothing written, and a
-rerun resumes while two Dask workers give the same table as this process."""
+with the closed forms of a screen-distance and a camera-position error (the slope rms with
+its uniform tilt removed too), the closed forms reduce to the formulas the docs derive,
+bad input is one line with nothing written, and a rerun resumes (measuring again a draw
+whose case file lacks a number) while two Dask workers give the same table as this
+process."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -12,6 +15,7 @@ import pytest
 
 from glshade.app.cli import main
 from glshade.instruments.pmd.settings import PmdSettings
+from glshade.measure.case_files import case_file_bytes
 from glshade.measure.executors import Distribution
 from glshade.poses import to_extrinsics
 from glshade.scene import Scene
@@ -125,19 +129,30 @@ def test_screen_distance_and_camera_translation_agree_with_their_closed_forms(re
     for path in table:
         sens = flat_sensitivity(run.scene, path, 1e-4)
         at_dent, shift = sens.at(*dent)
+        untilted = sens.slope_rms_tilt_removed_urad()
         for offset, record in _per_draw(run, path):  # linear in δ: compare each draw
             assert _agrees(record["slope_rms_urad"], abs(offset) * sens.slope_rms_urad())
+            assert _agrees(record["slope_rms_tilt_removed_urad"], abs(offset) * untilted)
             if path != "emitter.distance":  # the screen's error vanishes at the centre
                 assert _agrees(record["slope_dent_urad"], abs(offset) * at_dent)
                 assert _agrees(record["shift_mm"], abs(offset) * shift)
     for check in closed_form_checks(run):  # what budget.md reports: the rms over the draws
         measured, predicted = check.measured[0], check.predicted[0]
         assert _agrees(measured, predicted), check
+        assert _agrees(check.measured[1], check.predicted[1]), check  # the tilt removed
+    # the tilt is what a translated camera's error is, nearly: a tenth of it remains
+    shifted = next(check for check in closed_form_checks(run) if check.path == "camera.tvec[0]")
+    assert shifted.measured[1] < 0.15 * shifted.measured[0]
     text = (tmp_path / "budget.md").read_text()
     assert "Closed-form checks" in text and "`camera.tvec[0]`" in text
+    assert "| slope rms (µrad) | slope rms, tilt removed (µrad) | slope at dent" in text
+    assert "| `camera.tvec[0]` | slope rms, tilt removed (µrad) |" in text
+    assert "with the uniform tilt removed: total" in text
     assert (tmp_path / "budget.png").read_bytes()[:4] == b"\x89PNG"
     lines = (tmp_path / "budget.csv").read_text().splitlines()
-    assert lines[0].startswith("input,sigma,sigma_given,unit,slope_rms_urad,slope_dent_urad")
+    assert lines[0].startswith(
+        "input,sigma,sigma_given,unit,slope_rms_urad,slope_rms_tilt_removed_urad,slope_dent_urad"
+    )
     assert [line.split(",")[0] for line in lines[1:4]] == list(table)
     assert len(lines) == 1 + len(table) + 2  # the total and the root-sum-square
 
@@ -197,6 +212,17 @@ def test_a_rerun_resumes_and_two_workers_give_the_same_table(renderer, tmp_path)
     again = run_budget(scene, spec, PmdSettings(), tmp_path / "here", renderer=renderer)
     assert here.computed == 6 and again.computed == 0 and again.skipped == 6
     assert again.records == here.records
+    # a draw's case file of a glshade before the tilt-removed slope rms: measured again
+    old = tmp_path / "here" / "cases" / f"{here.draws[0].key}.json"
+    record = json.loads(old.read_text())
+    for name in ("case_id", "checksum", "slope_rms_tilt_removed_urad"):
+        record.pop(name)
+    old.write_bytes(case_file_bytes(here.draws[0].key, record))
+    told: list[str] = []
+    older = run_budget(scene, spec, PmdSettings(), tmp_path / "here", renderer=renderer,
+                       notify=told.append)  # fmt: skip
+    assert older.computed == 1 and older.records == here.records
+    assert len(told) == 1 and "lacks the budget's number slope_rms_tilt_removed_urad" in told[0]
     dask = run_budget(scene, spec, PmdSettings(), tmp_path / "dask", Distribution(workers=2))
     assert dask.computed == 6 and dask.records == here.records
     for name in ("budget.csv", "draws.csv"):

@@ -13,25 +13,33 @@ from glshade.uncertainty.draws import rms
 if TYPE_CHECKING:
     from glshade.uncertainty.result import BudgetRun
 
+#: What a check compares: (a draw's record key, (its name, its unit)), in the order of
+#: :attr:`ClosedFormCheck.measured`.
+NAMES = (
+    ("slope_rms_urad", ("slope rms", "µrad")),
+    ("slope_rms_tilt_removed_urad", ("slope rms, tilt removed", "µrad")),
+    ("slope_dent_urad", ("slope at dent", "µrad")),
+    ("shift_mm", ("shift", "mm")),
+)
+
 
 @dataclass(frozen=True)
 class ClosedFormCheck:
     """One input's budget against its closed form at the same draws: the root mean
-    square over its draws of the slope rms, the slope at the dent and the dent's shift,
-    as measured (``measured``) and as the closed form gives them for each draw's offset
-    (``predicted``)."""
+    square over its draws of the slope rms, the slope rms with the tilt removed, the
+    slope at the dent and the dent's shift (:data:`NAMES`), as measured (``measured``)
+    and as the closed form gives them for each draw's offset (``predicted``)."""
 
     path: str
     unit: str
-    measured: tuple[float, float, float]
-    predicted: tuple[float, float, float]
-    sensitivity: tuple[float, float, float]
+    measured: tuple[float, float, float, float]
+    predicted: tuple[float, float, float, float]
+    sensitivity: tuple[float, float, float, float]
 
     def pairs(self) -> list[tuple[str, str, float, float]]:
-        names = (("slope rms", "µrad"), ("slope at dent", "µrad"), ("shift", "mm"))
         return [
             (name, unit, m, p)
-            for (name, unit), m, p in zip(names, self.measured, self.predicted, strict=True)
+            for (_, (name, unit)), m, p in zip(NAMES, self.measured, self.predicted, strict=True)
         ]
 
 
@@ -57,24 +65,21 @@ def closed_form_checks(run: BudgetRun) -> list[ClosedFormCheck]:
             continue
         step = STEP_SHARE * item.sigma
         sens = flat_sensitivity(run.scene, item.path, step)
-        field = sens.slope_rms_urad()
+        field, untilted = sens.slope_rms_urad(), sens.slope_rms_tilt_removed_urad()
         at_dent, shift = (
             sens.at(float(row), float(col))
             if row is not None and col is not None
             else (math.nan, math.nan)
         )
         spread = rms([offset for offset, _ in pairs])
-        measured = tuple(
-            rms([record.get(key) for _, record in pairs])
-            for key in ("slope_rms_urad", "slope_dent_urad", "shift_mm")
-        )
+        measured = [rms([record.get(key) for _, record in pairs]) for key, _ in NAMES]
         checks.append(
             ClosedFormCheck(
                 item.path,
                 item.unit,
-                (measured[0], measured[1], measured[2]),
-                (field * spread, at_dent * spread, shift * spread),
-                (field, at_dent, shift),
+                (measured[0], measured[1], measured[2], measured[3]),
+                (field * spread, untilted * spread, at_dent * spread, shift * spread),
+                (field, untilted, at_dent, shift),
             )
         )
     return checks

@@ -129,6 +129,18 @@ class FlatSensitivity:
         magnitude = np.hypot(self.slopes_urad[..., 0], self.slopes_urad[..., 1])[where]
         return math.sqrt(float(np.mean(magnitude**2))) if magnitude.size else math.nan
 
+    def slope_rms_tilt_removed_urad(self, pixels: np.ndarray | None = None) -> float:
+        """The same of the slope error less its uniform tilt (each component's mean over
+        those pixels), µrad per unit: what remains of a belief's first-order error once a
+        reference flat (or the part's believed orientation) takes the tilt out. Linear in
+        the belief, like the slope rms (:func:`glshade.uncertainty.draws.tilt_removed_rms`,
+        what a draw measures)."""
+        from glshade.uncertainty.draws import tilt_removed_rms
+
+        where = self.valid if pixels is None else self.valid & pixels
+        found = tilt_removed_rms(self.slopes_urad[where])
+        return math.nan if found is None else found
+
     def at(self, row: float, col: float) -> tuple[float, float]:
         """The slope error's magnitude (µrad per unit) and the point's shift (mm per unit)
         at the fractional pixel ``(row, col)`` (bilinear)."""

@@ -159,6 +159,8 @@ def draw_numbers(reference: Reference, case: Case, result: Any, view: Any) -> di
 
     - ``slope_rms_urad``: the root mean square over the pixels measured in both of the
       magnitude of the slope map's error, ``|(Δ∂d/∂x, Δ∂d/∂z)|`` (µrad);
+    - ``slope_rms_tilt_removed_urad``: the same of the error less its uniform tilt (each
+      component's mean over those pixels: :func:`tilt_removed_rms`);
     - ``slope_dent_urad`` (and its components ``slope_dent_x_urad``, ``slope_dent_z_urad``):
       that error at the true dent centre's pixel (bilinear);
     - ``depth_um``: the fitted depth's change (µm);
@@ -169,6 +171,7 @@ def draw_numbers(reference: Reference, case: Case, result: Any, view: Any) -> di
     error = np.asarray(result.maps.slopes_urad, np.float64) - reference.slopes_urad
     both = np.isfinite(error).all(axis=-1)
     magnitude = np.hypot(error[..., 0], error[..., 1])[both]
+    untilted = tilt_removed_rms(error[both])
     rows, cols = (np.array([value]) for value in reference.dent_pixel)
     at_dent = [float(sample(error[..., axis], rows, cols)[0]) for axis in (0, 1)]
     dent = result.maps.heights.dent
@@ -181,6 +184,7 @@ def draw_numbers(reference: Reference, case: Case, result: Any, view: Any) -> di
         "slope_rms_urad": _number(
             math.sqrt(float(np.mean(magnitude**2))) if magnitude.size else None
         ),
+        "slope_rms_tilt_removed_urad": _number(untilted),
         "slope_dent_urad": _number(math.hypot(*at_dent)),
         "slope_dent_x_urad": _number(at_dent[0]),
         "slope_dent_z_urad": _number(at_dent[1]),
@@ -199,6 +203,7 @@ def draw_numbers(reference: Reference, case: Case, result: Any, view: Any) -> di
 #: The numbers of a draw's record (:func:`draw_numbers`), each a finite number or None.
 DRAW_NUMBERS = (
     "slope_rms_urad",
+    "slope_rms_tilt_removed_urad",
     "slope_dent_urad",
     "slope_dent_x_urad",
     "slope_dent_z_urad",
@@ -217,6 +222,18 @@ REFERENCE_NUMBERS = (
     "dent_col",
     "slope_rms_urad",
 )
+
+
+def tilt_removed_rms(slopes: np.ndarray) -> float | None:
+    """The root mean square of the magnitude of ``slopes`` (N, 2: a slope map's two
+    components at N pixels) less their uniform tilt, each component's mean over the N
+    pixels (a plane in height is a constant slope): ``sqrt(mean(|s - mean s|²))``, the
+    slope rms's convention; None for no pixel. The closed forms' is the same
+    (:meth:`~glshade.uncertainty.closed_forms.FlatSensitivity.slope_rms_tilt_removed_urad`)."""
+    if not len(slopes):
+        return None
+    rest = np.asarray(slopes, np.float64) - np.mean(slopes, axis=0, dtype=np.float64)
+    return math.sqrt(float(np.mean(np.sum(rest**2, axis=-1))))
 
 
 def _number(value: float | None) -> float | None:

@@ -10,8 +10,11 @@ over that sum (1 where the inputs add independently and linearly).
 
 The numbers per draw (:func:`glshade.uncertainty.draws.draw_numbers`): the slope map's
 error as the magnitude of its two components (``∂d/∂x``, ``∂d/∂z``), as a root mean square
-over the pixels measured in both (``slope rms``) and at the true dent centre (``slope at
-dent``), in µrad; the fitted depth's change (µm); the fitted centre's shift (mm).
+over the pixels measured in both (``slope rms``), the same less the error's uniform tilt
+(``slope rms, tilt removed``: each component's mean over those pixels taken out), and at
+the true dent centre (``slope at dent``), in µrad; the fitted depth's change (µm); the
+fitted centre's shift (mm). The share stays the slope rms's; the summary names the input
+that leads once the tilt is removed.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ if TYPE_CHECKING:
 #: The numbers a row of the table holds: (record key, column heading, unit, digits).
 NUMBERS = (
     ("slope_rms_urad", "slope rms", "µrad", 1),
+    ("slope_rms_tilt_removed_urad", "slope rms, tilt removed", "µrad", 1),
     ("slope_dent_urad", "slope at dent", "µrad", 1),
     ("depth_um", "depth", "µm", 4),
     ("shift_mm", "shift", "mm", 4),
@@ -127,11 +131,12 @@ def table_lines(rows: list[Row]) -> list[str]:
     return lines
 
 
-def dominant(rows: list[Row]) -> Row | None:
-    """The input of the largest slope-rms contribution (None where no input has one)."""
+def dominant(rows: list[Row], key: str = "slope_rms_urad") -> Row | None:
+    """The input of the largest contribution to ``key`` (the slope rms; None where no input
+    has one)."""
     inputs = [r for r in rows if r.label not in (TOTAL_LABEL, RSS_LABEL)]
-    found = [r for r in inputs if math.isfinite(r.values["slope_rms_urad"])]
-    return max(found, key=lambda r: r.values["slope_rms_urad"]) if found else None
+    found = [r for r in inputs if math.isfinite(r.values[key])]
+    return max(found, key=lambda r: r.values[key]) if found else None
 
 
 def summary_lines(run: BudgetRun, rows: list[Row]) -> list[str]:
@@ -158,6 +163,17 @@ def summary_lines(run: BudgetRun, rows: list[Row]) -> list[str]:
             f"dominant input: {top.label} ({_shown(top.values['slope_rms_urad'], 1)} µrad slope "
             f"rms, {100 * top.share:.1f} % of the variance)"
         )
+    key = "slope_rms_tilt_removed_urad"
+    untilted = dominant(rows, key)
+    if untilted is not None:
+        variance = rss.values[key] ** 2
+        share = untilted.values[key] ** 2 / variance if variance else math.nan
+        lines.append(
+            f"with the uniform tilt removed: total {_shown(total.values[key], 1)} µrad, "
+            f"root-sum-square {_shown(rss.values[key], 1)} µrad; dominant input "
+            f"{untilted.label} ({_shown(untilted.values[key], 1)} µrad, "
+            f"{_shown(100 * share, 1)} % of that variance)"
+        )
     for row in rows:
         if row.no_fit:
             lines.append(
@@ -180,9 +196,9 @@ def csv_bytes(rows: list[Row]) -> bytes:
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(
         [
-            "input", "sigma", "sigma_given", "unit", "slope_rms_urad", "slope_dent_urad",
-            "depth_um", "shift_mm", "variance_share", "draws", "draws_not_ok",
-            "draws_without_fit",
+            "input", "sigma", "sigma_given", "unit", "slope_rms_urad",
+            "slope_rms_tilt_removed_urad", "slope_dent_urad", "depth_um", "shift_mm",
+            "variance_share", "draws", "draws_not_ok", "draws_without_fit",
         ]
     )  # fmt: skip
     for row in rows:
@@ -245,7 +261,9 @@ def markdown(run: BudgetRun, rows: list[Row], checks: list[ClosedFormCheck]) -> 
         "",
         "Each input's row: the root mean square over its draws (that input's belief drawn, "
         "the truth elsewhere) of the error against the reference; slopes as the magnitude of "
-        "(∂d/∂x, ∂d/∂z); share: of the slope rms's variance (docs/budget.md).",
+        "(∂d/∂x, ∂d/∂z); tilt removed: the slope error less its mean over the pixels compared "
+        "(each component: the uniform tilt a reference flat takes out); share: of the slope "
+        "rms's variance (docs/budget.md).",
     ]
     if checks:
         lines += ["", "## Closed-form checks (flat mirror, first order)", ""]
@@ -278,9 +296,14 @@ def closed_form_lines(checks: list[ClosedFormCheck]) -> list[str]:
     return lines
 
 
+#: The figure's second, lighter bars: a number -> the number whose panel it joins.
+BESIDE = {"slope_rms_tilt_removed_urad": "slope_rms_urad"}
+
+
 def figure_bytes(run: BudgetRun, rows: list[Row]) -> bytes:
     """budget.png: each number's contributions as horizontal bars, the total and the RSS
-    as lines (SOFAST's sensitivity plots)."""
+    as lines (SOFAST's sensitivity plots); the slope rms with the tilt removed as a second,
+    lighter bar per input in the slope rms's panel (:data:`BESIDE`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -293,13 +316,17 @@ def figure_bytes(run: BudgetRun, rows: list[Row]) -> bytes:
     fig, axes = plt.subplots(2, 2, figsize=(11, 2 * height), layout="constrained")
     labels = [f"{r.label} (σ {r.sigma_text})" for r in inputs]
     places = list(range(len(inputs)))[::-1]
-    for ax, (key, name, unit, _) in zip(axes.ravel(), NUMBERS, strict=True):
-        values = [r.values[key] if math.isfinite(r.values[key]) else 0.0 for r in inputs]
-        ax.barh(places, values, color="tab:blue", height=0.7)
-        for value, label in ((total.values[key], "total"), (rss.values[key], "RSS")):
-            if math.isfinite(value):
-                style = "-" if label == "total" else "--"
-                ax.axvline(value, color="tab:red", linestyle=style, label=f"{label} {value:.3g}")
+    panels = [number for number in NUMBERS if number[0] not in BESIDE]
+    for ax, (key, name, unit, _) in zip(axes.ravel(), panels, strict=True):
+        lighter = [other for other, joined in BESIDE.items() if joined == key]
+        if lighter:  # the panel's bars above, the lighter ones below them
+            _bars(ax, places, inputs, key, 0.18, "tab:blue", "with its tilt", 0.36)
+            _bars(ax, places, inputs, lighter[0], -0.18, "lightsteelblue", "tilt removed", 0.36)
+        else:
+            _bars(ax, places, inputs, key, 0.0, "tab:blue", None, 0.7)
+        _lines(ax, total, rss, key, "tab:red", "")
+        for other in lighter:
+            _lines(ax, total, rss, other, "lightcoral", ", tilt removed")
         ax.set_yticks(places, labels if ax in axes[:, 0] else [""] * len(labels), fontsize=8)
         ax.set_xlabel(f"{name} ({unit})")
         ax.legend(fontsize=8, loc="best")
@@ -309,6 +336,27 @@ def figure_bytes(run: BudgetRun, rows: list[Row]) -> bytes:
     fig.savefig(out, format="png", dpi=110)
     plt.close(fig)
     return out.getvalue()
+
+
+def _bars(
+    ax: Any,
+    places: list[int],
+    inputs: list[Row],
+    key: str,
+    offset: float,
+    color: str,
+    label: str | None,
+    height: float,
+) -> None:
+    values = [r.values[key] if math.isfinite(r.values[key]) else 0.0 for r in inputs]
+    ax.barh([p + offset for p in places], values, color=color, height=height, label=label)
+
+
+def _lines(ax: Any, total: Row, rss: Row, key: str, color: str, what: str) -> None:
+    for value, label in ((total.values[key], "total"), (rss.values[key], "RSS")):
+        if math.isfinite(value):
+            style = "-" if label == "total" else "--"
+            ax.axvline(value, color=color, linestyle=style, label=f"{label}{what} {value:.3g}")
 
 
 def write_outputs(run: BudgetRun) -> list[Row]:

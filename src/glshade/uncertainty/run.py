@@ -206,10 +206,14 @@ def _measure(
 
 def _read(data: dict[str, Any], key: str) -> tuple[dict[str, Any] | None, str | None]:
     """A checked case file's record, or why it is not one: the numbers of its kind, each
-    a finite number or null, a count of pixels, a status."""
+    a finite number or null, a count of pixels, a status. A draw's file of an older
+    glshade, without a number this one takes (the slope rms with the tilt removed), is
+    not one: its draw is measured again (the one line of the files rejected says so)."""
     names = REFERENCE_NUMBERS if key == REFERENCE_KEY else DRAW_NUMBERS
     for name in names:
-        value = data.get(name, "missing")
+        if name not in data:
+            return None, f"lacks the budget's number {name} (written by an older glshade)"
+        value = data[name]
         if value is None:
             continue
         if isinstance(value, bool) or not isinstance(value, (int, float)):

@@ -40,10 +40,11 @@ def add(sub: argparse._SubParsersAction) -> None:
         'camera.position[0], camera.focal, emitter.distance, ..., to σ, "0.5%%" of the true '
         "value allowed; docs/budget.md), one input at a time and all together, measure every "
         "draw with the frames rendered from the truth, and write what each input contributes "
-        "to the slope map (rms and at the dent, µrad), the fitted depth (µm) and the dent's "
-        "shift (mm), and the total, as budget.csv, budget.md and budget.png in --out; the table "
-        "is printed too. On a flat mirror the camera's and the screen's pose are checked "
-        "against their closed forms. Scenes are rendered at --size (default "
+        "to the slope map (rms, rms with its uniform tilt removed, and at the dent, µrad), the "
+        "fitted depth (µm) and the dent's shift (mm), and the total, as budget.csv, budget.md "
+        "and budget.png in --out; the table is printed too. On a flat mirror the camera's and "
+        "the screen's pose are checked against their closed forms. Scenes are rendered at "
+        "--size (default "
         f"{BUDGET_SIZE}). Rerunning resumes.",
     )
     add_scene_flags(p)
