@@ -174,7 +174,7 @@ def test_a_mode_key_of_another_mode_is_refused_in_one_line():
     with pytest.raises(SceneError, match=r"camera.up: .*parallel"):
         Scene().updated(camera={"pose": "look_at", "up": [0.0, 0.0, 0.0]})
     with pytest.raises(SceneError, match=r"emitter.up: .*parallel"):
-        Scene().updated(emitter={"pose": "placed", "up": [0.0, 0.0, 0.0]}).station
+        Scene().updated(emitter={"pose": "placed", "up": [0.0, 0.0, 0.0]}).emitter_plane()
 
 
 def test_a_vector_component_is_a_path_of_its_own():
