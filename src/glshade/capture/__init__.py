@@ -1,0 +1,1 @@
+"""Recorded fringe captures: the model, readers and writers, and decoding."""
