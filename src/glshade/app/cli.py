@@ -23,6 +23,7 @@ from glshade.app.commands import (
     bench,
     budget,
     coding,
+    decode,
     finding3,
     info,
     measure,
@@ -67,6 +68,7 @@ COMMANDS: dict[str, Command] = {
     "coding": coding,
     "budget": budget,
     "station": station,
+    "decode": decode,
 }
 
 

@@ -1,0 +1,218 @@
+"""Recorded captures in (glshade.capture, docs/captures.md): a ``--frames`` folder read back
+decodes as the measurement did, the same frames as image stacks decode the same, the
+writers round-trip bit for bit, a foreign coding's conventions decode synthetic frames
+exactly, and bad input is one line, exit 2."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from glshade.app.cli import main
+from glshade.capture.decode import decode_capture
+from glshade.capture.frames_folder import read_frames_folder, write_frames_folder
+from glshade.capture.model import Capture, CaptureCoding
+from glshade.capture.stack import coding_text, read_stack, write_stack
+from glshade.errors import GlshadeError
+
+
+@pytest.fixture(scope="module")
+def measured(tmp_path_factory):
+    """A small PMD measurement through a sensor: its float TIFF and 16-bit PNG ``--frames``
+    folders and its own decoded map (``--maps``)."""
+    folder = tmp_path_factory.mktemp("capture")
+    sensor = ["--set", "sensor.full_well_e=10000"]
+    for fmt in ("tif", "png"):
+        args = ["measure", "--method", "pmd", "--json", "--size", "24", *sensor]
+        args += [
+            "--frames",
+            str(folder / fmt),
+            "--frame-format",
+            fmt,
+            "--maps",
+            str(folder / f"maps_{fmt}"),
+        ]
+        assert main(args) == 0
+    return folder
+
+
+def test_a_frames_folder_decodes_as_the_measurement(measured, capsys):
+    theirs = np.load(measured / "maps_tif" / "decoded.npy")
+    capture = read_frames_folder(measured / "tif")
+    assert capture.scene is not None and capture.white is not None
+    mine = decode_capture(capture)
+    np.testing.assert_allclose(mine.uv, theirs, atol=1e-9)  # NaN where NaN: the same mask
+    assert np.array_equal(mine.valid, np.isfinite(theirs).all(axis=-1))
+    assert mine.valid.mean() > 0.5
+    # the residual of a noisy capture implies a noise close to the one it has
+    assert np.nanmedian(mine.residual[:, mine.valid]) > 0
+    assert np.all(mine.margin[:, mine.valid] > 0.25)
+    # the 16-bit folder: within its rounding
+    png = decode_capture(read_frames_folder(measured / "png"))
+    theirs_png = np.load(measured / "maps_png" / "decoded.npy")
+    both = np.isfinite(png.uv) & np.isfinite(theirs_png)
+    assert np.abs(png.uv - theirs_png)[both].max() < 1e-4
+
+
+def test_stacks_decode_as_the_folder(measured, tmp_path):
+    capture = read_frames_folder(measured / "png")
+    reference = decode_capture(capture)
+    write_stack(tmp_path / "pngs", capture, tmp_path / "png.toml", "png")
+    write_stack(tmp_path / "stack.tif", capture, tmp_path / "tif.toml", "tiff")
+    for stack, coding in (("pngs", "png.toml"), ("stack.tif", "tif.toml")):
+        again = read_stack(tmp_path / stack, tmp_path / coding)
+        assert np.array_equal(again.frames, capture.frames)
+        decoded = decode_capture(again)
+        np.testing.assert_array_equal(decoded.uv, reference.uv)
+        np.testing.assert_array_equal(decoded.valid, reference.valid)
+
+
+def test_the_writers_round_trip_bit_for_bit(measured, tmp_path):
+    for fmt in ("png", "tif"):
+        capture = read_frames_folder(measured / fmt)
+        write_frames_folder(tmp_path / fmt, capture)
+        names = sorted(p.name for p in (measured / fmt).iterdir())
+        assert names == sorted(p.name for p in (tmp_path / fmt).iterdir())
+        for name in names:
+            assert (measured / fmt / name).read_bytes() == (tmp_path / fmt / name).read_bytes(), (
+                name
+            )
+        again = read_frames_folder(tmp_path / fmt)
+        assert np.array_equal(again.frames, capture.frames)
+        assert np.array_equal(again.white, capture.white)
+    # a stack and its coding file
+    capture = read_frames_folder(measured / "png")
+    write_stack(tmp_path / "s", capture, tmp_path / "s.toml")
+    again = read_stack(tmp_path / "s", tmp_path / "s.toml")
+    assert again.coding == capture.coding
+    assert np.array_equal(again.frames, capture.frames) and np.array_equal(
+        again.white, capture.white
+    )
+    write_stack(tmp_path / "t", again, tmp_path / "t.toml")
+    for name in sorted(p.name for p in (tmp_path / "s").iterdir()):
+        assert (tmp_path / "s" / name).read_bytes() == (tmp_path / "t" / name).read_bytes()
+
+
+def synthetic(
+    coding: CaptureCoding, u: np.ndarray, v: np.ndarray, a: float, b: float
+) -> np.ndarray:
+    """Frames built by construction in ``coding``'s conventions: ``I = A + B cos(2π s / p -
+    δ_n)``, ``δ_n = shift_sign 2π n / N``, ``s`` from the axis's origin, in its order."""
+    frames = np.empty((coding.frame_count, *u.shape))
+    points = {"u": u, "v": v}
+    for d, direction in enumerate(coding.directions):
+        axis = 0 if direction == "u" else 1
+        size = coding.screen_size_mm[axis]
+        x = points[direction]
+        s = x + size / 2 if coding.origin[axis] == "low" else size / 2 - x
+        for k in range(len(coding.periods)):
+            p = coding.period_mm(direction, k)
+            for n in range(coding.shifts):
+                delta = coding.shift_sign * 2 * math.pi * n / coding.shifts
+                frames[coding.frame_index(d, k, n)] = a + b * np.cos(2 * math.pi * s / p - delta)
+    return frames
+
+
+def test_a_foreign_codings_conventions_decode_exactly():
+    coding = CaptureCoding(
+        directions=("u", "v"),
+        periods=(1.0, 8.0, 64.0),  # fringes per screen, coarsest first
+        period_unit="screen",
+        order=("period", "shift", "direction"),
+        shifts=5,
+        shift_sign=-1,
+        origin=("high", "low"),
+        screen_size_mm=(320.0, 240.0),
+    )
+    rng = np.random.default_rng(3)
+    u = rng.uniform(-159.0, 159.0, (12, 10))
+    v = rng.uniform(-119.0, 119.0, (12, 10))
+    capture = Capture(synthetic(coding, u, v, 0.45, 0.3), coding, peak_response=1.0)
+    decoded = decode_capture(capture)
+    assert decoded.valid.all()
+    assert np.abs(decoded.uv[..., 0] - u).max() < 1e-9
+    assert np.abs(decoded.uv[..., 1] - v).max() < 1e-9
+    np.testing.assert_allclose(decoded.fraction[..., 0], (u + 160.0) / 320.0, atol=1e-12)
+    assert np.nanmax(decoded.residual) < 1e-12
+    np.testing.assert_allclose(decoded.modulation, 0.3, atol=1e-12)
+    # the codec glshade sees: mm, finest first
+    assert coding.codec("u").periods_mm == (5.0, 40.0, 320.0)
+    # black and white references normalise the frames (modulation relative to white - black)
+    black, white = np.full(u.shape, 0.1), np.full(u.shape, 0.9)
+    scaled = Capture(0.1 + 0.8 * capture.frames, coding, black=black, white=white)
+    again = decode_capture(scaled)
+    assert again.normalised and np.abs(again.uv - decoded.uv).max() < 1e-9
+
+
+# --------------------------------------------------------------------------- bad input
+def decode_cli(capsys, *args: str) -> tuple[int, str]:
+    code = main(["decode", *args])
+    return code, capsys.readouterr().err.strip()
+
+
+def test_bad_input_is_one_line_and_exit_2(measured, tmp_path, capsys):
+    out = tmp_path / "out"
+    code, err = decode_cli(capsys, str(tmp_path / "none"), "--out", str(out))
+    assert code == 2 and len(err.splitlines()) == 1 and "manifest.json" in err
+    # a frame missing from a --frames folder
+    broken = tmp_path / "broken"
+    write_frames_folder(broken, read_frames_folder(measured / "png"))
+    (broken / "frame_005_v_p1_n1.png").unlink()
+    code, err = decode_cli(capsys, str(broken), "--out", str(out))
+    assert code == 2 and len(err.splitlines()) == 1 and "frame_005_v_p1_n1.png" in err
+    # an unreadable image, and one of another size
+    (broken / "frame_005_v_p1_n1.png").write_text("not an image")
+    code, err = decode_cli(capsys, str(broken), "--out", str(out))
+    assert code == 2 and "frame_005_v_p1_n1.png" in err and "not a readable" in err
+    import cv2
+
+    cv2.imwrite(str(broken / "frame_005_v_p1_n1.png"), np.zeros((5, 5), np.uint16))
+    code, err = decode_cli(capsys, str(broken), "--out", str(out))
+    assert code == 2 and "frame_005_v_p1_n1.png" in err and "24 x 24" in err
+    # a stack with the wrong frame count, and a bad coding file
+    capture = read_frames_folder(measured / "png")
+    write_stack(tmp_path / "s", capture, tmp_path / "s.toml")
+    (tmp_path / "s" / "frame_000.png").unlink()
+    code, err = decode_cli(
+        capsys, str(tmp_path / "s"), "--coding", str(tmp_path / "s.toml"), "--out", str(out)
+    )
+    assert (
+        code == 2 and len(err.splitlines()) == 1 and "32 frame images" in err and "found 31" in err
+    )
+    (tmp_path / "bad.toml").write_text(
+        coding_text(capture.coding).replace("shifts = 4", "shifts = 2")
+    )
+    code, err = decode_cli(
+        capsys, str(tmp_path / "s"), "--coding", str(tmp_path / "bad.toml"), "--out", str(out)
+    )
+    assert code == 2 and "bad.toml" in err and "shifts" in err
+    with pytest.raises(GlshadeError, match="order"):
+        CaptureCoding(("v",), (300.0,), 4, (300.0, 300.0), order=("period", "period", "shift"))
+    assert not out.exists()
+
+
+def test_the_decode_command_writes_its_outputs(measured, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["decode", str(measured / "tif"), "--out", str(out)]) == 0
+    capsys.readouterr()
+    names = {p.name for p in out.iterdir()}
+    assert names == {
+        "maps.npz",
+        "u.png",
+        "v.png",
+        "modulation.png",
+        "residual.png",
+        "summary.json",
+        "summary.md",
+    }
+    summary = json.loads((out / "summary.json").read_text())
+    maps = np.load(out / "maps.npz")
+    assert summary["valid_share"] == pytest.approx(maps["valid"].mean())
+    theirs = np.load(measured / "maps_tif" / "decoded.npy")
+    np.testing.assert_allclose(maps["uv"], theirs, atol=1e-9)
+    assert set(summary["axes"]) == {"u", "v"}
+    assert Path(out / "summary.md").read_text().startswith("# Decoded capture")
