@@ -192,6 +192,8 @@ def test_bad_input_is_one_line_and_exit_2(measured, tmp_path, capsys):
     assert code == 2 and "bad.toml" in err and "shifts" in err
     with pytest.raises(GlshadeError, match="order"):
         CaptureCoding(("v",), (300.0,), 4, (300.0, 300.0), order=("period", "period", "shift"))
+    with pytest.raises(GlshadeError, match="coding.periods"):  # the coarsest spans no screen
+        CaptureCoding(("v",), (2.0, 16.0), 4, (300.0, 300.0))
     assert not out.exists()
 
 

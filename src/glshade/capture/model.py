@@ -77,6 +77,12 @@ class CaptureCoding:
         size = self.screen_size_mm
         if len(size) != 2 or any(not np.isfinite(s) or s <= 0 for s in size):
             raise GlshadeError(f"coding.screen_size_mm: two positive numbers, got {list(size)}")
+        for direction in self.directions:  # glshade's rules (the coarsest period spans the screen)
+            try:
+                self.codec(direction)
+            except GlshadeError as error:
+                text = str(error).replace("emitter.", "coding.")
+                raise GlshadeError(f"{text} (in mm along {direction})") from None
 
     # ------------------------------------------------------------ counts
     @property
