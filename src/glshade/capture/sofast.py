@@ -25,6 +25,8 @@ class SofastMeasurement:
     shifts: int
     direction_order: tuple[str, ...]
     dist_optic_screen_mm: float
+    sense: tuple[int, int] = (1, -1)  # (x, y): SOFAST fraction = s/E or 1 - s/E
+    shift_sign: int = 1  # cos(phase - n*2pi/N), start phase 0
 
 
 @dataclass(frozen=True)
@@ -35,11 +37,28 @@ class SofastCalibration:
     camera_values: NDArray[np.float64]
     display_values: NDArray[np.float64]
 
-    def apply(self, frames: NDArray[np.generic]) -> NDArray[np.float64]:
-        """Map camera values to display values by linear interpolation (unverified vs OpenCSP)."""
-        return np.interp(
-            np.asarray(frames, dtype=np.float64), self.camera_values, self.display_values
-        )
+    def response(self, values: NDArray[np.generic]) -> NDArray[np.float64]:
+        """OpenCSP's response function: interp1d over strictly increasing camera values,
+        clamped to the first/last display value outside."""
+        cam, disp = self.camera_values, self.display_values
+        keep = np.ones(cam.size, dtype=bool)
+        keep[np.where(np.diff(cam) <= 0)[0]] = False
+        x = np.asarray(values, dtype=np.float64)
+        out = np.interp(x, cam[keep], disp[keep])
+        out[x < cam[keep][0]] = disp[0]
+        out[x > cam[keep][-1]] = disp[-1]
+        return out
+
+    def apply(self, measurement: SofastMeasurement) -> NDArray[np.float64]:
+        """Frames (F, H, W) calibrated as OpenCSP's ImageCalibrationScaling does."""
+        dark = self.response(measurement.black)[None]
+        light = self.response(measurement.white)[None]
+        frames = self.response(measurement.frames)
+        delta = light - dark
+        delta[delta <= 0] = np.nan
+        scaled = (frames - dark) * (float(self.display_values[-1]) / delta)
+        scaled[np.isnan(scaled)] = 0.0
+        return scaled
 
 
 def _text(value: object) -> str:
@@ -80,3 +99,82 @@ def read_sofast_calibration(path: str | Path) -> SofastCalibration:
             camera_values=np.asarray(g["camera_values"][()], dtype=np.float64),
             display_values=np.asarray(g["display_values"][()], dtype=np.float64),
         )
+
+
+EXTENT_MM = 1000.0
+
+
+@dataclass(frozen=True)
+class SofastDecoded:
+    """Screen fractions in SOFAST's convention, per pixel (H, W)."""
+
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    valid: NDArray[np.bool_]
+    modulation_x: NDArray[np.float64]  # (K, H, W), SOFAST's period order
+    modulation_y: NDArray[np.float64]
+    residual_x: NDArray[np.float64]  # rms of frames minus A + B cos(phi - delta_n), all periods
+    residual_y: NDArray[np.float64]
+
+
+def _residual(frames: NDArray[np.float64], shifts: int) -> NDArray[np.float64]:
+    """frames (K, N, H, W): rms over K, N of the N-step least-squares fit residual."""
+    delta = 2.0 * np.pi * np.arange(shifts) / shifts
+    c = np.cos(delta)[None, :, None, None]
+    s = np.sin(delta)[None, :, None, None]
+    a = frames.mean(axis=1, keepdims=True)
+    bc = (2.0 / shifts) * (frames * c).sum(axis=1, keepdims=True)
+    bs = (2.0 / shifts) * (frames * s).sum(axis=1, keepdims=True)
+    fit = a + bc * c + bs * s
+    return np.sqrt(((frames - fit) ** 2).mean(axis=(0, 1)))
+
+
+def decode_sofast(
+    measurement: SofastMeasurement, calibration: SofastCalibration | None = None
+) -> SofastDecoded:
+    """Decode with glshade's decoder. SOFAST shows cos(2 pi p (1 - f) - n pi/2) for p
+    periods per screen: glshade's s = EXTENT (1 - f) on periods EXTENT / p mm, finest first."""
+    from glshade.components.emitter.fringes.codec import FringeCodec
+    from glshade.instruments.pmd.decode import decode
+
+    if calibration is not None:
+        frames = calibration.apply(measurement)
+        peak = float(calibration.display_values[-1])
+    else:
+        frames = measurement.frames.astype(np.float64)
+        peak = 255.0
+    n = measurement.shifts
+    out: dict[
+        str, tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]]
+    ]
+    out = {}
+    start = 0
+    for direction in measurement.direction_order:
+        periods = measurement.periods_y if direction == "y" else measurement.periods_x
+        k = len(periods)
+        block = frames[start : start + k * n].reshape(k, n, *frames.shape[1:])
+        start += k * n
+        order = np.argsort(periods)[::-1]  # most periods per screen = finest first
+        codec = FringeCodec(
+            periods_mm=tuple(EXTENT_MM / periods[i] for i in order),
+            shifts=n,
+            directions=("u", "v"),
+            screen_half_size_mm=(EXTENT_MM / 2.0, EXTENT_MM / 2.0),
+        )
+        dec = decode(
+            block[order], codec, peak_response=peak, direction="u" if direction == "x" else "v"
+        )
+        s_frac = np.asarray(dec.s_mm, dtype=np.float64) / EXTENT_MM
+        # measured against expected_facet.h5: x runs with s, y against it
+        frac = s_frac if direction == "x" else 1.0 - s_frac
+        mod = np.asarray(dec.modulation)[np.argsort(order)]
+        out[direction] = (frac, np.asarray(dec.valid), mod, _residual(block, n))
+    return SofastDecoded(
+        x=out["x"][0],
+        y=out["y"][0],
+        valid=out["x"][1] & out["y"][1],
+        modulation_x=out["x"][2],
+        modulation_y=out["y"][2],
+        residual_x=out["x"][3],
+        residual_y=out["y"][3],
+    )
