@@ -1,7 +1,8 @@
-"""Read a SOFAST (Sandia OpenCSP) fringe measurement and its display-response calibration.
-
-First slice: readers only. Decoding through glshade's decoder is not yet here
-(see docs/sofast.md).
+"""Read a SOFAST (Sandia OpenCSP) fringe measurement and its display-response calibration,
+and decode it through glshade's own decoder (:func:`decode_sofast`): SOFAST's conventions
+(frame order, periods per screen, the sense of each screen fraction, its image
+calibration) are mapped onto glshade's coding, never onto a copy of the decoder
+(docs/sofast.md).
 """
 
 from __future__ import annotations
