@@ -15,7 +15,7 @@ from glshade.capture.model import Capture, CaptureCoding
 from glshade.components.emitter.fringes.codec import FringeCodec
 from glshade.errors import GlshadeError
 from glshade.files import atomic_write_bytes, encode_image
-from glshade.instruments.pmd.files import FRAME_ENCODING, FRAME_FORMATS, frame_name
+from glshade.instruments.pmd.files import FRAME_ENCODING, FRAME_FORMATS, frame_entry, frame_name
 
 MANIFEST = "manifest.json"
 
@@ -143,17 +143,7 @@ def write_frames_folder(
             folder / name, encode_image(image, suffix, bits), "--frames", within=folder
         )
         names.append(name)
-        entries.append(
-            {
-                "file": name,
-                "index": index,
-                "direction": frame.direction,
-                "period_mm": frame.period_mm,
-                "period_index": frame.period_index,
-                "shift_index": frame.shift_index,
-                "shift_rad": frame.shift_rad,
-            }
-        )
+        entries.append(frame_entry(index, frame, name))
         index += 1
     white_entry = dict(manifest.get("white") or {})
     if capture.white is not None:

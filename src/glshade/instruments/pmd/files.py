@@ -124,6 +124,19 @@ def _written_name(name: str) -> bool:
     )
 
 
+def frame_entry(index: int, frame: FringeFrame, name: str) -> dict[str, Any]:
+    """A frame's entry in a frames folder's manifest: its file and what it shows."""
+    return {
+        "file": name,
+        "index": index,
+        "direction": frame.direction,
+        "period_mm": frame.period_mm,
+        "period_index": frame.period_index,
+        "shift_index": frame.shift_index,
+        "shift_rad": frame.shift_rad,
+    }
+
+
 def frame_name(index: int, frame: FringeFrame, suffix: str) -> str:
     """``frame_007_v_p1_n3.png``: number, direction, period index, shift index."""
     return f"frame_{index:03d}_{frame.direction}_p{frame.period_index}_n{frame.shift_index}{suffix}"
@@ -144,17 +157,7 @@ def write_frames(directory: Path, scene: Scene, result: PmdResult, fmt: str = "p
     for index, frame in enumerate(scene.active.emitter.sequence(scene)):
         name = frame_name(index, frame, suffix)
         _write_frame(directory / name, maps.recorded[index], suffix, bits)
-        entries.append(
-            {
-                "file": name,
-                "index": index,
-                "direction": frame.direction,
-                "period_mm": frame.period_mm,
-                "period_index": frame.period_index,
-                "shift_index": frame.shift_index,
-                "shift_rad": frame.shift_rad,
-            }
-        )
+        entries.append(frame_entry(index, frame, name))
     white = WHITE_FRAME + suffix
     _write_frame(directory / white, maps.recording.white, suffix, bits)
     manifest = frames_manifest(scene, result, fmt, entries, white)
