@@ -136,3 +136,119 @@ def test_the_facet_corners_are_sofasts(measured) -> None:
     """The corners found agree with SOFAST's to a pixel, in its order."""
     ref = _expected("CalculationImageProcessingFacet/loop_facet_image_refine").T
     assert np.max(np.abs(measured.pose.corners_px - ref)) < 1.0
+
+
+def test_the_twin_renders_where_an_fp64_trace_of_its_station_lands(measured, renderer) -> None:
+    """The twin scene (camera by OpenCV extrinsics, intrinsics and distortion; the placed
+    screen; the nominal parabola in the aligned facet frame) rendered by glshade puts each
+    facet pixel's screen point where a float64 trace of the station's own geometry does:
+    the camera's undistorted ray, the parabola, the mirror reflection, the screen plane."""
+    from glshade.capture.sofast import read_sofast_measurement
+    from glshade.capture.sofast_station import STATION_FILES, read_sofast_station
+    from glshade.scene import Scene
+    from glshade.twin.compare import twin_screen_points
+    from glshade.twin.scene import FACET_TO_PART, twin_frames, twin_scene_dict
+    from glshade.twin.slopes import intersect
+
+    d = _data()
+    station = read_sofast_station(
+        *(d / STATION_FILES[k] for k in ("camera", "display", "orientation", "facet"))
+    )
+    m = read_sofast_measurement(d / "measurement_facet.h5")
+    scene = Scene.from_dict(twin_scene_dict(station, m, measured, "nominal", direction="u"))
+    uv = renderer.render(scene, ("uv",)).output("uv").astype(np.float64)
+    frames = twin_frames(station, measured)
+    rendered = twin_screen_points(uv, scene.emitter_plane(), frames)[measured.mask]
+    # the fp64 trace, in the aligned facet frame
+    cam_rot, cam_t = frames.camera_from_part
+    to_facet = FACET_TO_PART.T
+    rows, cols = np.nonzero(measured.mask)
+    rays = station.camera.rays(cols, rows) @ cam_rot @ FACET_TO_PART  # camera -> part -> facet
+    camera = to_facet @ (-cam_rot.T @ cam_t)
+    f = 100_000.0
+    points = intersect(np.array([0.0, 0.0, 1 / (4 * f), 0.0, 0.0, 1 / (4 * f)]), rays, camera)
+    normal = np.stack([-points[:, 0] / (2 * f), -points[:, 1] / (2 * f), np.ones(len(points))], 1)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    out = rays - 2 * (rays * normal).sum(1, keepdims=True) * normal
+    part_rot, part_t = frames.part_from_screen
+    screen_normal = to_facet @ part_rot[:, 2]
+    screen_origin = to_facet @ part_t
+    along = ((screen_origin - points) @ screen_normal) / (out @ screen_normal)
+    traced = frames.screen_of_part((points + out * along[:, None]) @ FACET_TO_PART.T)
+    err = np.linalg.norm(rendered[:, :2] - traced[:, :2], axis=1)
+    assert np.all(np.isfinite(err))
+    assert np.max(err) < 0.02, np.max(err)  # mm, 10 m away; measured 0.0020 max, 0.0007 rms
+
+
+@pytest.mark.gl
+def test_the_twin_command_writes_its_outputs(tmp_path, capsys) -> None:
+    import json
+
+    from glshade.app.cli import main
+
+    out = tmp_path / "twin"
+    assert main(["twin", str(_data() / "measurement_facet.h5"), "--out", str(out)]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert {
+        "twin.npz",
+        "twin_x.toml",
+        "twin_y.toml",
+        "slopes.png",
+        "deviation.png",
+        "frames.png",
+    } <= names
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["pixels"] >= 7000
+    assert (
+        abs(summary["focal_lengths_m"][0] - 120.0) < 1.2
+        and abs(summary["focal_lengths_m"][1] - 108.9) < 1.1
+    )
+    # the part's waviness: SOFAST's own slopes less its fitted planes are 0.46, 0.57 mrad rms
+    assert np.allclose(summary["slope_rms_from_fit_mrad"], (0.46, 0.57), atol=0.03)
+    rows = summary["frames"]["x"]["periods"]
+    real = [r["real_modulation_share"] for r in rows]
+    assert real[-1] < real[0]  # the finest fringe is blurred in the real frames
+    assert all(abs(r["twin_modulation_share"] - 0.5) < 0.02 for r in rows)
+    maps = np.load(out / "twin.npz")
+    assert np.isfinite(maps["screen_deviation_mm"][:, maps["mask"]]).all()
+
+
+def test_the_twin_command_refuses_bad_input(tmp_path, capsys) -> None:
+    from glshade.app.cli import main
+
+    out = tmp_path / "o"
+    assert (
+        main(["twin", str(tmp_path / "missing.h5"), "--station", str(_data()), "--out", str(out)])
+        == 2
+    )
+    assert (
+        main(
+            [
+                "twin",
+                str(_data() / "measurement_facet.h5"),
+                "--station",
+                str(tmp_path),
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )
+    assert (
+        main(
+            [
+                "twin",
+                str(_data() / "measurement_facet.h5"),
+                "--focal",
+                "0",
+                "100",
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 3 and all(line.startswith("glshade: error:") for line in err), err
+    assert "camera_sofast_downsampled.h5" in err[1] and "--focal" in err[2]
+    assert not out.exists()

@@ -32,6 +32,7 @@ from glshade.app.commands import (
     render,
     station,
     sweep,
+    twin,
     view,
 )
 from glshade.app.interrupts import InterruptWatch
@@ -69,6 +70,7 @@ COMMANDS: dict[str, Command] = {
     "budget": budget,
     "station": station,
     "decode": decode,
+    "twin": twin,
 }
 
 

@@ -1,0 +1,141 @@
+"""One twin run: the real measurement reconstructed, the twin rendered along both screen
+axes, the two compared (docs/twin.md)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from glshade.capture.sofast import SofastCalibration, SofastMeasurement, decode_sofast
+from glshade.capture.sofast_station import SofastStation
+from glshade.scene import Scene
+from glshade.twin import compare
+from glshade.twin.reconstruct import DESIGN_FOCAL_MM, FacetMeasurement, measure_facet
+from glshade.twin.scene import TwinFrames, twin_frames, twin_scene_dict
+
+if TYPE_CHECKING:
+    from glshade.rendering import Renderer
+
+#: glshade's screen axis of each SOFAST direction.
+AXIS_OF = {"x": "u", "y": "v"}
+
+
+@dataclass(frozen=True)
+class TwinRun:
+    """``measured`` the real facet; ``scenes`` the twin's scene per SOFAST direction;
+    ``frames`` the twin's geometry; ``twin_screen_mm`` (H, W, 3) its exact screen points
+    (None when not rendered); ``twin_radiance`` per direction (K, N, H, W), SOFAST's
+    period order; ``real_frames`` the recorded frames alike; ``deviation``; ``beside``
+    the frames' numbers; ``summary``."""
+
+    measured: FacetMeasurement
+    scenes: dict[str, Scene]
+    frames: TwinFrames
+    twin_screen_mm: NDArray[np.float64] | None
+    twin_radiance: dict[str, NDArray[np.float64]]
+    real_frames: dict[str, NDArray[np.float64]]
+    deviation: compare.Deviation
+    beside: dict[str, Any]
+    summary: dict[str, Any]
+
+
+def run_twin(
+    station: SofastStation,
+    measurement: SofastMeasurement,
+    calibration: SofastCalibration | None,
+    renderer: Renderer | None,
+    surface: str = "nominal",
+    design_focal_mm: tuple[float, float] = DESIGN_FOCAL_MM,
+) -> TwinRun:
+    """Reconstruct, render (when a ``renderer`` is given) and compare."""
+    from glshade.instruments.pmd.capture import capture
+
+    measured = measure_facet(station, measurement, calibration, design_focal_mm=design_focal_mm)
+    frames = twin_frames(station, measured)
+    scenes = {
+        d: Scene.from_dict(
+            twin_scene_dict(station, measurement, measured, surface, design_focal_mm, AXIS_OF[d])
+        )
+        for d in ("x", "y")
+    }
+    screen: NDArray[np.float64] | None = None
+    radiance: dict[str, NDArray[np.float64]] = {}
+    beside: dict[str, Any] = {}
+    if renderer is not None:
+        white = None
+        for direction, scene in scenes.items():
+            shot = capture(renderer, scene)
+            block = shot.radiance.reshape(-1, measurement.shifts, *shot.radiance.shape[1:])
+            radiance[direction] = np.asarray(block[::-1], np.float64)  # coarsest first
+            if screen is None:
+                screen = compare.twin_screen_points(shot.uv, scene.emitter_plane(), frames)
+                white = np.asarray(shot.white, np.float64)
+        assert white is not None
+        decoded = decode_sofast(measurement, None)  # the residual in recorded counts
+        beside = compare.frames_beside(measurement, decoded, measured.mask, radiance, white)
+    deviation = compare.deviation(measured, design_focal_mm, screen)
+    summary = summary_of(measured, frames, deviation, beside, surface, design_focal_mm)
+    return TwinRun(
+        measured,
+        scenes,
+        frames,
+        screen,
+        radiance,
+        real_blocks(measurement),
+        deviation,
+        beside,
+        summary,
+    )
+
+
+def real_blocks(measurement: SofastMeasurement) -> dict[str, NDArray[np.float64]]:
+    """The recorded frames per direction (K, N, H, W), SOFAST's period order."""
+    out = {}
+    start = 0
+    shifts = measurement.shifts
+    for direction in measurement.direction_order:
+        count = len(measurement.periods_x if direction == "x" else measurement.periods_y)
+        block = measurement.frames[start : start + count * shifts].astype(np.float64)
+        out[direction] = block.reshape(count, shifts, *block.shape[1:])
+        start += count * shifts
+    return out
+
+
+def summary_of(
+    measured: FacetMeasurement,
+    frames: TwinFrames,
+    deviation: compare.Deviation,
+    beside: dict[str, Any],
+    surface: str,
+    design_focal_mm: tuple[float, float],
+) -> dict[str, Any]:
+    """The numbers of ``summary.json``."""
+    pose = measured.pose
+    fx, fy = measured.focal_lengths_mm
+    screen = deviation.screen_mm
+    rendered = bool(np.isfinite(screen).any())
+    return {
+        "pixels": int(measured.mask.sum()),
+        "lit_pixels": int(measured.raw_mask.sum()),
+        "focal_lengths_m": [fx / 1000, fy / 1000],
+        "design_focal_lengths_m": [design_focal_mm[0] / 1000, design_focal_mm[1] / 1000],
+        "corners_px": pose.corners_px.tolist(),
+        "reprojection_px": pose.reprojection_px,
+        "camera_in_facet_mm": pose.camera_in_facet_mm.tolist(),
+        "distance_scale": pose.distance_scale,
+        "alignment_turn_mrad": float(
+            np.arccos(np.clip((np.trace(measured.solution.alignment[:3, :3]) - 1) / 2, -1, 1)) * 1e3
+        ),
+        "slope_rms_from_design_mrad": compare.rms_mrad(deviation.from_design),
+        "slope_rms_from_fit_mrad": compare.rms_mrad(deviation.from_fit),
+        "twin_surface": surface,
+        "screen_shape_rms_mm": frames.shape_rms_mm,
+        "screen_deviation_rms_mm": (
+            [float(np.sqrt(np.nanmean(v**2))) for v in screen] if rendered else None
+        ),
+        "screen_deviation_mean_mm": ([float(np.nanmean(v)) for v in screen] if rendered else None),
+        "frames": beside or None,
+    }
