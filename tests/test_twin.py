@@ -187,7 +187,8 @@ def test_the_twin_command_writes_its_outputs(tmp_path, capsys) -> None:
     from glshade.app.cli import main
 
     out = tmp_path / "twin"
-    assert main(["twin", str(_data() / "measurement_facet.h5"), "--out", str(out)]) == 0
+    args = ["twin", str(_data() / "measurement_facet.h5"), "--out", str(out), "--supersample", "1"]
+    assert main(args) == 0
     names = {p.name for p in out.iterdir()}
     assert {
         "twin.npz",
@@ -209,6 +210,11 @@ def test_the_twin_command_writes_its_outputs(tmp_path, capsys) -> None:
     real = [r["real_modulation_share"] for r in rows]
     assert real[-1] < real[0]  # the finest fringe is blurred in the real frames
     assert all(abs(r["twin_modulation_share"] - 0.5) < 0.02 for r in rows)
+    # closed loop: the twin's frames, decoded and solved like the real ones, give back the
+    # nominal facet (measured: 100.00 m, 100.00 m; 0.003, 0.001 mrad rms)
+    loop = summary["twin_reconstructed"]
+    assert np.allclose(loop["focal_lengths_m"], (100.0, 100.0), rtol=1e-3)
+    assert max(loop["slope_error_rms_mrad"]) < 0.01 and max(loop["slope_error_max_mrad"]) < 0.03
     maps = np.load(out / "twin.npz")
     assert np.isfinite(maps["screen_deviation_mm"][:, maps["mask"]]).all()
 
@@ -217,38 +223,43 @@ def test_the_twin_command_refuses_bad_input(tmp_path, capsys) -> None:
     from glshade.app.cli import main
 
     out = tmp_path / "o"
-    assert (
-        main(["twin", str(tmp_path / "missing.h5"), "--station", str(_data()), "--out", str(out)])
-        == 2
-    )
-    assert (
-        main(
-            [
-                "twin",
-                str(_data() / "measurement_facet.h5"),
-                "--station",
-                str(tmp_path),
-                "--out",
-                str(out),
-            ]
-        )
-        == 2
-    )
-    assert (
-        main(
-            [
-                "twin",
-                str(_data() / "measurement_facet.h5"),
-                "--focal",
-                "0",
-                "100",
-                "--out",
-                str(out),
-            ]
-        )
-        == 2
-    )
+    meas = str(_data() / "measurement_facet.h5")
+    lines = [
+        [str(tmp_path / "missing.h5"), "--station", str(_data())],
+        [meas, "--station", str(tmp_path)],
+        [meas, "--focal", "0", "100"],
+        [meas, "--supersample", "0"],
+    ]
+    for line in lines:
+        assert main(["twin", *line, "--out", str(out)]) == 2, line
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 3 and all(line.startswith("glshade: error:") for line in err), err
-    assert "camera_sofast_downsampled.h5" in err[1] and "--focal" in err[2]
+    assert len(err) == 4 and all(line.startswith("glshade: error:") for line in err), err
+    assert "missing.h5" in err[0] and "camera_sofast_downsampled.h5" in err[1]
+    assert "--focal" in err[2] and "--supersample 0" in err[3] and "1 to 16" in err[3]
     assert not out.exists()
+
+
+def test_the_twins_frames_are_the_stations_frame_for_frame(measured, renderer) -> None:
+    """Rendered with SOFAST's periods and its phase origins (x from the screen's low
+    edge, y from its high edge), the twin's coarsest fringe has the real one's phase
+    where the facet's shape cannot move it (a 9.7 m period along x, 3.9 m along y)."""
+    from glshade.capture.sofast import read_sofast_measurement
+    from glshade.capture.sofast_station import STATION_FILES, read_sofast_station
+    from glshade.twin.run import run_twin
+
+    d = _data()
+    station = read_sofast_station(
+        *(d / STATION_FILES[k] for k in ("camera", "display", "orientation", "facet"))
+    )
+    m = read_sofast_measurement(d / "measurement_facet.h5")
+    run = run_twin(station, m, None, renderer)
+    mask = run.measured.mask
+    for direction, limit in (("x", 0.03), ("y", 0.05)):  # measured: 0.012, 0.025 rad rms
+        phases = []
+        for frames in (run.real_frames[direction], run.twin_radiance[direction]):
+            steps = 2 * np.pi * np.arange(frames.shape[1]) / frames.shape[1]
+            sin = (frames[0] * np.sin(steps)[:, None, None]).sum(0)
+            cos = (frames[0] * np.cos(steps)[:, None, None]).sum(0)
+            phases.append(np.arctan2(sin, cos)[mask])
+        diff = np.angle(np.exp(1j * (phases[0] - phases[1])))
+        assert np.sqrt(np.mean(diff**2)) < limit, (direction, np.sqrt(np.mean(diff**2)))

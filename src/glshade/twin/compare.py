@@ -21,11 +21,13 @@ class Deviation:
     """Maps (H, W; NaN off the facet): ``from_design`` and ``from_fit`` (2, H, W) the
     measured slopes less the design parabola's and the fitted one's at the same points
     (rad); ``screen_mm`` (2, H, W) the measured screen points less the twin's (mm,
-    screen coordinates, NaN where the twin's ray misses the screen)."""
+    screen coordinates, NaN where the twin's ray misses the screen); ``from_twin`` (2, H,
+    W) the measured slopes less the twin's frames reconstructed alike (rad)."""
 
     from_design: NDArray[np.float64]
     from_fit: NDArray[np.float64]
     screen_mm: NDArray[np.float64]
+    from_twin: NDArray[np.float64]
 
 
 def parabola_slopes(
@@ -41,9 +43,10 @@ def deviation(
     measured: FacetMeasurement,
     design_focal_mm: tuple[float, float],
     twin_screen_mm: NDArray[np.float64] | None,
+    twin: FacetMeasurement | None = None,
 ) -> Deviation:
     """The part's deviation maps; ``twin_screen_mm`` (H, W, 3) the twin's screen points
-    in screen coordinates (or None: not rendered)."""
+    in screen coordinates, ``twin`` its frames reconstructed (or None: not rendered)."""
     mask = measured.mask
     points = measured.solution.points_mm
     design = np.array(
@@ -57,7 +60,13 @@ def deviation(
     screen = np.full((2, *mask.shape), np.nan)
     if twin_screen_mm is not None:
         screen[:, mask] = (measured.screen_mm[mask][:, :2] - twin_screen_mm[mask][:, :2]).T
-    return Deviation(from_design=out["design"], from_fit=out["fit"], screen_mm=screen)
+    from_twin = np.full((2, *mask.shape), np.nan)
+    if twin is not None:
+        both = mask & twin.mask
+        from_twin[:, both] = measured.slopes[:, both] - twin.slopes[:, both]
+    return Deviation(
+        from_design=out["design"], from_fit=out["fit"], screen_mm=screen, from_twin=from_twin
+    )
 
 
 def twin_screen_points(
@@ -111,6 +120,10 @@ def frames_beside(
                     "periods_per_screen": float(p),
                     "real_modulation_share": float(np.median(real_mod[k][mask] / span_real)),
                     "twin_modulation_share": float(np.median(twin_mod[k][mask] / twin_white[mask])),
+                    "real_to_twin": float(
+                        np.median(real_mod[k][mask] / span_real)
+                        / np.median(twin_mod[k][mask] / twin_white[mask])
+                    ),
                     "real_offset_share": float(
                         np.median((real_off[k][mask] - measurement.black[mask]) / span_real)
                     ),

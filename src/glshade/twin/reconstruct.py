@@ -9,7 +9,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from glshade.capture.sofast import SofastCalibration, SofastMeasurement, decode_sofast
+from glshade.capture.sofast import (
+    SofastCalibration,
+    SofastDecoded,
+    SofastMeasurement,
+    decode_sofast,
+)
 from glshade.capture.sofast_station import SofastStation
 from glshade.errors import GlshadeError
 from glshade.twin import geometry
@@ -26,7 +31,8 @@ class FacetMeasurement:
     decoded screen fractions (SOFAST's x, y); ``screen_mm`` (H, W, 3) their points in
     screen coordinates; ``pose`` the camera-facet pose; ``solution`` the slope solver's
     result on ``mask``'s pixels in row-major order; ``slopes`` (2, H, W) dz/dx, dz/dy
-    (NaN off the mask); ``raw_mask`` the lit pixels."""
+    (NaN off the mask); ``raw_mask`` the lit pixels; ``located`` where the facet was
+    found."""
 
     mask: NDArray[np.bool_]
     raw_mask: NDArray[np.bool_]
@@ -36,6 +42,7 @@ class FacetMeasurement:
     solution: SlopeSolution
     slopes: NDArray[np.float64]
     dist_optic_screen_mm: float
+    located: Located
 
     @property
     def focal_lengths_mm(self) -> tuple[float, float]:
@@ -56,28 +63,51 @@ def measure_facet(
     point = np.zeros(3) if measure_point_mm is None else np.asarray(measure_point_mm, float)
     pose = geometry.facet_pose(station, lit, measurement.dist_optic_screen_mm, point)
     inside = lit & geometry.polygon_mask(pose.corners_px, lit.shape)
+    located = Located(lit, inside, pose, measurement.dist_optic_screen_mm, point)
+    return solve_facet(station, decoded, located, design_focal_mm)
+
+
+@dataclass(frozen=True)
+class Located:
+    """Where the facet is: ``lit`` the pixels that see the lit screen, ``inside`` those
+    inside its fitted outline, ``pose``, the measured ``distance_mm`` of the measure point
+    ``point_mm`` (facet coordinates) from the screen's origin."""
+
+    lit: NDArray[np.bool_]
+    inside: NDArray[np.bool_]
+    pose: geometry.FacetPose
+    distance_mm: float
+    point_mm: NDArray[np.float64]
+
+
+def solve_facet(
+    station: SofastStation,
+    decoded: SofastDecoded,
+    located: Located,
+    design_focal_mm: tuple[float, float] = DESIGN_FOCAL_MM,
+) -> FacetMeasurement:
+    """The slopes of a located facet from its decoded screen fractions."""
+    pose, lit = located.pose, located.lit
     fraction = np.stack([decoded.x, decoded.y])
     screen = np.full((*lit.shape, 3), np.nan)
-    decodable = inside & decoded.valid
+    decodable = located.inside & decoded.valid
     screen[decodable] = station.display.screen_mm(decoded.x[decodable], decoded.y[decodable])
     mask = decodable & np.all(np.isfinite(screen), axis=-1)
     if mask.sum() < 16:
         raise GlshadeError(f"{mask.sum()} facet pixels decoded on the screen; too few to solve")
     rows, cols = np.nonzero(mask)
-    rays_cam = station.camera.rays(cols, rows)
     to_facet = pose.rotation.T  # camera -> facet directions
-    camera = pose.camera_in_facet_mm
     rot_sc, t_sc = station.screen_to_camera()
     screen_cam = screen[mask] @ rot_sc.T + t_sc
-    measure = to_facet @ (pose.rotation @ point + pose.translation_mm)
+    measure = to_facet @ (pose.rotation @ located.point_mm + pose.translation_mm)
     inputs = SlopeInputs(
-        rays=rays_cam @ to_facet.T,
+        rays=station.camera.rays(cols, rows) @ to_facet.T,
         screen_mm=(screen_cam - pose.translation_mm) @ to_facet.T,
-        camera_mm=camera,
+        camera_mm=pose.camera_in_facet_mm,
         screen_origin_mm=to_facet @ (t_sc - pose.translation_mm),
         measure_ray=measure / np.linalg.norm(measure),
         align_mm=station.facet.centroid_mm,
-        distance_mm=measurement.dist_optic_screen_mm,
+        distance_mm=located.distance_mm,
         focal_mm=design_focal_mm,
     )
     solution = solve(inputs)
@@ -91,5 +121,6 @@ def measure_facet(
         pose=pose,
         solution=solution,
         slopes=slopes,
-        dist_optic_screen_mm=measurement.dist_optic_screen_mm,
+        dist_optic_screen_mm=located.distance_mm,
+        located=located,
     )

@@ -10,10 +10,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from glshade.capture.sofast import SofastCalibration, SofastMeasurement, decode_sofast
-from glshade.capture.sofast_station import SofastStation
+from glshade.capture.sofast_station import SofastDisplay, SofastStation
 from glshade.scene import Scene
 from glshade.twin import compare
-from glshade.twin.reconstruct import DESIGN_FOCAL_MM, FacetMeasurement, measure_facet
+from glshade.twin.reconstruct import (
+    DESIGN_FOCAL_MM,
+    FacetMeasurement,
+    measure_facet,
+    solve_facet,
+)
 from glshade.twin.scene import TwinFrames, twin_frames, twin_scene_dict
 
 if TYPE_CHECKING:
@@ -25,13 +30,16 @@ AXIS_OF = {"x": "u", "y": "v"}
 
 @dataclass(frozen=True)
 class TwinRun:
-    """``measured`` the real facet; ``scenes`` the twin's scene per SOFAST direction;
+    """``measured`` the real facet; ``twin_measured`` the twin's frames decoded and
+    reconstructed the same way (None when not rendered); ``scenes`` the twin's scene per
+    SOFAST direction;
     ``frames`` the twin's geometry; ``twin_screen_mm`` (H, W, 3) its exact screen points
     (None when not rendered); ``twin_radiance`` per direction (K, N, H, W), SOFAST's
     period order; ``real_frames`` the recorded frames alike; ``deviation``; ``beside``
     the frames' numbers; ``summary``."""
 
     measured: FacetMeasurement
+    twin_measured: FacetMeasurement | None
     scenes: dict[str, Scene]
     frames: TwinFrames
     twin_screen_mm: NDArray[np.float64] | None
@@ -49,6 +57,7 @@ def run_twin(
     renderer: Renderer | None,
     surface: str = "nominal",
     design_focal_mm: tuple[float, float] = DESIGN_FOCAL_MM,
+    supersample: int = 1,
 ) -> TwinRun:
     """Reconstruct, render (when a ``renderer`` is given) and compare."""
     from glshade.instruments.pmd.capture import capture
@@ -57,11 +66,14 @@ def run_twin(
     frames = twin_frames(station, measured)
     scenes = {
         d: Scene.from_dict(
-            twin_scene_dict(station, measurement, measured, surface, design_focal_mm, AXIS_OF[d])
+            twin_scene_dict(
+                station, measurement, measured, surface, design_focal_mm, AXIS_OF[d], supersample
+            )
         )
         for d in ("x", "y")
     }
     screen: NDArray[np.float64] | None = None
+    twin_measured: FacetMeasurement | None = None
     radiance: dict[str, NDArray[np.float64]] = {}
     beside: dict[str, Any] = {}
     if renderer is not None:
@@ -76,10 +88,18 @@ def run_twin(
         assert white is not None
         decoded = decode_sofast(measurement, None)  # the residual in recorded counts
         beside = compare.frames_beside(measurement, decoded, measured.mask, radiance, white)
-    deviation = compare.deviation(measured, design_focal_mm, screen)
+        twin_measured = reconstruct_twin(
+            station, measurement, measured, radiance, white, design_focal_mm
+        )
+    deviation = compare.deviation(measured, design_focal_mm, screen, twin_measured)
     summary = summary_of(measured, frames, deviation, beside, surface, design_focal_mm)
+    summary["supersample"] = int(supersample)
+    summary["twin_reconstructed"] = closed_loop(
+        twin_measured, twin_surface(measured, surface, design_focal_mm)
+    )
     return TwinRun(
         measured,
+        twin_measured,
         scenes,
         frames,
         screen,
@@ -89,6 +109,39 @@ def run_twin(
         beside,
         summary,
     )
+
+
+def reconstruct_twin(
+    station: SofastStation,
+    measurement: SofastMeasurement,
+    measured: FacetMeasurement,
+    radiance: dict[str, NDArray[np.float64]],
+    white: NDArray[np.float64],
+    design_focal_mm: tuple[float, float],
+) -> FacetMeasurement:
+    """The twin's frames as a measurement (0 to 255 of its white), decoded by the same
+    decoder and solved on the same located facet, with the twin's own flat screen."""
+    import dataclasses
+
+    scale = 255.0 / float(np.max(white))
+    frames = np.concatenate(
+        [radiance[d].reshape(-1, *white.shape) for d in measurement.direction_order]
+    )
+    recorded: dict[str, Any] = {  # float frames: the decoder takes any real values
+        "frames": frames * scale,
+        "black": np.zeros_like(white),
+        "white": white * scale,
+    }
+    twin = dataclasses.replace(measurement, **recorded)
+    flat = dataclasses.replace(station, display=flat_display(station.display))
+    return solve_facet(flat, decode_sofast(twin, None), measured.located, design_focal_mm)
+
+
+def flat_display(display: SofastDisplay) -> SofastDisplay:
+    """The flat rectangle nearest ``display`` (its affine fit), as a display shape."""
+    matrix, offset, _ = display.affine()
+    points = matrix @ display.fractions + offset[:, None]
+    return SofastDisplay(fractions=display.fractions, points_mm=points, name="flat fit")
 
 
 def real_blocks(measurement: SofastMeasurement) -> dict[str, NDArray[np.float64]]:
@@ -102,6 +155,34 @@ def real_blocks(measurement: SofastMeasurement) -> dict[str, NDArray[np.float64]
         out[direction] = block.reshape(count, shifts, *block.shape[1:])
         start += count * shifts
     return out
+
+
+def twin_surface(
+    measured: FacetMeasurement, surface: str, design_focal_mm: tuple[float, float]
+) -> NDArray[np.float64]:
+    """The twin's facet as parabola coefficients (F, D, A, E, C, B), mm."""
+    if surface == "fitted":
+        return np.asarray(measured.solution.surface, np.float64)
+    return np.array(
+        [0.0, 0.0, 1 / (4 * design_focal_mm[0]), 0.0, 0.0, 1 / (4 * design_focal_mm[1])]
+    )
+
+
+def closed_loop(
+    twin: FacetMeasurement | None, surface: NDArray[np.float64]
+) -> dict[str, Any] | None:
+    """The twin's frames decoded and solved like the real ones, against the surface the
+    twin was rendered with: its focal lengths and its slopes' rms and largest error."""
+    if twin is None:
+        return None
+    error = twin.solution.slopes - compare.parabola_slopes(surface, twin.solution.points_mm)
+    fx, fy = twin.focal_lengths_mm
+    return {
+        "pixels": int(twin.mask.sum()),
+        "focal_lengths_m": [fx / 1000, fy / 1000],
+        "slope_error_rms_mrad": [float(v) for v in np.sqrt(np.mean(error**2, axis=1)) * 1e3],
+        "slope_error_max_mrad": [float(v) for v in np.max(np.abs(error), axis=1) * 1e3],
+    }
 
 
 def summary_of(
@@ -131,6 +212,7 @@ def summary_of(
         ),
         "slope_rms_from_design_mrad": compare.rms_mrad(deviation.from_design),
         "slope_rms_from_fit_mrad": compare.rms_mrad(deviation.from_fit),
+        "slope_rms_from_twin_mrad": compare.rms_mrad(deviation.from_twin) if rendered else None,
         "twin_surface": surface,
         "screen_shape_rms_mm": frames.shape_rms_mm,
         "screen_deviation_rms_mm": (

@@ -98,10 +98,14 @@ def twin_scene_dict(
     surface: str = "nominal",
     design_focal_mm: tuple[float, float] = (100_000.0, 100_000.0),
     direction: str = "u",
+    supersample: int = 1,
 ) -> dict[str, Any]:
     """The scene (as a scene file's tables) of the twin, showing the station's fringes
     along ``direction`` (u: the screen's x, v: its y) at its periods (the screen's extent
-    / periods per screen, finest first) and shifts."""
+    / periods per screen, finest first) and shifts, phase zero where SOFAST's is (the
+    screen's low x edge; its high y edge: the y scene's screen is turned over, its v axis
+    the screen's -y), so the twin's frames are the station's, frame for frame;
+    ``supersample`` rays per pixel side (the pixel's area integrated)."""
     import cv2
 
     frames = twin_frames(station, measured)
@@ -111,6 +115,8 @@ def twin_scene_dict(
     normal = part_rot[:, 2]  # the screen's z in the part frame, turned to face the part
     if normal @ (np.zeros(3) - centre) < 0:
         normal = -normal
+    # SOFAST's y fringes run from the screen's +y edge: v (and with it u) turned over
+    up = part_rot[:, 1] if direction == "u" else -part_rot[:, 1]
     k = station.camera.matrix
     extent = 2 * frames.half_size[0 if direction == "u" else 1]
     per_screen = measurement.periods_x if direction == "u" else measurement.periods_y
@@ -129,7 +135,7 @@ def twin_scene_dict(
             "pose": "placed",
             "centre": [float(v) for v in centre],
             "look_at": [float(v) for v in centre + normal],
-            "up": [float(v) for v in part_rot[:, 1]],
+            "up": [float(v) for v in up],
             "half_size": [frames.half_size[0], frames.half_size[1]],
             "periods": sorted(extent / p for p in per_screen),
             "shifts": int(measurement.shifts),
@@ -137,4 +143,5 @@ def twin_scene_dict(
         },
         "surface": surface_table(measured, surface, design_focal_mm),
         "defect": {"dmax": 0.0},
+        "render": {"supersample": int(supersample)},
     }

@@ -52,6 +52,13 @@ def add(sub: argparse._SubParsersAction) -> None:
         metavar=("FX_M", "FY_M"),
         help="the design focal lengths along x and y, metres (default 100 100)",
     )
+    p.add_argument(
+        "--supersample",
+        type=int,
+        default=4,
+        metavar="N",
+        help="the twin's rays per pixel side: N x N rays integrate each pixel (default 4)",
+    )
     p.add_argument("--raw", action="store_true", help="ignore the display-response calibration")
     p.add_argument("--no-render", action="store_true", help="reconstruct only; no twin frames")
 
@@ -77,6 +84,10 @@ def run(args: argparse.Namespace) -> int:
     focal = tuple(float(v) for v in args.focal)
     if not all(math.isfinite(v) and v > 0 for v in focal):
         raise GlshadeError(f"--focal {args.focal[0]} {args.focal[1]}: two lengths above 0 (metres)")
+    from glshade.components.render.sampling.table import MAX_SUPERSAMPLE
+
+    if not 1 <= args.supersample <= MAX_SUPERSAMPLE:
+        raise GlshadeError(f"--supersample {args.supersample}: an integer 1 to {MAX_SUPERSAMPLE}")
     paths = _inputs(args)
     out = check_output_dir(args.out, "--out", (Path(args.measurement), *paths.values()))
     station = read_sofast_station(
@@ -106,8 +117,9 @@ def _run(
     from glshade.gpu.context import GLContext
     from glshade.gpu.renderer import Renderer
 
+    ss = args.supersample
     with GLContext() as context, Renderer(context) as renderer:
-        return run_twin(station, measurement, calibration, renderer, args.surface, design)
+        return run_twin(station, measurement, calibration, renderer, args.surface, design, ss)
 
 
 def write_outputs(out: Path, result: Any) -> list[Path]:
@@ -159,8 +171,14 @@ def write_figures(out: Path, result: Any) -> list[Path]:
             ("slope y (mrad)", result.measured.slopes[1]),
         ],
         "deviation.png": [
-            ("x slope - design (mrad, 99 % range)", result.deviation.from_design[0]),
-            ("y slope - design (mrad)", result.deviation.from_design[1]),
+            (
+                "x slope - twin (mrad)",
+                _or(result.deviation.from_twin[0], result.deviation.from_design[0]),
+            ),
+            (
+                "y slope - twin (mrad)",
+                _or(result.deviation.from_twin[1], result.deviation.from_design[1]),
+            ),
             ("x slope - fit (mrad)", result.deviation.from_fit[0]),
             ("y slope - fit (mrad)", result.deviation.from_fit[1]),
         ],
@@ -179,6 +197,11 @@ def write_figures(out: Path, result: Any) -> list[Path]:
     if result.twin_radiance:
         written.append(_frames_figure(out, result))
     return written
+
+
+def _or(values: np.ndarray, otherwise: np.ndarray) -> np.ndarray:
+    """``values`` where any is finite (the twin was rendered), else ``otherwise``."""
+    return values if np.isfinite(values).any() else otherwise
 
 
 def _frames_figure(out: Path, result: Any) -> Path:
@@ -229,18 +252,31 @@ def summary_markdown(summary: dict[str, Any]) -> str:
             f"- measured screen points less the {summary['twin_surface']} twin's: "
             f"{rx:.2f} mm (x), {ry:.2f} mm (y) rms"
         )
+    loop = summary.get("twin_reconstructed")
+    if loop is not None:
+        lx, ly = loop["focal_lengths_m"]
+        lines += [
+            "- the twin's frames decoded and solved alike: focal lengths "
+            f"{lx:.3f} m, {ly:.3f} m; slopes within "
+            + ", ".join(f"{v:.4f}" for v in loop["slope_error_rms_mrad"])
+            + " mrad rms of the twin's facet",
+            "- measured slopes less the twin's (rms, x, y): "
+            + ", ".join(f"{v:.4f} mrad" for v in summary["slope_rms_from_twin_mrad"]),
+        ]
     if summary["frames"]:
         lines += [
             "",
-            "| direction | periods per screen | real modulation | twin modulation | real offset |",
-            "|---|---|---|---|---|",
+            "| direction | periods per screen | real modulation | twin modulation | real / twin "
+            "| real offset |",
+            "|---|---|---|---|---|---|",
         ]
         for direction, block in summary["frames"].items():
             for row in block["periods"]:
                 lines.append(
                     f"| {direction} | {row['periods_per_screen']:g} | "
                     f"{row['real_modulation_share']:.3f} | "
-                    f"{row['twin_modulation_share']:.3f} | {row['real_offset_share']:.3f} |"
+                    f"{row['twin_modulation_share']:.3f} | {row['real_to_twin']:.3f} | "
+                    f"{row['real_offset_share']:.3f} |"
                 )
         lines.append("")
         for direction, block in summary["frames"].items():
