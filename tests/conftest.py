@@ -9,11 +9,23 @@ fixture; a module that starts processes), ``slow`` by hand on the slowest tests,
 from __future__ import annotations
 
 import subprocess
+from pathlib import Path
 
 import pytest
 
 from glshade.gpu.context import GLContext
 from glshade.gpu.renderer import Renderer
+
+
+@pytest.fixture(scope="session")
+def sofast_dir() -> Path:
+    """The real SOFAST measurement's folder (the repository's ``../shared/sofast``, or
+    ``shared/sofast`` inside it); the test is skipped where it is absent."""
+    here = Path(__file__).resolve().parents[1]
+    for folder in (here.parent / "shared" / "sofast", here / "shared" / "sofast"):
+        if (folder / "measurement_facet.h5").exists():
+            return folder
+    pytest.skip("SOFAST data (shared/sofast) absent")
 
 
 @pytest.fixture(scope="session")

@@ -14,19 +14,16 @@ from glshade.twin.slopes import SlopeInputs, solve
 pytest.importorskip("h5py")
 
 
-def _data() -> Path:
-    here = Path(__file__).resolve().parents[1]
-    for cand in (here.parent / "shared" / "sofast", here / "shared" / "sofast"):
-        if (cand / "measurement_facet.h5").exists():
-            return cand
-    pytest.skip("SOFAST data (shared/sofast) absent")
-
-
-def _expected(key: str) -> np.ndarray:
+@pytest.fixture(scope="module")
+def expected(sofast_dir: Path):
+    """A dataset of SOFAST's own results on the measurement (expected_facet.h5)."""
     import h5py
 
-    with h5py.File(_data() / "expected_facet.h5", "r") as h5:
-        return np.asarray(h5["DataSofastCalculation/facet/facet_000/" + key][()])
+    def read(key: str) -> np.ndarray:
+        with h5py.File(sofast_dir / "expected_facet.h5", "r") as h5:
+            return np.asarray(h5["DataSofastCalculation/facet/facet_000/" + key][()])
+
+    return read
 
 
 def _reflect(points, normals, camera):
@@ -71,42 +68,42 @@ def test_the_solver_recovers_a_known_parabola() -> None:
     assert np.allclose(sol.alignment, np.eye(4), atol=1e-6)
 
 
-def test_the_solver_reproduces_sofast_on_its_inputs() -> None:
+def test_the_solver_reproduces_sofast_on_its_inputs(expected) -> None:
     """Fed SOFAST's own geometry (expected_facet.h5), the solver returns SOFAST's slopes
     and surface to round-off."""
     import cv2
 
     geo = "CalculationDataGeometryFacet/"
-    rot = cv2.Rodrigues(_expected(geo + "SpatialOrientation/r_cam_optic").reshape(3, 1))[0]
-    cam_optic = 1000 * _expected(geo + "SpatialOrientation/v_cam_optic_cam").ravel()
-    cam_screen = 1000 * _expected(geo + "SpatialOrientation/v_cam_screen_cam").ravel()
+    rot = cv2.Rodrigues(expected(geo + "SpatialOrientation/r_cam_optic").reshape(3, 1))[0]
+    cam_optic = 1000 * expected(geo + "SpatialOrientation/v_cam_optic_cam").ravel()
+    cam_screen = 1000 * expected(geo + "SpatialOrientation/v_cam_screen_cam").ravel()
     camera = -rot @ cam_optic
     inputs = SlopeInputs(
-        rays=_expected(geo + "u_pixel_pointing_facet").T,
-        screen_mm=1000 * _expected(geo + "v_screen_points_facet").T,
+        rays=expected(geo + "u_pixel_pointing_facet").T,
+        screen_mm=1000 * expected(geo + "v_screen_points_facet").T,
         camera_mm=camera,
         screen_origin_mm=camera + rot @ cam_screen,
-        measure_ray=_expected(geo + "u_cam_measure_point_facet").ravel(),
+        measure_ray=expected(geo + "u_cam_measure_point_facet").ravel(),
         align_mm=np.zeros(3),
-        distance_mm=1000 * float(_expected(geo + "measure_point_screen_distance")),
+        distance_mm=1000 * float(expected(geo + "measure_point_screen_distance")),
         focal_mm=(100_000.0, 100_000.0),
     )
     sol = solve(inputs)
-    assert np.max(np.abs(sol.slopes - _expected("SlopeSolverData/slopes_facet_xy"))) < 1e-12
-    surf = _expected("SlopeSolverData/surf_coefs_facet")
+    assert np.max(np.abs(sol.slopes - expected("SlopeSolverData/slopes_facet_xy"))) < 1e-12
+    surf = expected("SlopeSolverData/surf_coefs_facet")
     assert np.allclose(sol.surface[[2, 4, 5]] * 1000, surf[[2, 4, 5]], rtol=1e-9)
     assert np.allclose(
-        sol.alignment[:3, :3], _expected("SlopeSolverData/trans_alignment")[:3, :3], atol=1e-12
+        sol.alignment[:3, :3], expected("SlopeSolverData/trans_alignment")[:3, :3], atol=1e-12
     )
 
 
 @pytest.fixture(scope="module")
-def measured():
+def measured(sofast_dir):
     from glshade.capture.sofast import read_sofast_calibration, read_sofast_measurement
     from glshade.capture.sofast_station import STATION_FILES, read_sofast_station
     from glshade.twin.reconstruct import measure_facet
 
-    d = _data()
+    d = sofast_dir
     station = read_sofast_station(
         *(d / STATION_FILES[k] for k in ("camera", "display", "orientation", "facet"))
     )
@@ -115,30 +112,32 @@ def measured():
     return measure_facet(station, m, c)
 
 
-def test_the_real_facet_matches_sofasts_slopes_and_focal_lengths(measured) -> None:
+def test_the_real_facet_matches_sofasts_slopes_and_focal_lengths(measured, expected) -> None:
     """glshade end to end (its decoder, its mask, corners and pose, its solver) against
     SOFAST's published slopes: within 0.05 mrad rms; focal lengths within 1 %."""
-    sofast = _expected("CalculationImageProcessingFacet/mask_processed").astype(bool)
+    sofast = expected("CalculationImageProcessingFacet/mask_processed").astype(bool)
     ref = np.full((2, *sofast.shape), np.nan)
-    ref[:, sofast] = _expected("SlopeSolverData/slopes_facet_xy")
+    ref[:, sofast] = expected("SlopeSolverData/slopes_facet_xy")
     both = measured.mask & sofast
     assert both.sum() >= 0.99 * sofast.sum()
     diff = measured.slopes[:, both] - ref[:, both]
     rms = np.sqrt(np.mean(diff**2, axis=1))
     assert np.all(rms < 0.05e-3), rms  # measured: 0.0094, 0.0088 mrad
-    surf = _expected("SlopeSolverData/surf_coefs_facet")
+    surf = expected("SlopeSolverData/surf_coefs_facet")
     ref_focal = 1 / (4 * surf[[2, 5]]) * 1000
     assert np.allclose(measured.focal_lengths_mm, ref_focal, rtol=0.01)  # measured: 0.08 %, 0.03 %
     assert measured.pose.reprojection_px < 0.5
 
 
-def test_the_facet_corners_are_sofasts(measured) -> None:
+def test_the_facet_corners_are_sofasts(measured, expected) -> None:
     """The corners found agree with SOFAST's to a pixel, in its order."""
-    ref = _expected("CalculationImageProcessingFacet/loop_facet_image_refine").T
+    ref = expected("CalculationImageProcessingFacet/loop_facet_image_refine").T
     assert np.max(np.abs(measured.pose.corners_px - ref)) < 1.0
 
 
-def test_the_twin_renders_where_an_fp64_trace_of_its_station_lands(measured, renderer) -> None:
+def test_the_twin_renders_where_an_fp64_trace_of_its_station_lands(
+    measured, renderer, sofast_dir
+) -> None:
     """The twin scene (camera by OpenCV extrinsics, intrinsics and distortion; the placed
     screen; the nominal parabola in the aligned facet frame) rendered by glshade puts each
     facet pixel's screen point where a float64 trace of the station's own geometry does:
@@ -150,7 +149,7 @@ def test_the_twin_renders_where_an_fp64_trace_of_its_station_lands(measured, ren
     from glshade.twin.scene import FACET_TO_PART, twin_frames, twin_scene_dict
     from glshade.twin.slopes import intersect
 
-    d = _data()
+    d = sofast_dir
     station = read_sofast_station(
         *(d / STATION_FILES[k] for k in ("camera", "display", "orientation", "facet"))
     )
@@ -181,13 +180,20 @@ def test_the_twin_renders_where_an_fp64_trace_of_its_station_lands(measured, ren
 
 
 @pytest.mark.gl
-def test_the_twin_command_writes_its_outputs(tmp_path, capsys) -> None:
+def test_the_twin_command_writes_its_outputs(tmp_path, capsys, sofast_dir) -> None:
     import json
 
     from glshade.app.cli import main
 
     out = tmp_path / "twin"
-    args = ["twin", str(_data() / "measurement_facet.h5"), "--out", str(out), "--supersample", "1"]
+    args = [
+        "twin",
+        str(sofast_dir / "measurement_facet.h5"),
+        "--out",
+        str(out),
+        "--supersample",
+        "1",
+    ]
     assert main(args) == 0
     names = {p.name for p in out.iterdir()}
     assert {
@@ -219,13 +225,13 @@ def test_the_twin_command_writes_its_outputs(tmp_path, capsys) -> None:
     assert np.isfinite(maps["screen_deviation_mm"][:, maps["mask"]]).all()
 
 
-def test_the_twin_command_refuses_bad_input(tmp_path, capsys) -> None:
+def test_the_twin_command_refuses_bad_input(tmp_path, capsys, sofast_dir) -> None:
     from glshade.app.cli import main
 
     out = tmp_path / "o"
-    meas = str(_data() / "measurement_facet.h5")
+    meas = str(sofast_dir / "measurement_facet.h5")
     lines = [
-        [str(tmp_path / "missing.h5"), "--station", str(_data())],
+        [str(tmp_path / "missing.h5"), "--station", str(sofast_dir)],
         [meas, "--station", str(tmp_path)],
         [meas, "--focal", "0", "100"],
         [meas, "--supersample", "0"],
@@ -239,7 +245,7 @@ def test_the_twin_command_refuses_bad_input(tmp_path, capsys) -> None:
     assert not out.exists()
 
 
-def test_the_twins_frames_are_the_stations_frame_for_frame(measured, renderer) -> None:
+def test_the_twins_frames_are_the_stations_frame_for_frame(measured, renderer, sofast_dir) -> None:
     """Rendered with SOFAST's periods and its phase origins (x from the screen's low
     edge, y from its high edge), the twin's coarsest fringe has the real one's phase
     where the facet's shape cannot move it (a 9.7 m period along x, 3.9 m along y)."""
@@ -247,7 +253,7 @@ def test_the_twins_frames_are_the_stations_frame_for_frame(measured, renderer) -
     from glshade.capture.sofast_station import STATION_FILES, read_sofast_station
     from glshade.twin.run import run_twin
 
-    d = _data()
+    d = sofast_dir
     station = read_sofast_station(
         *(d / STATION_FILES[k] for k in ("camera", "display", "orientation", "facet"))
     )
