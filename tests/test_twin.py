@@ -269,3 +269,20 @@ def test_the_twins_frames_are_the_stations_frame_for_frame(measured, renderer, s
             phases.append(np.arctan2(sin, cos)[mask])
         diff = np.angle(np.exp(1j * (phases[0] - phases[1])))
         assert np.sqrt(np.mean(diff**2)) < limit, (direction, np.sqrt(np.mean(diff**2)))
+
+
+def test_the_twin_command_reconstructs_without_rendering(tmp_path, sofast_dir) -> None:
+    """--no-render --raw: the facet from the raw frames, no twin; its numbers say so."""
+    import json
+
+    from glshade.app.cli import main
+
+    out = tmp_path / "t"
+    args = ["twin", str(sofast_dir / "measurement_facet.h5"), "--out", str(out), "--no-render"]
+    assert main([*args, "--raw"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["twin_reconstructed"] is None and summary["frames"] is None
+    assert summary["screen_deviation_rms_mm"] is None and summary["calibration"] is None
+    assert np.allclose(summary["focal_lengths_m"], (120.27, 108.85), atol=0.05)  # raw frames
+    assert not (out / "frames.png").exists() and (out / "deviation.png").exists()
+    assert "decoded and solved alike" not in (out / "summary.md").read_text()
