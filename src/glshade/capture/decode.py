@@ -1,42 +1,77 @@
 """A capture decoded by glshade's own decoder (:func:`glshade.instruments.pmd.decode.decode`):
-screen points in mm, the fit's residual, the noise it implies and the unwrapping's margin
-(docs/captures.md)."""
+the display response undone, black and white normalised, per pixel and period the
+modulation, offset, validity and fit residual; the screen points in mm and as screen
+fractions, the noise the residual implies (and the noise a known camera predicts), the
+unwrapping's margin; the lit mask and its largest region (docs/captures.md)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from glshade.capture.masks import largest_region, lit_mask
 from glshade.capture.model import Capture
+from glshade.capture.noise import CameraNoise
+from glshade.capture.response import Response
 from glshade.components.emitter.fringes.codec import axis_of
 from glshade.instruments.pmd import decode as pmd
+
+#: How a pixel's coordinate is decoded: from every period (each modulation at least the
+#: threshold: the simulator's own rule), or from the finest period from which on every
+#: one is sound (a blurred finest fringe costs precision, not the pixel).
+RULES = ("all", "fallback")
+
+
+@dataclass(frozen=True)
+class DecodeSettings:
+    """``min_modulation_share`` of amplitude x the peak response a period's modulation
+    needs; ``rule`` (:data:`RULES`); ``response`` the display response (None: linear);
+    ``noise`` the camera's, for the predicted noise (None: the capture's scene's sensor,
+    if any); ``mask`` "region" (the lit pixels' largest region, where black and white
+    exist), "lit" (every lit pixel) or "none"."""
+
+    min_modulation_share: float = 0.1
+    rule: str = "all"
+    response: Response | None = None
+    noise: CameraNoise | None = None
+    mask: str = "region"
 
 
 @dataclass(frozen=True)
 class CaptureDecoding:
-    """A capture decoded. Per screen axis (u, v) on the first axis of the maps:
-    ``uv`` (H, W, 2) mm from the screen's centre along +u, +v (NaN where not coded or not
-    valid); ``fraction`` (H, W, 2) the same as a share of the screen, 0 at its -half_size
-    edge, 1 at +half_size; ``modulation``, ``offset`` (2, K, H, W) per period finest first;
-    ``residual`` (2, H, W) the rms over periods and shifts of the frames less their N-step
-    fit; ``noise_mm`` (2, H, W) the coordinate's noise the residual implies;
-    ``margin`` (2, H, W) the least unwrapping margin (turns of the finer period, 0.5 at
-    best, 0 on the edge of a wrong fringe); ``valid`` (H, W) valid in every coded
-    direction; ``threshold`` the modulation a valid pixel needs; ``normalised`` whether
-    the frames were divided by white - black."""
+    """A capture decoded. Per screen axis (u, v) on the first axis of the maps, periods
+    finest first on the second: ``uv`` (H, W, 2) mm from the screen's centre along +u, +v
+    (NaN where not coded or not valid); ``fraction`` (H, W, 2) the same as a share of
+    the screen, 0 at its -half_size edge; ``modulation``, ``offset`` (2, K, H, W);
+    ``period_valid`` (2, K, H, W) each period's modulation at least ``threshold``;
+    ``finest_used`` (2, H, W) the finest period the coordinate comes from (-1: none);
+    ``residual`` (2, H, W) and ``period_residual`` (2, K, H, W) the rms of the frames
+    less their N-step fit; ``noise_mm`` (2, H, W) the coordinate's noise the residual
+    implies, ``predicted_noise_mm`` the camera's noise model's (None: unknown);
+    ``margin`` (2, H, W) the least unwrapping margin in turns of the finer period (0.5
+    at best); ``lit``, ``region`` (H, W) or None; ``valid`` (H, W) valid in every coded
+    direction and inside the mask; ``threshold``; ``normalised`` whether black and white
+    normalised the frames; ``response`` its label ("linear" without one)."""
 
     uv: np.ndarray
     fraction: np.ndarray
     modulation: np.ndarray
     offset: np.ndarray
+    period_valid: np.ndarray
+    finest_used: np.ndarray
     residual: np.ndarray
+    period_residual: np.ndarray
     noise_mm: np.ndarray
+    predicted_noise_mm: np.ndarray | None
     margin: np.ndarray
+    lit: np.ndarray | None
+    region: np.ndarray | None
     valid: np.ndarray
     threshold: float
     normalised: bool
+    response: str
 
     @property
     def valid_share(self) -> float:
@@ -44,74 +79,202 @@ class CaptureDecoding:
         return float(self.valid.mean())
 
 
-def prepared(capture: Capture) -> tuple[np.ndarray, float, bool]:
+def prepared(capture: Capture, response: Response | None = None) -> tuple[np.ndarray, float, bool]:
     """The frames to decode, the peak response the threshold is based on, and whether
-    they were normalised: ``(I - black) / (white - black)`` where both references exist
-    (response 1; NaN where white is not above black), else as recorded with the capture's
-    peak response (or, without one, the white's largest value above black, or the
-    largest recorded value)."""
+    they were normalised: through ``response`` where given, then ``(I - black) / (white
+    - black)`` where both references exist (response 1; NaN where white is not above
+    black), else as recorded with the capture's peak response (or, without one, the
+    white's largest value above black, or the largest recorded value)."""
+    peak = _peak(capture)
+    if response is not None:
+        frames, normalised = response.normalised(capture.frames, capture.black, capture.white, peak)
+        return frames, 1.0, normalised
     frames = np.asarray(capture.frames, np.float64)
     if capture.black is not None and capture.white is not None:
         span = np.asarray(capture.white, np.float64) - capture.black
         with np.errstate(invalid="ignore", divide="ignore"):
             scale = np.where(span > 0, 1.0 / span, np.nan)
         return (frames - capture.black) * scale, 1.0, True
+    return frames, peak, False
+
+
+def _peak(capture: Capture) -> float:
     if capture.peak_response is not None:
-        return frames, float(capture.peak_response), False
+        return float(capture.peak_response)
     if capture.white is not None:
         base = 0.0 if capture.black is None else float(np.nanmedian(capture.black))
-        return frames, float(np.nanmax(capture.white)) - base, False
-    return frames, float(np.nanmax(frames)), False
+        return float(np.nanmax(capture.white)) - base
+    return float(np.nanmax(capture.frames))
 
 
-def decode_capture(capture: Capture, min_modulation_share: float = 0.1) -> CaptureDecoding:
-    """Decode every coded direction of ``capture``: valid where every period's modulation
-    is at least ``min_modulation_share`` x amplitude x the peak response."""
+def masks_of(capture: Capture, how: str) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``(lit, region)`` from the black and white references (None without them, or
+    with ``how`` "none")."""
+    if how == "none" or capture.black is None or capture.white is None:
+        return None, None
+    lit = lit_mask(capture.black, capture.white)
+    return lit, (lit & largest_region(lit)) if how == "region" else lit
+
+
+def decode_capture(
+    capture: Capture, min_modulation_share: float = 0.1, settings: DecodeSettings | None = None
+) -> CaptureDecoding:
+    """Decode every coded direction of ``capture`` (``settings`` default: every period
+    sound at ``min_modulation_share``, no response, the mask of the lit region)."""
+    if settings is None:
+        settings = DecodeSettings(min_modulation_share=min_modulation_share)
     coding = capture.coding
-    frames, peak, normalised = prepared(capture)
+    frames, peak, normalised = prepared(capture, settings.response)
     blocks = coding.glshade_order(frames)
     height, width = capture.shape
     periods = len(coding.periods)
-    uv = np.full((height, width, 2), np.nan)
-    fraction = np.full((height, width, 2), np.nan)
-    shape = (2, periods, height, width)
-    modulation, offset = np.full(shape, np.nan), np.full(shape, np.nan)
-    residual, noise, margin = (np.full((2, height, width), np.nan) for _ in range(3))
-    valid = np.ones((height, width), bool)
     amplitude = 0.5 if coding.amplitude is None else coding.amplitude
-    threshold = float(min_modulation_share * amplitude * peak)
+    threshold = float(settings.min_modulation_share * amplitude * peak)
+    maps = _Maps.empty(height, width, periods)
+    noise_model = settings.noise
+    if noise_model is None:
+        from glshade.capture.noise import noise_of_scene
+
+        noise_model = noise_of_scene(capture.scene)
+    raw = coding.glshade_order(np.asarray(capture.frames, np.float64)) if noise_model else None
     for direction in coding.directions:
-        codec = coding.codec(direction)
-        block = blocks[direction]
-        decoded = pmd.decode(block, codec, min_modulation=threshold, direction=direction)
         axis = axis_of(direction)
+        _decode_axis(
+            maps,
+            axis,
+            blocks[direction],
+            coding.codec(direction),
+            threshold,
+            settings.rule,
+            direction,
+        )
         size = coding.screen_size_mm[axis]
-        s = decoded.s_mm
+        s = maps.s[axis]
         if coding.origin[axis] == "high":
             s = size - s
-        uv[..., axis] = s - 0.5 * size
-        fraction[..., axis] = s / size
-        valid &= decoded.valid
-        modulation[axis], offset[axis] = decoded.modulation, decoded.offset
-        residual[axis] = _residual(block, decoded, codec.shifts_rad)
-        sigma = residual[axis] * _dof_factor(codec.shifts)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            noise[axis] = pmd.predicted_noise_mm(codec, 1.0, 1.0) * sigma / decoded.modulation[0]
-        margin[axis] = _margin(block, decoded, codec, threshold, direction)
-    uv[~valid] = np.nan
-    fraction[~valid] = np.nan
+        maps.uv[..., axis] = s - 0.5 * size
+        maps.fraction[..., axis] = s / size
+        if raw is not None and noise_model is not None:
+            maps.predicted[axis] = _predicted(
+                raw[direction], coding.codec(direction), maps, axis, noise_model, capture
+            )
+    lit, region = masks_of(capture, settings.mask)
+    valid = np.all(maps.finest_used[[axis_of(d) for d in coding.directions]] >= 0, axis=0)
+    if region is not None:
+        valid &= region
+    maps.uv[~valid] = np.nan
+    maps.fraction[~valid] = np.nan
     return CaptureDecoding(
-        uv, fraction, modulation, offset, residual, noise, margin, valid, threshold, normalised
+        uv=maps.uv,
+        fraction=maps.fraction,
+        modulation=maps.modulation,
+        offset=maps.offset,
+        period_valid=maps.period_valid,
+        finest_used=maps.finest_used,
+        residual=maps.residual,
+        period_residual=maps.period_residual,
+        noise_mm=maps.noise,
+        predicted_noise_mm=maps.predicted if raw is not None else None,
+        margin=maps.margin,
+        lit=lit,
+        region=region,
+        valid=valid,
+        threshold=threshold,
+        normalised=normalised,
+        response="linear" if settings.response is None else settings.response.label,
     )
 
 
-def _residual(block: np.ndarray, decoded: pmd.Decoded, steps: np.ndarray) -> np.ndarray:
-    """The rms over periods and shifts of ``I - (A + B cos(φ - δ_n))``."""
-    total = np.zeros(block.shape[2:])
+@dataclass
+class _Maps:
+    """The maps being filled, one screen axis at a time."""
+
+    uv: np.ndarray
+    fraction: np.ndarray
+    s: np.ndarray
+    modulation: np.ndarray
+    offset: np.ndarray
+    period_valid: np.ndarray
+    finest_used: np.ndarray
+    residual: np.ndarray
+    period_residual: np.ndarray
+    noise: np.ndarray
+    predicted: np.ndarray
+    margin: np.ndarray
+
+    @classmethod
+    def empty(cls, height: int, width: int, periods: int) -> _Maps:
+        per_period = (2, periods, height, width)
+        nan = np.full
+        return cls(
+            uv=nan((height, width, 2), np.nan),
+            fraction=nan((height, width, 2), np.nan),
+            s=nan((2, height, width), np.nan),
+            modulation=nan(per_period, np.nan),
+            offset=nan(per_period, np.nan),
+            period_valid=np.zeros(per_period, bool),
+            finest_used=np.full((2, height, width), -1, np.int8),
+            residual=nan((2, height, width), np.nan),
+            period_residual=nan(per_period, np.nan),
+            noise=nan((2, height, width), np.nan),
+            predicted=nan((2, height, width), np.nan),
+            margin=nan((2, height, width), np.nan),
+        )
+
+
+def _decode_axis(
+    maps: _Maps,
+    axis: int,
+    block: np.ndarray,
+    codec: pmd.FringeCodec,
+    threshold: float,
+    rule: str,
+    direction: str,
+) -> None:
+    """One coded direction: every tail of its periods decoded (periods ``k`` on), the
+    pixel's coordinate from the finest tail valid (``rule`` "all": the whole sequence
+    alone)."""
+    periods = codec.periods_mm
+    tails = [
+        pmd.decode(
+            block[k:],
+            replace(codec, periods_mm=periods[k:]),
+            min_modulation=threshold,
+            direction=direction,
+        )
+        for k in range(len(periods))
+    ]
+    whole = tails[0]
+    maps.modulation[axis], maps.offset[axis] = whole.modulation, whole.offset
+    maps.period_valid[axis] = (whole.modulation >= threshold) & np.isfinite(whole.offset)
+    used = np.full(block.shape[2:], -1, np.int8)
+    for k, tail in enumerate(tails if rule == "fallback" else tails[:1]):
+        used[(used < 0) & tail.valid] = k
+    maps.finest_used[axis] = used
+    residuals = _period_residuals(block, whole, codec.shifts_rad)
+    maps.period_residual[axis] = residuals
+    maps.residual[axis] = np.sqrt(np.mean(residuals**2, axis=0))
+    sigma = maps.residual[axis] * _dof_factor(codec.shifts)
+    s = np.full(block.shape[2:], np.nan)
+    noise = np.full(block.shape[2:], np.nan)
+    margin = np.full(block.shape[2:], np.nan)
+    for k in range(len(periods)):
+        here = used == k
+        s[here] = tails[k].s_mm[here]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            unit = pmd.predicted_noise_mm(replace(codec, periods_mm=periods[k:]), 1.0, 1.0)
+            noise[here] = unit * sigma[here] / whole.modulation[k][here]
+        margin[here] = _margin(whole, tails, periods, k)[here]
+    maps.s[axis], maps.noise[axis], maps.margin[axis] = s, noise, margin
+
+
+def _period_residuals(block: np.ndarray, decoded: pmd.Decoded, steps: np.ndarray) -> np.ndarray:
+    """(K, H, W): per period the rms over shifts of ``I - (A + B cos(φ - δ_n))``."""
+    total = np.zeros(decoded.offset.shape)
     for n, step in enumerate(steps):
         fit = decoded.offset + decoded.modulation * np.cos(decoded.wrapped - step)
-        total += ((block[:, n] - fit) ** 2).sum(axis=0)
-    return np.sqrt(total / (block.shape[0] * block.shape[1]))
+        total += (block[:, n] - fit) ** 2
+    return np.sqrt(total / len(steps))
 
 
 def _dof_factor(shifts: int) -> float:
@@ -121,23 +284,36 @@ def _dof_factor(shifts: int) -> float:
 
 
 def _margin(
-    block: np.ndarray,
-    decoded: pmd.Decoded,
-    codec: pmd.FringeCodec,
-    threshold: float,
-    direction: str,
+    whole: pmd.Decoded, tails: list[pmd.Decoded], periods: tuple[float, ...], start: int
 ) -> np.ndarray:
-    """The least unwrapping margin over the steps: at step ``k`` the coarser estimate
-    ``s_{k+1}`` (glshade's decoder on the periods from ``k+1`` on) in turns of period
-    ``k`` less the wrapped phase, its distance to the nearest half turn."""
-    from dataclasses import replace
-
-    periods = codec.periods_mm
-    least = np.full(block.shape[2:], 0.5)
-    for k in range(len(periods) - 1):
-        tail = replace(codec, periods_mm=periods[k + 1 :])
-        coarse = pmd.decode(block[k + 1 :], tail, min_modulation=threshold, direction=direction)
-        turns = coarse.s_mm / periods[k] - decoded.wrapped[k] / (2.0 * np.pi)
+    """The least unwrapping margin over the steps from period ``start`` on: at step ``k``
+    the coarser estimate ``s_{k+1}`` (the decoder on the periods from ``k+1`` on) in turns
+    of period ``k`` less the wrapped phase, its distance to the nearest half turn."""
+    least = np.full(whole.offset.shape[1:], 0.5)
+    for k in range(start, len(periods) - 1):
+        turns = tails[k + 1].s_mm / periods[k] - whole.wrapped[k] / (2.0 * np.pi)
         least = np.fmin(least, 0.5 - np.abs(turns - np.round(turns)))
-    least[~decoded.valid] = np.nan
     return least
+
+
+def _predicted(
+    raw: np.ndarray,
+    codec: pmd.FringeCodec,
+    maps: _Maps,
+    axis: int,
+    noise: CameraNoise,
+    capture: Capture,
+) -> np.ndarray:
+    """The coordinate's noise the camera's noise model predicts, from the recorded
+    (raw) frames' offset and modulation at the finest period used."""
+    decoded = pmd.decode(raw, codec, min_modulation=0.0)
+    black = noise.black if capture.black is None else np.asarray(capture.black, np.float64)
+    out = np.full(raw.shape[2:], np.nan)
+    used = maps.finest_used[axis]
+    for k in range(len(codec.periods_mm)):
+        here = used == k
+        sigma = noise.sigma(decoded.offset[k] - black)
+        unit = pmd.predicted_noise_mm(replace(codec, periods_mm=codec.periods_mm[k:]), 1.0, 1.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out[here] = (unit * sigma / decoded.modulation[k])[here]
+    return out

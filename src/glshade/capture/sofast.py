@@ -9,24 +9,30 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from glshade.errors import GlshadeError
+
+if TYPE_CHECKING:
+    from glshade.capture.model import Capture, CaptureCoding
+    from glshade.capture.response import Response
 
 
 @dataclass(frozen=True)
 class SofastMeasurement:
     """A SOFAST fringe measurement as recorded (lengths in mm)."""
 
-    frames: NDArray[np.uint8]  # (F, H, W), SOFAST's frame order
-    black: NDArray[np.uint8]  # (H, W)
-    white: NDArray[np.uint8]  # (H, W)
+    frames: NDArray[Any]  # (F, H, W), SOFAST's frame order (uint8 as recorded)
+    black: NDArray[Any]  # (H, W)
+    white: NDArray[Any]  # (H, W)
     periods_y: tuple[float, ...]  # periods per screen, in frame order
     periods_x: tuple[float, ...]
     shifts: int
     direction_order: tuple[str, ...]
     dist_optic_screen_mm: float
-    sense: tuple[int, int] = (1, -1)  # (x, y): SOFAST fraction = s/E or 1 - s/E
     shift_sign: int = 1  # cos(phase - n*2pi/N), start phase 0
 
 
@@ -50,6 +56,17 @@ class SofastCalibration:
         out[x > cam[keep][-1]] = disp[-1]
         return out
 
+    def as_response(self) -> Response:
+        """The record as a display response (a curve: camera values -> display values)."""
+        from glshade.capture.response import Response
+
+        return Response(
+            "curve",
+            recorded=self.camera_values,
+            commanded=self.display_values,
+            source=f"SOFAST {self.calibration_type}",
+        )
+
     def apply(self, measurement: SofastMeasurement) -> NDArray[np.float64]:
         """Frames (F, H, W) calibrated as OpenCSP's ImageCalibrationScaling does."""
         dark = self.response(measurement.black)[None]
@@ -69,14 +86,30 @@ def _text(value: object) -> str:
 def read_sofast_measurement(path: str | Path) -> SofastMeasurement:
     import h5py
 
-    with h5py.File(path, "r") as h5:
-        g = h5["MeasurementSofastFringe"]
-        images = np.asarray(g["fringe_images"][()], dtype=np.uint8)  # (H, W, F)
-        masks = np.asarray(g["mask_images"][()], dtype=np.uint8)  # (H, W, 2)
-        periods_x = tuple(float(p) for p in g["fringe_periods_x"][()])
-        periods_y = tuple(float(p) for p in g["fringe_periods_y"][()])
-        dist_m = float(g["dist_optic_screen"][()])
+    try:
+        with h5py.File(path, "r") as h5:
+            g = h5["MeasurementSofastFringe"]
+            images = np.asarray(g["fringe_images"][()])  # (H, W, F)
+            masks = np.asarray(g["mask_images"][()])  # (H, W, 2)
+            periods_x = tuple(float(p) for p in g["fringe_periods_x"][()])
+            periods_y = tuple(float(p) for p in g["fringe_periods_y"][()])
+            dist_m = float(g["dist_optic_screen"][()])
+    except OSError as exc:
+        raise GlshadeError(f"{path}: not a readable HDF5 file ({exc})") from None
+    except (KeyError, ValueError, TypeError) as exc:
+        raise GlshadeError(
+            f"{path}: not an OpenCSP SOFAST fringe measurement (MeasurementSofastFringe: {exc})"
+        ) from None
     n_periods = len(periods_x) + len(periods_y)
+    if (
+        images.ndim != 3
+        or masks.shape != (*images.shape[:2], 2)
+        or images.shape[2] % max(n_periods, 1)
+    ):
+        raise GlshadeError(
+            f"{path}: fringe_images {images.shape} and mask_images {masks.shape} do not fit "
+            f"{n_periods} periods"
+        )
     frames = np.ascontiguousarray(np.moveaxis(images, -1, 0))
     return SofastMeasurement(
         frames=frames,
@@ -93,89 +126,112 @@ def read_sofast_measurement(path: str | Path) -> SofastMeasurement:
 def read_sofast_calibration(path: str | Path) -> SofastCalibration:
     import h5py
 
-    with h5py.File(path, "r") as h5:
-        g = h5["ImageCalibration"]
-        return SofastCalibration(
-            calibration_type=_text(g["calibration_type"][()]),
-            camera_values=np.asarray(g["camera_values"][()], dtype=np.float64),
-            display_values=np.asarray(g["display_values"][()], dtype=np.float64),
-        )
+    try:
+        with h5py.File(path, "r") as h5:
+            g = h5["ImageCalibration"]
+            return SofastCalibration(
+                calibration_type=_text(g["calibration_type"][()]),
+                camera_values=np.asarray(g["camera_values"][()], dtype=np.float64),
+                display_values=np.asarray(g["display_values"][()], dtype=np.float64),
+            )
+    except OSError as exc:
+        raise GlshadeError(f"{path}: not a readable HDF5 file ({exc})") from None
+    except (KeyError, ValueError, TypeError) as exc:
+        raise GlshadeError(f"{path}: not an OpenCSP image calibration ({exc})") from None
 
 
 EXTENT_MM = 1000.0
 
 
+def sofast_coding(
+    measurement: SofastMeasurement, screen_size_mm: tuple[float, float] = (EXTENT_MM, EXTENT_MM)
+) -> CaptureCoding:
+    """SOFAST's sequence in a capture's terms: y (glshade's v) then x (u), periods per
+    screen in frame order, the shifts innermost; SOFAST's x fraction runs with the screen
+    coordinate glshade decodes (origin low), its y fraction against it (origin high);
+    phase steps of +2π n / N."""
+    from glshade.capture.model import CaptureCoding
+
+    if measurement.periods_x != measurement.periods_y:
+        raise GlshadeError("SOFAST measurement: x and y periods differ; glshade reads one list")
+    return CaptureCoding(
+        directions=tuple("u" if d == "x" else "v" for d in measurement.direction_order),
+        periods=measurement.periods_x,
+        period_unit="screen",
+        order=("direction", "period", "shift"),
+        shifts=measurement.shifts,
+        shift_sign=measurement.shift_sign,
+        origin=("low", "high"),
+        screen_size_mm=screen_size_mm,
+    )
+
+
+def sofast_capture(
+    measurement: SofastMeasurement,
+    screen_size_mm: tuple[float, float] = (EXTENT_MM, EXTENT_MM),
+    source: str = "",
+) -> Capture:
+    """The measurement as a :class:`~glshade.capture.model.Capture` (frames as recorded,
+    black and white from its mask images); ``screen_size_mm`` the screen's extent (the
+    fractions do not depend on it; its mm do), a nominal 1 m square by default."""
+    from glshade.capture.model import Capture
+
+    return Capture(
+        measurement.frames,
+        sofast_coding(measurement, screen_size_mm),
+        black=measurement.black,
+        white=measurement.white,
+        source=source or "SOFAST measurement",
+        extra={"sofast": measurement},
+    )
+
+
+def read_sofast_capture(
+    path: str | Path, screen_size_mm: tuple[float, float] = (EXTENT_MM, EXTENT_MM)
+) -> Capture:
+    """A SOFAST measurement file read as a capture."""
+    return sofast_capture(read_sofast_measurement(path), screen_size_mm, str(path))
+
+
 @dataclass(frozen=True)
 class SofastDecoded:
-    """Screen fractions in SOFAST's convention, per pixel (H, W)."""
+    """Screen fractions in SOFAST's convention, per pixel (H, W), and what the decoder
+    says of them: ``valid``; ``modulation_x``, ``modulation_y`` (K, H, W) in SOFAST's
+    period order (shares of white - black); ``residual_x``, ``residual_y`` the N-step
+    fit's rms residual over every period (shares of white - black); ``decoding`` all of
+    glshade's maps."""
 
     x: NDArray[np.float64]
     y: NDArray[np.float64]
     valid: NDArray[np.bool_]
-    modulation_x: NDArray[np.float64]  # (K, H, W), SOFAST's period order
+    modulation_x: NDArray[np.float64]
     modulation_y: NDArray[np.float64]
-    residual_x: NDArray[np.float64]  # rms of frames minus A + B cos(phi - delta_n), all periods
+    residual_x: NDArray[np.float64]
     residual_y: NDArray[np.float64]
-
-
-def _residual(frames: NDArray[np.float64], shifts: int) -> NDArray[np.float64]:
-    """frames (K, N, H, W): rms over K, N of the N-step least-squares fit residual."""
-    delta = 2.0 * np.pi * np.arange(shifts) / shifts
-    c = np.cos(delta)[None, :, None, None]
-    s = np.sin(delta)[None, :, None, None]
-    a = frames.mean(axis=1, keepdims=True)
-    bc = (2.0 / shifts) * (frames * c).sum(axis=1, keepdims=True)
-    bs = (2.0 / shifts) * (frames * s).sum(axis=1, keepdims=True)
-    fit = a + bc * c + bs * s
-    return np.sqrt(((frames - fit) ** 2).mean(axis=(0, 1)))
+    decoding: Any = None
 
 
 def decode_sofast(
-    measurement: SofastMeasurement, calibration: SofastCalibration | None = None
+    measurement: SofastMeasurement,
+    calibration: SofastCalibration | None = None,
+    rule: str = "all",
 ) -> SofastDecoded:
-    """Decode with glshade's decoder. SOFAST shows cos(2 pi p (1 - f) - n pi/2) for p
-    periods per screen: glshade's s = EXTENT (1 - f) on periods EXTENT / p mm, finest first."""
-    from glshade.components.emitter.fringes.codec import FringeCodec
-    from glshade.instruments.pmd.decode import decode
+    """Decode through :func:`glshade.capture.decode.decode_capture` (one decoder): the
+    calibration's curve as the display response, black and white normalising, no mask
+    (the caller locates the facet); ``rule`` as :data:`glshade.capture.decode.RULES`."""
+    from glshade.capture.decode import DecodeSettings, decode_capture
 
-    if calibration is not None:
-        frames = calibration.apply(measurement)
-        peak = float(calibration.display_values[-1])
-    else:
-        frames = measurement.frames.astype(np.float64)
-        peak = 255.0
-    n = measurement.shifts
-    out: dict[
-        str, tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]]
-    ]
-    out = {}
-    start = 0
-    for direction in measurement.direction_order:
-        periods = measurement.periods_y if direction == "y" else measurement.periods_x
-        k = len(periods)
-        block = frames[start : start + k * n].reshape(k, n, *frames.shape[1:])
-        start += k * n
-        order = np.argsort(periods)[::-1]  # most periods per screen = finest first
-        codec = FringeCodec(
-            periods_mm=tuple(EXTENT_MM / periods[i] for i in order),
-            shifts=n,
-            directions=("u", "v"),
-            screen_half_size_mm=(EXTENT_MM / 2.0, EXTENT_MM / 2.0),
-        )
-        dec = decode(
-            block[order], codec, peak_response=peak, direction="u" if direction == "x" else "v"
-        )
-        s_frac = np.asarray(dec.s_mm, dtype=np.float64) / EXTENT_MM
-        # measured against expected_facet.h5: x runs with s, y against it
-        frac = s_frac if direction == "x" else 1.0 - s_frac
-        mod = np.asarray(dec.modulation)[np.argsort(order)]
-        out[direction] = (frac, np.asarray(dec.valid), mod, _residual(block, n))
+    response = None if calibration is None else calibration.as_response()
+    settings = DecodeSettings(rule=rule, response=response, mask="none")
+    decoded = decode_capture(sofast_capture(measurement), settings=settings)
+    order = np.argsort(np.argsort(measurement.periods_x)[::-1])  # finest first -> SOFAST's
     return SofastDecoded(
-        x=out["x"][0],
-        y=out["y"][0],
-        valid=out["x"][1] & out["y"][1],
-        modulation_x=out["x"][2],
-        modulation_y=out["y"][2],
-        residual_x=out["x"][3],
-        residual_y=out["y"][3],
+        x=decoded.fraction[..., 0],
+        y=decoded.fraction[..., 1],
+        valid=decoded.valid,
+        modulation_x=decoded.modulation[0][order],
+        modulation_y=decoded.modulation[1][order],
+        residual_x=decoded.residual[0],
+        residual_y=decoded.residual[1],
+        decoding=decoded,
     )

@@ -99,8 +99,9 @@ def frames_beside(
 ) -> dict[str, Any]:
     """Per direction (x, y) and period (periods per screen, SOFAST's order): the median
     over ``mask`` of the modulation relative to the white - black span, real and twin,
-    and the real offset's; the real fit residual's median (counts) and the noise share it
-    implies. ``twin`` maps a direction to its (K, N, H, W) radiance, SOFAST's period order."""
+    and the real offset's; the real fit residual's median (counts, and as a share of
+    white - black, the decoded frames' unit). ``twin`` maps a direction to its (K, N, H,
+    W) radiance, SOFAST's period order."""
     span_real = (measurement.white.astype(float) - measurement.black)[mask]
     out: dict[str, Any] = {}
     frames = measurement.frames.astype(np.float64)
@@ -131,8 +132,8 @@ def frames_beside(
             )
         out[direction] = {
             "periods": rows,
-            "residual_counts_median": float(np.median(residual[mask])),
-            "residual_share_median": float(np.median(residual[mask] / span_real)),
+            "residual_counts_median": float(np.median(residual[mask] * span_real)),
+            "residual_share_median": float(np.median(residual[mask])),
         }
     return out
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from glshade.capture.masks import largest_region, lit_mask
 from glshade.capture.sofast_station import SofastStation
 from glshade.errors import GlshadeError
 from glshade.twin.rotations import closest_root, rotation_between, rotvec_matrix
@@ -50,40 +51,9 @@ class FacetPose:
 
 
 def raw_mask(black: NDArray[np.generic], white: NDArray[np.generic]) -> NDArray[np.bool_]:
-    """Pixels that see the lit screen: white - black above the threshold half-way from
-    the valley of its 100-bin histogram to the light peak (the histogram unpadded, as the
-    OpenCSP revision that made the reference results had it), kept where at least 4 of the 9 x 9
-    neighbours agree, and only the largest connected region."""
-    import cv2
-    from scipy.signal import find_peaks
-
-    delta = np.asarray(white, np.float32) - np.asarray(black, np.float32)
-    hist, edges = np.histogram(delta.ravel(), bins=100, density=True)
-    peaks: NDArray[np.intp] = np.array([], np.intp)
-    for distance in range(10, 100, 10):
-        peaks = find_peaks(hist, height=0.002, distance=distance)[0]
-        if len(peaks) == 2:
-            break
-    if len(peaks) != 2:
-        raise GlshadeError("mask images: no clear dark and light peaks in white - black")
-    valley = int(np.argmin(hist[peaks[0] : peaks[1]])) + int(peaks[0])
-    low, high = edges[valley + 1], edges[peaks[1]]
-    lit = delta > low + 0.5 * (high - low)
-    votes = cv2.filter2D(lit.astype(np.float32), -1, np.full((9, 9), 1 / 81, np.float32))
-    mask = (votes > 4 / 81) & lit
-    return mask & largest_region(mask)
-
-
-def largest_region(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """The largest outer contour of ``mask``, filled."""
-    import cv2
-
-    contours = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)[0]
-    if not contours:
-        raise GlshadeError("mask images: no pixel sees the lit screen")
-    out = np.zeros(mask.shape, np.uint8)
-    cv2.drawContours(out, [max(contours, key=cv2.contourArea)], -1, 255, cv2.FILLED)
-    return out.astype(bool)
+    """The lit pixels (:func:`glshade.capture.masks.lit_mask`) of the largest region."""
+    lit = lit_mask(black, white)
+    return lit & largest_region(lit)
 
 
 def edge_points(mask: NDArray[np.bool_]) -> NDArray[np.float64]:

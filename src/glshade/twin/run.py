@@ -86,7 +86,7 @@ def run_twin(
                 screen = compare.twin_screen_points(shot.uv, scene.emitter_plane(), frames)
                 white = np.asarray(shot.white, np.float64)
         assert white is not None
-        decoded = decode_sofast(measurement, None)  # the residual in recorded counts
+        decoded = decode_sofast(measurement, None)  # the raw frames: their own residual
         beside = compare.frames_beside(measurement, decoded, measured.mask, radiance, white)
         twin_measured = reconstruct_twin(
             station, measurement, measured, radiance, white, design_focal_mm
