@@ -244,7 +244,7 @@ def _gamma_capture(gamma: float) -> tuple[Capture, np.ndarray, np.ndarray]:
 
 def test_a_gamma_response_is_undone_exactly():
     from glshade.capture.decode import DecodeSettings
-    from glshade.capture.response import parse_response
+    from glshade.capture.response_files import parse_response
 
     capture, u, v = _gamma_capture(2.2)
     settings = DecodeSettings(response=parse_response("gamma:2.2"), mask="none")
@@ -263,7 +263,7 @@ def test_a_measured_curve_is_undone_exactly(tmp_path):
     """A screen whose response is piecewise linear: the measured curve (recorded,
     commanded) at its knots, as CSV and as TOML, decodes exactly."""
     from glshade.capture.decode import DecodeSettings
-    from glshade.capture.response import parse_response
+    from glshade.capture.response_files import parse_response
 
     knots_c = np.array([0.0, 0.2, 0.5, 0.8, 1.0])
     knots_r = np.array([10.0, 25.0, 80.0, 170.0, 240.0])

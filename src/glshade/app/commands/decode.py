@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
 def _settings(args: argparse.Namespace) -> Any:
     from glshade.capture.decode import DecodeSettings
     from glshade.capture.noise import parse_noise
-    from glshade.capture.response import parse_response
+    from glshade.capture.response_files import parse_response
 
     response = None if args.response is None else parse_response(args.response)
     noise = None if args.noise is None else parse_noise(args.noise)
