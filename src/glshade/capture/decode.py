@@ -30,7 +30,7 @@ class DecodeSettings:
     needs; ``rule`` (:data:`RULES`); ``response`` the display response (None: linear);
     ``noise`` the camera's, for the predicted noise (None: the capture's scene's sensor,
     if any); ``mask`` "region" (the lit pixels' largest region, where black and white
-    exist), "lit" (every lit pixel) or "none"."""
+    exist), "lit" (every lit pixel) or "all" (no mask)."""
 
     min_modulation_share: float = 0.1
     rule: str = "all"
@@ -109,8 +109,8 @@ def _peak(capture: Capture) -> float:
 
 def masks_of(capture: Capture, how: str) -> tuple[np.ndarray | None, np.ndarray | None]:
     """``(lit, region)`` from the black and white references (None without them, or
-    with ``how`` "none")."""
-    if how == "none" or capture.black is None or capture.white is None:
+    with ``how`` "all")."""
+    if how == "all" or capture.black is None or capture.white is None:
         return None, None
     lit = lit_mask(capture.black, capture.white)
     return lit, (lit & largest_region(lit)) if how == "region" else lit

@@ -222,7 +222,7 @@ def decode_sofast(
     from glshade.capture.decode import DecodeSettings, decode_capture
 
     response = None if calibration is None else calibration.as_response()
-    settings = DecodeSettings(rule=rule, response=response, mask="none")
+    settings = DecodeSettings(rule=rule, response=response, mask="all")
     decoded = decode_capture(sofast_capture(measurement), settings=settings)
     order = np.argsort(np.argsort(measurement.periods_x)[::-1])  # finest first -> SOFAST's
     return SofastDecoded(

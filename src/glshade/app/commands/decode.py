@@ -60,10 +60,10 @@ def add(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--mask",
-        choices=("region", "lit", "none"),
+        choices=("region", "lit", "all"),
         default="region",
         help="with black and white references: the lit pixels' largest region (default), "
-        "every lit pixel, or no mask",
+        "every lit pixel, or all pixels (no mask)",
     )
     p.add_argument(
         "--noise",
