@@ -34,6 +34,9 @@ class SofastMeasurement:
     direction_order: tuple[str, ...]
     dist_optic_screen_mm: float
     shift_sign: int = 1  # cos(phase - n*2pi/N), start phase 0
+    name: str = ""
+    date: str = ""
+    measure_point_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)  # facet coordinates
 
 
 @dataclass(frozen=True)
@@ -94,6 +97,9 @@ def read_sofast_measurement(path: str | Path) -> SofastMeasurement:
             periods_x = tuple(float(p) for p in g["fringe_periods_x"][()])
             periods_y = tuple(float(p) for p in g["fringe_periods_y"][()])
             dist_m = float(g["dist_optic_screen"][()])
+            name = _text(g["name"][()]) if "name" in g else ""
+            date = _text(g["date"][()]) if "date" in g else ""
+            point = g["v_measure_point_facet"][()] if "v_measure_point_facet" in g else np.zeros(3)
     except OSError as exc:
         raise GlshadeError(f"{path}: not a readable HDF5 file ({exc})") from None
     except (KeyError, ValueError, TypeError) as exc:
@@ -120,7 +126,76 @@ def read_sofast_measurement(path: str | Path) -> SofastMeasurement:
         shifts=frames.shape[0] // n_periods,
         direction_order=("y", "x"),
         dist_optic_screen_mm=dist_m * 1000.0,
+        name=name,
+        date=date,
+        measure_point_mm=tuple(float(v) * 1000.0 for v in np.ravel(point)[:3]),  # type: ignore[arg-type]
     )
+
+
+def sofast_bytes(measurement: SofastMeasurement) -> bytes:
+    """The measurement as an OpenCSP ``MeasurementSofastFringe`` HDF5 file (metres, uint8
+    frames (H, W, F), masks (H, W, 2)): what :func:`read_sofast_measurement` reads back
+    the same, array for array."""
+    import io
+
+    import h5py
+
+    frames = np.asarray(measurement.frames)
+    for what, image in (
+        ("frames", frames),
+        ("black", measurement.black),
+        ("white", measurement.white),
+    ):
+        values = np.asarray(image, np.float64)
+        if not np.array_equal(values, np.clip(np.round(values), 0, 255)):
+            raise GlshadeError(f"SOFAST file: the {what} must be whole values 0 to 255 (uint8)")
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as h5:
+        g = h5.create_group("MeasurementSofastFringe")
+        g["date"] = measurement.date
+        g["dist_optic_screen"] = measurement.dist_optic_screen_mm / 1000.0
+        g["fringe_images"] = np.moveaxis(frames.astype(np.uint8), 0, -1)
+        g["fringe_periods_x"] = np.asarray(measurement.periods_x, np.float64)
+        g["fringe_periods_y"] = np.asarray(measurement.periods_y, np.float64)
+        masks = np.stack([measurement.black, measurement.white], axis=-1)
+        g["mask_images"] = masks.astype(np.uint8)
+        g["name"] = measurement.name
+        g["v_measure_point_facet"] = np.asarray(measurement.measure_point_mm, np.float64) / 1000.0
+    return buffer.getvalue()
+
+
+def write_sofast_measurement(path: str | Path, measurement: SofastMeasurement) -> None:
+    """Write :func:`sofast_bytes` to ``path``, atomically."""
+    from glshade.files import atomic_write_bytes
+
+    atomic_write_bytes(Path(path), sofast_bytes(measurement))
+
+
+def measurement_of(capture: Capture, dist_optic_screen_mm: float) -> SofastMeasurement:
+    """A capture in SOFAST's conventions (:func:`sofast_coding`: y then x, periods per
+    screen, direction, period, shift; sign +1; x from the low edge, y from the high;
+    black and white references) as a SOFAST measurement; one line where it is not."""
+    coding = capture.coding
+    wrong = GlshadeError(
+        f"{capture.source or 'capture'}: not in SOFAST's conventions (periods per screen; "
+        "direction, period, shift; sign +1; x from its low edge, y from its high; black "
+        "and white references)"
+    )
+    if capture.black is None or capture.white is None:
+        raise wrong
+    measurement = SofastMeasurement(
+        frames=np.asarray(capture.frames),
+        black=np.asarray(capture.black),
+        white=np.asarray(capture.white),
+        periods_y=coding.periods,
+        periods_x=coding.periods,
+        shifts=coding.shifts,
+        direction_order=tuple("x" if d == "u" else "y" for d in coding.directions),
+        dist_optic_screen_mm=dist_optic_screen_mm,
+    )
+    if coding.to_dict() != sofast_coding(measurement, coding.screen_size_mm).to_dict():
+        raise wrong
+    return measurement
 
 
 def read_sofast_calibration(path: str | Path) -> SofastCalibration:

@@ -60,7 +60,9 @@ def measure_facet(
     """Decode, locate and solve one single-facet measurement."""
     decoded = decode_sofast(measurement, calibration)
     lit = geometry.raw_mask(measurement.black, measurement.white)
-    point = np.zeros(3) if measure_point_mm is None else np.asarray(measure_point_mm, float)
+    point = np.asarray(
+        measurement.measure_point_mm if measure_point_mm is None else measure_point_mm, float
+    )
     pose = geometry.facet_pose(station, lit, measurement.dist_optic_screen_mm, point)
     inside = lit & geometry.polygon_mask(pose.corners_px, lit.shape)
     located = Located(lit, inside, pose, measurement.dist_optic_screen_mm, point)
