@@ -78,6 +78,31 @@ class CaptureDecoding:
         """The share of the pixels valid."""
         return float(self.valid.mean())
 
+    @classmethod
+    def empty(cls, height: int, width: int, periods: int) -> CaptureDecoding:
+        """Every map NaN (``finest_used`` -1, nothing valid), to be filled in place one
+        screen axis at a time."""
+        per_axis, per_period = (2, height, width), (2, periods, height, width)
+        return cls(
+            uv=np.full((height, width, 2), np.nan),
+            fraction=np.full((height, width, 2), np.nan),
+            modulation=np.full(per_period, np.nan),
+            offset=np.full(per_period, np.nan),
+            period_valid=np.zeros(per_period, bool),
+            finest_used=np.full(per_axis, -1, np.int8),
+            residual=np.full(per_axis, np.nan),
+            period_residual=np.full(per_period, np.nan),
+            noise_mm=np.full(per_axis, np.nan),
+            predicted_noise_mm=np.full(per_axis, np.nan),
+            margin=np.full(per_axis, np.nan),
+            lit=None,
+            region=None,
+            valid=np.zeros((height, width), bool),
+            threshold=math.nan,
+            normalised=False,
+            response="linear",
+        )
+
 
 def prepared(capture: Capture, response: Response | None = None) -> tuple[np.ndarray, float, bool]:
     """The frames to decode, the peak response the threshold is based on, and whether
@@ -130,7 +155,7 @@ def decode_capture(
     periods = len(coding.periods)
     amplitude = 0.5 if coding.amplitude is None else coding.amplitude
     threshold = float(settings.min_modulation_share * amplitude * peak)
-    maps = _Maps.empty(height, width, periods)
+    maps = CaptureDecoding.empty(height, width, periods)
     noise_model = settings.noise
     if noise_model is None:
         from glshade.capture.noise import noise_of_scene
@@ -139,43 +164,24 @@ def decode_capture(
     raw = coding.glshade_order(np.asarray(capture.frames, np.float64)) if noise_model else None
     for direction in coding.directions:
         axis = axis_of(direction)
-        _decode_axis(
-            maps,
-            axis,
-            blocks[direction],
-            coding.codec(direction),
-            threshold,
-            settings.rule,
-            direction,
-        )
+        codec = coding.codec(direction)
+        s = _decode_axis(maps, axis, blocks[direction], codec, threshold, settings.rule)
         size = coding.screen_size_mm[axis]
-        s = maps.s[axis]
         if coding.origin[axis] == "high":
             s = size - s
         maps.uv[..., axis] = s - 0.5 * size
         maps.fraction[..., axis] = s / size
         if raw is not None and noise_model is not None:
-            maps.predicted[axis] = _predicted(
-                raw[direction], coding.codec(direction), maps, axis, noise_model, capture
-            )
+            _predicted(maps, axis, raw[direction], codec, noise_model, capture.black)
     lit, region = masks_of(capture, settings.mask)
     valid = np.all(maps.finest_used[[axis_of(d) for d in coding.directions]] >= 0, axis=0)
     if region is not None:
         valid &= region
     maps.uv[~valid] = np.nan
     maps.fraction[~valid] = np.nan
-    return CaptureDecoding(
-        uv=maps.uv,
-        fraction=maps.fraction,
-        modulation=maps.modulation,
-        offset=maps.offset,
-        period_valid=maps.period_valid,
-        finest_used=maps.finest_used,
-        residual=maps.residual,
-        period_residual=maps.period_residual,
-        noise_mm=maps.noise,
-        predicted_noise_mm=maps.predicted if raw is not None else None,
-        margin=maps.margin,
+    return replace(
+        maps,
+        predicted_noise_mm=maps.predicted_noise_mm if raw is not None else None,
         lit=lit,
         region=region,
         valid=valid,
@@ -185,55 +191,18 @@ def decode_capture(
     )
 
 
-@dataclass
-class _Maps:
-    """The maps being filled, one screen axis at a time."""
-
-    uv: np.ndarray
-    fraction: np.ndarray
-    s: np.ndarray
-    modulation: np.ndarray
-    offset: np.ndarray
-    period_valid: np.ndarray
-    finest_used: np.ndarray
-    residual: np.ndarray
-    period_residual: np.ndarray
-    noise: np.ndarray
-    predicted: np.ndarray
-    margin: np.ndarray
-
-    @classmethod
-    def empty(cls, height: int, width: int, periods: int) -> _Maps:
-        per_period = (2, periods, height, width)
-        nan = np.full
-        return cls(
-            uv=nan((height, width, 2), np.nan),
-            fraction=nan((height, width, 2), np.nan),
-            s=nan((2, height, width), np.nan),
-            modulation=nan(per_period, np.nan),
-            offset=nan(per_period, np.nan),
-            period_valid=np.zeros(per_period, bool),
-            finest_used=np.full((2, height, width), -1, np.int8),
-            residual=nan((2, height, width), np.nan),
-            period_residual=nan(per_period, np.nan),
-            noise=nan((2, height, width), np.nan),
-            predicted=nan((2, height, width), np.nan),
-            margin=nan((2, height, width), np.nan),
-        )
-
-
 def _decode_axis(
-    maps: _Maps,
+    maps: CaptureDecoding,
     axis: int,
     block: np.ndarray,
     codec: pmd.FringeCodec,
     threshold: float,
     rule: str,
-    direction: str,
-) -> None:
-    """One coded direction: every tail of its periods decoded (periods ``k`` on), the
-    pixel's coordinate from the finest tail valid (``rule`` "all": the whole sequence
-    alone)."""
+) -> np.ndarray:
+    """One coded screen axis, filled into ``maps``: every tail of its periods decoded
+    (periods ``k`` on), the pixel's coordinate from the finest tail valid (``rule``
+    "all": the whole sequence alone); returns ``s`` (mm from the coding's edge)."""
+    direction = "u" if axis == 0 else "v"
     periods = codec.periods_mm
     tails = [
         pmd.decode(
@@ -265,7 +234,8 @@ def _decode_axis(
             unit = pmd.predicted_noise_mm(replace(codec, periods_mm=periods[k:]), 1.0, 1.0)
             noise[here] = unit * sigma[here] / whole.modulation[k][here]
         margin[here] = _margin(whole, tails, periods, k)[here]
-    maps.s[axis], maps.noise[axis], maps.margin[axis] = s, noise, margin
+    maps.noise_mm[axis], maps.margin[axis] = noise, margin
+    return s
 
 
 def _period_residuals(block: np.ndarray, decoded: pmd.Decoded, steps: np.ndarray) -> np.ndarray:
@@ -297,23 +267,23 @@ def _margin(
 
 
 def _predicted(
+    maps: CaptureDecoding,
+    axis: int,
     raw: np.ndarray,
     codec: pmd.FringeCodec,
-    maps: _Maps,
-    axis: int,
     noise: CameraNoise,
-    capture: Capture,
-) -> np.ndarray:
-    """The coordinate's noise the camera's noise model predicts, from the recorded
-    (raw) frames' offset and modulation at the finest period used."""
+    black: np.ndarray | None,
+) -> None:
+    """The coordinate's noise the camera's noise model predicts (into
+    ``maps.predicted_noise_mm``), from the recorded (raw) frames' offset and modulation at
+    the finest period used."""
+    assert maps.predicted_noise_mm is not None
     decoded = pmd.decode(raw, codec, min_modulation=0.0)
-    black = noise.black if capture.black is None else np.asarray(capture.black, np.float64)
-    out = np.full(raw.shape[2:], np.nan)
+    level = noise.black if black is None else np.asarray(black, np.float64)
     used = maps.finest_used[axis]
     for k in range(len(codec.periods_mm)):
         here = used == k
-        sigma = noise.sigma(decoded.offset[k] - black)
+        sigma = noise.sigma(decoded.offset[k] - level)
         unit = pmd.predicted_noise_mm(replace(codec, periods_mm=codec.periods_mm[k:]), 1.0, 1.0)
         with np.errstate(invalid="ignore", divide="ignore"):
-            out[here] = (unit * sigma / decoded.modulation[k])[here]
-    return out
+            maps.predicted_noise_mm[axis][here] = (unit * sigma / decoded.modulation[k])[here]
