@@ -223,6 +223,10 @@ def test_the_twin_command_writes_its_outputs(tmp_path, capsys, sofast_dir) -> No
     assert max(loop["slope_error_rms_mrad"]) < 0.01 and max(loop["slope_error_max_mrad"]) < 0.03
     maps = np.load(out / "twin.npz")
     assert np.isfinite(maps["screen_deviation_mm"][:, maps["mask"]]).all()
+    from_twin = maps["deviation_from_twin"][:, maps["mask"]]
+    assert np.isfinite(from_twin).mean() > 0.99
+    rms = np.sqrt(np.nanmean(from_twin**2, axis=1)) * 1e3
+    assert np.allclose(rms, summary["slope_rms_from_twin_mrad"], rtol=1e-9)
 
 
 def test_the_twin_command_refuses_bad_input(tmp_path, capsys, sofast_dir) -> None:

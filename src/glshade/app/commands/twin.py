@@ -135,6 +135,7 @@ def write_outputs(out: Path, result: Any) -> list[Path]:
         "fraction": m.fraction,
         "deviation_from_design": result.deviation.from_design,
         "deviation_from_fit": result.deviation.from_fit,
+        "deviation_from_twin": result.deviation.from_twin,
         "screen_deviation_mm": result.deviation.screen_mm,
     }
     if result.twin_screen_mm is not None:
