@@ -292,7 +292,8 @@ def test_bad_responses_and_noise_are_one_line(measured, tmp_path, capsys):
     folder = str(measured / "tif")
     (tmp_path / "bad.csv").write_text("1,2\n3,x\n")
     for flags, needle in (
-        (["--response", "gamma:-1"], "gamma -1.0"),
+        (["--response", "gamma:-1"], "--response gamma:-1: gamma:G"),
+        (["--response", str(measured / "tif" / "manifest.json")], "a .csv, .toml or .h5"),
         (["--response", "gamma:abc"], "gamma:G"),
         (["--response", str(tmp_path / "none.csv")], "no such file"),
         (["--response", str(tmp_path / "bad.csv")], "bad.csv:2"),
@@ -303,3 +304,75 @@ def test_bad_responses_and_noise_are_one_line(measured, tmp_path, capsys):
         code, err = decode_cli(capsys, folder, "--out", str(out), *flags)
         assert code == 2 and len(err.splitlines()) == 1 and needle in err, (flags, err)
     assert not out.exists()
+
+
+def test_the_captures_own_response_is_applied_unless_told_another():
+    """A capture carries its station's response; decode_capture applies it, and a
+    response given to decode_capture wins over it."""
+    from dataclasses import replace
+
+    from glshade.capture.response import Response
+
+    capture, u, v = _gamma_capture(2.2)
+    own = replace(capture, response=Response("gamma", gamma=2.2))
+    decoded = decode_capture(own)
+    assert decoded.response == "gamma 2.2" and decoded.peak == 1.0
+    assert np.abs(decoded.uv[..., 0] - u).max() < 1e-9
+    other = decode_capture(own, response=Response("gamma", gamma=1.0))
+    assert other.response == "gamma 1" and np.nanmax(np.abs(other.uv[..., 0] - u)) > 1e-3
+
+
+# --------------------------------------------------------------------------- rules
+def _blurred_capture() -> tuple[Capture, np.ndarray, np.ndarray, dict[str, tuple[int, int]]]:
+    """A linear screen (modulation 0.45 of white - black, threshold 0.05) whose finest u
+    fringe is blurred to 0.036 at one pixel (above half the threshold), to 0.018 at
+    another (below it), and whose finest u phase is 0.4 of a turn off at a third."""
+    capture, u, v = _gamma_capture(1.0)
+    frames = np.array(capture.frames)
+    coding = capture.coding
+    finest = coding.finest_first("u")[0]
+    shifted = synthetic(coding, u + 0.4 * coding.period_mm("u", finest), v, 0.5, 0.45)
+    pixels = {"blurred": (1, 2), "faint": (4, 5), "shifted": (7, 8)}
+    for n in range(coding.shifts):
+        i = coding.frame_index(coding.directions.index("u"), finest, n)
+        for name, factor in (("blurred", 0.08), ("faint", 0.04)):
+            y, x = pixels[name]
+            frames[i, y, x] = 12.0 + 218.0 * (
+                0.5 + factor * ((frames[i, y, x] - 12.0) / 218.0 - 0.5)
+            )
+        y, x = pixels["shifted"]
+        frames[i, y, x] = 12.0 + 218.0 * shifted[i, y, x]
+    return Capture(frames, coding, black=capture.black, white=capture.white), u, v, pixels
+
+
+def test_the_per_period_rule_keeps_a_blurred_finest_fringe_exactly():
+    """ "all" drops the blurred pixel (and takes the shifted one 2 mm off, unseen);
+    "fallback" keeps it from the next period; "periods" keeps it from its own finest
+    phase, exact, and reports the finest period as not sound; the faint one and the
+    shifted one (margin 0.1 turn) come from the next period."""
+    from glshade.capture.decode import DecodeSettings
+
+    capture, u, v, px = _blurred_capture()
+    got = {
+        rule: decode_capture(capture, settings=DecodeSettings(rule=rule, mask="all"))
+        for rule in ("all", "fallback", "periods")
+    }
+    blurred, faint, shifted = px["blurred"], px["faint"], px["shifted"]
+    assert not got["all"].valid[blurred] and not got["all"].valid[faint]
+    assert abs(got["all"].uv[shifted][0] - u[shifted]) > 1.0
+    assert got["fallback"].finest_used[0][blurred] == 1
+    assert abs(got["fallback"].uv[blurred][0] - u[blurred]) < 1e-9  # exact frames here
+    periods = got["periods"]
+    assert periods.valid.all()
+    assert periods.finest_used[0][blurred] == 0 and not periods.period_valid[0, 0][blurred]
+    assert periods.finest_used[0][faint] == 1 and periods.finest_used[0][shifted] == 1
+    assert abs(periods.uv[blurred][0] - u[blurred]) < 1e-9
+    assert abs(periods.uv[shifted][0] - u[shifted]) < 1e-9
+    assert periods.margin[0][shifted] > 0.25 and got["all"].margin[0][shifted] < 0.15
+    others = np.ones(u.shape, bool)
+    for y, x in px.values():
+        others[y, x] = False
+    assert (periods.finest_used[0][others] == 0).all() and (periods.finest_used[1] == 0).all()
+    assert (
+        np.abs(periods.uv[..., 0] - u).max() < 1e-9 and np.abs(periods.uv[..., 1] - v).max() < 1e-9
+    )

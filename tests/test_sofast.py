@@ -90,6 +90,12 @@ def test_the_decode_command_on_a_sofast_measurement(tmp_path, capsys, sofast_dir
     assert check["supported"] == "without" and "without the response" in check["verdict"]
     ratios = check["residual_over_modulation"]
     assert max(ratios["without"].values()) < 0.5 * min(ratios["with"].values())
+    shares = check["residual_share"]
+    assert set(shares["with"]) == set(shares["without"]) == {"u", "v"}
+    assert max(shares["without"].values()) < min(shares["with"].values())
+    assert summary["peak"] == 255.0 and summary["threshold"] == 12.75
+    assert 0 < summary["lit_threshold"] < 255
+    np.testing.assert_allclose(maps["screen_m"][mask][ok], screen.T[ok] / 1000, atol=1e-6)
     assert summary["region_pixels"] >= 7105
     assert "support decoding without" in (out / "summary.md").read_text()
 
@@ -164,3 +170,57 @@ def test_a_sofast_file_round_trips(tmp_path, sofast_dir) -> None:
     turned = replace(capture, coding=replace(capture.coding, shift_sign=-1))
     with pytest.raises(GlshadeError, match="not in SOFAST's conventions"):
         measurement_of(turned, 1000.0)
+
+
+def test_the_record_is_applied_as_opencsp_applies_it(sofast_dir) -> None:
+    """ImageCalibrationScaling.apply_to_images written out as OpenCSP writes it (scipy's
+    interp1d, the mask images scaled to display_values[-1], 0 where white is not above
+    black) against glshade's one implementation (Response kind sofast)."""
+    from scipy import interpolate
+
+    from glshade.capture.sofast import read_sofast_capture
+
+    m = read_sofast_measurement(sofast_dir / "measurement_facet.h5")
+    c = read_sofast_calibration(sofast_dir / "image_calibration.h5")
+    cam, disp = c.camera_values, c.display_values
+    idxs = np.where(np.diff(cam) <= 0)[0]
+    f = interpolate.interp1d(
+        np.delete(cam, idxs), np.delete(disp, idxs), bounds_error=False,
+        fill_value=(disp[0], disp[-1]),
+    )  # fmt: skip
+    images = np.moveaxis(m.frames, 0, -1)
+    dark, light = f(m.black[..., None]), f(m.white[..., None])
+    delta = light - dark
+    delta[delta <= 0] = np.nan
+    theirs = (f(images) - dark) * (disp[-1].astype(float) / delta)
+    theirs[np.isnan(theirs)] = 0
+    ours = c.apply(m)
+    np.testing.assert_allclose(ours, np.moveaxis(theirs, -1, 0), rtol=1e-12, atol=1e-12)
+    capture = read_sofast_capture(sofast_dir / "measurement_facet.h5", c)
+    assert capture.response is not None and capture.response.display_max == disp[-1]
+    coding = capture.coding
+    assert coding.directions == ("v", "u") and coding.periods == m.periods_y
+    assert (coding.period_unit, coding.shifts, coding.shift_sign) == ("screen", 4, 1)
+    assert coding.origin == ("low", "high") and coding.order == ("direction", "period", "shift")
+    assert np.array_equal(capture.black, m.black) and np.array_equal(capture.white, m.white)
+
+
+def test_the_per_period_rule_keeps_the_edge_pixels_at_sofasts_precision(sofast_dir) -> None:
+    """The 7 facet-edge pixels whose finest y fringe is blurred below the threshold: the
+    per-period rule keeps them from their own finest phase (coarser periods sound,
+    unwrapping margin above 0.4 turn), every pixel of SOFAST's mask within 1e-6 rms."""
+    from glshade.capture.decode import DecodeSettings, decode_capture
+    from glshade.capture.sofast import read_sofast_capture
+
+    d = sofast_dir
+    capture = read_sofast_capture(d / "measurement_facet.h5", d / "image_calibration.h5")
+    decoded = decode_capture(capture, settings=DecodeSettings(rule="periods"))
+    mask, frac = _expected(sofast_dir)
+    assert decoded.valid[mask].all()
+    edge = ~decoded.period_valid[1, 0][mask]
+    assert edge.sum() == 7 and (decoded.finest_used[1][mask] == 0).all()
+    assert decoded.period_valid[1, 1:][:, mask][:, edge].all()
+    assert decoded.margin[1][mask][edge].min() > 0.4
+    for axis in (0, 1):
+        diff = decoded.fraction[..., axis][mask] - frac[axis]
+        assert np.sqrt(np.mean(diff**2)) <= 1e-6 and np.abs(diff).max() < 1e-6

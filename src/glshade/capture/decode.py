@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from glshade.capture.masks import largest_region, lit_mask
+from glshade.capture.masks import largest_region, lit_mask, lit_threshold
 from glshade.capture.model import Capture
 from glshade.capture.noise import CameraNoise
 from glshade.capture.response import Response
@@ -19,9 +19,16 @@ from glshade.components.emitter.fringes.codec import axis_of
 from glshade.instruments.pmd import decode as pmd
 
 #: How a pixel's coordinate is decoded: from every period (each modulation at least the
-#: threshold: the simulator's own rule), or from the finest period from which on every
-#: one is sound (a blurred finest fringe costs precision, not the pixel).
-RULES = ("all", "fallback")
+#: threshold: the simulator's own rule); from the finest period from which on every one
+#: is sound (a blurred finest fringe costs precision, not the pixel); or per period: from
+#: the finest period whose coarser periods are sound and unwrap it unambiguously, its own
+#: modulation above a lower floor (a blurred finest fringe costs neither).
+RULES = ("all", "fallback", "periods")
+#: The "periods" rule: the finest period used needs this share of the threshold (a
+#: blurred fringe still gives a phase), and every unwrapping step from it on at least
+#: this margin (turns of the finer period; 0.5 dead on): a coarser estimate a quarter
+#: of a fringe or more from the finer phase's is ambiguous.
+FLOOR_SHARE, MIN_MARGIN_TURNS = 0.5, 0.25
 
 
 @dataclass(frozen=True)
@@ -52,8 +59,12 @@ class CaptureDecoding:
     implies, ``predicted_noise_mm`` the camera's noise model's (None: unknown);
     ``margin`` (2, H, W) the least unwrapping margin in turns of the finer period (0.5
     at best); ``lit``, ``region`` (H, W) or None; ``valid`` (H, W) valid in every coded
-    direction and inside the mask; ``threshold``; ``normalised`` whether black and white
-    normalised the frames; ``response`` its label ("linear" without one)."""
+    direction and inside the mask; ``threshold`` the modulation a period needs;
+    ``normalised`` whether black and white normalised the frames; ``response`` its label
+    ("linear" without one); ``peak`` the screen's white above black in the decoded
+    frames' unit (modulation, offset, residual and ``threshold`` are in it: 1 for
+    normalised frames, the display maximum through a SOFAST record); ``lit_threshold``
+    the white - black the lit mask needs (recorded units; None without a mask)."""
 
     uv: np.ndarray
     fraction: np.ndarray
@@ -72,6 +83,8 @@ class CaptureDecoding:
     threshold: float
     normalised: bool
     response: str
+    peak: float = 1.0
+    lit_threshold: float | None = None
 
     @property
     def valid_share(self) -> float:
@@ -112,8 +125,7 @@ def prepared(capture: Capture, response: Response | None = None) -> tuple[np.nda
     white's largest value above black, or the largest recorded value)."""
     peak = _peak(capture)
     if response is not None:
-        frames, normalised = response.normalised(capture.frames, capture.black, capture.white, peak)
-        return frames, 1.0, normalised
+        return response.normalised(capture.frames, capture.black, capture.white, peak)
     frames = np.asarray(capture.frames, np.float64)
     if capture.black is not None and capture.white is not None:
         span = np.asarray(capture.white, np.float64) - capture.black
@@ -132,24 +144,34 @@ def _peak(capture: Capture) -> float:
     return float(np.nanmax(capture.frames))
 
 
-def masks_of(capture: Capture, how: str) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """``(lit, region)`` from the black and white references (None without them, or
-    with ``how`` "all")."""
+def masks_of(
+    capture: Capture, how: str
+) -> tuple[np.ndarray | None, np.ndarray | None, float | None]:
+    """``(lit, region, threshold)`` from the black and white references (None without
+    them, or with ``how`` "all"): the white - black threshold of :func:`lit_threshold`."""
     if how == "all" or capture.black is None or capture.white is None:
-        return None, None
-    lit = lit_mask(capture.black, capture.white)
-    return lit, (lit & largest_region(lit)) if how == "region" else lit
+        return None, None, None
+    limit = lit_threshold(capture.black, capture.white)
+    lit = lit_mask(capture.black, capture.white, limit)
+    return lit, (lit & largest_region(lit)) if how == "region" else lit, limit
 
 
 def decode_capture(
-    capture: Capture, min_modulation_share: float = 0.1, settings: DecodeSettings | None = None
+    capture: Capture,
+    min_modulation_share: float = 0.1,
+    settings: DecodeSettings | None = None,
+    response: Response | None = None,
 ) -> CaptureDecoding:
     """Decode every coded direction of ``capture`` (``settings`` default: every period
-    sound at ``min_modulation_share``, no response, the mask of the lit region)."""
+    sound at ``min_modulation_share``, the mask of the lit region). The display response
+    applied before black and white normalise: ``response``, else ``settings.response``,
+    else the capture's own (none: linear)."""
     if settings is None:
         settings = DecodeSettings(min_modulation_share=min_modulation_share)
+    given = (response, settings.response, capture.response)
+    response = next((r for r in given if r is not None), None)
     coding = capture.coding
-    frames, peak, normalised = prepared(capture, settings.response)
+    frames, peak, normalised = prepared(capture, response)
     blocks = coding.glshade_order(frames)
     height, width = capture.shape
     periods = len(coding.periods)
@@ -173,7 +195,7 @@ def decode_capture(
         maps.fraction[..., axis] = s / size
         if raw is not None and noise_model is not None:
             _predicted(maps, axis, raw[direction], codec, noise_model, capture.black)
-    lit, region = masks_of(capture, settings.mask)
+    lit, region, lit_limit = masks_of(capture, settings.mask)
     valid = np.all(maps.finest_used[[axis_of(d) for d in coding.directions]] >= 0, axis=0)
     if region is not None:
         valid &= region
@@ -187,7 +209,9 @@ def decode_capture(
         valid=valid,
         threshold=threshold,
         normalised=normalised,
-        response="linear" if settings.response is None else settings.response.label,
+        response="linear" if response is None else response.label,
+        peak=peak,
+        lit_threshold=lit_limit,
     )
 
 
@@ -200,25 +224,29 @@ def _decode_axis(
     rule: str,
 ) -> np.ndarray:
     """One coded screen axis, filled into ``maps``: every tail of its periods decoded
-    (periods ``k`` on), the pixel's coordinate from the finest tail valid (``rule``
-    "all": the whole sequence alone); returns ``s`` (mm from the coding's edge)."""
+    (periods ``k`` on), the pixel's coordinate from the finest tail the ``rule`` accepts
+    (:func:`accepted`); returns ``s`` (mm from the coding's edge)."""
     direction = "u" if axis == 0 else "v"
     periods = codec.periods_mm
     tails = [
         pmd.decode(
             block[k:],
             replace(codec, periods_mm=periods[k:]),
-            min_modulation=threshold,
+            min_modulation=0.0,
             direction=direction,
         )
         for k in range(len(periods))
     ]
     whole = tails[0]
     maps.modulation[axis], maps.offset[axis] = whole.modulation, whole.offset
-    maps.period_valid[axis] = (whole.modulation >= threshold) & np.isfinite(whole.offset)
+    sound = (whole.modulation >= threshold) & np.isfinite(whole.offset)
+    maps.period_valid[axis] = sound
+    margins = np.stack([_margin(whole, tails, periods, k) for k in range(len(periods))])
+    floor = whole.modulation >= FLOOR_SHARE * threshold
+    ok = accepted(rule, sound, floor, margins)
     used = np.full(block.shape[2:], -1, np.int8)
-    for k, tail in enumerate(tails if rule == "fallback" else tails[:1]):
-        used[(used < 0) & tail.valid] = k
+    for k in range(len(periods)):
+        used[(used < 0) & ok[k]] = k
     maps.finest_used[axis] = used
     residuals = _period_residuals(block, whole, codec.shifts_rad)
     maps.period_residual[axis] = residuals
@@ -226,16 +254,35 @@ def _decode_axis(
     sigma = maps.residual[axis] * _dof_factor(codec.shifts)
     s = np.full(block.shape[2:], np.nan)
     noise = np.full(block.shape[2:], np.nan)
-    margin = np.full(block.shape[2:], np.nan)
     for k in range(len(periods)):
         here = used == k
         s[here] = tails[k].s_mm[here]
         with np.errstate(invalid="ignore", divide="ignore"):
             unit = pmd.predicted_noise_mm(replace(codec, periods_mm=periods[k:]), 1.0, 1.0)
             noise[here] = unit * sigma[here] / whole.modulation[k][here]
-        margin[here] = _margin(whole, tails, periods, k)[here]
-    maps.noise_mm[axis], maps.margin[axis] = noise, margin
+    maps.noise_mm[axis] = noise
+    maps.margin[axis] = np.take_along_axis(margins, np.maximum(used, 0)[None], 0)[0]
+    maps.margin[axis][used < 0] = np.nan
     return s
+
+
+def accepted(rule: str, sound: np.ndarray, floor: np.ndarray, margins: np.ndarray) -> np.ndarray:
+    """(K, H, W): whether the coordinate may come from the periods ``k`` on (finest
+    first). ``sound`` (K, H, W) each period's modulation at least the threshold,
+    ``floor`` at least :data:`FLOOR_SHARE` of it, ``margins`` the least unwrapping
+    margin from period ``k`` on (turns). "all": every period sound (tail 0 alone);
+    "fallback": every period from ``k`` on sound; "periods": every period coarser than
+    ``k`` sound (they unwrap it), period ``k`` above the floor, and the unwrapping
+    unambiguous (every margin from ``k`` on at least :data:`MIN_MARGIN_TURNS`)."""
+    count = sound.shape[0]
+    from_k = np.stack([sound[k:].all(axis=0) for k in range(count)])
+    if rule == "all":
+        return np.concatenate([from_k[:1], np.zeros_like(from_k[1:])])
+    if rule == "fallback":
+        return from_k
+    coarser = np.concatenate([from_k[1:], np.ones_like(from_k[:1])])
+    with np.errstate(invalid="ignore"):
+        return coarser & floor & (margins >= MIN_MARGIN_TURNS)
 
 
 def _period_residuals(block: np.ndarray, decoded: pmd.Decoded, steps: np.ndarray) -> np.ndarray:

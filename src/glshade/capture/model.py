@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from glshade.capture.response import Response
 from glshade.components.emitter.fringes.codec import DIRECTIONS, FringeCodec, axis_of
 from glshade.errors import GlshadeError
 
@@ -216,7 +217,9 @@ class Capture:
     ``black``, ``white``: the screen's black and white recorded alike (or None);
     ``peak_response``: the recorded value of the screen's white above black (None:
     worked out from the frames); ``scene``: the glshade scene that made it, if any;
-    ``source``: where it came from."""
+    ``source``: where it came from; ``response``: the station's display response
+    recorded with it (None: unknown),
+    which :func:`glshade.capture.decode.decode_capture` applies unless told another."""
 
     frames: np.ndarray
     coding: CaptureCoding
@@ -225,6 +228,7 @@ class Capture:
     peak_response: float | None = None
     scene: Any = None
     source: str = ""
+    response: Response | None = None
     extra: dict[str, Any] = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:

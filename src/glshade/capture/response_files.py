@@ -3,6 +3,7 @@ measured curve in a CSV or TOML file, or an OpenCSP image calibration record."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,9 @@ def parse_response(text: str) -> Response:
         try:
             gamma = float(text[len("gamma:") :])
         except ValueError:
-            raise GlshadeError(f"--response {text}: gamma:G with G a number above 0") from None
+            gamma = math.nan
+        if not (math.isfinite(gamma) and gamma > 0):
+            raise GlshadeError(f"--response {text}: gamma:G with G a finite number above 0")
         return Response("gamma", gamma=gamma, source=text)
     path = Path(text)
     if not path.is_file():
@@ -30,13 +33,13 @@ def parse_response(text: str) -> Response:
     if suffix in (".h5", ".hdf5"):
         from glshade.capture.sofast import read_sofast_calibration
 
-        record = read_sofast_calibration(path)
-        return Response(
-            "curve",
-            recorded=record.camera_values,
-            commanded=record.display_values,
-            source=str(path),
-        )
+        try:
+            return read_sofast_calibration(path).as_response(str(path))
+        except GlshadeError as error:
+            raise GlshadeError(
+                f"--response {error} (allowed: gamma:G, a .csv or .toml curve, an OpenCSP "
+                "image_calibration.h5)"
+            ) from None
     if suffix == ".csv":
         return _csv_response(path)
     if suffix == ".toml":
@@ -59,7 +62,7 @@ def _csv_response(path: Path) -> Response:
                 f"{path}:{number}: two numbers (recorded, commanded), got {line!r}"
             ) from None
     pairs = np.array(rows, float).reshape(-1, 2)
-    return Response("curve", recorded=pairs[:, 0], commanded=pairs[:, 1], source=str(path))
+    return Response("measured", recorded=pairs[:, 0], commanded=pairs[:, 1], source=str(path))
 
 
 def _toml_response(path: Path) -> Response:
@@ -73,4 +76,4 @@ def _toml_response(path: Path) -> Response:
         raise GlshadeError(
             f"{path}: needs recorded = [numbers] and commanded = [numbers]"
         ) from None
-    return Response("curve", recorded=recorded, commanded=commanded, source=str(path))
+    return Response("measured", recorded=recorded, commanded=commanded, source=str(path))

@@ -14,11 +14,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from glshade.capture.response import Response
 from glshade.errors import GlshadeError
 
 if TYPE_CHECKING:
     from glshade.capture.model import Capture, CaptureCoding
-    from glshade.capture.response import Response
 
 
 @dataclass(frozen=True)
@@ -47,39 +47,28 @@ class SofastCalibration:
     camera_values: NDArray[np.float64]
     display_values: NDArray[np.float64]
 
+    def as_response(self, source: str = "") -> Response:
+        """The record as a display response of kind ``sofast``: applied exactly as
+        OpenCSP's ``ImageCalibrationScaling`` applies it."""
+        return Response(
+            "sofast",
+            recorded=self.camera_values,
+            commanded=self.display_values,
+            source=source or f"SOFAST {self.calibration_type}",
+        )
+
     def response(self, values: NDArray[np.generic]) -> NDArray[np.float64]:
         """OpenCSP's response function: interp1d over strictly increasing camera values,
         clamped to the first/last display value outside."""
-        cam, disp = self.camera_values, self.display_values
-        keep = np.ones(cam.size, dtype=bool)
-        keep[np.where(np.diff(cam) <= 0)[0]] = False
-        x = np.asarray(values, dtype=np.float64)
-        out = np.interp(x, cam[keep], disp[keep])
-        out[x < cam[keep][0]] = disp[0]
-        out[x > cam[keep][-1]] = disp[-1]
-        return out
-
-    def as_response(self) -> Response:
-        """The record as a display response (a curve: camera values -> display values)."""
-        from glshade.capture.response import Response
-
-        return Response(
-            "curve",
-            recorded=self.camera_values,
-            commanded=self.display_values,
-            source=f"SOFAST {self.calibration_type}",
-        )
+        return self.as_response().curve(values)
 
     def apply(self, measurement: SofastMeasurement) -> NDArray[np.float64]:
-        """Frames (F, H, W) calibrated as OpenCSP's ImageCalibrationScaling does."""
-        dark = self.response(measurement.black)[None]
-        light = self.response(measurement.white)[None]
-        frames = self.response(measurement.frames)
-        delta = light - dark
-        delta[delta <= 0] = np.nan
-        scaled = (frames - dark) * (float(self.display_values[-1]) / delta)
-        scaled[np.isnan(scaled)] = 0.0
-        return scaled
+        """Frames (F, H, W) calibrated as OpenCSP's ImageCalibrationScaling does (display
+        values; the black and white scaled to the display's maximum; 0 where white is
+        not above black)."""
+        response = self.as_response()
+        frames = measurement.frames
+        return response.normalised(frames, measurement.black, measurement.white, 1.0)[0]
 
 
 def _text(value: object) -> str:
@@ -245,27 +234,39 @@ def sofast_capture(
     measurement: SofastMeasurement,
     screen_size_mm: tuple[float, float] = (EXTENT_MM, EXTENT_MM),
     source: str = "",
+    response: Response | SofastCalibration | None = None,
 ) -> Capture:
     """The measurement as a :class:`~glshade.capture.model.Capture` (frames as recorded,
-    black and white from its mask images); ``screen_size_mm`` the screen's extent (the
-    fractions do not depend on it; its mm do), a nominal 1 m square by default."""
+    black and white from its mask images, :func:`sofast_coding`); ``screen_size_mm`` the
+    screen's extent (the fractions do not depend on it; its mm do), a nominal 1 m square
+    by default; ``response`` the station's display response (a SOFAST calibration record
+    is applied as OpenCSP applies it)."""
     from glshade.capture.model import Capture
 
+    if isinstance(response, SofastCalibration):
+        response = response.as_response()
     return Capture(
         measurement.frames,
         sofast_coding(measurement, screen_size_mm),
         black=measurement.black,
         white=measurement.white,
         source=source or "SOFAST measurement",
+        response=response,
         extra={"sofast": measurement},
     )
 
 
 def read_sofast_capture(
-    path: str | Path, screen_size_mm: tuple[float, float] = (EXTENT_MM, EXTENT_MM)
+    path: str | Path,
+    response: Response | SofastCalibration | str | Path | None = None,
+    screen_size_mm: tuple[float, float] = (EXTENT_MM, EXTENT_MM),
 ) -> Capture:
-    """A SOFAST measurement file read as a capture."""
-    return sofast_capture(read_sofast_measurement(path), screen_size_mm, str(path))
+    """A SOFAST measurement file read as a capture; ``response`` its display response: a
+    :class:`Response`, a calibration record, or the path of an OpenCSP
+    ``image_calibration.h5`` (None: none)."""
+    if isinstance(response, str | Path):
+        response = read_sofast_calibration(response).as_response(str(response))
+    return sofast_capture(read_sofast_measurement(path), screen_size_mm, str(path), response)
 
 
 @dataclass(frozen=True)
@@ -292,21 +293,23 @@ def decode_sofast(
     rule: str = "all",
 ) -> SofastDecoded:
     """Decode through :func:`glshade.capture.decode.decode_capture` (one decoder): the
-    calibration's curve as the display response, black and white normalising, no mask
-    (the caller locates the facet); ``rule`` as :data:`glshade.capture.decode.RULES`."""
+    measurement as a capture (:func:`sofast_capture`), the calibration record as its
+    display response (applied as OpenCSP applies it), no mask (the caller locates the
+    facet); ``rule`` as :data:`glshade.capture.decode.RULES`. Modulation and residual
+    as shares of white - black."""
     from glshade.capture.decode import DecodeSettings, decode_capture
 
-    response = None if calibration is None else calibration.as_response()
-    settings = DecodeSettings(rule=rule, response=response, mask="all")
-    decoded = decode_capture(sofast_capture(measurement), settings=settings)
+    capture = sofast_capture(measurement, response=calibration)
+    decoded = decode_capture(capture, settings=DecodeSettings(rule=rule, mask="all"))
     order = np.argsort(np.argsort(measurement.periods_x)[::-1])  # finest first -> SOFAST's
+    share = 1.0 / decoded.peak
     return SofastDecoded(
         x=decoded.fraction[..., 0],
         y=decoded.fraction[..., 1],
         valid=decoded.valid,
-        modulation_x=decoded.modulation[0][order],
-        modulation_y=decoded.modulation[1][order],
-        residual_x=decoded.residual[0],
-        residual_y=decoded.residual[1],
+        modulation_x=decoded.modulation[0][order] * share,
+        modulation_y=decoded.modulation[1][order] * share,
+        residual_x=decoded.residual[0] * share,
+        residual_y=decoded.residual[1] * share,
         decoding=decoded,
     )

@@ -9,6 +9,7 @@ import argparse
 import io
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -47,10 +48,12 @@ def add(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--rule",
-        choices=("all", "fallback"),
+        choices=("all", "fallback", "periods"),
         default="all",
         help="all: every period sound (the simulator's own rule, default); fallback: decode "
-        "from the finest period from which on every one is sound",
+        "from the finest period from which on every one is sound; periods: from the finest "
+        "period whose coarser periods are sound and unwrap it unambiguously (its own "
+        "modulation at least half the threshold, every margin at least 0.25 turn)",
     )
     p.add_argument(
         "--response",
@@ -89,17 +92,16 @@ def run(args: argparse.Namespace) -> int:
     settings = _settings(args)
     capture, display = _read(args)
     inputs = tuple(Path(p) for p in (args.capture, args.coding, args.display) if p is not None)
-    if settings.response is not None and settings.response.kind == "curve":
-        inputs += (Path(settings.response.source),)
+    if settings.response is not None and settings.response.file is not None:
+        inputs += (settings.response.file,)
     from glshade.instruments.pmd.files import check_output_dir
 
     out = check_output_dir(args.out, "--out", inputs)
     decoded = decode_capture(capture, settings=settings)
     linear = None
     if settings.response is not None:
-        linear = decode_capture(
-            capture, settings=DecodeSettings(share, args.rule, None, settings.noise, args.mask)
-        )
+        bare = DecodeSettings(share, args.rule, None, settings.noise, args.mask)
+        linear = decode_capture(replace(capture, response=None), settings=bare)
     screen = _screen_points(display, decoded) if display is not None else None
     written = write_outputs(out, capture, decoded, linear, screen)
     summary = summary_of(capture, decoded, linear)
@@ -138,7 +140,7 @@ def _read(args: argparse.Namespace) -> tuple[Any, Any]:
         if display is not None:
             matrix = display.affine()[0]
             size = (float(abs(matrix[0, 0])), float(abs(matrix[1, 1])))
-        return read_sofast_capture(path, size), display
+        return read_sofast_capture(path, screen_size_mm=size), display
     if args.display is not None:
         raise GlshadeError(f"--display {args.display}: for a SOFAST capture (.h5) only")
     if args.coding is None:
@@ -174,6 +176,8 @@ def summary_of(capture: Any, decoded: Any, linear: Any = None) -> dict[str, Any]
         "response": decoded.response,
         "normalised": decoded.normalised,
         "threshold": decoded.threshold,
+        "peak": decoded.peak,
+        "lit_threshold": decoded.lit_threshold,
         "valid_share": decoded.valid_share,
         "valid_pixels": int(decoded.valid.sum()),
         "lit_pixels": None if decoded.lit is None else int(decoded.lit.sum()),
@@ -210,15 +214,19 @@ def _axis_numbers(decoded: Any, axis: int) -> dict[str, Any]:
 
 
 def response_check(decoded: Any, linear: Any, coded: list[str]) -> dict[str, Any]:
-    """The N-step fit's residual relative to the coarsest period's modulation (median over
-    the pixels valid in both), with the response and without: a response that describes
-    the capture leaves a purer sinusoid, so the smaller says which the data supports."""
+    """Per coded axis, the median over the pixels valid in both of the N-step fit's
+    residual (as a share of white - black: over each decoding's peak) and of the
+    residual over the coarsest period's modulation, with the response and without. A
+    response that describes the capture leaves a purer sinusoid; the residual alone
+    is no fair judge (the response stretches the values it is measured in), the ratio
+    to the modulation in the same values is: the smaller says which the data support."""
     both = decoded.valid & linear.valid
-    ratios = {}
+    axes = [(n, 0 if n == "u" else 1) for n in coded]
+    residual, ratios = {}, {}
     for label, result in (("with", decoded), ("without", linear)):
+        residual[label] = {n: _median(result.residual[a][both] / result.peak) for n, a in axes}
         ratios[label] = {
-            name: _median(result.residual[a][both] / result.modulation[a, -1][both])
-            for name, a in ((n, 0 if n == "u" else 1) for n in coded)
+            n: _median(result.residual[a][both] / result.modulation[a, -1][both]) for n, a in axes
         }
     with_total = float(np.nanmean([v for v in ratios["with"].values() if v is not None]))
     without_total = float(np.nanmean([v for v in ratios["without"].values() if v is not None]))
@@ -228,7 +236,13 @@ def response_check(decoded: Any, linear: Any, coded: list[str]) -> dict[str, Any
         f"residual is {min(with_total, without_total):.4g} of the modulation {supported} it, "
         f"{max(with_total, without_total):.4g} {'without' if supported == 'with' else 'with'} it"
     )
-    return {"residual_over_modulation": ratios, "supported": supported, "verdict": verdict}
+    return {
+        "pixels": int(both.sum()),
+        "residual_share": residual,
+        "residual_over_modulation": ratios,
+        "supported": supported,
+        "verdict": verdict,
+    }
 
 
 def _median(values: np.ndarray) -> float | None:
@@ -276,6 +290,7 @@ def write_outputs(
             arrays[name] = getattr(decoded, name)
     if screen is not None:
         arrays["screen_mm"] = screen
+        arrays["screen_m"] = screen / 1000.0
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     written = [out / "maps.npz"]
@@ -392,8 +407,26 @@ def summary_markdown(summary: dict[str, Any]) -> str:
         lines.append(f"| {name} | " + " | ".join(cells) + f" | {used} |")
     check = summary.get("response_check")
     if check:
-        lines += ["", f"Response: {check['verdict']}."]
+        lines += ["", f"Response: {check['verdict']}.", ""]
+        lines += _check_table(check)
     return "\n".join(lines) + "\n\n" + summary["notes"] + "\n"
+
+
+def _check_table(check: dict[str, Any]) -> list[str]:
+    """The response check's medians (over the pixels valid both ways), per axis."""
+    lines = [
+        "| axis | residual / (white - black), with | without | residual / modulation, with "
+        "| without |",
+        "|---|---|---|---|---|",
+    ]
+    for name in check["residual_share"]["with"]:
+        cells = [
+            _cell(check[key][label][name])
+            for key in ("residual_share", "residual_over_modulation")
+            for label in ("with", "without")
+        ]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def _cell(value: float | None) -> str:
