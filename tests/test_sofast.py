@@ -128,6 +128,16 @@ def test_a_file_that_is_not_a_measurement_is_one_line(tmp_path, capsys, sofast_d
     assert main(["decode", str(d / "camera_sofast_downsampled.h5"), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "MeasurementSofastFringe" in err
+    measurement = str(d / "measurement_facet.h5")
+    for flag, typed, needle in (
+        ("--response", d / "camera_sofast_downsampled.h5", "not an OpenCSP image calibration"),
+        ("--response", d / "none.h5", "no such file"),
+        ("--display", d / "image_calibration.h5", "DisplayShape"),
+    ):
+        assert main(["decode", measurement, "--out", str(out), flag, str(typed)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and needle in err and str(typed) in err, err
+        assert "Traceback" not in err
     (tmp_path / "junk.h5").write_text("not hdf5")
     assert main(["decode", str(tmp_path / "junk.h5"), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
