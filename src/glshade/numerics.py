@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -33,3 +35,27 @@ def circle_roots(oc: np.ndarray, dv: np.ndarray, radius: float):
         inner = (radius - perp) * (radius + perp)
         sqrt_disc = np.where(inner >= 0.0, np.sqrt(qa * np.maximum(inner, 0.0)), np.nan)
     return stable_roots(qa, qb, qc, sqrt_disc)
+
+
+def first_root_ahead(qa: np.ndarray, qb: np.ndarray, qc: np.ndarray) -> np.ndarray:
+    """The smallest root ``t > 0`` of ``qa t² + 2 qb t + qc = 0`` (:func:`stable_roots`;
+    where ``qa == 0`` the linear root), NaN where none lies ahead."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = stable_roots(qa, qb, qc, np.sqrt(qb * qb - qa * qc))
+        linear = np.where(qa == 0.0, -qc / (2.0 * qb), np.nan)
+    roots = np.stack([t1, t2, linear])
+    roots[~(roots > 0.0)] = np.inf
+    first = roots.min(axis=0)
+    return np.where(np.isfinite(first), first, np.nan)
+
+
+def nearest_root(qa: float, qb: float, qc: float, near: float) -> float:
+    """The real root of ``qa t² + 2 qb t + qc = 0`` nearest ``near`` (:func:`stable_roots`;
+    the linear root where ``qa == 0``); NaN where there is none."""
+    if qa == 0.0:
+        return -qc / (2.0 * qb) if qb != 0.0 else math.nan
+    disc = qb * qb - qa * qc
+    sqrt_disc = np.array(math.sqrt(disc) if disc >= 0.0 else math.nan)
+    roots = stable_roots(np.array(qa), np.array(qb), np.array(qc), sqrt_disc)
+    finite = [float(r) for r in roots if np.isfinite(r)]
+    return min(finite, key=lambda r: abs(r - near)) if finite else math.nan

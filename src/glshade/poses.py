@@ -100,6 +100,20 @@ def rodrigues(rvec: np.ndarray) -> np.ndarray:
     return np.asarray(matrix, dtype=np.float64)
 
 
+def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The shortest rotation (3x3) taking the direction of ``a`` onto that of ``b``
+    (``I + [v]x + [v]x² / (1 + c)``, ``v = a x b``, ``c = a . b``); refused for opposite
+    directions, where no rotation is the shortest."""
+    a = np.asarray(a, np.float64) / np.linalg.norm(a)
+    b = np.asarray(b, np.float64) / np.linalg.norm(b)
+    v = np.cross(a, b)
+    c = float(a @ b)
+    if c <= -1.0 + 1e-15:
+        raise ValueError("rotation between opposite directions is not unique")
+    vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + vx + (vx @ vx) / (1.0 + c)
+
+
 def extrinsics_axes(
     rvec: np.ndarray, tvec: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -128,10 +128,9 @@ class SofastStation:
 
     def screen_to_camera(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``(R, t)``: a screen point p (mm) is ``R p + t`` in camera coordinates."""
-        import cv2
+        from glshade.poses import rodrigues
 
-        rot, _ = cv2.Rodrigues(np.asarray(self.r_cam_screen, np.float64).reshape(3, 1))
-        return np.asarray(rot.T, np.float64), np.asarray(self.v_cam_screen_cam_mm, np.float64)
+        return rodrigues(self.r_cam_screen).T, np.asarray(self.v_cam_screen_cam_mm, np.float64)
 
 
 def _text(value: object) -> str:

@@ -24,7 +24,8 @@ from numpy.typing import NDArray
 from glshade.capture.masks import largest_region, lit_mask
 from glshade.capture.sofast_station import SofastStation
 from glshade.errors import GlshadeError
-from glshade.twin.rotations import closest_root, rotation_between, rotvec_matrix
+from glshade.numerics import nearest_root
+from glshade.poses import rodrigues, rotation_between
 
 #: The edge points searched for each side: along it beyond its ends, and across it (px).
 SIDE_SEARCH_PX = (50.0, 50.0)
@@ -76,13 +77,17 @@ def expected_pose(
     rows, cols = np.nonzero(mask)
     ray = station.camera.rays(np.array([cols.mean()]), np.array([rows.mean()]))[0]
     screen = np.asarray(station.v_cam_screen_cam_mm, np.float64)
-    along = closest_root(1.0, -2.0 * ray @ screen, screen @ screen - dist_optic_screen_mm**2, 0.0)
-    centre = ray * along
+    # the facet ahead, dist_optic_screen from the screen: |along ray - screen| = distance
+    ahead = float(ray @ screen)
+    reach = ahead**2 - float(screen @ screen) + dist_optic_screen_mm**2
+    if reach < 0:
+        raise GlshadeError("facet pose: no point along the facet's ray is that far from the screen")
+    centre = ray * (ahead + np.sqrt(reach))
     to_camera = -centre / np.linalg.norm(centre)
     to_screen = (screen - centre) / np.linalg.norm(screen - centre)
     normal = (to_camera + to_screen) / np.linalg.norm(to_camera + to_screen)
-    facet_to_camera = rotation_between(to_camera, normal) @ rotvec_matrix(np.array([np.pi, 0, 0]))
-    rotation = np.asarray(facet_to_camera.T, np.float64)
+    camera_to_facet = rotation_between(to_camera, normal) @ rodrigues(np.array([np.pi, 0, 0]))
+    rotation = np.asarray(camera_to_facet.T, np.float64)
     translation = centre - rotation @ station.facet.centroid_mm
     return rotation, translation
 
@@ -164,7 +169,7 @@ def facet_pose(
     rot0, t0 = expected_pose(station, mask, dist_optic_screen_mm)
     corners3 = station.facet.corners_mm
     expected_px = station.camera.project(
-        corners3, np.asarray(cv2.Rodrigues(rot0)[0], np.float64), t0
+        corners3, np.asarray(cv2.Rodrigues(rot0)[0], np.float64).ravel(), t0
     )
     corners_px = refine_corners(expected_px, edge_points(mask))
     ok, rvec, tvec = cv2.solvePnP(
@@ -172,7 +177,7 @@ def facet_pose(
     )
     if not ok:
         raise GlshadeError("facet pose: cv2.solvePnP found no pose for the facet's corners")
-    rotation = np.asarray(cv2.Rodrigues(rvec)[0], np.float64)
+    rotation = rodrigues(rvec)
     translation = np.asarray(tvec, np.float64).ravel()
     reproj = (
         station.camera.project(corners3, np.asarray(rvec, np.float64), translation) - corners_px
@@ -180,10 +185,17 @@ def facet_pose(
     measure = rotation @ measure_point_mm
     screen = np.asarray(station.v_cam_screen_cam_mm, np.float64)
     # |screen - (scale t + m)| = d, the root nearest 1
-    a = translation @ translation
-    b = -2.0 * translation @ (screen - measure)
-    c = (screen - measure) @ (screen - measure) - dist_optic_screen_mm**2
-    scale = closest_root(a, b, c, 1.0)
+    gap = screen - measure
+    scale = nearest_root(
+        float(translation @ translation),
+        -float(translation @ gap),
+        float(gap @ gap) - dist_optic_screen_mm**2,
+        1.0,
+    )
+    if not np.isfinite(scale):
+        raise GlshadeError(
+            "facet pose: no distance puts the measure point that far from the screen"
+        )
     return FacetPose(
         rotation=rotation,
         translation_mm=translation * scale,

@@ -20,7 +20,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from glshade.errors import GlshadeError
-from glshade.twin.rotations import closest_root, rotation_between
+from glshade.numerics import first_root_ahead, nearest_root
+from glshade.poses import rotation_between
 
 ROUNDS, PASSES = 4, 3
 TUKEY_C, MAD_SCALE = 4.685, 0.6745
@@ -77,12 +78,7 @@ def intersect(
     qa = a * q**2 + b * r**2 + c * q * r
     qb = 2 * a * xc * q + 2 * b * yc * r + c * (xc * r + yc * q) + d * q + e * r - s
     qc = a * xc**2 + b * yc**2 + c * xc * yc + d * xc + e * yc + f - zc
-    disc = np.sqrt(qb**2 - 4 * qa * qc)
-    big = -0.5 * (qb + np.copysign(disc, qb))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        roots = np.stack([np.where(qa != 0, big / qa, np.inf), qc / big])
-    roots[~(roots > 0)] = np.inf
-    t = roots.min(axis=0)
+    t = first_root_ahead(qa, 0.5 * qb, qc)
     if not np.all(np.isfinite(t)):
         raise GlshadeError("slope solver: a camera ray misses the facet's parabola")
     return origin + rays * t[:, None]
@@ -173,7 +169,11 @@ def solve(inputs: SlopeInputs) -> SlopeSolution:
         # |origin + (camera - align) t - measured| = distance, t = scale - 1 nearest 0
         lever = camera - align
         gap = origin - measured
-        t = closest_root(lever @ lever, 2 * lever @ gap, gap @ gap - inputs.distance_mm**2, 0.0)
+        t = nearest_root(
+            float(lever @ lever), float(lever @ gap), float(gap @ gap) - inputs.distance_mm**2, 0.0
+        )
+        if not np.isfinite(t):
+            raise GlshadeError("slope solver: no shift meets the measured distance")
         camera, screen, origin = camera + lever * t, screen + lever * t, origin + lever * t
         step = np.eye(4)
         step[:3, :3], step[:3, 3] = turn, lever * t
