@@ -376,3 +376,14 @@ def test_the_per_period_rule_keeps_a_blurred_finest_fringe_exactly():
     assert (
         np.abs(periods.uv[..., 0] - u).max() < 1e-9 and np.abs(periods.uv[..., 1] - v).max() < 1e-9
     )
+
+
+def test_the_decode_status_names_what_is_at_risk():
+    from glshade.app.commands.decode import decode_status
+
+    good = {"least_margin_turns": 0.4}
+    assert decode_status({"u": good, "v": good}) == ("ok", "")
+    status, reason = decode_status({"u": good, "v": {"least_margin_turns": 0.04}})
+    assert status == "unwrapping at risk" and "v 0.040" in reason
+    status, reason = decode_status({"u": {"least_margin_turns": None}, "v": good})
+    assert status == "no valid pixel" and "along u" in reason

@@ -86,6 +86,7 @@ def test_the_decode_command_on_a_sofast_measurement(tmp_path, capsys, sofast_dir
     diff = maps["screen_mm"][mask][ok] - screen.T[ok]
     assert np.abs(diff).max() < 1e-3  # mm on an 8.7 m screen
     summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "ok"
     check = summary["response_check"]
     assert check["supported"] == "without" and "without the response" in check["verdict"]
     ratios = check["residual_over_modulation"]

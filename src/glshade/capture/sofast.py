@@ -272,10 +272,10 @@ def read_sofast_capture(
 @dataclass(frozen=True)
 class SofastDecoded:
     """Screen fractions in SOFAST's convention, per pixel (H, W), and what the decoder
-    says of them: ``valid``; ``modulation_x``, ``modulation_y`` (K, H, W) in SOFAST's
-    period order (shares of white - black); ``residual_x``, ``residual_y`` the N-step
-    fit's rms residual over every period (shares of white - black); ``decoding`` all of
-    glshade's maps."""
+    says of them: ``valid``; ``modulation_x``, ``modulation_y``, ``offset_x``,
+    ``offset_y`` (K, H, W) in SOFAST's period order (shares of white - black);
+    ``residual_x``, ``residual_y`` the N-step fit's rms residual over every period
+    (shares of white - black); ``decoding`` all of glshade's maps."""
 
     x: NDArray[np.float64]
     y: NDArray[np.float64]
@@ -284,6 +284,8 @@ class SofastDecoded:
     modulation_y: NDArray[np.float64]
     residual_x: NDArray[np.float64]
     residual_y: NDArray[np.float64]
+    offset_x: NDArray[np.float64]
+    offset_y: NDArray[np.float64]
     decoding: Any = None
 
 
@@ -311,5 +313,7 @@ def decode_sofast(
         modulation_y=decoded.modulation[1][order] * share,
         residual_x=decoded.residual[0] * share,
         residual_y=decoded.residual[1] * share,
+        offset_x=decoded.offset[0][order] * share,
+        offset_y=decoded.offset[1][order] * share,
         decoding=decoded,
     )

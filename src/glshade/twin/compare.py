@@ -78,61 +78,46 @@ def twin_screen_points(
     return frames.screen_of_part(points.reshape(-1, 3)).reshape(points.shape)
 
 
-def modulation_offset(
-    block: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Per period: the N-step fit's modulation and offset (K, H, W) of ``block`` (K, N,
-    H, W), shifts evenly spread."""
-    shifts = block.shape[1]
-    delta = 2 * np.pi * np.arange(shifts) / shifts
-    c = (block * np.cos(delta)[None, :, None, None]).sum(1)
-    s = (block * np.sin(delta)[None, :, None, None]).sum(1)
-    return 2 / shifts * np.hypot(c, s), block.mean(axis=1)
-
-
 def frames_beside(
     measurement: SofastMeasurement,
-    decoded: SofastDecoded,
+    real: SofastDecoded,
+    twin: SofastDecoded,
     mask: NDArray[np.bool_],
-    twin: dict[str, NDArray[np.float64]],
-    twin_white: NDArray[np.float64],
 ) -> dict[str, Any]:
     """Per direction (x, y) and period (periods per screen, SOFAST's order): the median
-    over ``mask`` of the modulation relative to the white - black span, real and twin,
-    and the real offset's; the real fit residual's median (counts, and as a share of
-    white - black, the decoded frames' unit). ``twin`` maps a direction to its (K, N, H,
-    W) radiance, SOFAST's period order."""
-    span_real = (measurement.white.astype(float) - measurement.black)[mask]
+    over ``mask`` of the modulation as a share of white - black, ``real`` (the recorded
+    frames decoded) and ``twin`` (the twin's frames decoded alike), their ratio, and the
+    real offset's share; the real fit residual's median (counts, and as a share of
+    white - black)."""
+    span = (measurement.white.astype(float) - measurement.black)[mask]
     out: dict[str, Any] = {}
-    frames = measurement.frames.astype(np.float64)
-    start = 0
     for direction in measurement.direction_order:
         periods = measurement.periods_x if direction == "x" else measurement.periods_y
-        block = frames[start : start + len(periods) * measurement.shifts]
-        start += len(periods) * measurement.shifts
-        block = block.reshape(len(periods), measurement.shifts, *frames.shape[1:])
-        real_mod, real_off = modulation_offset(block)
-        twin_mod, _ = modulation_offset(twin[direction])
-        residual = decoded.residual_x if direction == "x" else decoded.residual_y
+        real_mod, twin_mod, real_off, residual = (
+            getattr(decoded, f"{name}_{direction}")
+            for decoded, name in (
+                (real, "modulation"),
+                (twin, "modulation"),
+                (real, "offset"),
+                (real, "residual"),
+            )
+        )
         rows = []
         for k, p in enumerate(periods):
+            real_share = float(np.median(real_mod[k][mask]))
+            twin_share = float(np.median(twin_mod[k][mask]))
             rows.append(
                 {
                     "periods_per_screen": float(p),
-                    "real_modulation_share": float(np.median(real_mod[k][mask] / span_real)),
-                    "twin_modulation_share": float(np.median(twin_mod[k][mask] / twin_white[mask])),
-                    "real_to_twin": float(
-                        np.median(real_mod[k][mask] / span_real)
-                        / np.median(twin_mod[k][mask] / twin_white[mask])
-                    ),
-                    "real_offset_share": float(
-                        np.median((real_off[k][mask] - measurement.black[mask]) / span_real)
-                    ),
+                    "real_modulation_share": real_share,
+                    "twin_modulation_share": twin_share,
+                    "real_to_twin": real_share / twin_share,
+                    "real_offset_share": float(np.median(real_off[k][mask])),
                 }
             )
         out[direction] = {
             "periods": rows,
-            "residual_counts_median": float(np.median(residual[mask] * span_real)),
+            "residual_counts_median": float(np.median(residual[mask] * span)),
             "residual_share_median": float(np.median(residual[mask])),
         }
     return out

@@ -3,6 +3,7 @@ axes, the two compared (docs/twin.md)."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -86,17 +87,19 @@ def run_twin(
                 screen = compare.twin_screen_points(shot.uv, scene.emitter_plane(), frames)
                 white = np.asarray(shot.white, np.float64)
         assert white is not None
-        decoded = decode_sofast(measurement, None)  # the raw frames: their own residual
-        beside = compare.frames_beside(measurement, decoded, measured.mask, radiance, white)
-        twin_measured = reconstruct_twin(
-            station, measurement, measured, radiance, white, design_focal_mm
-        )
+        twin_decoded = decode_sofast(twin_measurement(measurement, radiance, white), None)
+        flat = dataclasses.replace(station, display=flat_display(station.display))
+        twin_measured = solve_facet(flat, twin_decoded, measured.located, design_focal_mm)
+        real_decoded = decode_sofast(measurement, None)  # the raw frames: their own residual
+        beside = compare.frames_beside(measurement, real_decoded, twin_decoded, measured.mask)
     deviation = compare.deviation(measured, design_focal_mm, screen, twin_measured)
     summary = summary_of(measured, frames, deviation, beside, surface, design_focal_mm)
     summary["supersample"] = int(supersample)
     summary["twin_reconstructed"] = closed_loop(
         twin_measured, twin_surface(measured, surface, design_focal_mm)
     )
+    summary["status"], summary["status_reason"] = trust(summary)
+
     return TwinRun(
         measured,
         twin_measured,
@@ -111,30 +114,20 @@ def run_twin(
     )
 
 
-def reconstruct_twin(
-    station: SofastStation,
+def twin_measurement(
     measurement: SofastMeasurement,
-    measured: FacetMeasurement,
     radiance: dict[str, NDArray[np.float64]],
     white: NDArray[np.float64],
-    design_focal_mm: tuple[float, float],
-) -> FacetMeasurement:
-    """The twin's frames as a measurement (0 to 255 of its white), decoded by the same
-    decoder and solved on the same located facet, with the twin's own flat screen."""
-    import dataclasses
-
+) -> SofastMeasurement:
+    """The twin's frames as a measurement of the station's: 0 to 255 of its white, black
+    0, the station's frame order (the twin's own flat screen is the caller's)."""
     scale = 255.0 / float(np.max(white))
     frames = np.concatenate(
         [radiance[d].reshape(-1, *white.shape) for d in measurement.direction_order]
     )
-    recorded: dict[str, Any] = {  # float frames: the decoder takes any real values
-        "frames": frames * scale,
-        "black": np.zeros_like(white),
-        "white": white * scale,
-    }
-    twin = dataclasses.replace(measurement, **recorded)
-    flat = dataclasses.replace(station, display=flat_display(station.display))
-    return solve_facet(flat, decode_sofast(twin, None), measured.located, design_focal_mm)
+    return dataclasses.replace(
+        measurement, frames=frames * scale, black=np.zeros_like(white), white=white * scale
+    )
 
 
 def flat_display(display: SofastDisplay) -> SofastDisplay:
@@ -183,6 +176,29 @@ def closed_loop(
         "slope_error_rms_mrad": [float(v) for v in np.sqrt(np.mean(error**2, axis=1)) * 1e3],
         "slope_error_max_mrad": [float(v) for v in np.max(np.abs(error), axis=1) * 1e3],
     }
+
+
+#: What a reconstruction must meet to be trusted: the corners' reprojection (px) and the
+#: closed chain's slope error (mrad rms; SOFAST's stated accuracy).
+MAX_REPROJECTION_PX, MAX_LOOP_MRAD = 1.0, 0.05
+
+
+def trust(summary: dict[str, Any]) -> tuple[str, str]:
+    """``(status, reason)``: "ok" where the corners reproject within
+    :data:`MAX_REPROJECTION_PX` and the twin's chain closes within :data:`MAX_LOOP_MRAD`;
+    "unchecked" without a twin rendered; "unreliable" with the reasons otherwise."""
+    reasons = []
+    if summary["reprojection_px"] > MAX_REPROJECTION_PX:
+        reasons.append(f"the corners reproject {summary['reprojection_px']:.2f} px (> 1 px)")
+    loop = summary.get("twin_reconstructed")
+    if loop is not None and max(loop["slope_error_rms_mrad"]) > MAX_LOOP_MRAD:
+        worst = max(loop["slope_error_rms_mrad"])
+        reasons.append(f"the twin's chain closes to {worst:.3f} mrad rms (> {MAX_LOOP_MRAD} mrad)")
+    if reasons:
+        return "unreliable", "; ".join(reasons)
+    if loop is None:
+        return "unchecked", "no twin rendered: the chain's closure is not checked"
+    return "ok", ""
 
 
 def summary_of(

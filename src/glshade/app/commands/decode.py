@@ -84,7 +84,7 @@ def add(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from glshade.capture.decode import DecodeSettings, decode_capture
+    from glshade.capture.decode import decode_capture
 
     share = args.min_modulation_share
     if not (math.isfinite(share) and share >= 0):
@@ -100,12 +100,16 @@ def run(args: argparse.Namespace) -> int:
     decoded = decode_capture(capture, settings=settings)
     linear = None
     if settings.response is not None:
-        bare = DecodeSettings(share, args.rule, None, settings.noise, args.mask)
+        bare = replace(settings, response=None)
         linear = decode_capture(replace(capture, response=None), settings=bare)
     screen = _screen_points(display, decoded) if display is not None else None
     written = write_outputs(out, capture, decoded, linear, screen)
     summary = summary_of(capture, decoded, linear)
     print(f"decoded {capture.source}: valid share {summary['valid_share']:.4f}")
+    print(
+        f"  status: {summary['status']}"
+        + (f" ({summary['status_reason']})" if summary["status_reason"] else "")
+    )
     if summary.get("response_check"):
         print(f"  {summary['response_check']['verdict']}")
     for path in written:
@@ -191,7 +195,33 @@ def summary_of(capture: Any, decoded: Any, linear: Any = None) -> dict[str, Any]
     }
     if linear is not None:
         summary["response_check"] = response_check(decoded, linear, coded)
+    summary["status"], summary["status_reason"] = decode_status(per_axis)
     return summary
+
+
+#: The least unwrapping margin (turns) below which a decoded map is at risk of a pixel on
+#: the wrong fringe.
+RISKY_MARGIN_TURNS = 0.1
+
+
+def decode_status(per_axis: dict[str, Any]) -> tuple[str, str]:
+    """``(status, reason)``: "no valid pixel" where an axis has none, "unwrapping at risk"
+    where its least margin is below :data:`RISKY_MARGIN_TURNS`, else "ok"."""
+    empty = [name for name, values in per_axis.items() if values["least_margin_turns"] is None]
+    if empty:
+        return "no valid pixel", f"no pixel decodes along {', '.join(empty)}"
+    risky = {
+        name: values["least_margin_turns"]
+        for name, values in per_axis.items()
+        if values["least_margin_turns"] < RISKY_MARGIN_TURNS
+    }
+    if risky:
+        worst = ", ".join(f"{name} {margin:.3f}" for name, margin in risky.items())
+        return (
+            "unwrapping at risk",
+            f"least unwrapping margin {worst} turn (< {RISKY_MARGIN_TURNS})",
+        )
+    return "ok", ""
 
 
 def _axis_numbers(decoded: Any, axis: int) -> dict[str, Any]:
@@ -378,6 +408,9 @@ def summary_markdown(summary: dict[str, Any]) -> str:
     """``summary.md``: the summary as a short report."""
     lines = [
         f"# Decoded capture: {summary['source']}",
+        "",
+        f"Status: **{summary['status']}**"
+        + (f": {summary['status_reason']}" if summary["status_reason"] else ""),
         "",
         f"- frames: {summary['frames']}, size {summary['size'][0]} x {summary['size'][1]}",
         f"- response: {summary['response']}; normalised by white - black: {summary['normalised']}",

@@ -103,7 +103,10 @@ def run(args: argparse.Namespace) -> int:
     for path in write_outputs(out, result):
         print(f"  wrote {path}")
     fx, fy = result.summary["focal_lengths_m"]
+    status = result.summary["status"]
+    reason = result.summary["status_reason"]
     print(f"facet: {result.summary['pixels']} pixels, focal lengths {fx:.2f} m, {fy:.2f} m")
+    print(f"status: {status}" + (f" ({reason})" if reason else ""))
     return 0
 
 
@@ -234,6 +237,9 @@ def summary_markdown(summary: dict[str, Any]) -> str:
     fx, fy = summary["focal_lengths_m"]
     lines = [
         "# A real facet and its twin",
+        "",
+        f"Status: **{summary['status']}**"
+        + (f": {summary['status_reason']}" if summary["status_reason"] else ""),
         "",
         f"- pixels reconstructed: {summary['pixels']} (lit: {summary['lit_pixels']})",
         f"- focal lengths: {fx:.3f} m (x), {fy:.3f} m (y); design "
