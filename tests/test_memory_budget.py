@@ -125,8 +125,11 @@ def test_a_case_beyond_the_budget_is_refused_before_it_is_traced(gl_context):
 def test_a_pmd_baseline_keeps_no_frames(renderer):
     scene = as_method(paper_scene().with_size(32), "pmd")
     baseline = pmd_baseline(renderer, station_model(scene))
-    assert baseline.capture.radiance.size == 0
-    assert baseline.capture.white.base is None  # its own array, not a layer of the stack
+    assert baseline.capture.recorded is None  # no frame kept unless asked for
+    for held in (baseline.capture.white, baseline.capture.first):
+        assert held.base is None  # its own array, not a layer of a read-back stack
+    kept = pmd_baseline(renderer, station_model(scene), keep_frames=True)
+    assert kept.capture.recorded is not None and len(kept.capture.recorded) == 32
 
 
 @pytest.mark.parametrize(

@@ -47,7 +47,7 @@ def written(_session_renderer, tmp_path_factory):
     folder = tmp_path_factory.mktemp("pmd")
     maps, frames = folder / "maps", folder / "frames"
     scene = station(size=64).updated(sensor={"full_well_e": 10000.0})
-    result = measure_pmd_scene(_session_renderer, scene)
+    result = measure_pmd_scene(_session_renderer, scene, keep_frames=True)
     write_maps(maps, scene, result)
     write_frames(frames, scene, result)
     return PmdMeasurement.of(scene, result).outputs(), maps, frames

@@ -69,6 +69,56 @@ OUTPUTS: tuple[str, ...] = ("image", "uv", "mask", "distance", "iterations", "ra
 
 
 @dataclass(frozen=True)
+class Region:
+    """A rectangle of an image's pixels: ``rows`` rows from ``row0`` (row 0 at the top)
+    and ``cols`` columns from ``col0``; what a render or a pass over a frame stack may be
+    limited to (its arrays then have the region's shape)."""
+
+    row0: int
+    col0: int
+    rows: int
+    cols: int
+
+    @classmethod
+    def of_mask(cls, mask: np.ndarray) -> Region | None:
+        """The bounding box of ``mask``'s True pixels (None: none)."""
+        rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+        if not len(rows):
+            return None
+        r0, c0 = int(rows[0]), int(cols[0])
+        return cls(r0, c0, int(rows[-1]) + 1 - r0, int(cols[-1]) + 1 - c0)
+
+    @property
+    def rows_slice(self) -> slice:
+        return slice(self.row0, self.row0 + self.rows)
+
+    @property
+    def cols_slice(self) -> slice:
+        return slice(self.col0, self.col0 + self.cols)
+
+    @property
+    def slices(self) -> tuple[slice, slice]:
+        """``(rows, columns)``: the region of a full image array."""
+        return self.rows_slice, self.cols_slice
+
+    @property
+    def viewport(self) -> tuple[int, int, int, int]:
+        """``(x, y, width, height)`` in GL's framebuffer coordinates (its row 0 is the
+        image's row 0: glshade's camera draws the top row first)."""
+        return self.col0, self.row0, self.cols, self.rows
+
+    scissor = viewport
+
+    def grown(self, pixels: int, height: int, width: int) -> Region:
+        """This region widened by ``pixels`` on every side, cut to an image of ``height``
+        x ``width``."""
+        r0, c0 = max(self.row0 - pixels, 0), max(self.col0 - pixels, 0)
+        r1 = min(self.row0 + self.rows + pixels, height)
+        c1 = min(self.col0 + self.cols + pixels, width)
+        return Region(r0, c0, r1 - r0, c1 - c0)
+
+
+@dataclass(frozen=True)
 class Frame:
     """``image``: radiance in [0, 1], float32 (H, W); ``uv``: emitter coordinates in mm,
     (H, W, 2), NaN where the ray reaches no emitter point, float32 from fp32 shaders and

@@ -23,7 +23,7 @@ scene resolves them once, ``scene.active``); none of them knows a kind by name.
 from __future__ import annotations
 
 import inspect
-from collections.abc import Hashable, Iterator, Mapping
+from collections.abc import Hashable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -588,9 +588,30 @@ class FresnelComponent(Component):
 
 
 class SensorComponent(Component):
-    """What the camera's sensor makes of the radiance (NumPy only: :meth:`develop`)."""
+    """What the camera's sensor makes of the radiance: :meth:`develop` in NumPy (the
+    reference), and where it offers one, the GPU's record pass over a frame stack
+    (:mod:`glshade.gpu.sequence`): its GLSL, uniforms and per-frame random keys."""
 
     slot = "sensor"
+
+    def record_glsl(self, scene: SceneView) -> tuple[str, ...]:
+        """Its GLSL for the GPU's record pass, defining ``float sensor_record(float
+        radiance, inout RandomStream stream)`` (``lib/philox.glsl``, ``lib/poisson.glsl``
+        come before it); empty where it records in NumPy only (the default) or does not
+        record."""
+        return ()
+
+    def record_uniforms(self, scene: SceneView, gain: float) -> dict[str, object]:
+        """The uniforms of :meth:`record_glsl` at the exposure ``gain`` (float64 values,
+        ``u_sensor_*``)."""
+        return {}
+
+    def frame_keys(self, scene: SceneView, frames: Sequence[Any], recording: int) -> np.ndarray:
+        """Each frame's 64-bit random key (``(len(frames), 2)`` uint32) of the
+        ``recording``-th recording of ``scene`` showing ``frames``: from the seed, the
+        scene and the frame, so two frames, two scenes or two recordings never share a
+        noise pattern."""
+        return np.zeros((len(frames), 2), np.uint32)
 
 
 class PartComponent(Component):

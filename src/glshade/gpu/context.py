@@ -306,7 +306,7 @@ class GLContext:
         self.release()
 
 
-def set_uniform(program: moderngl.Program, name: str, value: Any) -> None:
+def set_uniform(program: moderngl.Program | moderngl.ComputeShader, name: str, value: Any) -> None:
     """Write a uniform's value: a list of values for an array, also for an array of one
     element (which moderngl writes as a single value)."""
     uniform = program[name]

@@ -51,12 +51,13 @@ from glshade.budget import memory_budget_from_env
 from glshade.budget import number_from_env as _number_from_env
 from glshade.components.base import UniformContext
 from glshade.errors import ContextError, GlshadeError, SceneError
-from glshade.frame import Frame, Outputs, auto_exposure_gain, normalize_outputs
+from glshade.frame import Frame, Outputs, Region, auto_exposure_gain, normalize_outputs
 from glshade.gpu.compose import ShaderFeatures, compile_error, component_uniforms, compose
 from glshade.gpu.context import GLContext, interrupts_deferred, set_uniform
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
+    from glshade.gpu.sequence import GpuStack, SequencePasses
     from glshade.progress import Bar
 
 #: Bytes per pixel of each output: GPU render target + host array (fp64 uv: an RGBA32F
@@ -293,6 +294,7 @@ class _Targets:
         frame_count: int = 0,
     ) -> None:
         self.context = context
+        self.shape = (height, width)
         with context.current() as ctx:
             self.textures = []
             for name in _attachments(outputs):
@@ -362,6 +364,7 @@ class Renderer:
         self._textures: dict[int, tuple[np.ndarray, moderngl.Texture]] = {}
         self._max_side = self.context.info().max_texture_size
         self._fp64 = self.context.info().fp64
+        self._sequence_passes: SequencePasses | None = None
 
     # ---------------------------------------------------------------- lifetime
     def release(self) -> None:
@@ -374,6 +377,9 @@ class Renderer:
                     targets.release()
                 for _, texture in self._textures.values():
                     texture.release()
+        if self._sequence_passes is not None:
+            self._sequence_passes.release()
+            self._sequence_passes = None
         self._textures.clear()
         self._programs.clear()
         self._uniform_names.clear()
@@ -436,8 +442,10 @@ class Renderer:
             precision == "fp64" and "uv" in outputs,
             features.frame_count,
         )
-        targets = self._targets.get(key)
-        if targets is None:
+        targets = self._targets.pop(key, None)
+        if targets is not None:
+            self._targets[key] = targets  # the most recently used, the last released
+        else:
             if len(self._targets) >= 4:  # keep a few sizes, release the oldest
                 oldest = next(iter(self._targets))
                 self._targets.pop(oldest).release()
@@ -476,22 +484,7 @@ class Renderer:
             raise GlshadeError(
                 "render: the frames output and a non-empty list of frames go together"
             )
-        per_draw = min(len(stack), MAX_FRAMES_PER_DRAW)
-        features = drawn_features(scene, outputs, per_draw)
-        cam = scene.camera
-        width, height = cam.width, cam.height
-        if max(width, height) > self._max_side:
-            raise SceneError(
-                "camera.width/height",
-                f"at most {self._max_side} pixels (GL_MAX_TEXTURE_SIZE)",
-                max(width, height),
-            )
-        summed = sampled(features) and (
-            samples_per_draw(scene, self.root_solver, self.loop_budget, per_draw)
-            < pixel_samples(scene)
-        )
-        check_frame_budget(scene, features.outputs, self.memory_budget_bytes, summed, per_draw)
-        check_work_budget(scene, self.max_rays)
+        features, _ = self._checked(scene, outputs, len(stack))
         with self.context.current():
             if stack:
                 frame = self._draw_stack(scene, features, out, stack)
@@ -506,18 +499,84 @@ class Renderer:
                 frame.image[...] = image
         return frame
 
+    def _checked(
+        self, scene: Scene, outputs: Outputs, frame_count: int
+    ) -> tuple[ShaderFeatures, bool]:
+        """The features a render of ``outputs`` (and ``frame_count`` emitter frames)
+        draws, and whether its samples are summed over several draws; a frame too large
+        for the driver, the memory budget or the work budget is refused first."""
+        per_draw = min(frame_count, MAX_FRAMES_PER_DRAW)
+        features = drawn_features(scene, outputs, per_draw)
+        cam = scene.camera
+        if max(cam.width, cam.height) > self._max_side:
+            raise SceneError(
+                "camera.width/height",
+                f"at most {self._max_side} pixels (GL_MAX_TEXTURE_SIZE)",
+                max(cam.width, cam.height),
+            )
+        summed = sampled(features) and (
+            samples_per_draw(scene, self.root_solver, self.loop_budget, per_draw)
+            < pixel_samples(scene)
+        )
+        check_frame_budget(scene, features.outputs, self.memory_budget_bytes, summed, per_draw)
+        check_work_budget(scene, self.max_rays)
+        return features, summed
+
+    # ---------------------------------------------------------------- sequences
+    def trace_sequence(
+        self, scene: Scene, frames: Sequence[Any], region: Region | None = None
+    ) -> tuple[Frame, GpuStack]:
+        """The emitter ``frames`` of ``scene`` shaded from one trace and kept on the GPU
+        (a :class:`~glshade.gpu.sequence.GpuStack`, the renderer's until its next trace
+        of this size), with the ``uv`` map read back; ``region``: only its pixels are
+        traced, and the map has its shape. Nothing but the map crosses to the host
+        unless the stack's draws are summed on it (a pixel's samples over several
+        draws, or more than :data:`MAX_FRAMES_PER_DRAW` frames): then the stack is read,
+        summed and sent back."""
+        from glshade.gpu.sequence import GpuStack
+
+        stack = tuple(frames)
+        if not stack:
+            raise GlshadeError("trace_sequence: no frames")
+        features, summed = self._checked(scene, ("frames", "uv"), len(stack))
+        height, width = scene.camera.height, scene.camera.width
+        with self.context.current():
+            if len(stack) <= features.frame_count and not summed:
+                frame = self._draw(scene, features, None, stack, region, read_frames=False)
+                targets = self._render_targets(width, height, features)
+                assert targets.frames is not None
+                return frame, GpuStack(targets.frames, len(stack), (height, width))
+            frame = self._draw_stack(scene, features, None, stack, region)
+            held = self.sequence_passes().upload(frame.output("frames"), (height, width), region)
+        return dataclasses.replace(frame, frames=None), held
+
+    def sequence_passes(self) -> SequencePasses:
+        """The passes over a frame stack on the GPU (recording, decoding), made once."""
+        from glshade.gpu.sequence import SequencePasses
+
+        if self._sequence_passes is None:
+            self._sequence_passes = SequencePasses(self.context)
+        return self._sequence_passes
+
     def _draw_stack(
-        self, scene: Scene, features: ShaderFeatures, out: Frame | None, stack: tuple
+        self,
+        scene: Scene,
+        features: ShaderFeatures,
+        out: Frame | None,
+        stack: tuple,
+        region: Region | None = None,
     ) -> Frame:
         """Every frame of ``stack``, :attr:`ShaderFeatures.frame_count` a draw (the last
-        chunk padded with its own last frame); the other outputs come from the first."""
+        chunk padded with its own last frame); the other outputs come from the first
+        (``region``: only its pixels, the arrays its shape)."""
         per_draw = features.frame_count
-        layers = np.empty((len(stack), scene.camera.height, scene.camera.width), np.float32)
+        rows, cols = _region_shape(scene, region)
+        layers = np.empty((len(stack), rows, cols), np.float32)
         first: Frame | None = None
         for start in range(0, len(stack), per_draw):
             chunk = stack[start : start + per_draw]
             padded = chunk + (chunk[-1],) * (per_draw - len(chunk))
-            frame = self._draw(scene, features, out if first is None else None, padded)
+            frame = self._draw(scene, features, out if first is None else None, padded, region)
             layers[start : start + len(chunk)] = frame.output("frames")[: len(chunk)]
             first = first or frame
         assert first is not None
@@ -535,12 +594,19 @@ class Renderer:
         return auto_exposure_gain(scene, self._gains, radiance_of)
 
     def _draw(
-        self, scene: Scene, features: ShaderFeatures, out: Frame | None, frames: tuple = ()
+        self,
+        scene: Scene,
+        features: ShaderFeatures,
+        out: Frame | None,
+        frames: tuple = (),
+        region: Region | None = None,
+        read_frames: bool = True,
     ) -> Frame:
         """One frame of ``features.outputs`` (``frames``: the emitter frames of the
-        ``frames`` output); a program that loops over a pixel's samples also writes
-        ``rays``, and its samples are traced over as many draws as :func:`samples_per_draw`
-        says (:meth:`_draw_sampled`)."""
+        ``frames`` output, read back unless ``read_frames`` is False; ``region``: only its
+        pixels are drawn and read, the arrays its shape); a program that loops over a
+        pixel's samples also writes ``rays``, and its samples are traced over as many
+        draws as :func:`samples_per_draw` says (:meth:`_draw_sampled`)."""
         width, height = scene.camera.width, scene.camera.height
         program, vao = self._program(features)
         uniforms = scene_uniforms(scene, self.root_solver, features, frames)
@@ -559,41 +625,50 @@ class Renderer:
         targets.fbo.viewport = (0, 0, width, height)
         if targets.frames is not None:
             targets.frames.bind_to_image(0, read=False, write=True)
+        area = region or Region(0, 0, height, width)
         work = frame_rays(scene) * (4 if features.precision == "fp64" else 1)
+        work = max(1, work * area.rows * area.cols // (width * height))
         if not sampled(features):
-            self._draw_once(vao, width, height, work)
-            arrays = self._read(targets, features, width, height, out)
+            self._draw_once(vao, area, work)
+            arrays = self._read(targets, features, area, out, read_frames)
             if "rays" in arrays:
-                rays = self._output_array("rays", height, width, features.precision, out)
+                rays = self._output_array("rays", area.rows, area.cols, features.precision, out)
                 rays[...] = arrays["rays"][..., 0]
                 arrays["rays"] = rays
             return Frame(**arrays)
-        return self._draw_sampled(scene, features, program, vao, targets, work, out)
+        return self._draw_sampled(scene, features, program, vao, targets, work, out, area)
 
-    def _draw_once(self, vao: moderngl.VertexArray, width: int, height: int, work: int) -> None:
+    def _draw_once(self, vao: moderngl.VertexArray, area: Region, work: int) -> None:
         if work <= SINGLE_DRAW_WORK:
-            vao.render(moderngl.TRIANGLES, vertices=3)
-            self.context.wait()  # the trace, other Python threads running meanwhile
+            self.context.gl.scissor = area.scissor
+            try:
+                vao.render(moderngl.TRIANGLES, vertices=3)
+                self.context.wait()  # the trace, other Python threads running meanwhile
+            finally:
+                self.context.gl.scissor = None
         else:
-            self._draw_in_bands(vao, width, height, work)
+            self._draw_in_bands(vao, area, work)
 
     def _read(
         self,
         targets: _Targets,
         features: ShaderFeatures,
-        width: int,
-        height: int,
+        area: Region,
         out: Frame | None,
+        read_frames: bool = True,
     ) -> dict[str, np.ndarray]:
-        """Every render target, read back (``out``'s arrays filled where given; ``rays``
-        with its four channels)."""
+        """Every render target over ``area``, read back (``out``'s arrays filled where
+        given; ``rays`` with its four channels; the frames unless ``read_frames`` is
+        False: they stay in the targets' image array)."""
         arrays: dict[str, np.ndarray] = {}
-        viewport = (0, 0, width, height)
+        width, height = area.cols, area.rows
+        viewport = area.viewport
         if targets.frames is not None:
             self.context.gl.memory_barrier()
-            layers = np.empty((features.frame_count, height, width), np.float32)
-            targets.frames.read_into(layers)
-            arrays["frames"] = layers
+        if targets.frames is not None and read_frames:
+            whole = np.empty((features.frame_count, *targets.shape), np.float32)
+            targets.frames.read_into(whole)
+            arrays["frames"] = whole[:, area.rows_slice, area.cols_slice]
         for index, name in enumerate(_attachments(features.outputs)):
             components, dtype = _target_format(name, features.precision)
             if name == "rays":
@@ -627,13 +702,14 @@ class Renderer:
         targets: _Targets,
         work: int,
         out: Frame | None,
+        area: Region,
     ) -> Frame:
         """Trace every pixel's samples ``0 … S-1`` in slices ``[first, first + count)``,
         one draw each, and add the draws up in float64: the image is the sum of their
         shares of the mean, uv and distance the means weighted by each draw's counts,
         iterations the most. Each draw's ``rays`` must equal its count in every pixel: a
         draw a driver's loop limit cut short is traced again in halves."""
-        width, height = scene.camera.width, scene.camera.height
+        width, height = area.cols, area.rows
         total = pixel_samples(scene)
         size = samples_per_draw(scene, self.root_solver, self.loop_budget, features.frame_count)
         first_uniform = cast(moderngl.Uniform, program["u_pass_first"])
@@ -643,9 +719,9 @@ class Renderer:
         while first < total:
             count = min(size, total - first)
             first_uniform.value, count_uniform.value = first, count
-            self._draw_once(vao, width, height, max(1, work * count // total))
+            self._draw_once(vao, area, max(1, work * count // total))
             whole = count == total
-            arrays = self._read(targets, features, width, height, out if whole else None)
+            arrays = self._read(targets, features, area, out if whole else None)
             counts = arrays["rays"]
             if (counts[..., 0] < count).any():
                 if count == 1:
@@ -681,18 +757,19 @@ class Renderer:
         self._textures[id(array)] = (array, texture)
         return texture
 
-    def _draw_in_bands(self, vao: moderngl.VertexArray, width: int, height: int, work: int) -> None:
-        """Draw the frame as bands of rows (scissored), waiting for each, so that Python
+    def _draw_in_bands(self, vao: moderngl.VertexArray, area: Region, work: int) -> None:
+        """Draw ``area`` as bands of rows (scissored), waiting for each, so that Python
         sees a KeyboardInterrupt between two of them; each band is sized from the last
         one's time to take about :data:`TILE_SECONDS`."""
         ctx = self.context.gl
+        width, height = area.cols, area.rows
         rows = max(1, SINGLE_DRAW_WORK * height // work)
         done, start, bar = 0, time.perf_counter(), None
         try:
             while done < height:
                 band = min(rows, height - done)
                 begin = time.perf_counter()
-                ctx.scissor = (0, done, width, band)
+                ctx.scissor = (area.col0, area.row0 + done, width, band)
                 vao.render(moderngl.TRIANGLES, vertices=3)
                 self.context.wait()
                 seconds = time.perf_counter() - begin
@@ -732,6 +809,13 @@ class Renderer:
                 f"out.{name}: must be a C-contiguous {np.dtype(dtype).name} array of shape {shape}"
             )
         return given
+
+
+def _region_shape(scene: Scene, region: Region | None) -> tuple[int, int]:
+    """``(rows, columns)`` a draw over ``region`` (None: the whole image) returns."""
+    if region is None:
+        return scene.camera.height, scene.camera.width
+    return region.rows, region.cols
 
 
 def _accumulate(sums: dict[str, np.ndarray], arrays: dict[str, np.ndarray]) -> None:

@@ -107,23 +107,37 @@ def dent_window(scene: Scene, shape: tuple[int, int]) -> np.ndarray:
     """Pixels near the dent: the bounding box of its ``WINDOW_SIGMAS`` ellipse on the
     surface, projected through the pinhole (lens distortion neglected, so the box is
     padded by 3 px and a tenth of its size), as a boolean mask of ``shape``."""
-    defect, cam = scene.defect, scene.camera
+    defect = scene.defect
     turns = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
     cov = np.array([[defect.sigma_x2, defect.sigma_xz], [defect.sigma_xz, defect.sigma_z2]])
     ring = WINDOW_SIGMAS * np.linalg.cholesky(cov) @ np.stack([np.cos(turns), np.sin(turns)])
     x = np.concatenate([[defect.x0], defect.x0 + ring[0]])
     z = np.concatenate([[defect.z0], defect.z0 + ring[1]])
+    box = surface_box(scene, shape, x, z)
+    return np.zeros(shape, bool) if box is None else box
+
+
+def surface_box(
+    scene: Scene, shape: tuple[int, int], x: np.ndarray, z: np.ndarray
+) -> np.ndarray | None:
+    """The bounding box, in an image of ``shape``, of the surface's points at ``(x, z)``
+    (mm) projected through the pinhole, padded by 3 px and a tenth of its size (lens
+    distortion neglected), as a boolean mask (all False where the box misses the image);
+    None where a point is behind the camera or off the surface."""
+    cam = scene.camera
     y = np.asarray(scene.active.surface.height(scene, x, z), np.float64)
     pose = scene.camera_pose()
     d = np.stack([x, y, z], axis=-1) - pose.position
     depth = d @ pose.forward
     mask = np.zeros(shape, bool)
     if not np.all(depth > 0):
-        return mask
+        return None
     (pitch_x, pitch_y), (cx, cy) = cam.pitch_xy, cam.centre_px
     sx = cam.focal * (d @ pose.right) / depth / pitch_x
     sy = cam.focal * (d @ pose.up) / depth / pitch_y
     cols, rows = sx + cx - 0.5, cy - 0.5 - sy
+    if not (np.all(np.isfinite(cols)) and np.all(np.isfinite(rows))):
+        return None
     pad_c = 3.0 + 0.1 * (cols.max() - cols.min())
     pad_r = 3.0 + 0.1 * (rows.max() - rows.min())
     r0, r1 = math.floor(rows.min() - pad_r), math.ceil(rows.max() + pad_r)

@@ -95,6 +95,13 @@ class PhaseInstrument(Instrument):
     def measure(self, renderer: Renderer, scene: Scene, settings: Any) -> PmdResult:
         return measure_pmd_scene(renderer, scene, settings)
 
+    def measure_files(
+        self, renderer: Renderer, scene: Scene, settings: Any, files: dict[str, Any]
+    ) -> PmdResult:
+        """:meth:`measure`, every recorded frame kept where ``--frames`` asks for them."""
+        keep = files.get("--frames") is not None
+        return measure_pmd_scene(renderer, scene, settings, keep_frames=keep)
+
     def record(self, scene: Scene, result: Any, trace_s: float = 0.0) -> PmdMeasurement:
         return PmdMeasurement.of(scene, result)
 

@@ -11,27 +11,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from glshade.components.emitter.fringes.table import (
-    DIRECTIONS,
-    FringesTable,
-)
-from glshade.instruments.pmd.capture import (
-    Capture,
-    Decoding,
-    capture,
-    decode_sequence,
-    failures,
-    interior,
-    released,
-    seen_pixels,
-)
+from glshade.frame import Region
+from glshade.instruments.pmd.capture import Decoding, failures, interior
 from glshade.instruments.pmd.model import StationModel
-from glshade.instruments.pmd.reconstruct import (
-    Nominal,
-    nominal_geometry,
-)
+from glshade.instruments.pmd.reconstruct import Nominal, nominal_geometry, slope_map
 from glshade.instruments.pmd.settings import PmdSettings
-from glshade.metrics.coding_laws import white_fundamental
+from glshade.instruments.pmd.shots import Shot, shoot
 
 if TYPE_CHECKING:
     from glshade.rendering import Renderer
@@ -40,40 +25,93 @@ if TYPE_CHECKING:
 # --------------------------------------------------------------------------- baseline
 @dataclass
 class PmdBaseline:
-    """The defect-free analysis of one geometry, shared by every dent on it: its capture,
-    decoded from one recording and again from a second with another seed (the noise),
-    the nominal geometry, and the prediction of the noise; ``model`` the station's model
-    of the geometry (:class:`~glshade.instruments.pmd.model.StationModel`)."""
+    """The defect-free analysis of one geometry, shared by every dent on it: its
+    sequence shot whole (``capture``: traced, recorded once and decoded), the nominal
+    geometry, and a second recording with another noise (its twin) decoded where a dent's
+    noise is measured (:meth:`twin_over`); ``model`` the station's model of the geometry
+    (:class:`~glshade.instruments.pmd.model.StationModel`)."""
 
     model: StationModel
     settings: PmdSettings
-    capture: Capture
-    decoding: Decoding
-    twin: Decoding | None
+    capture: Shot
     nominal: Nominal
     seconds: dict[str, float] = field(default_factory=dict)
+    twins: dict[Region, Decoding] = field(default_factory=dict)
+    _slopes: np.ndarray | None = None
 
-    def noise_pixels(self, window: np.ndarray) -> np.ndarray:
-        """The pixels of ``window`` the noise is measured on: valid in both noisy decodes,
-        and decoded by neither on another fringe than the exact map's (an unwrapping
-        failure is counted, not taken for noise). None are without a sensor."""
-        if self.twin is None:
+    @property
+    def slopes(self) -> np.ndarray:
+        """The defect-free scene's slope map (H, W, 2; :func:`~glshade.instruments.pmd.
+        reconstruct.slope_map`), worked out once: a dent's outside the region its own
+        frames cover."""
+        if self._slopes is None:
+            self._slopes = slope_map(self.model, self.nominal, self.decoding.uv)
+        return self._slopes
+
+    @property
+    def decoding(self) -> Decoding:
+        """The whole image's decoding (the first recording)."""
+        return self.capture.decoding
+
+    @property
+    def noisy(self) -> bool:
+        """Does a sensor record the frames (two recordings then differ by its noise)?"""
+        return self.model.sensor is not None
+
+    def twin_over(self, renderer: Renderer, window: np.ndarray) -> Decoding | None:
+        """The second recording's decoding (another noise) over the bounding box of
+        ``window`` grown by a pixel (the noise's pixels are taken off its edge), as
+        whole-image arrays (NaN and not valid elsewhere; its uv and validity alone: the
+        per-period maps are empty); None without a sensor. Each
+        pixel's noise is its own whatever the box (a counter-based generator: the GPU's,
+        or NumPy's over the whole image cut to the box), so a box is shot once and kept."""
+        if not self.noisy:
+            return None
+        height, width = window.shape
+        found = Region.of_mask(window)
+        box = Region(0, 0, 0, 0) if found is None else found.grown(1, height, width)
+        twin = self.twins.get(box)
+        if twin is None:
+            uv = np.full_like(self.capture.uv, np.nan)
+            valid = np.zeros(window.shape, bool)
+            if box.rows and box.cols:
+                part = shoot(
+                    renderer,
+                    self.model.truth,
+                    self.model.coding,
+                    self.settings,
+                    region=box,
+                    peak=self.capture.peak_response,
+                    recording=1,
+                ).decoding
+                uv[box.slices], valid[box.slices] = part.uv, part.valid
+            nothing = np.empty((2, 0, *window.shape), np.float32)  # only uv and valid kept
+            twin = Decoding(uv, valid, nothing, nothing, nothing, self.capture.decoding.threshold)
+            self.twins[box] = twin
+        return twin
+
+    def noise_pixels(self, window: np.ndarray, twin: Decoding | None) -> np.ndarray:
+        """The pixels of ``window`` the noise is measured on: valid in both noisy decodes
+        (``twin``: :meth:`twin_over` the window), and decoded by neither on another
+        fringe than the exact map's (an unwrapping failure is counted, not taken for
+        noise). None are without a sensor."""
+        if twin is None:
             return np.zeros(window.shape, bool)
         exact = self.capture.uv
         # off the edge of the valid region too (:func:`interior`), as the dent's shift
-        both = window & interior(self.decoding.valid & self.twin.valid)
+        both = window & interior(self.decoding.valid & twin.valid)
         both &= ~failures(self.decoding.uv, exact, self.model)
-        return both & ~failures(self.twin.uv, exact, self.model)
+        return both & ~failures(twin.uv, exact, self.model)
 
-    def noise(self, window: np.ndarray) -> Noise:
+    def noise(self, window: np.ndarray, twin: Decoding | None) -> Noise:
         """The decoded coordinate's noise over the pixels of ``window``
         (:meth:`noise_pixels`), each coded coordinate counted: the standard deviation of
         the two noisy decodes' differences over sqrt 2, the largest difference, and the
         prediction from the modulation (all 0 without a sensor)."""
-        if self.twin is None:
+        if twin is None:
             return Noise(0.0, 0.0, 0.0)
-        pixels = self.noise_pixels(window)
-        diff = (self.decoding.uv - self.twin.uv)[pixels][:, list(self.model.axes)]
+        pixels = self.noise_pixels(window, twin)
+        diff = (self.decoding.uv - twin.uv)[pixels][:, list(self.model.axes)]
         if not diff.size:
             return Noise(math.nan, math.nan, math.nan)
         return Noise(
@@ -81,6 +119,16 @@ class PmdBaseline:
             float(np.abs(diff).max()),
             predicted_noise_mm(self.model, self.decoding, pixels),
         )
+
+
+def pasted(whole: Decoding, part: Decoding, region: Region) -> Decoding:
+    """``part`` (``region``'s shape) written into ``whole`` (the image's) in place."""
+    rows, cols = region.slices
+    whole.uv[rows, cols] = part.uv
+    whole.valid[rows, cols] = part.valid
+    for name in ("modulation", "offset", "wrapped"):
+        getattr(whole, name)[:, :, rows, cols] = getattr(part, name)
+    return whole
 
 
 @dataclass(frozen=True)
@@ -94,31 +142,20 @@ class Noise:
 
 
 def pmd_baseline(
-    renderer: Renderer, model: StationModel, settings: PmdSettings = PmdSettings()
+    renderer: Renderer,
+    model: StationModel,
+    settings: PmdSettings = PmdSettings(),
+    keep_frames: bool = False,
 ) -> PmdBaseline:
     """The defect-free analysis of the geometry of ``model``
     (:func:`~glshade.instruments.pmd.model.station_model`): the defect-free scene's fringe
-    sequence captured as it is (``model.truth``) and decoded, twice where a sensor adds
-    noise; the nominal geometry the station believes (``model.part``)."""
-    shot = capture(renderer, model.truth)
+    sequence shot whole as it is (``model.truth``), and the nominal geometry the station
+    believes (``model.part``); every recorded frame kept where ``keep_frames``."""
+    shot = shoot(renderer, model.truth, model.coding, settings, keep_frames=keep_frames)
     start = time.perf_counter()
-    seen = seen_pixels(shot.uv)
-    coding, peak = model.coding, shot.peak_response
-    decoding = decode_sequence(coding, shot.recorded(), peak, settings, seen)
-    twin = None
-    if model.sensor is not None:
-        twin = decode_sequence(coding, shot.recorded(seed_offset=1), peak, settings, seen)
-    decode_s = time.perf_counter() - start
     nominal = nominal_geometry(renderer, model)
-    return PmdBaseline(
-        model,
-        settings,
-        released(shot),
-        decoding,
-        twin,
-        nominal,
-        {"render": shot.seconds, "decode": decode_s},
-    )
+    seconds = {**shot.seconds, "nominal": time.perf_counter() - start}
+    return PmdBaseline(model, settings, shot, nominal, seconds)
 
 
 # --------------------------------------------------------------------------- noise
@@ -151,40 +188,6 @@ def predicted_noise_mm(model: StationModel, decoding: Decoding, mask: np.ndarray
 
 
 # --------------------------------------------------------------------------- modulation
-def modulation_share(em: FringesTable, shot: Capture) -> np.ndarray:
-    """Per screen coordinate (u, v) and pixel (2, H, W, float32), the finest period's
-    modulation share of the noise-free radiance, ``B / (b_1 W)``: ``B`` the pixel's
-    modulation of the finest fringes, ``W`` its own response to the screen's white, and
-    ``b_1`` the fundamental of the fringe the screen displays over the white it displays
-    (:func:`displayed_fundamental`). What the finish, the lens and the pixel's footprint
-    leave of the fringe: 1 for a sharp mirror (within the screen's grey levels' rounding,
-    ±0.5 % at 256 levels), less where they average it out; an optical property, before
-    the sensor. NaN for a coordinate not coded and for a pixel that sees no screen."""
-    fundamental = displayed_fundamental(em)
-    white = shot.white.astype(np.float64)
-    seen = seen_pixels(shot.uv) & np.isfinite(white) & (white > 0.0)
-    share = np.full((2, *white.shape), np.nan, np.float32)
-    steps = em.codec.shifts_rad
-    for d, direction in enumerate(em.directions):
-        first = d * len(em.periods) * em.shifts
-        finest = shot.radiance[first : first + em.shifts].astype(np.float64)
-        sine = np.tensordot(np.sin(steps), finest, axes=1)
-        cosine = np.tensordot(np.cos(steps), finest, axes=1)
-        modulation = (2.0 / em.shifts) * np.hypot(sine, cosine)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = modulation / (fundamental * white)
-        share[DIRECTIONS.index(direction) ^ 1] = np.where(seen, ratio, np.nan)
-    return share
-
-
-def displayed_fundamental(em: FringesTable) -> float:
-    """``b_1`` of the fringe the screen displays, ``displayed(offset + amplitude cos θ)``
-    (its grey levels, response, black level and ambient light included), over the white
-    it displays, ``displayed(1)``: a sharp mirror's modulation per unit of its response to
-    the white (:func:`~glshade.metrics.coding_laws.white_fundamental`)."""
-    return white_fundamental(em)
-
-
 def median_share(axes: tuple[int, ...], share: np.ndarray, region: np.ndarray) -> float:
     """The record's ``modulation``: the median of :func:`modulation_share` over the coded
     coordinates of the dent's region, else (no region) of every pixel that sees the

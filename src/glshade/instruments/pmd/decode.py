@@ -83,14 +83,27 @@ def decode(
     modulation = (2.0 / coding.shifts) * np.hypot(sine, cosine)
     threshold = 0.1 * coding.amplitude * peak_response if min_modulation is None else min_modulation
     valid = np.all(modulation >= threshold, axis=0) & np.isfinite(offset).all(axis=0)
-    s = periods[-1] * wrapped[-1] / (2.0 * np.pi)
-    # the screen spans [0, extent] of the coarsest period: a coordinate past the middle of
-    # the gap beyond it is one just below 0 that the noise wrapped round
-    s = np.where(s > 0.5 * (periods[-1] + extent), s - periods[-1], s)
+    s = coarsest_coordinate(wrapped[-1], periods[-1], extent)
     for k in range(len(periods) - 2, -1, -1):
-        turns = np.round((2.0 * np.pi * s / periods[k] - wrapped[k]) / (2.0 * np.pi))
-        s = periods[k] * (wrapped[k] + 2.0 * np.pi * turns) / (2.0 * np.pi)
+        s = unwrap_step(s, wrapped[k], periods[k])
     return Decoded(np.where(valid, s, np.nan), modulation, offset, wrapped, valid)
+
+
+def coarsest_coordinate(wrapped: np.ndarray, period_mm: float, extent_mm: float) -> np.ndarray:
+    """The coordinate (mm from the screen's edge) the coarsest period's wrapped phase
+    gives, ``p φ / 2π``: the screen spans [0, extent] of it, so a coordinate past the
+    middle of the gap beyond it is one just below 0 that the noise wrapped round."""
+    s = period_mm * np.asarray(wrapped, np.float64) / (2.0 * np.pi)
+    return np.where(s > 0.5 * (period_mm + extent_mm), s - period_mm, s)
+
+
+def unwrap_step(coarser_mm: np.ndarray, wrapped: np.ndarray, period_mm: float) -> np.ndarray:
+    """One temporal unwrapping step: the coordinate of the period ``period_mm`` whose
+    wrapped phase is ``wrapped``, on the fringe the coarser coordinate points to,
+    ``p (φ + 2π round((2π s / p - φ) / 2π)) / 2π``."""
+    phase = np.asarray(wrapped, np.float64)
+    turns = np.round((2.0 * np.pi * coarser_mm / period_mm - phase) / (2.0 * np.pi))
+    return period_mm * (phase + 2.0 * np.pi * turns) / (2.0 * np.pi)
 
 
 def _phasor_sums(

@@ -149,12 +149,18 @@ def write_frames(directory: Path, scene: Scene, result: PmdResult, fmt: str = "p
     earlier run that this one does not write are removed, and the old manifest first (an
     interrupted run leaves no manifest naming another run's frames). Returns the
     manifest's path."""
+    maps = result.maps
+    sequence = scene.active.emitter.sequence(scene)
+    if len(maps.recorded) < len(sequence):
+        raise GlshadeError(
+            "--frames: this result was measured without its frames kept "
+            "(measure_pmd_scene(..., keep_frames=True))"
+        )
     suffix, bits = FRAME_FORMATS[fmt]
     directory.mkdir(parents=False, exist_ok=True)
     remove_inside(directory, directory / "manifest.json")
-    maps = result.maps
     entries = []
-    for index, frame in enumerate(scene.active.emitter.sequence(scene)):
+    for index, frame in enumerate(sequence):
         name = frame_name(index, frame, suffix)
         _write_frame(directory / name, maps.recorded[index], suffix, bits)
         entries.append(frame_entry(index, frame, name))

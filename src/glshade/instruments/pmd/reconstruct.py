@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from glshade.errors import GlshadeError
+from glshade.frame import Region
 from glshade.instruments.pmd import decode as pmd
 from glshade.instruments.pmd.model import StationModel, aimed_points
 from glshade.instruments.pmd.settings import PmdSettings
@@ -49,7 +50,9 @@ def nominal_geometry(renderer: Renderer, model: StationModel) -> Nominal:
     return Nominal(points, normals, np.asarray(origin, np.float64))
 
 
-def slope_map(model: StationModel, nominal: Nominal, decoded_uv: np.ndarray) -> np.ndarray:
+def slope_map(
+    model: StationModel, nominal: Nominal, decoded_uv: np.ndarray, region: Region | None = None
+) -> np.ndarray:
     """The measured slope deviation ``(∂d/∂x, ∂d/∂z)`` (H, W, 2), rad: the normal that
     bisects the directions to the camera and to the decoded screen point (where the
     station believes it: its screen's plane and sag, and through its believed cover glass
@@ -57,12 +60,16 @@ def slope_map(model: StationModel, nominal: Nominal, decoded_uv: np.ndarray) -> 
     against the nominal normal. A sequence coding one direction leaves the other
     coordinate at the nominal surface's (the exact map of the defect-free scene is not
     known to a station: the missing coordinate is taken from the nominal mirror, so only
-    one slope is measured)."""
+    one slope is measured). ``region``: only its pixels (NaN elsewhere)."""
+    cut = (region or Region(0, 0, *decoded_uv.shape[:2])).slices
+    points, normals = nominal.points[cut], nominal.normals[cut]
     measured = pmd.normals_from_points(
-        nominal.points, nominal.camera, aimed_points(model, nominal.points, decoded_uv)
+        points, nominal.camera, aimed_points(model, points, decoded_uv[cut])
     )
-    gx, gz = pmd.slope_deviation(measured, nominal.normals)
-    return np.stack([gx, gz], axis=-1)
+    gx, gz = pmd.slope_deviation(measured, normals)
+    slopes = np.full((*decoded_uv.shape[:2], 2), np.nan)
+    slopes[cut] = np.stack([gx, gz], axis=-1)
+    return slopes
 
 
 # --------------------------------------------------------------------------- heights
@@ -171,11 +178,16 @@ class Heights:
 
 
 def reconstruct(
-    model: StationModel, nominal: Nominal, slopes: np.ndarray, settings: PmdSettings
+    model: StationModel,
+    nominal: Nominal,
+    slopes: np.ndarray,
+    settings: PmdSettings,
+    region: Region | None = None,
 ) -> Heights:
     """Slopes → heights on the grid → the dent: the slope map sampled at the grid's points
     (projected through the camera onto the image), integrated by least squares (tilt and
-    offset removed beyond ``plane_sigmas``), and the Gaussian fitted to it."""
+    offset removed beyond ``plane_sigmas``), and the Gaussian fitted to it; the heights
+    at each pixel of ``region`` (default: the image; NaN elsewhere)."""
     from scipy.interpolate import RegularGridInterpolator
 
     grid = height_grid(model, nominal, settings)
@@ -204,6 +216,8 @@ def reconstruct(
     lookup = RegularGridInterpolator(
         (grid.z, grid.x), height_um, bounds_error=False, fill_value=np.nan
     )
-    p = nominal.points
-    per_pixel = lookup(np.stack([p[..., 2], p[..., 0]], axis=-1)).astype(np.float32)
+    cut = (region or Region(0, 0, *slopes.shape[:2])).slices
+    p = nominal.points[cut]
+    per_pixel = np.full(slopes.shape[:2], np.nan, np.float32)
+    per_pixel[cut] = lookup(np.stack([p[..., 2], p[..., 0]], axis=-1))
     return Heights(grid, height_um, dent, per_pixel)

@@ -34,20 +34,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from glshade.frame import Region
 from glshade.instruments.pmd.baseline import (
     PmdBaseline,
     median_share,
-    modulation_share,
+    pasted,
     pmd_baseline,
 )
 from glshade.instruments.pmd.capture import (
-    Capture,
     Decoding,
-    capture,
-    decode_sequence,
     failures,
     interior,
-    seen_pixels,
 )
 from glshade.instruments.pmd.model import StationModel, station_model
 from glshade.instruments.pmd.reconstruct import (
@@ -56,6 +53,7 @@ from glshade.instruments.pmd.reconstruct import (
     slope_map,
 )
 from glshade.instruments.pmd.settings import PmdSettings, check_scene
+from glshade.instruments.pmd.shots import Shot, shoot
 from glshade.instruments.pmd.status import assess_pmd
 from glshade.scene import Scene
 
@@ -64,6 +62,11 @@ if TYPE_CHECKING:
 
 #: The share of its largest move above which a pixel belongs to the dent's region.
 REGION_SHARE = 0.2
+#: A dent's sequence is traced over this many σ (its largest) about its centre, or the
+#: height grid's reach where that is more (:func:`trace_region`) ...
+TRACE_SIGMAS = 6.0
+#: ... and this many pixels more on every side.
+TRACE_MARGIN_PX = 2
 
 
 # --------------------------------------------------------------------------- one case
@@ -125,8 +128,10 @@ class PmdMaps:
     :func:`modulation_share`); ``slopes_urad``, ``height_um`` and the heights' grid;
     ``failed`` (unwrapping failures), ``region`` (the dent's region), ``shift_pixels`` and
     ``noise_pixels`` (the pixels ``pmd_shift_mm`` and ``pmd_noise_mm`` are taken over);
-    ``recorded`` the case's recorded sequence (F, H, W, in the order shown) and
-    ``recording`` how it was recorded."""
+    ``recorded`` the case's recorded sequence (F, H, W, in the order shown) where its
+    frames were kept, else its first frame (1, H, W), ``recording`` how it was recorded,
+    ``traced`` the region its own frames cover (None: the whole image; the defect-free
+    scene's outside it)."""
 
     decoded: np.ndarray
     exact: np.ndarray
@@ -146,6 +151,7 @@ class PmdMaps:
     noise_pixels: np.ndarray
     recorded: np.ndarray
     recording: Recording
+    traced: Region | None = None
 
 
 def seen_in_both(exact0: np.ndarray, exact1: np.ndarray, axes: list[int]) -> np.ndarray:
@@ -168,59 +174,177 @@ def dent_region(model: StationModel, exact0: np.ndarray, exact1: np.ndarray) -> 
     return moved >= REGION_SHARE * peak
 
 
+def trace_region(scene: Scene, settings: PmdSettings) -> Region | None:
+    """The pixels a dent's sequence is traced over once its geometry's defect-free one
+    exists (None: the whole image). Outside, the frames are the defect-free scene's: the
+    box holds the square ``±R`` about the dent's centre on the surface, ``R`` the larger
+    of :data:`TRACE_SIGMAS` and the height grid's ``window_sigmas`` times its largest σ,
+    projected and padded (:func:`~glshade.metrics.status.surface_box`) and grown by
+    :data:`TRACE_MARGIN_PX`; beyond :data:`TRACE_SIGMAS` a Gaussian dent's slope is below
+    1.5e-7 of its steepest. The whole image where that box cannot be trusted: a lens
+    (each pixel sees a blur circle), a point behind the camera or off the surface."""
+    from glshade.metrics.status import surface_box
+
+    height, width = scene.camera.height, scene.camera.width
+    if scene.active.camera.samples(scene) > 1:
+        return None
+    defect = scene.defect
+    cov = np.array([[defect.sigma_x2, defect.sigma_xz], [defect.sigma_xz, defect.sigma_z2]])
+    reach = max(TRACE_SIGMAS, settings.window_sigmas) * math.sqrt(
+        float(np.linalg.eigvalsh(cov).max())
+    )
+    steps = np.linspace(-reach, reach, 9)
+    x, z = np.meshgrid(defect.x0 + steps, defect.z0 + steps)
+    box = surface_box(scene, (height, width), x.ravel(), z.ravel())
+    if box is None:
+        return None
+    found = Region.of_mask(box)
+    if found is None:
+        return Region(0, 0, 0, 0)
+    return found.grown(TRACE_MARGIN_PX, height, width)
+
+
 def measure_pmd_scene(
     renderer: Renderer,
     scene: Scene,
     settings: PmdSettings = PmdSettings(),
     baseline: PmdBaseline | None = None,
+    *,
+    keep_frames: bool = False,
+    whole_frame: bool = False,
 ) -> PmdResult:
     """What a PMD station measures of ``scene``'s dent, on an existing renderer
     (``baseline``: the defect-free analysis of the same geometry, when the caller has
     it; without one, a case whose buffers and analysis would exceed the renderer's memory
     budget is refused first, in one line: :func:`glshade.instruments.memory.check_pmd`).
-    The frames are rendered from ``scene``; decoding, slopes and heights use the
-    station's model of it (:func:`~glshade.instruments.pmd.model.station_model`)."""
+    The frames are rendered from ``scene`` over its :func:`trace_region` (the
+    defect-free scene's outside it: :func:`composed`); decoding, slopes and heights use
+    the station's model of it (:func:`~glshade.instruments.pmd.model.station_model`).
+    ``keep_frames``: every recorded frame kept (``maps.recorded``: the dent's own inside
+    the region, the defect-free scene's outside, as its maps); ``whole_frame``: the
+    dent's sequence traced over the whole image, the numbers the same."""
     model = station_model(scene)
     if baseline is None:
         from glshade.instruments.memory import check_pmd
 
         check_pmd(scene, renderer.memory_budget_bytes)
-        baseline = pmd_baseline(renderer, model, settings)
-    shot = capture(renderer, scene)
+        baseline = pmd_baseline(renderer, model, settings, keep_frames=keep_frames)
+    box = trace_region(scene, settings)
+    if keep_frames and baseline.capture.recorded is None:
+        box = None  # no defect-free frames to keep outside a box: the dent's own, whole
+    own = None
+    if whole_frame or box is None or (box.rows and box.cols):
+        own = shoot(
+            renderer,
+            scene,
+            model.coding,
+            settings,
+            region=None if whole_frame else box,
+            peak=baseline.capture.peak_response,
+            keep_frames=keep_frames,
+        )
+    shot = composed(baseline.capture, own, box)
     start = time.perf_counter()
-    recorded = shot.recorded()
-    peak = baseline.capture.peak_response
-    decoding = decode_sequence(model.coding, recorded, peak, settings, seen_pixels(shot.uv))
-    share = settings.modulation_share if settings.min_modulation is None else None
-    white = shot.recorded_white()
-    recording = Recording(shot.gain, shot.black_level, peak, decoding.threshold, share, white)
-    decode_s = time.perf_counter() - start
+    twin = baseline.twin_over(renderer, model.window)
+    twin_s = time.perf_counter() - start
     start = time.perf_counter()
-    slopes = slope_map(model, baseline.nominal, decoding.uv)
-    heights = reconstruct(model, baseline.nominal, slopes, settings)
+    slopes = slope_map(model, baseline.nominal, shot.decoding.uv, box)
+    if box is not None:  # the defect-free scene's outside, as the frames
+        slopes = np.where(np.isnan(slopes), baseline.slopes, slopes)
+    heights = reconstruct(model, baseline.nominal, slopes, settings, box)
     heights_s = time.perf_counter() - start
-    seconds = {"render": shot.seconds, "decode": decode_s, "heights": heights_s}
-    case = _Case(model, shot, recorded, recording, decoding, slopes, heights)
+    seconds = dict(own.seconds) if own is not None else {"render": 0.0, "decode": 0.0}
+    seconds.update(twin=twin_s, heights=heights_s)
+    case = _Case(model, shot, twin, slopes, heights, box)
     return _result(scene, baseline, case, seconds)
+
+
+def composed(base: Shot, own: Shot | None, box: Region | None) -> Shot:
+    """The dent's shot over the whole image: its own (``own``) inside ``box`` (None: the
+    whole image, ``own`` whole), the defect-free scene's (``base``, whole) outside, where
+    the dent changes nothing the frames resolve (:func:`trace_region`); ``own``'s
+    recorded frames too, where both kept them."""
+    if box is None:
+        assert own is not None and own.region.rows == base.region.rows
+        return own
+    decoding = base.decoding
+    whole = Decoding(
+        decoding.uv.copy(),
+        decoding.valid.copy(),
+        decoding.modulation.copy(),
+        decoding.offset.copy(),
+        decoding.wrapped.copy(),
+        decoding.threshold,
+    )
+    uv, white, share = base.uv.copy(), base.white.copy(), base.share.copy()
+    first, recorded_white = base.first.copy(), base.recorded_white.copy()
+    recorded = None if base.recorded is None else base.recorded.copy()
+    if own is not None and box.rows and box.cols:
+        local = _within(box, own.region)
+        part = _cut(own.decoding, local)
+        pasted(whole, part, box)
+        rows, cols = box.slices
+        lr, lc = local.slices
+        uv[rows, cols] = own.uv[lr, lc]
+        white[rows, cols] = own.white[lr, lc]
+        share[:, rows, cols] = own.share[:, lr, lc]
+        first[rows, cols] = own.first[lr, lc]
+        recorded_white[rows, cols] = own.recorded_white[lr, lc]
+        if recorded is not None and own.recorded is not None:
+            recorded[:, rows, cols] = own.recorded[:, lr, lc]
+    return Shot(
+        Region(0, 0, *base.uv.shape[:2]),
+        uv,
+        white,
+        base.gain,
+        base.black_level,
+        base.peak_response,
+        whole,
+        share,
+        first,
+        recorded_white,
+        recorded,
+        own.seconds if own is not None else {},
+    )
+
+
+def _within(box: Region, outer: Region) -> Region:
+    """``box`` in the coordinates of the region ``outer`` that holds it."""
+    return Region(box.row0 - outer.row0, box.col0 - outer.col0, box.rows, box.cols)
+
+
+def _cut(decoding: Decoding, local: Region) -> Decoding:
+    """``decoding`` cut to ``local`` (a region of its arrays)."""
+    rows, cols = local.slices
+    return Decoding(
+        decoding.uv[rows, cols],
+        decoding.valid[rows, cols],
+        decoding.modulation[:, :, rows, cols],
+        decoding.offset[:, :, rows, cols],
+        decoding.wrapped[:, :, rows, cols],
+        decoding.threshold,
+    )
 
 
 @dataclass(frozen=True)
 class _Case:
-    """One case's capture and analysis, before its numbers are taken."""
+    """One case's shot (the whole image's: :func:`composed`) and analysis, before its
+    numbers are taken: ``twin`` the defect-free scene's second decoding over the dent's
+    window (None without a sensor), ``box`` the traced region (None: the whole image)."""
 
     model: StationModel
-    shot: Capture
-    recorded: np.ndarray
-    recording: Recording
-    decoding: Decoding
+    shot: Shot
+    twin: Decoding | None
     slopes: np.ndarray
     heights: Heights
+    box: Region | None
 
 
 def _result(
     scene: Scene, baseline: PmdBaseline, case: _Case, seconds: dict[str, float]
 ) -> PmdResult:
-    model, shot, decoding = case.model, case.shot, case.decoding
+    model, shot = case.model, case.shot
+    decoding = shot.decoding
     axes = list(model.axes)
     base, exact0 = baseline.decoding, baseline.capture.uv
     window = model.window
@@ -232,14 +356,15 @@ def _result(
     shift = np.linalg.norm((decoding.uv - base.uv)[..., axes], axis=-1)
     moved = np.linalg.norm((shot.uv - exact0)[..., axes], axis=-1)
     moved = np.where(window & seen_in_both(exact0, shot.uv, axes), moved, np.nan)
-    noise = baseline.noise(window)
+    noise = baseline.noise(window, case.twin)
     region = dent_region(model, exact0, shot.uv)
     exact_mm = _largest(moved)
-    status = assess_pmd(scene, model, baseline, shot, decoding, region, failed, exact_mm, noise)
+    status = assess_pmd(
+        scene, model, baseline, shot, region, failed, exact_mm, noise, case.twin is not None
+    )
     shift_mm = _largest(np.where(both, shift, np.nan))
     slopes = case.slopes
     slope = np.hypot(slopes[..., 0], slopes[..., 1])
-    share = modulation_share(model.coding, shot)
     dent = case.heights.dent
     return PmdResult(
         pmd_shift_mm=shift_mm,
@@ -254,10 +379,10 @@ def _result(
         decode_rms_mm=_decode_rms(baseline),
         unwrap_failures=int(failed.sum()),
         valid_fraction=_valid_share(decoding, shot.uv[..., axes[0]]),
-        modulation=median_share(model.axes, share, region),
+        modulation=median_share(model.axes, shot.share, region),
         status=status.status,
         status_reason=status.reason,
-        maps=_maps(baseline, case, share, failed, region, both),
+        maps=_maps(baseline, case, failed, region, both),
         seconds=seconds,
     )
 
@@ -265,32 +390,42 @@ def _result(
 def _maps(
     baseline: PmdBaseline,
     case: _Case,
-    share: np.ndarray,
     failed: np.ndarray,
     region: np.ndarray,
     shift_pixels: np.ndarray,
 ) -> PmdMaps:
-    decoding, exact = case.decoding, case.shot.uv
+    shot = case.shot
+    decoding, exact = shot.decoding, shot.uv
     base = baseline.decoding
+    recorded = shot.recorded if shot.recorded is not None else shot.first[None]
+    recording = Recording(
+        shot.gain,
+        shot.black_level,
+        shot.peak_response,
+        decoding.threshold,
+        baseline.settings.modulation_share if baseline.settings.min_modulation is None else None,
+        shot.recorded_white,
+    )
     return PmdMaps(
         decoded=decoding.uv,
         exact=exact,
         error=decoding.uv - exact,
         exact_defect_free=baseline.capture.uv,
         decoded_defect_free=base.uv,
-        decoded_twin=base.uv if baseline.twin is None else baseline.twin.uv,
+        decoded_twin=base.uv if case.twin is None else case.twin.uv,
         modulation=decoding.modulation,
         wrapped=decoding.wrapped,
-        modulation_share=share,
+        modulation_share=shot.share,
         slopes_urad=(1e6 * case.slopes).astype(np.float32),
         height_um=case.heights.per_pixel_um,
         heights=case.heights,
         failed=failed,
         region=region,
         shift_pixels=shift_pixels,
-        noise_pixels=baseline.noise_pixels(case.model.window),
-        recorded=case.recorded,
-        recording=case.recording,
+        noise_pixels=baseline.noise_pixels(case.model.window, case.twin),
+        recorded=recorded,
+        recording=recording,
+        traced=case.box,
     )
 
 

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from glshade.instruments.pmd.capture import Capture, Decoding, interior
+from glshade.instruments.pmd.capture import Decoding, interior
 from glshade.metrics.status import (
     STATUSES,
     Status,
@@ -22,6 +22,7 @@ from glshade.scene import Scene
 if TYPE_CHECKING:
     from glshade.instruments.pmd.baseline import Noise, PmdBaseline
     from glshade.instruments.pmd.model import StationModel
+    from glshade.instruments.pmd.shots import Shot
 
 
 #: Where the finish's lobe keeps less than this share of the finest fringe (its closed
@@ -37,12 +38,12 @@ def assess_pmd(
     scene: Scene,
     model: StationModel,
     baseline: PmdBaseline,
-    shot: Capture,
-    decoding: Decoding,
+    shot: Shot,
     region: np.ndarray,
     failed: np.ndarray,
     exact_mm: float,
     noise: Noise,
+    noisy: bool,
 ) -> Status:
     """Whether a PMD case's numbers can be read: ``outside`` (the dent moves no seen
     pixel), ``edge`` (its region touches the image's border or the edge of what sees the
@@ -50,9 +51,10 @@ def assess_pmd(
     :data:`INVALID_SHARE` of its region is not valid: the fringes are averaged out),
     ``saturated``/``underexposed`` (the recorded frames), ``noise`` (the shift the dent
     makes, ``exact_mm`` from the traced maps, is not above the largest shift noise alone
-    makes, so the decoded shift is noise's; or the unwrapping fails in the dent's
-    region). A scene without a dent is ``outside`` whatever else holds
-    (:func:`~glshade.metrics.status.no_dent`, as the stripe metric says it)."""
+    makes, so the decoded shift is noise's, where a sensor records (``noisy``); or the
+    unwrapping fails in the dent's region). A scene without a dent is ``outside``
+    whatever else holds (:func:`~glshade.metrics.status.no_dent`, as the stripe metric
+    says it)."""
     absent = no_dent(scene)
     if absent is not None:
         return absent
@@ -62,11 +64,14 @@ def assess_pmd(
             "the dent is not seen: no pixel that sees the screen moves (move the dent, "
             "defect.x0/z0, or the camera)",
         )
-    found = [_pmd_edge(scene, region, shot), _pmd_resolution(scene, model, region, decoding)]
+    found = [
+        _pmd_edge(scene, region, shot),
+        _pmd_resolution(scene, model, region, shot.decoding),
+    ]
     if model.sensor is not None:
         found.append(_pmd_exposure(baseline))
     floor = noise.floor
-    if baseline.twin is not None and not exact_mm > floor:
+    if noisy and not exact_mm > floor:
         hint = ""
         if noise.std > 2.0 * noise.predicted:
             hint = (
@@ -94,7 +99,7 @@ def assess_pmd(
     return combined(found)
 
 
-def _pmd_edge(scene: Scene, region: np.ndarray, shot: Capture) -> Status:
+def _pmd_edge(scene: Scene, region: np.ndarray, shot: Shot) -> Status:
     covered = coverage_edge(scene)
     if covered is not None:
         return covered

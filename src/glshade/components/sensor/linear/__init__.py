@@ -18,8 +18,12 @@ tenth of that range as headroom. The recorded values keep the black level (a cam
 frames do); a decoder subtracts it (:attr:`Sensor.black_level`). The noise is drawn in
 NumPy (identical on every GPU) from ``seed``, the scene itself (every other parameter: two
 different images never share a noise pattern) and the exposure number (two exposures of
-one scene differ: what the metric's noise floor compares). No shader code: the sensor
-works on the image after read-back. Table:
+one scene differ: what the metric's noise floor compares). An image is developed after
+read-back. A frame stack (a phase-measuring sequence) is recorded where it was traced, by
+the GPU's record pass (``record.glsl`` in this folder): the same model in float32, its
+noise drawn from Philox4x32-10 keyed by a digest of the scene (the seed in it), the frame
+and the recording, and counted by the pixel (:mod:`glshade.gpu.sequence`); this NumPy
+develop stays its reference. Table:
 :class:`~glshade.components.sensor.linear.table.Sensor`.
 """
 
@@ -27,6 +31,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -36,11 +41,16 @@ from glshade.components.sensor.linear.table import DEFAULT_FULL_WELL_E, Sensor
 from glshade.frame import exposure_gain
 
 
+def scene_digest(scene: SceneView) -> bytes:
+    """A SHA-256 digest of every parameter of ``scene`` (the sensor's seed among them)."""
+    described = json.dumps(scene.to_dict(), sort_keys=True, default=str).encode()
+    return hashlib.sha256(described).digest()
+
+
 def noise_key(scene: SceneView, exposure: int) -> list[int]:
     """The noise stream's seed: the sensor's seed, a digest of the rest of the scene and
     the exposure number."""
-    described = json.dumps(scene.to_dict(), sort_keys=True, default=str).encode()
-    digest = int.from_bytes(hashlib.sha256(described).digest()[:8], "little")
+    digest = int.from_bytes(scene_digest(scene)[:8], "little")
     return [int(scene.sensor.seed), digest, int(exposure)]
 
 
@@ -69,6 +79,27 @@ class LinearSensor(SensorComponent):
 
     def records(self, scene: SceneView) -> bool:
         return scene.sensor.on
+
+    def record_glsl(self, scene: SceneView) -> tuple[str, ...]:
+        return ("record.glsl",) if scene.sensor.on else ()
+
+    def record_uniforms(self, scene: SceneView, gain: float) -> dict[str, object]:
+        sensor = scene.sensor
+        return {
+            "u_sensor_full_well_e": float(sensor.full_well_e or 0.0),
+            "u_sensor_read_noise_e": float(sensor.read_noise_e),
+            "u_sensor_black": float(sensor.black_level),
+            "u_sensor_levels": float(sensor.full_scale_dn),
+            "u_sensor_gain": float(gain),
+        }
+
+    def frame_keys(self, scene: SceneView, frames: Sequence[Any], recording: int) -> np.ndarray:
+        digest = scene_digest(scene)
+        keys = np.empty((len(frames), 2), np.uint32)
+        for index, frame in enumerate(frames):
+            named = hashlib.sha256(digest + f"|{frame!r}|{int(recording)}".encode()).digest()
+            keys[index] = np.frombuffer(named[:8], "<u4")
+        return keys
 
     def develop(self, scene: SceneView, image: np.ndarray, exposure: int = 0) -> np.ndarray:
         sensor = scene.sensor
