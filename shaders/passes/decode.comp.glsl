@@ -6,18 +6,20 @@
 // (the mean) and the wrapped phase; valid where every B_k reaches the threshold and no
 // frame is NaN; the temporal unwrapping from the coarsest period down to the second
 // finest in float32 (s_coarse, mm from the screen's edge). The finest period's sums come
-// back as float32 and the host finishes in float64 (its phase and the last unwrapping
-// step): the decoded coordinate keeps float64's resolution on a 500 mm screen.
+// back as float32 pairs (the float64 sum's nearest float and the rest) and the host
+// finishes in float64 (its phase and the last unwrapping step): the decoded coordinate
+// keeps float64's resolution on a 500 mm screen, whatever the finest period.
 //
-// Layers written per direction d, from d * (4 + 3 K): S_0, C_0, s_coarse (NaN for one
-// period), valid (1 or 0), B_0..B_{K-1}, A_0..A_{K-1}, wrapped_0..wrapped_{K-1}.
+// Layers written per direction d, from d * (6 + 3 K): S_0 and C_0 (nearest floats), S_0
+// and C_0 (the rest), s_coarse (NaN for one period), valid (1 or 0), B_0..B_{K-1},
+// A_0..A_{K-1}, wrapped_0..wrapped_{K-1}.
 #extension GL_ARB_gpu_shader_fp64 : require
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #define PERIODS {{ periods }}
 #define SHIFTS {{ shifts }}
 #define DIRECTIONS {{ directions }}
-#define LAYERS_PER_DIRECTION (4 + 3 * PERIODS)
+#define LAYERS_PER_DIRECTION (6 + 3 * PERIODS)
 
 layout(r32f, binding = 0) uniform readonly image2DArray u_frames;
 layout(r32f, binding = 1) uniform writeonly image2DArray u_maps;
@@ -59,12 +61,15 @@ void main()
             float phase = atan(float(sine), float(cosine));
             wrapped[k] = phase < 0.0 ? phase + TWO_PI : phase;
             if (k == 0) {
-                imageStore(u_maps, ivec3(local, out0), vec4(float(sine)));
-                imageStore(u_maps, ivec3(local, out0 + 1), vec4(float(cosine)));
+                float sine_hi = float(sine), cosine_hi = float(cosine);
+                imageStore(u_maps, ivec3(local, out0), vec4(sine_hi));
+                imageStore(u_maps, ivec3(local, out0 + 1), vec4(cosine_hi));
+                imageStore(u_maps, ivec3(local, out0 + 2), vec4(float(sine - double(sine_hi))));
+                imageStore(u_maps, ivec3(local, out0 + 3), vec4(float(cosine - double(cosine_hi))));
             }
-            imageStore(u_maps, ivec3(local, out0 + 4 + k), vec4(float(modulation)));
-            imageStore(u_maps, ivec3(local, out0 + 4 + PERIODS + k), vec4(float(total / double(SHIFTS))));
-            imageStore(u_maps, ivec3(local, out0 + 4 + 2 * PERIODS + k), vec4(wrapped[k]));
+            imageStore(u_maps, ivec3(local, out0 + 6 + k), vec4(float(modulation)));
+            imageStore(u_maps, ivec3(local, out0 + 6 + PERIODS + k), vec4(float(total / double(SHIFTS))));
+            imageStore(u_maps, ivec3(local, out0 + 6 + 2 * PERIODS + k), vec4(wrapped[k]));
         }
         float coarse = uintBitsToFloat(0x7fc00000u);
 {$ if periods > 1 $}
@@ -78,7 +83,7 @@ void main()
             coarse = u_periods_mm[k] * (wrapped[k] + TWO_PI * turns) / TWO_PI;
         }
 {$ endif $}
-        imageStore(u_maps, ivec3(local, out0 + 2), vec4(coarse));
-        imageStore(u_maps, ivec3(local, out0 + 3), vec4(valid ? 1.0 : 0.0));
+        imageStore(u_maps, ivec3(local, out0 + 4), vec4(coarse));
+        imageStore(u_maps, ivec3(local, out0 + 5), vec4(valid ? 1.0 : 0.0));
     }
 }

@@ -76,15 +76,17 @@ class DecodePlan:
 
     @property
     def layers_per_direction(self) -> int:
-        """Maps per direction: the finest sums (2), the coarse coordinate, the validity,
-        then per period the modulation, the offset and the wrapped phase."""
-        return 4 + 3 * len(self.periods_mm)
+        """Maps per direction: the finest sums (2, and 2 for their rest below float32),
+        the coarse coordinate, the validity, then per period the modulation, the offset
+        and the wrapped phase."""
+        return 6 + 3 * len(self.periods_mm)
 
 
 @dataclass(frozen=True)
 class DirectionMaps:
     """One direction's maps from the decode pass (region-shaped, float32 but
-    ``valid``): the finest period's phasor sums ``sine`` and ``cosine``, ``coarse`` the
+    ``valid``): the finest period's phasor sums ``sine`` and ``cosine`` (float64: the
+    float64 sum's nearest float plus its rest), ``coarse`` the
     coordinate unwrapped down to the second finest period (mm from the screen's edge;
     NaN for one period), per period ``modulation``, ``offset`` and ``wrapped`` (K, rows,
     cols)."""
@@ -288,11 +290,11 @@ class SequencePasses:
 
 def _direction_maps(layers: np.ndarray, periods: int) -> DirectionMaps:
     return DirectionMaps(
-        sine=layers[0],
-        cosine=layers[1],
-        coarse=layers[2],
-        valid=layers[3] > 0.5,
-        modulation=layers[4 : 4 + periods],
-        offset=layers[4 + periods : 4 + 2 * periods],
-        wrapped=layers[4 + 2 * periods : 4 + 3 * periods],
+        sine=layers[0].astype(np.float64) + layers[2],
+        cosine=layers[1].astype(np.float64) + layers[3],
+        coarse=layers[4],
+        valid=layers[5] > 0.5,
+        modulation=layers[6 : 6 + periods],
+        offset=layers[6 + periods : 6 + 2 * periods],
+        wrapped=layers[6 + 2 * periods : 6 + 3 * periods],
     )

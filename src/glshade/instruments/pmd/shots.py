@@ -244,7 +244,7 @@ def finished(
     modulation, offset, wrapped = (np.full(shape, np.nan, np.float32) for _ in range(3))
     for direction, found in zip(coding.directions, maps, strict=True):
         phase = np.mod(
-            np.arctan2(found.sine.astype(np.float64), found.cosine.astype(np.float64)),
+            np.arctan2(found.sine, found.cosine),
             2.0 * np.pi,
         )
         if len(periods) == 1:

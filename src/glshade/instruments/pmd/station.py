@@ -64,7 +64,7 @@ if TYPE_CHECKING:
 REGION_SHARE = 0.2
 #: A dent's sequence is traced over this many σ (its largest) about its centre, or the
 #: height grid's reach where that is more (:func:`trace_region`) ...
-TRACE_SIGMAS = 6.0
+TRACE_SIGMAS = 5.0
 #: ... and this many pixels more on every side.
 TRACE_MARGIN_PX = 2
 
@@ -181,8 +181,9 @@ def trace_region(scene: Scene, settings: PmdSettings) -> Region | None:
     of :data:`TRACE_SIGMAS` and the height grid's ``window_sigmas`` times its largest σ,
     projected and padded (:func:`~glshade.metrics.status.surface_box`) and grown by
     :data:`TRACE_MARGIN_PX`; beyond :data:`TRACE_SIGMAS` a Gaussian dent's slope is below
-    1.5e-7 of its steepest. The whole image where that box cannot be trusted: a lens
-    (each pixel sees a blur circle), a point behind the camera or off the surface."""
+    3.1e-5 of its steepest (``5 e^{-12.5} / e^{-1/2}``). The whole image where that box
+    cannot be trusted: a lens (each pixel sees a blur circle), a point behind the camera
+    or off the surface."""
     from glshade.metrics.status import surface_box
 
     height, width = scene.camera.height, scene.camera.width
