@@ -92,8 +92,9 @@ def electrons(scene, recorded):
         (1000.0, 0.002),  # 2 e-: Poisson by inversion
         (1000.0, 0.05),  # 50 e-: transformed rejection (PTRS)
         (1000.0, 0.6),  # 600 e-: PTRS
-        (10000.0, 0.3),  # 3000 e-: the normal of the same variance
+        (10000.0, 0.3),  # 3000 e-: PTRS
         (1e6, 0.5),  # 5e5 e-
+        (1e9, 0.5),  # 5e8 e-: the acceptance test's terms of order one in float32
     ],
 )
 def test_the_record_pass_has_the_sensors_mean_and_variance(renderer, full_well, level):

@@ -48,6 +48,8 @@ if TYPE_CHECKING:
 GROUP = 8
 #: GL 4.3 brought compute shaders; the decode pass needs float64 (GL 4.0).
 COMPUTE_GL = 430
+#: Image arrays kept per role (recorded frames, maps, copies), by size.
+KEPT_PER_ROLE = 3
 
 
 @dataclass(frozen=True)
@@ -136,15 +138,18 @@ class SequencePasses:
 
     # ------------------------------------------------------------------ storage
     def _array(self, role: str, shape: tuple[int, int], layers: int) -> moderngl.TextureArray:
-        """The pass's image array for ``role`` of this size, made once (a few kept)."""
+        """An image array for ``role`` of this size, made once: the last
+        :data:`KEPT_PER_ROLE` sizes of each role are kept (a baseline's whole image, a
+        dent's region and its window alternate)."""
         key = (role, shape, layers)
-        array = self._arrays.get(key)
+        array = self._arrays.pop(key, None)
         if array is None:
-            for old in [k for k in self._arrays if k[0] == role]:
-                self._arrays.pop(old).release()  # one size per role: the last one asked
+            same = [k for k in self._arrays if k[0] == role]
+            if len(same) >= KEPT_PER_ROLE:
+                self._arrays.pop(same[0]).release()  # the least recently used
             rows, cols = shape
             array = self.context.gl.texture_array((cols, rows, layers), 1, dtype="f4")
-            self._arrays[key] = array
+        self._arrays[key] = array
         return array
 
     def upload(

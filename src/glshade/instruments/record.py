@@ -407,9 +407,9 @@ class PmdMeasurement(Record):
     pmd_noise_mm: float | None = column(
         "mm",
         "the decoded coordinate's noise: the standard deviation of the difference of two "
-        "decodes of the defect-free scene with different seeds, over sqrt 2, over the pixels "
-        "near the dent valid in both, off that region's edge and unwrapped right in both (0 "
-        "without a sensor)",
+        "decodes of the defect-free scene recorded twice (two noises), over sqrt 2, over the "
+        "pixels near the dent valid in both, off that region's edge and unwrapped right in "
+        "both (0 without a sensor)",
         low=0.0,
     )
     pmd_noise_predicted_mm: float | None = column(

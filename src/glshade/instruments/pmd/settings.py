@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 
 #: The version of what a PMD case measures: part of a PMD sweep case's identity and of its
 #: manifest. Raise it with any change that alters a number of a PMD record.
-PMD_VERSION = 2
+PMD_VERSION = 3
 
 
 @dataclass(frozen=True)

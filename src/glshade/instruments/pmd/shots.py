@@ -212,16 +212,18 @@ def _shoot_gpu(
     )
 
 
-def plan_of(coding: FringesTable, threshold: float) -> DecodePlan:
-    """The decode pass's plan of ``coding`` (its directions in the order shown)."""
+def plan_of(coding: FringesTable, threshold: float, finest_only: bool = False) -> DecodePlan:
+    """The decode pass's plan of ``coding`` (its directions in the order shown;
+    ``finest_only``: the finest period of each alone)."""
     from glshade.gpu.sequence import DecodePlan
 
     periods, shifts = len(coding.periods), coding.shifts
     codec = coding.codec
+    used = codec.periods_mm[:1] if finest_only else codec.periods_mm
     return DecodePlan(
         first_layers=tuple(d * periods * shifts for d in range(len(coding.directions))),
         extents_mm=tuple(codec.extent_mm(d) for d in coding.directions),
-        periods_mm=tuple(float(p) for p in codec.periods_mm),
+        periods_mm=tuple(float(p) for p in used),
         steps_rad=tuple(float(s) for s in codec.shifts_rad),
         threshold=threshold,
     )
@@ -274,7 +276,7 @@ def _share_gpu(
 ) -> np.ndarray:
     """:func:`modulation_share` from the radiance stack on the GPU: its finest period's
     modulation from the decode pass."""
-    maps = passes.decode(stack, plan_of(coding, 0.0), area)
+    maps = passes.decode(stack, plan_of(coding, 0.0, finest_only=True), area)
     finest = np.full((2, *white.shape), np.nan)
     for direction, found in zip(coding.directions, maps, strict=True):
         finest[DIRECTIONS.index(direction) ^ 1] = found.modulation[0]
