@@ -109,6 +109,15 @@ class Region:
 
     scissor = viewport
 
+    def contains(self, other: Region) -> bool:
+        """Is every pixel of ``other`` one of this region's?"""
+        return (
+            self.row0 <= other.row0
+            and self.col0 <= other.col0
+            and other.row0 + other.rows <= self.row0 + self.rows
+            and other.col0 + other.cols <= self.col0 + self.cols
+        )
+
     def grown(self, pixels: int, height: int, width: int) -> Region:
         """This region widened by ``pixels`` on every side, cut to an image of ``height``
         x ``width``."""

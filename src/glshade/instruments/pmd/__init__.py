@@ -9,6 +9,8 @@ from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
+import numpy as np
+
 from glshade.instruments.base import (
     BudgetPlan,
     Case,
@@ -130,6 +132,8 @@ class PhaseInstrument(Instrument):
         """One geometry measured as a PMD station measures it, its defect-free analysis
         once; ``extra`` gets a :class:`PmdView`."""
         baseline = pmd_baseline(renderer, station_model(group[0].scene), settings)
+        windows = [station_model(case.scene).window for case in group]
+        baseline.twin_over(renderer, np.logical_or.reduce(windows))  # once for the group
         for case in group:
             result = measure_pmd_scene(renderer, case.scene, settings, baseline)
             made = extra(case, result, PmdView(baseline)) if extra is not None else None
