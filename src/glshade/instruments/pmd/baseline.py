@@ -4,6 +4,7 @@ decoding, nominal geometry and the noise of two decodes with different seeds
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -47,6 +48,15 @@ class PmdBaseline:
         if self._slopes is None:
             self._slopes = slope_map(self.model, self.nominal, self.decoding.uv)
         return self._slopes
+
+    @functools.cached_property
+    def decode_rms_mm(self) -> float:
+        """Root mean square of the defect-free scene's decoded minus exact points over its
+        valid pixels that did not fail to unwrap, each coded coordinate counted."""
+        base, exact = self.decoding, self.capture.uv
+        ok = base.valid & ~failures(base.uv, exact, self.model)
+        error = (base.uv - exact)[ok][:, list(self.model.axes)]
+        return float(np.sqrt(np.mean(error**2))) if error.size else math.nan
 
     @property
     def decoding(self) -> Decoding:
@@ -102,7 +112,7 @@ class PmdBaseline:
             return np.zeros(window.shape, bool)
         exact = self.capture.uv
         # off the edge of the valid region too (:func:`interior`), as the dent's shift
-        both = window & interior(self.decoding.valid & twin.valid)
+        both = interior(self.decoding.valid & twin.valid, window)
         both &= ~failures(self.decoding.uv, exact, self.model)
         return both & ~failures(twin.uv, exact, self.model)
 

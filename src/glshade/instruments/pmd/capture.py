@@ -16,6 +16,7 @@ from glshade.components.emitter.fringes.table import (
     FringeFrame,
     FringesTable,
 )
+from glshade.frame import Region
 from glshade.instruments.pmd import decode as pmd
 from glshade.instruments.pmd.settings import PmdSettings
 from glshade.scene import Scene
@@ -208,12 +209,23 @@ def failures(decoded_uv: np.ndarray, exact_uv: np.ndarray, model: StationModel) 
     return bad
 
 
-def interior(seen: np.ndarray) -> np.ndarray:
-    """The pixels of ``seen`` whose eight neighbours are in it too. A pixel on the edge of
-    what sees the screen straddles it: with several rays a pixel its exact screen point is
-    the mean of the rays that reach the screen, and the least move of the screen's edge
-    across its footprint (a dent's faint tail) changes which rays those are and jumps the
-    mean by a share of the footprint. Its move is not the dent's."""
+def interior(seen: np.ndarray, within: np.ndarray | None = None) -> np.ndarray:
+    """The pixels of ``seen`` whose eight neighbours are in it too (``within``: only
+    those of its pixels are asked for, False elsewhere: the erosion covers their bounding
+    box alone). A pixel on the edge of what sees the screen straddles it: with several
+    rays a pixel its exact screen point is the mean of the rays that reach the screen,
+    and the least move of the screen's edge across its footprint (a dent's faint tail)
+    changes which rays those are and jumps the mean by a share of the footprint. Its move
+    is not the dent's."""
     from scipy.ndimage import binary_erosion
 
-    return binary_erosion(seen, structure=np.ones((3, 3), bool), border_value=1)
+    structure = np.ones((3, 3), bool)
+    if within is None:
+        return binary_erosion(seen, structure=structure, border_value=1)
+    out = np.zeros(seen.shape, bool)
+    box = Region.of_mask(within)
+    if box is None:
+        return out
+    rows, cols = box.grown(1, *seen.shape).slices
+    out[rows, cols] = binary_erosion(seen[rows, cols], structure=structure, border_value=1)
+    return out & within

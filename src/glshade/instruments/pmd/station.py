@@ -154,11 +154,13 @@ class PmdMaps:
     traced: Region | None = None
 
 
-def seen_in_both(exact0: np.ndarray, exact1: np.ndarray, axes: list[int]) -> np.ndarray:
+def seen_in_both(
+    exact0: np.ndarray, exact1: np.ndarray, axes: list[int], within: np.ndarray | None = None
+) -> np.ndarray:
     """Pixels whose every coded coordinate is finite in both exact maps, off their edge
-    (:func:`interior`)."""
+    (:func:`interior`; ``within``: of those pixels alone)."""
     seen = np.all(np.isfinite(exact0[..., axes]), axis=-1)
-    return interior(seen & np.all(np.isfinite(exact1[..., axes]), axis=-1))
+    return interior(seen & np.all(np.isfinite(exact1[..., axes]), axis=-1), within)
 
 
 def dent_region(model: StationModel, exact0: np.ndarray, exact1: np.ndarray) -> np.ndarray:
@@ -167,7 +169,7 @@ def dent_region(model: StationModel, exact0: np.ndarray, exact1: np.ndarray) -> 
     :data:`REGION_SHARE` of its largest move."""
     window, axes = model.window, list(model.axes)
     moved = np.linalg.norm((exact1 - exact0)[..., axes], axis=-1)
-    moved = np.where(window & seen_in_both(exact0, exact1, axes), moved, 0.0)
+    moved = np.where(seen_in_both(exact0, exact1, axes, window), moved, 0.0)
     peak = float(moved.max()) if moved.size else 0.0
     if peak <= 0.0:
         return np.zeros(moved.shape, bool)
@@ -352,11 +354,11 @@ def _result(
     failed = failures(decoding.uv, shot.uv, model)
     # valid in both decodes and off the edge of that region (a pixel straddling it mixes
     # the screen with the curtain: :func:`interior`)
-    both = window & interior(decoding.valid & base.valid)
+    both = interior(decoding.valid & base.valid, window)
     both &= ~failed & ~failures(base.uv, exact0, model)
     shift = np.linalg.norm((decoding.uv - base.uv)[..., axes], axis=-1)
     moved = np.linalg.norm((shot.uv - exact0)[..., axes], axis=-1)
-    moved = np.where(window & seen_in_both(exact0, shot.uv, axes), moved, np.nan)
+    moved = np.where(seen_in_both(exact0, shot.uv, axes, window), moved, np.nan)
     noise = baseline.noise(window, case.twin)
     region = dent_region(model, exact0, shot.uv)
     exact_mm = _largest(moved)
@@ -377,7 +379,7 @@ def _result(
         pmd_slope_urad=1e6 * _largest(np.where(region & decoding.valid & ~failed, slope, np.nan)),
         pmd_depth_um=dent.depth if dent is not None else math.nan,
         pmd_sigma_mm=dent.sigma_mm if dent is not None else math.nan,
-        decode_rms_mm=_decode_rms(baseline),
+        decode_rms_mm=baseline.decode_rms_mm,
         unwrap_failures=int(failed.sum()),
         valid_fraction=_valid_share(decoding, shot.uv[..., axes[0]]),
         modulation=median_share(model.axes, shot.share, region),
@@ -434,15 +436,6 @@ def _largest(values: np.ndarray) -> float:
     """The largest finite value (NaN for none)."""
     finite = values[np.isfinite(values)]
     return float(finite.max()) if finite.size else math.nan
-
-
-def _decode_rms(baseline: PmdBaseline) -> float:
-    """Root mean square of the defect-free scene's decoded minus exact points over its valid
-    pixels that did not fail to unwrap, each coded coordinate counted."""
-    base, exact = baseline.decoding, baseline.capture.uv
-    ok = base.valid & ~failures(base.uv, exact, baseline.model)
-    error = (base.uv - exact)[ok][:, list(baseline.model.axes)]
-    return float(np.sqrt(np.mean(error**2))) if error.size else math.nan
 
 
 def _valid_share(decoding: Decoding, exact: np.ndarray) -> float:
