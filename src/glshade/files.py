@@ -292,13 +292,20 @@ def _suffix_problem(suffix: str, suffixes: tuple[str, ...]) -> str:
 
 
 def atomic_write_bytes(
-    path: Path, data: bytes, what: str = "output", within: Path | None = None
+    path: Path,
+    data: bytes,
+    what: str = "output",
+    within: Path | None = None,
+    *,
+    flush: bool = True,
 ) -> None:
     """Write ``data`` to ``path`` atomically (temp file + ``os.replace``); only ever a
     regular file (see :func:`check_output`). ``within``: the output directory the file
     belongs to (a file glshade names there), which it must not leave through a link
     (:func:`check_inside`); None: a file the user named (a link to a regular file is
-    written through)."""
+    written through). ``flush``: the data reaches the disk (``fsync``) before the rename;
+    False leaves that to :func:`flush_files`, once for a group of files (the name still
+    never shows a partly written file to this or another process)."""
     if within is not None:
         check_inside(within, path, what)
         refuse_link(within, path, what)
@@ -311,8 +318,9 @@ def atomic_write_bytes(
         os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; a plain open() honours the umask
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
+            if flush:
+                fh.flush()
+                os.fsync(fh.fileno())
         os.replace(tmp, target)
     except BaseException as exc:
         try:
@@ -322,6 +330,35 @@ def atomic_write_bytes(
         if isinstance(exc, OSError):
             raise GlshadeError(f"{what} {path}: cannot write it ({exc.strerror or exc})") from None
         raise
+
+
+def flush_files(paths: Iterable[str | os.PathLike[str]], what: str = "output") -> None:
+    """Make files written with ``atomic_write_bytes(..., flush=False)`` durable as a group:
+    each file's data (``fsync``), then each of their folders once (the renames). A file
+    that is gone meanwhile is skipped; a failure is one line naming ``what``."""
+    folders: dict[str, None] = {}
+    for path in paths:
+        text = os.fspath(path)
+        with contextlib.suppress(FileNotFoundError):
+            _fsync_path(text, os.O_RDONLY | os.O_NONBLOCK, what)
+        folders[os.path.dirname(os.path.abspath(text))] = None
+    for folder in folders:
+        _fsync_path(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0), what)
+
+
+def _fsync_path(path: str, flags: int, what: str) -> None:
+    try:
+        fd = os.open(path, flags | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        raise
+    except OSError as exc:
+        raise GlshadeError(f"{what} {path}: cannot write it ({exc.strerror or exc})") from None
+    try:
+        os.fsync(fd)
+    except OSError as exc:
+        raise GlshadeError(f"{what} {path}: cannot write it ({exc.strerror or exc})") from None
+    finally:
+        os.close(fd)
 
 
 def remove_inside(root: Path, path: Path) -> bool:

@@ -16,14 +16,20 @@ written last, after its image ``<images>/<key>.png``: the mark a rerun looks for
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from glshade.errors import GlshadeError
-from glshade.files import atomic_write_bytes, make_inside, read_regular, remove_inside
+from glshade.files import (
+    atomic_write_bytes,
+    flush_files,
+    make_inside,
+    read_regular,
+    remove_inside,
+)
 from glshade.measure.case_files import Rejected, case_file_bytes, read_case_file
 from glshade.measure.locks import run_lock
 
@@ -179,6 +185,40 @@ def write_case(
         path = out_dir / layout.images / f"{key}.png"
         atomic_write_bytes(path, image, "--out", within=out_dir)
     atomic_write_bytes(_case_path(out_dir, layout, key), data, "--out", within=out_dir)
+
+
+#: A finished case to write: its key, its record (JSON-able) and its image (PNG bytes) or
+#: None.
+CaseToWrite = tuple[str, Mapping[str, Any], bytes | None]
+
+
+def write_cases(out_dir: Path, layout: Layout, cases: Sequence[CaseToWrite]) -> None:
+    """Finished cases on disk as one group, each as :func:`write_case` leaves it, with one
+    flush for the group instead of one a file. Every image first, atomically (temp file
+    and rename) but not flushed; then the images' data and their folder flushed together
+    (:func:`glshade.files.flush_files`); then every case file, atomically, the "done" mark
+    a rerun looks for, not flushed at all. A case file vouches for itself (its case id and
+    checksum, :mod:`~glshade.measure.case_files`): one whose data had not reached the disk
+    when the machine stopped reads back missing or failing its check, and its case is
+    measured again, never trusted half-written; an image cannot vouch for itself, so it
+    is on the disk before the case file that marks it done is written."""
+    out_dir = Path(out_dir)
+    made = [
+        (key, case_file_bytes(key, json.loads(json.dumps(record))), image)
+        for key, record, image in cases
+    ]  # every file's bytes made before any is written
+    images = []
+    for key, _, image in made:
+        if image is not None:
+            path = out_dir / layout.images / f"{key}.png"
+            atomic_write_bytes(path, image, "--out", within=out_dir, flush=False)
+            images.append(path)
+    if images:
+        flush_files(images, "--out")
+    for key, data, _ in made:
+        atomic_write_bytes(
+            _case_path(out_dir, layout, key), data, "--out", within=out_dir, flush=False
+        )
 
 
 def _load_case(path: Path, key: str, read: Reader, rejected: Rejected | None = None) -> Any:

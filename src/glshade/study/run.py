@@ -14,6 +14,7 @@ and resumed from, :mod:`glshade.study.store`.
 from __future__ import annotations
 
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -45,7 +46,7 @@ from glshade.study.store import (
     CaseResult,
     finished,
     opened,
-    write_case,
+    write_cases,
     write_results_csv,
 )
 
@@ -131,7 +132,8 @@ def run_study(
     Distribution`: local Dask worker processes, each tracing and analysing whole
     geometries, or an existing cluster); the figures' thumbnails are made there too, the
     files are written here.
-    ``on_case_done(row)`` is called after each case is safely on disk;
+    ``on_case_done(row)`` is called after each case is on disk (the cases of a geometry
+    are written together, :func:`_run_cases`);
     ``on_surface_done(surface, rows)`` once the last case of a surface computed in this
     run is, with all of that surface's rows (the CLI draws its figures there, on this
     thread, while the workers measure the next surface).
@@ -208,12 +210,35 @@ def _run_cases(
     """Measure every pending case with the measuring engine
     (:func:`glshade.measure.engine.measure_many`: one defect-free analysis per (surface,
     θ); in this process the GL thread traces while the pool measures, on workers each
-    measures whole geometries) and write each result as soon as it is done."""
+    measures whole geometries) and write the cases of a geometry together as soon as its
+    last one is done (:func:`_write`: one flush for the group). Interrupted, the cases
+    measured by then are written still."""
     cases = [Case(point, plan.scene(*point)) for point in points]
-    for measured in executor.measured(cases, plan.metric, _figures):
-        row = case_result(measured)
-        timings.trace += measured.trace_s
-        _write(row, measured.extra, timings, out_dir)
+    left = Counter(_geometry(point) for point in points)
+    groups: dict[tuple[str, float], list[tuple[CaseResult, CaseFigures]]] = {}
+    try:
+        for measured in executor.measured(cases, plan.metric, _figures):
+            row = case_result(measured)
+            timings.trace += measured.trace_s
+            geometry = _geometry(row.case)
+            groups.setdefault(geometry, []).append((row, measured.extra))
+            left[geometry] -= 1
+            if not left[geometry]:
+                _finished(_write(groups.pop(geometry), timings, out_dir), finished)
+        for geometry in list(groups):
+            _finished(_write(groups.pop(geometry), timings, out_dir), finished)
+    finally:
+        for group in groups.values():  # interrupted: the cases measured by then are kept
+            _write(group, timings, out_dir)
+
+
+def _geometry(point: PlanPoint) -> tuple[str, float]:
+    """The (surface, θ) of a case: the cases that share a defect-free trace."""
+    return point[0], point[1]
+
+
+def _finished(rows: list[CaseResult], finished: Callable[[CaseResult], None]) -> None:
+    for row in rows:
         finished(row)
 
 
@@ -244,21 +269,26 @@ def _figures(case: Case, result: vis.Visibility, view: CaseView) -> CaseFigures:
     return CaseFigures(thumbnail, overlay)
 
 
-def _write(row: CaseResult, figures: CaseFigures, timings: Timings, out_dir: Path) -> None:
-    """A finished case on disk (its overlay figure first, when it is one of those)."""
-    timings.shade += row.shade_s
-    timings.contours += row.contours_s
-    timings.continuous += row.continuous_s
+def _write(
+    group: list[tuple[CaseResult, CaseFigures]], timings: Timings, out_dir: Path
+) -> list[CaseResult]:
+    """A group of finished cases on disk (the overlay figures among them first), with one
+    flush for the group (:func:`glshade.study.store.write_cases`); their rows."""
     start = time.perf_counter()
-    if figures.overlay is not None:
-        from glshade.instruments.figures import overlay_figure
+    for row, figures in group:
+        timings.shade += row.shade_s
+        timings.contours += row.contours_s
+        timings.continuous += row.continuous_s
+        if figures.overlay is not None:
+            from glshade.instruments.figures import overlay_figure
 
-        rgb, result, first_column, title = figures.overlay
-        overlay_figure(
-            rgb, result, first_column, title, out_dir / OVERLAY_CASES[row.case], within=out_dir
-        )
-    write_case(out_dir, row, figures.thumbnail)
+            rgb, result, first_column, title = figures.overlay
+            overlay_figure(
+                rgb, result, first_column, title, out_dir / OVERLAY_CASES[row.case], within=out_dir
+            )
+    write_cases(out_dir, [(row, figures.thumbnail) for row, figures in group])
     timings.io += time.perf_counter() - start
+    return [row for row, _ in group]
 
 
 def case_result(measured: Measured) -> CaseResult:

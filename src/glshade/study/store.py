@@ -242,6 +242,17 @@ def write_case(
     store.write_case(out_dir, layout, case_key(*result.case), dict(result), thumbnail)
 
 
+def write_cases(
+    out_dir: Path, results: Sequence[tuple[Any, bytes | None]], layout: store.Layout = STRIPES
+) -> None:
+    """Finished cases (each a result and its thumbnail or None) on disk as one group, with
+    one flush for the group (:func:`glshade.measure.store.write_cases`: the thumbnails on
+    the disk before any case file, the "done" mark a rerun looks for, is written)."""
+    store.write_cases(
+        out_dir, layout, [(case_key(*r.case), dict(r), image) for r, image in results]
+    )
+
+
 def write_results_csv(path: Path, rows: Sequence[PlanRow], row_class: Any = None) -> None:
     """A study's table, one row per case, its columns those of ``row_class`` (default:
     the rows' own; :class:`CaseResult` for none), atomically."""
