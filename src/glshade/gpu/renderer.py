@@ -465,8 +465,11 @@ class Renderer:
         exposure: int = 0,
         frames: Sequence[Any] | None = None,
         develop: bool = True,
+        region: Region | None = None,
     ) -> Frame:
         """Render ``scene``; ``outputs`` is a subset of :data:`glshade.frame.OUTPUTS`.
+        ``region``: only its pixels are traced, and every array has its shape (with a
+        sensor, a region's image is developed alone: a noise draw of its own).
 
         ``out``: a frame whose arrays (float32 image, float32 uv, bool mask of the right
         shape) are filled in place instead of allocating new ones. With a sensor the image
@@ -487,9 +490,9 @@ class Renderer:
         features, _ = self._checked(scene, outputs, len(stack))
         with self.context.current():
             if stack:
-                frame = self._draw_stack(scene, features, out, stack)
+                frame = self._draw_stack(scene, features, out, stack, region)
             else:
-                frame = self._draw(scene, features, out)
+                frame = self._draw(scene, features, out, region=region)
         if frame.rays is not None and "rays" not in wanted:
             frame = dataclasses.replace(frame, rays=None)
         if frame.image is not None and develop and scene.active.records(scene):

@@ -49,6 +49,7 @@ from glshade.components.emitter.fringes.table import (
     fringes_of,
 )
 from glshade.errors import GlshadeError
+from glshade.frame import Frame, Region
 from glshade.instruments.memory import largest_size, pmd_estimate, size_text
 from glshade.instruments.pmd.settings import check_scene
 from glshade.metrics.coding_laws import (
@@ -186,11 +187,19 @@ def render_probe(renderer: Renderer, scene: Scene, periods: np.ndarray) -> Probe
     em = fringes_of(normal)
     frames = probe_frames(em, periods)
     per_chunk = max(1, (MAX_FRAMES_PER_DRAW - 1) // PROBE_SHIFTS) * PROBE_SHIFTS
-    first = renderer.render(normal, ("frames", "uv"), frames=(em.white(), *frames[:per_chunk]))
+    shape = (normal.camera.height, normal.camera.width)
+    window = dent_window(normal, shape)
+    region = Region.of_mask(window)  # the probe reads the dent's window: traced alone
+    head = (em.white(), *frames[:per_chunk])
+    first = renderer.render(normal, ("frames", "uv"), frames=head, region=region)
+    cut = window[region.slices] if region is not None else window
+    if region is not None and not _seen(first).any():
+        region, cut = None, window  # the window sees no screen: every pixel that does
+        first = renderer.render(normal, ("frames", "uv"), frames=head)
     layers = first.output("frames")
     uv = first.output("uv").astype(np.float64)
     white = layers[0].astype(np.float64)
-    where, in_window = probe_pixels(normal, uv, white)
+    where, in_window = probe_pixels(normal, uv, white, cut)
     gain = renderer.exposure_gain(normal) if normal.active.records(normal) else 1.0
     fundamental = white_fundamental(em)
     stats: list[tuple[float, float, float]] = []
@@ -198,7 +207,8 @@ def render_probe(renderer: Renderer, scene: Scene, periods: np.ndarray) -> Probe
     for offset in range(0, len(frames), per_chunk):
         if offset:
             chunk = frames[offset : offset + per_chunk]
-            stack = renderer.render(normal, ("frames",), frames=chunk).output("frames")
+            traced = renderer.render(normal, ("frames",), frames=chunk, region=region)
+            stack = traced.output("frames")
         groups = stack[:, where].astype(np.float64).reshape(-1, PROBE_SHIFTS, int(where.sum()))
         for group in groups:
             stats.append(_period_stats(normal, group, white[where], gain, fundamental))
@@ -218,17 +228,26 @@ def render_probe(renderer: Renderer, scene: Scene, periods: np.ndarray) -> Probe
     )
 
 
-def probe_pixels(scene: Scene, uv: np.ndarray, white: np.ndarray) -> tuple[np.ndarray, bool]:
-    """The pixels the probe reads: the dent's window where it sees the screen (True),
-    else every pixel that sees it (False); an error where none does."""
+def probe_pixels(
+    scene: Scene, uv: np.ndarray, white: np.ndarray, window: np.ndarray | None = None
+) -> tuple[np.ndarray, bool]:
+    """The pixels the probe reads: the dent's window (``window``, of the maps' shape;
+    default: the scene's) where it sees the screen (True), else every pixel that sees it
+    (False); an error where none does."""
     seen = np.all(np.isfinite(uv), axis=-1) & np.isfinite(white) & (white > 0.0)
     if not seen.any():
         raise GlshadeError(
             "no pixel sees the screen: the coding cannot be chosen (check camera.theta_deg, "
             "emitter.distance and emitter.half_size)"
         )
-    window = dent_window(scene, seen.shape) & seen
-    return (window, True) if window.any() else (seen, False)
+    near = (dent_window(scene, seen.shape) if window is None else window) & seen
+    return (near, True) if near.any() else (seen, False)
+
+
+def _seen(frame: Frame) -> np.ndarray:
+    """The pixels of a probe's first render that see the lit screen."""
+    white = frame.output("frames")[0]
+    return np.all(np.isfinite(frame.output("uv")), axis=-1) & np.isfinite(white) & (white > 0)
 
 
 def _period_stats(
