@@ -442,10 +442,11 @@ def check_station(scene: Scene) -> None:
     """A station that is not the paper's rig shows its screen to the camera, from the
     front: else one line says which (a rig scene is not checked, so its numbers, an
     unresolved case included, stay what they were)."""
-    from glshade.oracle.station_report import refuse_unseen, trace_grid
     from glshade.scene.station import is_rig
 
     if not is_rig(scene):
+        from glshade.oracle.station_report import refuse_unseen, trace_grid
+
         refuse_unseen(scene, trace_grid(scene, STATION_CHECK_GRID))
 
 

@@ -13,28 +13,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import gc
+import importlib
 import sys
-from typing import Protocol
+from typing import Protocol, cast
 
 from glshade import __version__
 from glshade.app.args import EXIT_USAGE, Parser, check_run_settings, one_line
-from glshade.app.commands import (
-    accuracy,
-    bench,
-    budget,
-    coding,
-    decode,
-    finding3,
-    info,
-    measure,
-    optimize,
-    paper,
-    render,
-    station,
-    sweep,
-    twin,
-    view,
-)
 from glshade.app.interrupts import InterruptWatch
 from glshade.errors import GlshadeError, GlshadeWarning, ShaderCompileError
 from glshade.files import reading_inputs
@@ -54,28 +38,35 @@ class Command(Protocol):
         """Run the command on its parsed command line; its exit code."""
 
 
-#: Every command and its module, in the order ``--help`` lists them.
-COMMANDS: dict[str, Command] = {
-    "render": render,
-    "measure": measure,
-    "info": info,
-    "paper": paper,
-    "view": view,
-    "accuracy": accuracy,
-    "finding3": finding3,
-    "bench": bench,
-    "sweep": sweep,
-    "optimize": optimize,
-    "coding": coding,
-    "budget": budget,
-    "station": station,
-    "decode": decode,
-    "twin": twin,
-}
+#: Every command, in the order ``--help`` lists them; each is the module of that name in
+#: :mod:`glshade.app.commands`, imported when its parser is built (:func:`command`), so a
+#: command line does not load the other commands' modules.
+COMMANDS: tuple[str, ...] = (
+    "render",
+    "measure",
+    "info",
+    "paper",
+    "view",
+    "accuracy",
+    "finding3",
+    "bench",
+    "sweep",
+    "optimize",
+    "coding",
+    "budget",
+    "station",
+    "decode",
+    "twin",
+)
 
 
-def build_parser(command: str | None = None) -> argparse.ArgumentParser:
-    """The command line's parser. ``command``: build only that command's parser (its
+def command(name: str) -> Command:
+    """The module of the command ``name`` (one of :data:`COMMANDS`)."""
+    return cast(Command, importlib.import_module(f"glshade.app.commands.{name}"))
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The command line's parser. ``only``: build only that command's parser (its
     flags, and the modules they need), the others as bare names, which is all a command
     line that starts with it can reach (:func:`command_of`); None: every command, whole
     (``glshade --help``)."""
@@ -86,9 +77,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"glshade {__version__}")
     parser.add_argument("--verbose", action="store_true", help=VERBOSE_HELP)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
-    for name, module in COMMANDS.items():
-        if command is None or name == command:
-            module.add(sub)
+    for name in COMMANDS:
+        if only is None or name == only:
+            command(name).add(sub)
         else:
             sub.add_parser(name)
     for command_parser in sub.choices.values():  # also after the command: glshade paper --verbose
@@ -140,7 +131,7 @@ def _run(argv: list[str], verbose: bool, interrupts: InterruptWatch | None) -> i
     try:  # (the libraries' loggers are quietened where Dask starts: glshade.logs)
         args = build_parser(command_of(argv)).parse_args(argv)
         check_run_settings(args)
-        return COMMANDS[args.command].run(args)
+        return command(args.command).run(args)
     except SystemExit as exc:  # --help, --version, or a usage error already printed as one line
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     except KeyboardInterrupt:
