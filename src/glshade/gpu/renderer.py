@@ -669,9 +669,7 @@ class Renderer:
         if targets.frames is not None:
             self.context.gl.memory_barrier()
         if targets.frames is not None and read_frames:
-            whole = np.empty((features.frame_count, *targets.shape), np.float32)
-            targets.frames.read_into(whole)
-            arrays["frames"] = whole[:, area.rows_slice, area.cols_slice]
+            arrays["frames"] = self._read_frames(targets, features.frame_count, area)
         for index, name in enumerate(_attachments(features.outputs)):
             components, dtype = _target_format(name, features.precision)
             if name == "rays":
@@ -695,6 +693,20 @@ class Renderer:
                 )
             arrays[name] = array
         return arrays
+
+    def _read_frames(self, targets: _Targets, count: int, area: Region) -> np.ndarray:
+        """The frames target's ``count`` layers over ``area``: the whole array read, or
+        a smaller area copied on the GPU first where the context can (so that only its
+        pixels cross to the host)."""
+        from glshade.gpu.sequence import GpuStack, supports_sequence_passes
+
+        assert targets.frames is not None
+        if (area.rows, area.cols) != targets.shape and supports_sequence_passes(self.context):
+            stack = GpuStack(targets.frames, count, targets.shape)
+            return self.sequence_passes().read(stack, area)
+        whole = np.empty((count, *targets.shape), np.float32)
+        targets.frames.read_into(whole)
+        return whole[:, area.rows_slice, area.cols_slice]
 
     def _draw_sampled(
         self,
