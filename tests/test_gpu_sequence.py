@@ -220,3 +220,20 @@ def test_a_region_decodes_as_the_whole_image_does(renderer):
     assert np.array_equal(part.decoding.valid, whole.decoding.valid[cut])
     assert np.array_equal(part.first, whole.first[cut])
     assert np.array_equal(part.share, whole.share[:, cut[0], cut[1]], equal_nan=True)
+
+
+def test_a_region_renders_as_the_whole_image_does(renderer):
+    """``render(..., region=)`` traces the region alone: its uv map and frames are the
+    whole image's cut to it, with 2 x 2 rays a pixel too."""
+    scene = station("sphere", 64).updated(render={"supersample": 2})
+    emitter = scene.active.emitter
+    frames = (*emitter.sequence(scene)[:6], emitter.white(scene))
+    whole = renderer.render(scene, ("frames", "uv"), frames=frames)
+    region = Region(9, 14, 30, 21)
+    part = renderer.render(scene, ("frames", "uv"), frames=frames, region=region)
+    rows, cols = region.slices
+    assert part.output("uv").shape == (30, 21, 2)
+    assert np.array_equal(part.output("uv"), whole.output("uv")[rows, cols], equal_nan=True)
+    assert np.array_equal(
+        part.output("frames"), whole.output("frames")[:, rows, cols], equal_nan=True
+    )
