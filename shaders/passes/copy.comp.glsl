@@ -2,20 +2,18 @@
 // The copy pass: chosen layers of a stack, over a region, into an array of the region's
 // size (layer i of the copy is layer u_layer_list[i] of the stack), so that only they are
 // read back.
-layout(local_size_x = 8, local_size_y = 8) in;
+{$ include "lib/region_pass.glsl" $}
 
 layout(r32f, binding = 0) uniform readonly image2DArray u_stack;
 layout(r32f, binding = 1) uniform writeonly image2DArray u_copy;
 layout(std430, binding = 1) readonly buffer LayerList { int u_layer_list[]; };
-uniform ivec2 u_origin;  // the region's first pixel: (column, row)
-uniform ivec2 u_size;  // the region's (columns, rows)
 uniform int u_layers;
 
 void main()
 {
-    ivec2 local = ivec2(gl_GlobalInvocationID.xy);
-    if (any(greaterThanEqual(local, u_size)))
+    ivec2 local, pixel;
+    if (!region_pixel(local, pixel))
         return;
     for (int i = 0; i < u_layers; ++i)
-        imageStore(u_copy, ivec3(local, i), imageLoad(u_stack, ivec3(u_origin + local, u_layer_list[i])));
+        imageStore(u_copy, ivec3(local, i), imageLoad(u_stack, ivec3(pixel, u_layer_list[i])));
 }

@@ -14,7 +14,7 @@
 // and C_0 (the rest), s_coarse (NaN for one period), valid (1 or 0), B_0..B_{K-1},
 // A_0..A_{K-1}, wrapped_0..wrapped_{K-1}.
 #extension GL_ARB_gpu_shader_fp64 : require
-layout(local_size_x = 8, local_size_y = 8) in;
+{$ include "lib/region_pass.glsl" $}
 
 #define PERIODS {{ periods }}
 #define SHIFTS {{ shifts }}
@@ -23,8 +23,6 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(r32f, binding = 0) uniform readonly image2DArray u_frames;
 layout(r32f, binding = 1) uniform writeonly image2DArray u_maps;
-uniform ivec2 u_origin;  // the region's first pixel: (column, row)
-uniform ivec2 u_size;  // the region's (columns, rows)
 uniform int u_first_layer[DIRECTIONS];  // each direction's first frame in the stack
 uniform float u_extent_mm[DIRECTIONS];  // the screen's extent along each direction
 uniform float u_periods_mm[PERIODS];
@@ -36,10 +34,9 @@ const float TWO_PI = 6.28318530717958648;
 
 void main()
 {
-    ivec2 local = ivec2(gl_GlobalInvocationID.xy);
-    if (any(greaterThanEqual(local, u_size)))
+    ivec2 local, pixel;
+    if (!region_pixel(local, pixel))
         return;
-    ivec2 pixel = u_origin + local;
     for (int d = 0; d < DIRECTIONS; ++d) {
         int out0 = d * LAYERS_PER_DIRECTION;
         float wrapped[PERIODS];

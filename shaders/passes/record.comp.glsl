@@ -3,13 +3,11 @@
 // each pixel of each frame from its own random stream (lib/philox.glsl: keyed by the
 // frame's key, counted by the pixel), so a pixel records the same whatever region the
 // pass covers. The sensor's GLSL (its slot's files) defines sensor_record.
-layout(local_size_x = 8, local_size_y = 8) in;
+{$ include "lib/region_pass.glsl" $}
 
 layout(r32f, binding = 0) uniform readonly image2DArray u_radiance;
 layout(r32f, binding = 1) uniform writeonly image2DArray u_recorded;
 layout(std430, binding = 0) readonly buffer FrameKeys { uvec2 u_frame_keys[]; };
-uniform ivec2 u_origin;  // the region's first pixel: (column, row)
-uniform ivec2 u_size;  // the region's (columns, rows)
 uniform int u_layers;
 
 {$ include "lib/philox.glsl" $}
@@ -22,10 +20,9 @@ uniform int u_layers;
 {$ endfor $}
 void main()
 {
-    ivec2 local = ivec2(gl_GlobalInvocationID.xy);
-    if (any(greaterThanEqual(local, u_size)))
+    ivec2 local, pixel;
+    if (!region_pixel(local, pixel))
         return;
-    ivec2 pixel = u_origin + local;
     for (int layer = 0; layer < u_layers; ++layer) {
         RandomStream stream = random_stream(u_frame_keys[layer], uvec2(pixel));
         float radiance = imageLoad(u_radiance, ivec3(pixel, layer)).x;

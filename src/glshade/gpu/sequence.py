@@ -45,7 +45,7 @@ if TYPE_CHECKING:
     from glshade.components.base import Component
 
 #: The compute passes' workgroup: 8 x 8 pixels.
-GROUP = 8
+GROUP = 8  # lib/region_pass.glsl's workgroup side
 #: GL 4.3 brought compute shaders; the decode pass needs float64 (GL 4.0).
 COMPUTE_GL = 430
 #: Image arrays kept per role (recorded frames, maps, copies), by size.

@@ -105,32 +105,37 @@ def shoot(
     area = region or Region(0, 0, height, width)
     if peak is None and (area.rows, area.cols) != (height, width):
         raise ValueError("shoot: a region needs the peak response of the whole image")
+    asked = _Asked(coding, settings, area, peak, recording, keep_frames)
     if gpu if gpu is not None else on_gpu(renderer, scene):
-        return _shoot_gpu(renderer, scene, coding, settings, area, peak, recording, keep_frames)
-    return _shoot_numpy(renderer, scene, coding, settings, area, peak, recording, keep_frames)
+        return _shoot_gpu(renderer, scene, asked)
+    return _shoot_numpy(renderer, scene, asked)
+
+
+@dataclass(frozen=True)
+class _Asked:
+    """What a shot is asked for (:func:`shoot`'s arguments, its region worked out)."""
+
+    coding: FringesTable
+    settings: PmdSettings
+    area: Region
+    peak: float | None
+    recording: int
+    keep_frames: bool
 
 
 # --------------------------------------------------------------------------- NumPy
-def _shoot_numpy(
-    renderer: Renderer,
-    scene: Scene,
-    coding: FringesTable,
-    settings: PmdSettings,
-    area: Region,
-    peak: float | None,
-    recording: int,
-    keep_frames: bool,
-) -> Shot:
+def _shoot_numpy(renderer: Renderer, scene: Scene, asked: _Asked) -> Shot:
     """The reference: the whole image rendered and read back, developed by the sensor's
     NumPy model, decoded by :func:`decode_sequence`, then cut to ``area``."""
+    coding, area, recording = asked.coding, asked.area, asked.recording
     shot = capture(renderer, scene)
     start = time.perf_counter()
-    peak = shot.peak_response if peak is None else peak
+    peak = shot.peak_response if asked.peak is None else asked.peak
     cut = area.slices
     recorded = shot.recorded(seed_offset=recording)[:, cut[0], cut[1]]
     uv = shot.uv[cut]
     seen = np.all(np.isfinite(uv), axis=-1)
-    decoding = decode_sequence(coding, recorded, peak, settings, seen)
+    decoding = decode_sequence(coding, recorded, peak, asked.settings, seen)
     share = modulation_share(coding, shot.radiance[:, cut[0], cut[1]], shot.white[cut], uv)
     white = shot.recorded_white(seed_offset=recording)[cut]
     return Shot(
@@ -144,27 +149,19 @@ def _shoot_numpy(
         share,
         recorded[0].copy(),
         white.copy(),
-        recorded if keep_frames else None,
+        recorded if asked.keep_frames else None,
         {"render": shot.seconds, "decode": time.perf_counter() - start},
     )
 
 
 # --------------------------------------------------------------------------- GPU
-def _shoot_gpu(
-    renderer: Renderer,
-    scene: Scene,
-    coding: FringesTable,
-    settings: PmdSettings,
-    area: Region,
-    peak: float | None,
-    recording: int,
-    keep_frames: bool,
-) -> Shot:
+def _shoot_gpu(renderer: Renderer, scene: Scene, asked: _Asked) -> Shot:
     """Traced over ``area``, recorded and decoded where it was traced; the maps, the
     first frame and the white come back (every frame where ``keep_frames``)."""
     from glshade.gpu.renderer import Renderer as GlRenderer
 
     assert isinstance(renderer, GlRenderer)
+    coding, area, keep_frames = asked.coding, asked.area, asked.keep_frames
     start = time.perf_counter()
     emitter = scene.active.emitter
     frames = (*emitter.sequence(scene), emitter.white(scene))
@@ -175,7 +172,7 @@ def _shoot_gpu(
     white = passes.read(stack, area, [len(frames) - 1])[0].copy()
     render_s = time.perf_counter() - start
     start = time.perf_counter()
-    peak = peak_of(white, gain, scene) if peak is None else peak
+    peak = peak_of(white, gain, scene) if asked.peak is None else asked.peak
     uv = traced.output("uv").astype(np.float64)
     seen = np.all(np.isfinite(uv), axis=-1)
     share = _share_gpu(passes, stack, coding, area, white, seen)
@@ -188,10 +185,10 @@ def _shoot_gpu(
             sensor,
             sensor.record_glsl(scene),
             sensor.record_uniforms(exposed, gain),
-            sensor.frame_keys(scene, frames, recording),
+            sensor.frame_keys(scene, frames, asked.recording),
             area,
         )
-    threshold = threshold_of(coding, peak, settings)
+    threshold = threshold_of(coding, peak, asked.settings)
     maps = passes.decode(recorded, plan_of(coding, threshold), area)
     decoding = finished(coding, maps, threshold, seen)
     wanted = list(range(len(frames))) if keep_frames else [0, len(frames) - 1]
