@@ -4,6 +4,7 @@ reconstructed from them, as an industrial PMD station does (docs/pmd.md)."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass
@@ -23,7 +24,7 @@ from glshade.instruments.base import (
     WorkerMemory,
 )
 from glshade.instruments.pmd.baseline import PmdBaseline, pmd_baseline
-from glshade.instruments.pmd.model import station_model
+from glshade.instruments.pmd.model import defect_free, station_model
 from glshade.instruments.pmd.settings import PMD_VERSION, PmdSettings, check_scene
 from glshade.instruments.pmd.station import PmdResult, measure_pmd_scene
 from glshade.instruments.pmd.status import pmd_concerns
@@ -93,6 +94,11 @@ class PhaseInstrument(Instrument):
 
     def check_case(self, scene: Scene, settings: Any) -> None:
         check_scene(scene)
+
+    def geometry_key(self, scene: Scene, settings: Any) -> str:
+        """Dents at one place share the defect-free analysis, whatever their depth and
+        width (:func:`~glshade.instruments.pmd.model.defect_free`)."""
+        return json.dumps(defect_free(scene).to_dict(), sort_keys=True, default=str)
 
     def measure(self, renderer: Renderer, scene: Scene, settings: Any) -> PmdResult:
         return measure_pmd_scene(renderer, scene, settings)

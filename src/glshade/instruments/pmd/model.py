@@ -20,7 +20,7 @@ screen's plane, sag and glass a decoded point is placed on (:func:`screen_points
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -100,11 +100,21 @@ def station_model(scene: Scene) -> StationModel:
     coding = fringes_of(scene)
     axes = tuple(DIRECTIONS.index(d) ^ 1 for d in coding.directions)
     sensor = scene.sensor if scene.active.records(scene) else None
-    part = believed.without_defect()
-    truth = part if believed is scene else scene.without_defect()
+    part = defect_free(believed)
+    truth = part if believed is scene else defect_free(scene)
     return StationModel(
         coding, axes, screen, camera, pose, sensor, part, believed.defect, window, truth
     )
+
+
+def defect_free(scene: Scene) -> Scene:
+    """``scene`` without its dent as every dent at one place shares it: ``dmax = 0`` and
+    the dent's shape at one fixed value (its centre kept: the renderer works in a frame
+    centred on it). The defect-free capture, its noise and its analysis are then one for
+    every dent's depth and width there (the trace without a dent does not depend on them;
+    the noise is keyed by the scene)."""
+    dent = replace(scene.defect, dmax=0.0, sigma_x2=1.0, sigma_z2=1.0, sigma_xz=0.0)
+    return replace(scene, defect=dent)
 
 
 def believed_uv(model: StationModel, uv: np.ndarray) -> np.ndarray:

@@ -20,7 +20,7 @@ from glshade.instruments.base import InstrumentView, InstrumentViews, ViewMap
 from glshade.instruments.pmd.baseline import PmdBaseline, pmd_baseline
 from glshade.instruments.pmd.capture import coded_axes
 from glshade.instruments.pmd.files import decoded_only
-from glshade.instruments.pmd.model import station_model
+from glshade.instruments.pmd.model import defect_free, station_model
 from glshade.instruments.pmd.settings import PmdSettings
 from glshade.instruments.pmd.station import PmdResult, measure_pmd_scene
 from glshade.instruments.pmd.status import pmd_concerns
@@ -119,7 +119,7 @@ class KeptBaseline:
         self._baseline: tuple[Scene, PmdBaseline] | None = None
 
     def __call__(self, renderer: Renderer, scene: Scene) -> PmdResult:
-        key = scene.without_defect()
+        key = defect_free(scene)
         if self._baseline is None or self._baseline[0] != key:
             self._baseline = (key, pmd_baseline(renderer, station_model(scene), self.settings))
         return measure_pmd_scene(renderer, scene, self.settings, self._baseline[1])
