@@ -237,3 +237,26 @@ def test_a_region_renders_as_the_whole_image_does(renderer):
     assert np.array_equal(
         part.output("frames"), whole.output("frames")[:, rows, cols], equal_nan=True
     )
+
+
+def test_a_long_or_summed_stack_is_sent_back_and_decodes_alike(renderer, gl_context):
+    """More frames than one draw shades (73), or a pixel's rays summed over several
+    draws (a small loop budget): the stack is read, summed and sent back to the GPU, and
+    decodes as NumPy decodes it."""
+    from glshade.gpu.renderer import MAX_FRAMES_PER_DRAW, Renderer
+
+    periods = list(np.geomspace(2.0, 1024.0, 9))
+    scene = station("flat", 48, periods=periods)
+    assert 2 * 9 * 4 + 1 > MAX_FRAMES_PER_DRAW
+    coding = station_model(scene).coding
+    long_ref = shoot(renderer, scene, coding, PmdSettings(), gpu=False).decoding
+    long_gpu = shoot(renderer, scene, coding, PmdSettings(), gpu=True).decoding
+    assert np.array_equal(long_ref.valid, long_gpu.valid) and long_ref.valid.any()
+    assert np.nanmax(np.abs(long_ref.uv - long_gpu.uv)) < 1e-6
+    summed = station("sphere", 48).updated(render={"supersample": 3})
+    coding = station_model(summed).coding
+    with Renderer(gl_context, loop_budget=200) as small:
+        ref = shoot(small, summed, coding, PmdSettings(), gpu=False).decoding
+        gpu = shoot(small, summed, coding, PmdSettings(), gpu=True).decoding
+    assert np.array_equal(ref.valid, gpu.valid) and ref.valid.any()
+    assert np.nanmax(np.abs(ref.uv - gpu.uv)) < 1e-6
