@@ -110,8 +110,8 @@ def test_the_record_pass_has_the_sensors_mean_and_variance(renderer, full_well, 
     variance = mean + read**2 + step**2 / 12.0
     assert e.mean() == pytest.approx(mean, abs=5.0 * math.sqrt(variance / e.size) + 1e-3)
     assert e.var() == pytest.approx(variance, rel=0.04)
-    developed = registry().active(scene).sensor.develop(
-        scene, np.full((SIDE, SIDE), level, np.float32)
+    developed = (
+        registry().active(scene).sensor.develop(scene, np.full((SIDE, SIDE), level, np.float32))
     )
     reference = electrons(scene, developed.astype(np.float64))
     assert e.var() == pytest.approx(reference.var(), rel=0.05)
