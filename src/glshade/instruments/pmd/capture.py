@@ -4,7 +4,6 @@ which pixels see the screen."""
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -88,14 +87,6 @@ class Capture:
         if not self.scene.active.records(self.scene):
             return peak
         return (1.0 - self.black_level) * min(peak, 1.0)
-
-
-def released(shot: Capture) -> Capture:
-    """``shot`` without its frames (an empty ``(0, H, W)`` stack): what a baseline keeps
-    once it has decoded them (its white frame, exact map and gain), so a dent measured
-    against it holds one sequence, its own, not two."""
-    # the white frame is a layer of the rendered stack: copied, it no longer holds the stack
-    return dataclasses.replace(shot, radiance=shot.radiance[:0].copy(), white=shot.white.copy())
 
 
 def capture(renderer: Renderer, scene: Scene) -> Capture:
