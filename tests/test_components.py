@@ -429,8 +429,8 @@ def test_sweeps_group_cases_by_program():
     geometry together (one defect-free analysis each) and the geometries of one program
     next to each other (the program compiled once), whatever the number of cases. The
     paper's metric shades from the map, which the absent dent's width does not reach:
-    every σ² shares one analysis; phase measuring's keeps σ² (its nominal geometry's grid
-    is cut around the dent)."""
+    every σ² shares one analysis; so does phase measuring's (its defect-free scene's dent
+    shape is fixed: :func:`glshade.instruments.pmd.model.defect_free`)."""
     from glshade.instruments.base import Case
     from glshade.instruments.pmd.settings import PmdSettings
     from glshade.measure.engine import geometry_key, grouped, program_key
@@ -447,7 +447,7 @@ def test_sweeps_group_cases_by_program():
     stripes = MetricSettings()
     groups = grouped(cases, stripes)
     assert len(groups) == 4  # (flat, sphere) x θ
-    assert len(grouped(cases, PmdSettings())) == 8  # (flat, sphere) x θ x σ²
+    assert len(grouped(cases, PmdSettings())) == 4  # (flat, sphere) x θ
     assert sorted(c.key for group in groups for c in group) == list(range(len(scenes)))
     for group in groups:
         assert len({geometry_key(c.scene, stripes) for c in group}) == 1

@@ -354,11 +354,12 @@ def test_the_pmd_estimate_grows_with_the_frames_as_the_peak_does(
     if not gpu:
         monkeypatch.setattr("glshade.instruments.pmd.shots.on_gpu", lambda *_: False)
     few, many = _coded(4, sensor), _coded(20, sensor)
-    _pmd_peak(renderer, few)  # the first run also traces what is made once
+    for scene in (few, many):  # the first runs also make what is made once (programs)
+        _pmd_peak(renderer, scene)
     peaks = [_pmd_peak(renderer, scene) for scene in (few, many)]
     estimates = [memory.pmd_estimate(scene).required_bytes for scene in (few, many)]
     grown, estimated = peaks[1] - peaks[0], estimates[1] - estimates[0]
-    assert grown > 16 * 32 * 32 * (90 if not gpu else 24)  # the frames or maps take memory
+    assert grown > 16 * 32 * 32 * (60 if not gpu else 24)  # the frames or maps take memory
     assert grown <= estimated, (peaks, estimates)
     assert peaks[1] <= estimates[1]
 

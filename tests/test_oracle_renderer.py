@@ -206,7 +206,11 @@ def test_a_sensor_records_the_oracles_radiance(renderer, oracle):
 
 
 @pytest.mark.parametrize("tables", [{}, {"sensor": SENSOR}], ids=["noiseless", "sensor"])
-def test_the_pmd_numbers_are_the_gl_renderers(renderer, oracle, tables):
+def test_the_pmd_numbers_are_the_gl_renderers(renderer, oracle, tables, monkeypatch):
+    """The oracle's frames measure as the GL renderer's; both recorded by the NumPy
+    sensor, so the noise is the same draw (the GPU's record pass draws its own:
+    tests/test_gpu_sequence.py)."""
+    monkeypatch.setattr("glshade.instruments.pmd.shots.on_gpu", lambda *_: False)
     scene = station(48, **tables)
     gl = PmdMeasurement.of(scene, glshade.measure(scene, renderer=renderer))
     ours = PmdMeasurement.of(scene, glshade.measure(scene, renderer=oracle))

@@ -63,3 +63,21 @@ def test_the_region_gives_the_whole_frames_numbers_on_every_study_case(renderer,
             assert not moved.size or moved.max() <= limit, (case, moved.max())
             traced += box.rows * box.cols < SIZE * SIZE
     assert traced  # some regions are smaller than the image
+
+
+def test_a_dent_reads_the_same_from_any_dents_defect_free_analysis(renderer):
+    """Dents at one place share the defect-free analysis (the engine groups them): a
+    case's numbers are the same from its own analysis as from another dent's there."""
+
+    def scene(sigma2, dmax):
+        return PLAN.scene("sphere", 35.0, sigma2, dmax)
+
+    case, other = scene(4.0, 0.005), scene(1.0, 0.003)
+    own = measure_pmd_scene(
+        renderer, case, PLAN.settings, pmd_baseline(renderer, station_model(case), PLAN.settings)
+    )
+    shared = measure_pmd_scene(
+        renderer, case, PLAN.settings, pmd_baseline(renderer, station_model(other), PLAN.settings)
+    )
+    mine, theirs = summary(own), summary(shared)
+    assert all(same(mine[k], theirs[k]) for k in mine)
