@@ -179,11 +179,6 @@ def decode_sequence(
     return Decoding(uv, valid, modulation, offset, wrapped, threshold)
 
 
-def seen_pixels(exact_uv: np.ndarray) -> np.ndarray:
-    """The pixels whose rays reach the screen (a finite exact screen point)."""
-    return np.all(np.isfinite(exact_uv), axis=-1)
-
-
 def coded_axes(coding: FringesTable) -> list[int]:
     """The screen coordinates the sequence codes (0: u, 1: v)."""
     return [DIRECTIONS.index(d) ^ 1 for d in coding.directions]

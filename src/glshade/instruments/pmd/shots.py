@@ -32,7 +32,7 @@ from glshade.metrics.coding_laws import white_fundamental
 from glshade.scene import Scene
 
 if TYPE_CHECKING:
-    from glshade.gpu.sequence import DecodePlan, DirectionMaps, GpuStack, SequencePasses
+    from glshade.gpu.sequence import DecodePlan, DirectionMaps
     from glshade.rendering import Renderer
 
 
@@ -175,7 +175,6 @@ def _shoot_gpu(renderer: Renderer, scene: Scene, asked: _Asked) -> Shot:
     peak = peak_of(white, gain, scene) if asked.peak is None else asked.peak
     uv = traced.output("uv").astype(np.float64)
     seen = np.all(np.isfinite(uv), axis=-1)
-    share = _share_gpu(passes, stack, coding, area, white, seen)
     recorded = stack
     if records:
         sensor = scene.active.sensor
@@ -191,6 +190,9 @@ def _shoot_gpu(renderer: Renderer, scene: Scene, asked: _Asked) -> Shot:
     threshold = threshold_of(coding, peak, asked.settings)
     maps = passes.decode(recorded, plan_of(coding, threshold), area)
     decoding = finished(coding, maps, threshold, seen)
+    if records:  # the noise-free radiance's own finest modulation: one more pass
+        maps = passes.decode(stack, plan_of(coding, 0.0, finest_only=True), area)
+    share = _share_of(coding, _finest_modulation(coding, maps, white.shape), white, seen)
     wanted = list(range(len(frames))) if keep_frames else [0, len(frames) - 1]
     layers = passes.read(recorded, area, wanted)
     return Shot(
@@ -263,21 +265,15 @@ def finished(
     return Decoding(uv, valid, modulation, offset, wrapped, threshold)
 
 
-def _share_gpu(
-    passes: SequencePasses,
-    stack: GpuStack,
-    coding: FringesTable,
-    area: Region,
-    white: np.ndarray,
-    seen: np.ndarray,
+def _finest_modulation(
+    coding: FringesTable, maps: list[DirectionMaps], shape: tuple[int, ...]
 ) -> np.ndarray:
-    """:func:`modulation_share` from the radiance stack on the GPU: its finest period's
-    modulation from the decode pass."""
-    maps = passes.decode(stack, plan_of(coding, 0.0, finest_only=True), area)
-    finest = np.full((2, *white.shape), np.nan)
+    """The decode pass's finest modulation per screen coordinate (2, rows, cols; NaN for
+    one not coded)."""
+    finest = np.full((2, *shape), np.nan)
     for direction, found in zip(coding.directions, maps, strict=True):
         finest[DIRECTIONS.index(direction) ^ 1] = found.modulation[0]
-    return _share_of(coding, finest, white, seen)
+    return finest
 
 
 # --------------------------------------------------------------------------- modulation
