@@ -10,7 +10,7 @@
 
 Median of ``--repeats`` after a warm-up, fp32.
 
-    python benchmarks/pmd_case.py [--size N] [--repeats K] [--stages]
+    python benchmarks/pmd_case.py [--size N] [--repeats K] [--stages | --agreement]
 """
 
 from __future__ import annotations
@@ -94,14 +94,39 @@ def case_stages(renderer: Renderer, scene: Scene) -> dict[str, float]:
     }
 
 
+def decode_agreement(renderer: Renderer, size: int) -> None:
+    """The GPU's decoded screen points against the NumPy decoder's on the same noiseless
+    sequence: the largest difference (mm) and whether the same pixels are valid."""
+    import numpy as np
+
+    from glshade.instruments.pmd.shots import shoot
+
+    for surface in ("flat", "sphere"):
+        scene = station(surface, size)
+        coding = station_model(scene).coding
+        ref = shoot(renderer, scene, coding, PmdSettings(), gpu=False).decoding
+        gpu = shoot(renderer, scene, coding, PmdSettings(), gpu=True).decoding
+        worst = float(np.nanmax(np.abs(ref.uv - gpu.uv)))
+        same = bool(np.array_equal(ref.valid, gpu.valid))
+        print(f"| {surface}, {size}² | {worst:.2e} mm | {same} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, default=1024)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--stages", action="store_true", help="the case's stages alone")
+    parser.add_argument(
+        "--agreement", action="store_true", help="the GPU decode against NumPy's alone"
+    )
     args = parser.parse_args()
     with Renderer() as renderer:
         print(f"{renderer.context.info().renderer}, {args.size}²")
+        if args.agreement:
+            print("| scene | largest decoded difference | same valid pixels |")
+            print("|---|---|---|")
+            decode_agreement(renderer, args.size)
+            return
         if args.stages:
             for surface in ("flat", "sphere"):
                 print(f"| stage ({surface}, 10 000 e- sensor) | s |")
